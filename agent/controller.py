@@ -1,0 +1,89 @@
+"""The one small interface every flight-software controller implements.
+
+A controller is a pure object over numpy arrays: it is given what the agent knows at a step
+(`Observation`) and returns the acceleration it commands (`Command`). It never sees truth it
+could not have measured, and never touches the bus: the agent process loop does the I/O.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class OrbitInfo:
+    """What the flight software knows of the reference orbit (from the scenario / ground)."""
+
+    semi_major_axis_m: float
+    mean_motion_radps: float
+
+
+@dataclass
+class Observation:
+    """What an agent knows at step k.
+
+    `rel_position_m` / `rel_velocity_mps` are (N, 3) LVLH states of neighbour k relative to this
+    spacecraft j (r_k - r_j), one row per entry of `neighbour_ids`.
+    """
+
+    step: int
+    t_s: float
+    u_rad: float
+    neighbour_ids: list[str]
+    rel_position_m: np.ndarray
+    rel_velocity_mps: np.ndarray
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Decision:
+    """One neighbour's behaviour decision, for telemetry."""
+
+    neighbour: str
+    behaviour: str
+    d_min_m: float
+    roe_rel_m: np.ndarray
+    accel_mps2: np.ndarray
+
+
+@dataclass
+class Command:
+    accel_mps2: np.ndarray
+    mode: str = "idle"
+    decisions: list[Decision] = field(default_factory=list)
+
+
+class Controller(Protocol):
+    name: str
+
+    def step(self, obs: Observation) -> Command: ...
+
+
+ControllerFactory = Callable[[str, OrbitInfo, dict[str, Any]], Controller]
+"""(spacecraft id, orbit, scenario `controller` params) -> controller."""
+
+_REGISTRY: dict[str, ControllerFactory] = {}
+
+
+def register(name: str) -> Callable[[ControllerFactory], ControllerFactory]:
+    def deco(factory: ControllerFactory) -> ControllerFactory:
+        _REGISTRY[name] = factory
+        return factory
+
+    return deco
+
+
+def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:
+    from agent import controllers  # noqa: F401  (registers the built-in controllers)
+
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")
+    return _REGISTRY[name](sc_id, orbit, params)
+
+
+def known_controllers() -> list[str]:
+    from agent import controllers  # noqa: F401
+
+    return sorted(_REGISTRY)

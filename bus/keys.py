@@ -1,0 +1,127 @@
+"""Key expressions of a run: the one place they are spelled (DESIGN.md "Key expressions (contract)").
+
+    swarm/<run>/clock                 plant -> all        Tick
+    swarm/<run>/truth                 plant -> recorder   Truth
+    swarm/<run>/sc/<id>/sense/<kind>  plant -> agent id   RelStimulus | SceneStimulus
+    swarm/<run>/sc/<id>/act           agent id -> plant   ActuatorCommand
+    swarm/<run>/sc/<id>/tm            agent id -> all     Telemetry
+    swarm/<run>/isl/tx/<id>           agent id -> channel IslPacket
+    swarm/<run>/isl/rx/<id>           channel -> agent id IslPacket
+    swarm/<run>/link/stats            channel -> all      LinkStats
+    swarm/<run>/alive/<process>       liveliness tokens
+    swarm/<run>/event                 any -> all          Event (project addition, not in the contract list)
+"""
+from __future__ import annotations
+
+import re
+
+ROOT = "swarm"
+_TOKEN = re.compile(r"^[A-Za-z0-9_.\-]+$")
+
+
+def check_token(value: str, what: str = "id") -> str:
+    """Reject ids that would break a key expression (`/`, `*`, `$`, `#`, `?`, empty)."""
+    if not isinstance(value, str) or not _TOKEN.match(value):
+        raise ValueError(f"invalid {what} {value!r}: use letters, digits, '_', '-', '.'")
+    return value
+
+
+class Keys:
+    """Key-expression builder for one run."""
+
+    def __init__(self, run: str) -> None:
+        self.run = check_token(run, "run id")
+        self.base = f"{ROOT}/{self.run}"
+
+    @property
+    def all(self) -> str:
+        return f"{self.base}/**"
+
+    @property
+    def clock(self) -> str:
+        return f"{self.base}/clock"
+
+    @property
+    def truth(self) -> str:
+        return f"{self.base}/truth"
+
+    @property
+    def event(self) -> str:
+        return f"{self.base}/event"
+
+    @property
+    def link_stats(self) -> str:
+        return f"{self.base}/link/stats"
+
+    def sense(self, sc: str, kind: str) -> str:
+        return f"{self.base}/sc/{check_token(sc)}/sense/{check_token(kind, 'sensor kind')}"
+
+    def act(self, sc: str) -> str:
+        return f"{self.base}/sc/{check_token(sc)}/act"
+
+    @property
+    def act_all(self) -> str:
+        return f"{self.base}/sc/*/act"
+
+    def tm(self, sc: str) -> str:
+        return f"{self.base}/sc/{check_token(sc)}/tm"
+
+    @property
+    def tm_all(self) -> str:
+        return f"{self.base}/sc/*/tm"
+
+    def isl_tx(self, sc: str) -> str:
+        return f"{self.base}/isl/tx/{check_token(sc)}"
+
+    @property
+    def isl_tx_all(self) -> str:
+        return f"{self.base}/isl/tx/*"
+
+    def isl_rx(self, sc: str) -> str:
+        return f"{self.base}/isl/rx/{check_token(sc)}"
+
+    def alive(self, process: str) -> str:
+        return f"{self.base}/alive/{check_token(process, 'process name')}"
+
+    @property
+    def alive_all(self) -> str:
+        return f"{self.base}/alive/*"
+
+    def parse(self, key: str) -> tuple[str, str | None, str | None]:
+        """Split a key of this run into (topic kind, spacecraft/process id, sensor kind).
+
+        Kinds: clock, truth, event, link_stats, sense, act, tm, isl_tx, isl_rx, alive.
+        Raises ValueError for a key outside the contract.
+        """
+        prefix = self.base + "/"
+        if not key.startswith(prefix):
+            raise ValueError(f"key {key!r} is not under {self.base}/")
+        parts = key[len(prefix):].split("/")
+        match parts:
+            case ["clock"] | ["truth"] | ["event"]:
+                return parts[0], None, None
+            case ["link", "stats"]:
+                return "link_stats", None, None
+            case ["sc", sc, "sense", kind]:
+                return "sense", sc, kind
+            case ["sc", sc, "act"]:
+                return "act", sc, None
+            case ["sc", sc, "tm"]:
+                return "tm", sc, None
+            case ["sc", sc, "tm", "image"]:
+                return "tm_image", sc, None
+            case ["isl", "tx", sc]:
+                return "isl_tx", sc, None
+            case ["isl", "rx", sc]:
+                return "isl_rx", sc, None
+            case ["alive", proc]:
+                return "alive", proc, None
+        raise ValueError(f"key {key!r} is not a key of the swarmhil contract")
+
+
+def run_of(key: str) -> str:
+    """The <run> part of a swarm/<run>/... key."""
+    parts = key.split("/")
+    if len(parts) < 3 or parts[0] != ROOT:
+        raise ValueError(f"key {key!r} is not a swarm/<run>/... key")
+    return parts[1]
