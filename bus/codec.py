@@ -1,0 +1,103 @@
+"""Encoding, decoding and validation of swarmhil.v1 messages.
+
+A payload that does not decode, carries a non-finite number, or names an id the receiver does
+not know is rejected with `RejectedPacket` (a precise reason); receivers count rejections in a
+`Rejections` and carry on.
+"""
+from __future__ import annotations
+
+import logging
+import math
+from collections import Counter
+from typing import Iterable, Sequence, TypeVar
+
+import numpy as np
+from google.protobuf.message import DecodeError, Message
+
+from bus import swarmhil_pb2 as pb
+
+M = TypeVar("M", bound=Message)
+log = logging.getLogger("swarmhil.codec")
+
+# Message type of each key kind (see bus/keys.py Keys.parse).
+TYPE_OF_KIND: dict[str, type[Message]] = {
+    "clock": pb.Tick,
+    "truth": pb.Truth,
+    "event": pb.Event,
+    "link_stats": pb.LinkStats,
+    "act": pb.ActuatorCommand,
+    "tm": pb.Telemetry,
+    "isl_tx": pb.IslPacket,
+    "isl_rx": pb.IslPacket,
+}
+TYPE_OF_SENSE: dict[str, type[Message]] = {"rel": pb.RelStimulus, "scene": pb.SceneStimulus}
+
+
+class RejectedPacket(ValueError):
+    """A received payload that must not be acted on."""
+
+
+def vec(v: Sequence[float] | np.ndarray) -> pb.Vector3:
+    return pb.Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def arr(v: pb.Vector3) -> np.ndarray:
+    return np.array([v.x, v.y, v.z])
+
+
+def header(run: str, source: str, step: int, t: float, seq: int) -> pb.Header:
+    return pb.Header(run=run, source=source, step=step, t=t, seq=seq)
+
+
+def _non_finite_field(msg: Message, path: str = "") -> str | None:
+    """Name of the first float/double field that holds NaN or inf, or None."""
+    for fd, value in msg.ListFields():
+        name = f"{path}{fd.name}"
+        if fd.type == fd.TYPE_MESSAGE:
+            items = value if fd.is_repeated else [value]
+            for i, item in enumerate(items):
+                bad = _non_finite_field(item, f"{name}[{i}]." if fd.is_repeated else f"{name}.")
+                if bad:
+                    return bad
+        elif fd.type in (fd.TYPE_DOUBLE, fd.TYPE_FLOAT):
+            items = value if fd.is_repeated else [value]
+            for x in items:
+                if not math.isfinite(x):
+                    return f"{name}={x}"
+    return None
+
+
+def decode(cls: type[M], payload: bytes, *, run: str | None = None) -> M:
+    """Parse and validate one message; raise RejectedPacket with the reason."""
+    msg = cls()
+    try:
+        msg.ParseFromString(payload)
+    except (DecodeError, RuntimeWarning, ValueError) as exc:
+        raise RejectedPacket(f"{cls.DESCRIPTOR.name}: payload of {len(payload)} B does not decode ({exc})") from None
+    bad = _non_finite_field(msg)
+    if bad:
+        raise RejectedPacket(f"{cls.DESCRIPTOR.name}: non-finite value {bad}")
+    if run is not None and msg.HasField("header") and msg.header.run != run:  # type: ignore[attr-defined]
+        raise RejectedPacket(f"{cls.DESCRIPTOR.name}: header.run {msg.header.run!r} is not {run!r}")  # type: ignore[attr-defined]
+    return msg
+
+
+def check_known(value: str, known: Iterable[str], what: str) -> None:
+    if value not in known:
+        raise RejectedPacket(f"unknown {what} {value!r}")
+
+
+class Rejections:
+    """Counts rejected packets by reason class and logs the first few of each in full."""
+
+    def __init__(self, owner: str, log_first: int = 5) -> None:
+        self.owner = owner
+        self.total = 0
+        self.by_key: Counter[str] = Counter()
+        self.log_first = log_first
+
+    def add(self, key: str, reason: str) -> None:
+        self.total += 1
+        self.by_key[key] += 1
+        if self.by_key[key] <= self.log_first:
+            log.warning("%s rejected packet on %s: %s", self.owner, key, reason)
