@@ -277,3 +277,15 @@ class Event(_message.Message):
     subject: str
     detail: str
     def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., kind: _Optional[str] = ..., subject: _Optional[str] = ..., detail: _Optional[str] = ...) -> None: ...
+
+class UndecodableSample(_message.Message):
+    __slots__ = ("header", "key", "payload", "reason")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    KEY_FIELD_NUMBER: _ClassVar[int]
+    PAYLOAD_FIELD_NUMBER: _ClassVar[int]
+    REASON_FIELD_NUMBER: _ClassVar[int]
+    header: Header
+    key: str
+    payload: bytes
+    reason: str
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., key: _Optional[str] = ..., payload: _Optional[bytes] = ..., reason: _Optional[str] = ...) -> None: ...

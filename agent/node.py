@@ -1,0 +1,89 @@
+"""The flight-software process logic of one spacecraft: stimulus in, command and telemetry out.
+
+Thin: everything it knows arrives as messages (it never imports plant); the decision is the
+controller's (agent/controller.py). Bad input (undecodable, non-finite, foreign run, another
+spacecraft's stimulus) is rejected and counted; the previous command stays in force.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+import numpy as np
+
+from agent.controller import Command, Observation, OrbitInfo, make_controller
+from bus import swarmhil_pb2 as pb
+from bus.base import Bus
+from bus.codec import RejectedPacket, Rejections, arr, decode, header, vec
+from bus.keys import Keys
+
+log = logging.getLogger("swarmhil.agent")
+
+
+def observation_from_rel(stim: pb.RelStimulus) -> Observation:
+    ids = [nb.id for nb in stim.neighbours]
+    pos = np.array([arr(nb.position_m) for nb in stim.neighbours]).reshape(-1, 3)
+    vel = np.array([arr(nb.velocity_mps) for nb in stim.neighbours]).reshape(-1, 3)
+    return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad,
+                       neighbour_ids=ids, rel_position_m=pos, rel_velocity_mps=vel)
+
+
+class AgentNode:
+    def __init__(self, bus: Bus, run: str, sc_id: str, *, controller: str, orbit: OrbitInfo,
+                 params: dict[str, Any], sense_kind: str = "rel", decision_period_steps: int = 1) -> None:
+        self.bus = bus
+        self.run = run
+        self.id = sc_id
+        self.keys = Keys(run)
+        self.controller = make_controller(controller, sc_id, orbit, params)
+        self.sense_kind = sense_kind
+        self.decision_period_steps = max(1, decision_period_steps)
+        self.rejections = Rejections(f"agent {sc_id}")
+        self.command = Command(accel_mps2=np.zeros(3))
+        self.steps = 0
+        self._seq: dict[str, int] = {}
+        self._act_key = self.keys.act(sc_id)
+        self._tm_key = self.keys.tm(sc_id)
+        self._sense_key = self.keys.sense(sc_id, sense_kind)
+        bus.subscribe(self._sense_key, self._on_stimulus)
+        self._token = bus.declare_liveliness(self.keys.alive(f"agent-{sc_id}"))
+
+    def _hdr(self, key: str, step: int, t: float) -> pb.Header:
+        seq = self._seq.get(key, 0)
+        self._seq[key] = seq + 1
+        return header(self.run, self.id, step, t, seq)
+
+    def _on_stimulus(self, key: str, payload: bytes) -> None:
+        try:
+            if key != self._sense_key:
+                raise RejectedPacket(f"stimulus on {key!r} is not for {self.id}")
+            stim = decode(pb.RelStimulus if self.sense_kind == "rel" else pb.SceneStimulus, payload, run=self.run)
+        except RejectedPacket as exc:
+            self.rejections.add(key, str(exc))
+            return
+        self.handle(stim)
+
+    def handle(self, stim: Any) -> None:
+        t0 = time.perf_counter()
+        step, t = int(stim.header.step), stim.header.t
+        if step % self.decision_period_steps == 0:
+            obs = observation_from_rel(stim)
+            cmd = self.controller.step(obs)
+            a = np.asarray(cmd.accel_mps2, dtype=float)
+            if a.shape != (3,) or not np.all(np.isfinite(a)):
+                log.error("%s: controller %s returned %r; commanding zero", self.id, self.controller.name, a)
+                cmd = Command(accel_mps2=np.zeros(3), mode="fault")
+            self.command = cmd
+        compute_s = time.perf_counter() - t0
+        act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=vec(self.command.accel_mps2),
+                                 controller=self.controller.name)
+        self.bus.publish(self._act_key, act.SerializeToString())
+        tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
+                          controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),
+                          compute_s=compute_s, rejected_packets=self.rejections.total)
+        for d in self.command.decisions:
+            tm.decisions.append(pb.NeighbourDecision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
+                                                     roe_rel_m=[float(x) for x in d.roe_rel_m], accel_mps2=vec(d.accel_mps2)))
+        self.bus.publish(self._tm_key, tm.SerializeToString())
+        self.steps += 1

@@ -1,0 +1,137 @@
+"""The recorder: every sample on swarm/<run>/** into one MCAP file (DESIGN.md "MCAP (contract)").
+
+topic = key expression, log_time = reception time, publish_time = header.t in ns, schema = the
+protobuf FileDescriptorSet of the key's message type (registered once per type), message
+encoding `protobuf`, zstd chunks. A payload that does not parse as its key's type is kept too,
+wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
+A killed recorder loses at most its open chunk (`chunk_size`); `swarmhil mcap repair` salvages it.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+from typing import BinaryIO
+
+from google.protobuf.message import DecodeError, Message
+from mcap.writer import CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+
+from bus import swarmhil_pb2 as pb
+from bus.base import Bus
+from bus.codec import TYPE_OF_KIND, TYPE_OF_SENSE
+from bus.keys import Keys
+
+log = logging.getLogger("swarmhil.recorder")
+
+CHUNK_SIZE = 256 * 1024
+
+
+def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
+    try:
+        kind, _id, sense = keys.parse(key)
+    except ValueError:
+        return None
+    if kind == "sense":
+        return TYPE_OF_SENSE.get(sense or "")
+    if kind == "tm_image":
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+
+        return CompressedImage
+    return TYPE_OF_KIND.get(kind)
+
+
+class McapRecorder:
+    """Writes raw, already-serialised samples; safe to call from one thread (the bus dispatcher)."""
+
+    def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE) -> None:
+        self.path = Path(path)
+        self.keys = Keys(run)
+        self.run = run
+        self._f: BinaryIO = open(self.path, "wb")
+        self._w = Writer(self._f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._w.start(profile="", library="swarmhil")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}
+        self.count = 0
+        self.undecodable = 0
+        self.by_topic: dict[str, int] = {}
+        self.bytes_by_topic: dict[str, int] = {}
+        self._last_t_ns = 0
+        self._closed = False
+
+    def _schema_id(self, cls: type[Message]) -> int:
+        name = cls.DESCRIPTOR.full_name
+        sid = self._schemas.get(name)
+        if sid is None:
+            sid = self._w.register_schema(name=name, encoding="protobuf",
+                                          data=build_file_descriptor_set(cls).SerializeToString())
+            self._schemas[name] = sid
+        return sid
+
+    def _channel_id(self, topic: str, cls: type[Message]) -> int:
+        ck = (topic, cls.DESCRIPTOR.full_name)
+        cid = self._channels.get(ck)
+        if cid is None:
+            cid = self._w.register_channel(topic=topic, message_encoding="protobuf", schema_id=self._schema_id(cls))
+            self._channels[ck] = cid
+        return cid
+
+    def write(self, key: str, payload: bytes, log_time_ns: int | None = None) -> None:
+        if self._closed:
+            return
+        log_time_ns = time.time_ns() if log_time_ns is None else log_time_ns
+        cls = message_type_for_key(self.keys, key)
+        reason = "" if cls is not None else "key outside the swarmhil contract"
+        t_ns = self._last_t_ns
+        if cls is not None:
+            try:
+                msg = cls.FromString(payload)
+                hdr = getattr(msg, "header", None)
+                if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
+                    t = hdr.t
+                    if t == t and abs(t) < 1e12:  # finite and sane; NaN/inf packets keep the last time
+                        t_ns = int(round(t * 1e9))
+            except (DecodeError, RuntimeWarning, ValueError) as exc:
+                reason = f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
+        if reason:
+            self.undecodable += 1
+            wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
+                                           header=pb.Header(run=self.run, source="recorder", t=self._last_t_ns / 1e9))
+            cls, payload = pb.UndecodableSample, wrapped.SerializeToString()
+        else:
+            self._last_t_ns = max(self._last_t_ns, t_ns)
+        self._w.add_message(channel_id=self._channel_id(key, cls), log_time=log_time_ns, data=payload,
+                            publish_time=max(t_ns, 0), sequence=self.count)
+        self.count += 1
+        self.by_topic[key] = self.by_topic.get(key, 0) + 1
+        self.bytes_by_topic[key] = self.bytes_by_topic.get(key, 0) + len(payload)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._w.finish()
+        self._f.close()
+
+
+class RecorderNode:
+    """Subscribes to everything of the run and hands each sample to the MCAP writer."""
+
+    def __init__(self, bus: Bus, run: str, path: str | Path) -> None:
+        self.bus = bus
+        self.keys = Keys(run)
+        self.rec = McapRecorder(path, run)
+        self._sub = bus.subscribe(self.keys.all, self.rec.write)
+        self._token = bus.declare_liveliness(self.keys.alive("recorder"))
+
+    def close(self) -> dict[str, int]:
+        try:
+            self._sub.undeclare()
+        except Exception:
+            pass
+        flush = getattr(self.bus, "flush", None)
+        if flush:
+            flush()
+        self.rec.close()
+        return {"messages": self.rec.count, "undecodable": self.rec.undecodable}

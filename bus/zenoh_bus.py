@@ -1,0 +1,151 @@
+"""Zenoh sessions and the Zenoh implementation of the bus interface (bus/base.py).
+
+Network rule: every session listens and connects only on the explicit endpoints it is given
+(loopback by default), with multicast and gossip scouting off. This module is the one place a
+Zenoh config is built.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import queue
+import socket
+import threading
+from typing import Any
+
+import zenoh
+
+from bus.base import LivelinessCallback, SampleCallback
+
+log = logging.getLogger("swarmhil.zenoh")
+
+LOOPBACK = "127.0.0.1"
+
+
+def free_loopback_port() -> int:
+    """A TCP port free on 127.0.0.1 now (the OS picks it, so two runs can coexist)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((LOOPBACK, 0))
+        return int(s.getsockname()[1])
+
+
+def endpoint(port: int, host: str = LOOPBACK) -> str:
+    return f"tcp/{host}:{port}"
+
+
+def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: dict[str, Any] | None = None) -> zenoh.Config:
+    """Config with explicit endpoints and no scouting (STACK-NOTES: defaults listen on every interface)."""
+    for ep in listen + connect:
+        if "0.0.0.0" in ep or "[::]" in ep:
+            raise ValueError(f"endpoint {ep!r} is a wildcard address; give an explicit one")
+    cfg = zenoh.Config()
+    cfg.insert_json5("mode", json.dumps(mode))
+    cfg.insert_json5("listen/endpoints", json.dumps(listen))
+    cfg.insert_json5("connect/endpoints", json.dumps(connect))
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+    cfg.insert_json5("scouting/gossip/enabled", "false")
+    for key, value in (overrides or {}).items():
+        cfg.insert_json5(key, json.dumps(value))
+    return cfg
+
+
+def open_router(listen: str) -> zenoh.Session:
+    """A Python session in router mode: the run's router (no zenohd binary needed)."""
+    return zenoh.open(zenoh_config("router", [listen], []))
+
+
+def open_client(connect: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
+    return zenoh.open(zenoh_config("client", [], [connect], overrides))
+
+
+class ZenohBus:
+    """Bus over a Zenoh client session.
+
+    Zenoh delivers samples on its own threads; the callbacks here only enqueue, and one
+    dispatcher thread runs the node callbacks in arrival order (STACK-NOTES: a slow callback
+    delays every other subscriber of the session).
+    """
+
+    def __init__(self, connect: str, *, lease_ms: int | None = None) -> None:
+        overrides = {"transport/link/tx/lease": lease_ms} if lease_ms else None
+        self.session = open_client(connect, overrides)
+        self._queue: queue.SimpleQueue[tuple[Any, ...] | None] = queue.SimpleQueue()
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._handles: list[Any] = []
+        self._closed = False
+        self._thread = threading.Thread(target=self._dispatch, name="bus-dispatch", daemon=True)
+        self._thread.start()
+
+    def _dispatch(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            fn, *args = item
+            try:
+                fn(*args)
+            except Exception:  # a node bug must not kill the dispatcher silently
+                log.exception("callback %r failed", fn)
+
+    def publish(self, key: str, payload: bytes) -> None:
+        pub = self._publishers.get(key)
+        if pub is None:
+            pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+            self._publishers[key] = pub
+        pub.put(payload)
+
+    def subscribe(self, key_expr: str, callback: SampleCallback) -> Any:
+        q = self._queue
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            q.put((callback, str(sample.key_expr), sample.payload.to_bytes()))
+
+        sub = self.session.declare_subscriber(key_expr, on_sample)
+        self._handles.append(sub)
+        return sub
+
+    def declare_liveliness(self, key: str) -> Any:
+        tok = self.session.liveliness().declare_token(key)
+        self._handles.append(tok)
+        return tok
+
+    def watch_liveliness(self, key_expr: str, callback: LivelinessCallback) -> Any:
+        q = self._queue
+
+        def on_change(sample: zenoh.Sample) -> None:
+            q.put((callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+        sub = self.session.liveliness().declare_subscriber(key_expr, on_change, history=True)
+        self._handles.append(sub)
+        return sub
+
+    def call_soon(self, fn: Any, *args: Any) -> None:
+        """Run fn(*args) on the dispatcher thread, after what is already queued."""
+        self._queue.put((fn, *args))
+
+    def flush(self, timeout_s: float = 5.0) -> bool:
+        """Wait until every callback queued so far has run."""
+        done = threading.Event()
+        self._queue.put((done.set,))
+        return done.wait(timeout_s)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        for h in self._handles:
+            try:
+                h.undeclare()
+            except Exception:
+                pass
+        for p in self._publishers.values():
+            try:
+                p.undeclare()
+            except Exception:
+                pass
+        self._queue.put(None)
+        self._thread.join(timeout=5)
+        try:
+            self.session.close()
+        except Exception as exc:  # STACK-NOTES: close can time out when a peer is frozen
+            log.warning("zenoh session close: %s", exc)

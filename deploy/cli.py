@@ -1,0 +1,85 @@
+"""The `swarmhil` command line."""
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import click
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
+def main(verbose: int) -> None:
+    """swarmhil: spacecraft-swarm flight software as processes over Eclipse Zenoh."""
+    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+
+
+@main.command()
+@click.argument("scenario", type=click.Path(dir_okay=False))
+@click.option("--out", "out", type=click.Path(file_okay=False), help="Output directory (default runs/<run id>).")
+@click.option("--duration", type=float, help="Simulated seconds (overrides [run].duration_s).")
+@click.option("--seed", type=int, help="Seed of the dispersion and noise generators.")
+@click.option("--mode", type=click.Choice(["lockstep", "realtime"]), help="Time mode (default: the scenario's).")
+@click.option("--speed", type=float, help="Real-time factor in realtime mode.")
+@click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
+@click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
+@click.option("--no-progress", is_flag=True, help="No progress bar.")
+def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool) -> None:
+    """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
+    from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
+    from deploy.scenario import ScenarioError, load_scenario
+
+    try:
+        sc = load_scenario(scenario).with_overrides(duration_s=duration, seed=seed, mode=mode, speed=speed)
+    except ScenarioError as exc:
+        raise click.ClickException(str(exc)) from None
+    rid = run_id or new_run_id(sc.name)
+    out_dir = Path(out) if out else Path("runs") / rid
+    progress = not no_progress and sys.stderr.isatty()
+    if in_process:
+        res = run_in_process(sc, out_dir, rid, progress=progress)
+    else:
+        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress,
+                              overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+    s = res.summary
+    click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
+               f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
+               f"dead {sorted(s['dead_agents'])}, rejected packets {s['rejected_packets']}")
+    click.echo(f"wrote {out_dir / 'run.mcap'} and {out_dir / 'summary.json'}")
+    if res.exit_code:
+        click.echo(f"run failed: {res.reason}", err=True)
+        sys.exit(res.exit_code)
+
+
+@main.group()
+def mcap() -> None:
+    """MCAP recording tools."""
+
+
+@mcap.command("repair")
+@click.argument("src", type=click.Path(exists=True, dir_okay=False))
+@click.argument("dst", type=click.Path(dir_okay=False))
+def mcap_repair(src: str, dst: str) -> None:
+    """Salvage every complete chunk of a recording whose writer was killed into DST."""
+    from bus.mcap_tools import repair
+
+    stats = repair(src, dst)
+    click.echo(json.dumps(stats))
+
+
+@mcap.command("info")
+@click.argument("src", type=click.Path(exists=True, dir_okay=False))
+def mcap_info(src: str) -> None:
+    """Message counts per topic of a recording."""
+    from bus.mcap_tools import topic_counts
+
+    for topic, n in sorted(topic_counts(src).items()):
+        click.echo(f"{n:8d}  {topic}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,273 @@
+"""`swarmhil run`: start, supervise and stop one run, multi-process over Zenoh or in-process.
+
+Multi-process: a Zenoh router (a Python session in router mode on a free loopback port), the
+recorder, one agent process per spacecraft and the plant, each its own PID. The launcher watches
+them; at the end (or on Ctrl-C) it stops the plant, then the agents, then the recorder (so the
+recording holds everything), by PID only, and writes DIR/summary.json.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import secrets
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from bus import swarmhil_pb2 as pb
+from bus.keys import Keys
+from deploy.scenario import Scenario
+
+log = logging.getLogger("swarmhil.launcher")
+
+
+class RunFailed(RuntimeError):
+    pass
+
+
+def new_run_id(name: str) -> str:
+    return f"{name}-{datetime.now(timezone.utc):%Y%m%dT%H%M%S}-{secrets.token_hex(2)}"
+
+
+@dataclass
+class RunResult:
+    summary: dict[str, Any]
+    out: Path
+    exit_code: int = 0
+    reason: str = ""
+    pids: dict[str, int] = field(default_factory=dict)
+
+
+def _base_summary(sc: Scenario, run: str, mode_label: str) -> dict[str, Any]:
+    return {
+        "run": run,
+        "scenario": sc.name,
+        "scenario_file": sc.source,
+        "mode": sc.mode,
+        "process_mode": mode_label,
+        "seed": sc.seed,
+        "fidelity": sc.fidelity,
+        "controller": sc.controller,
+        "agents": len(sc.ids),
+        "step_s": sc.step_s,
+        "duration_s": sc.duration_s,
+        "reference_orbit": {"semi_major_axis_m": sc.orbit.semi_major_axis_m,
+                            "mean_motion_radps": sc.orbit.mean_motion_radps,
+                            "inclination_deg": sc.orbit.inclination_rad * 57.29577951308232},
+    }
+
+
+def _finish_summary(summary: dict[str, Any], plant: dict[str, Any], rec: dict[str, Any], agents_rejected: dict[str, int]) -> dict[str, Any]:
+    summary.update(plant)
+    plant_rej = plant.get("rejected_packets", {}) if plant else {}
+    by_proc = {"plant": int(plant_rej.get("plant", 0)), **{f"agent-{k}": v for k, v in sorted(agents_rejected.items())}}
+    summary["rejected_packets"] = sum(by_proc.values())
+    summary["rejected_packets_by_process"] = by_proc
+    summary["rejected_packets_by_key"] = plant_rej.get("plant_by_key", {})
+    summary["recording"] = rec
+    summary.setdefault("dead_agents", {})
+    summary.setdefault("delta_v_mps", {})
+    summary.setdefault("delta_v_total_mps", 0.0)
+    return summary
+
+
+class _Progress:
+    def __init__(self, sc: Scenario, enabled: bool) -> None:
+        self.sc = sc
+        self.bar = tqdm(total=sc.steps, unit="step", disable=not enabled, dynamic_ncols=True,
+                        bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} steps [{elapsed}<{remaining}] {postfix}")
+        self.wall0 = time.monotonic()
+        self.last = 0
+
+    def update(self, step: int, _wall: float | None = None) -> None:
+        if step <= self.last:
+            return
+        self.bar.update(step - self.last)
+        self.last = step
+        wall = time.monotonic() - self.wall0
+        t = step * self.sc.step_s
+        self.bar.set_postfix_str(f"t={t / 3600:.2f} h  x{t / max(wall, 1e-9):.0f} real time", refresh=False)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bool = False) -> RunResult:
+    """Same plant, agents and recorder code in one process over the in-memory bus (batch mode)."""
+    from agent.controller import OrbitInfo
+    from agent.node import AgentNode
+    from bus.memory import MemoryBus
+    from bus.recorder import RecorderNode
+    from plant.node import PlantNode
+
+    run = run or new_run_id(sc.name)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = _base_summary(sc, run, "in-process")
+    bar = _Progress(sc, progress)
+    wall0 = time.monotonic()
+    bus = MemoryBus()
+    rec = RecorderNode(bus, run, out / "run.mcap")
+    plant = PlantNode(bus, run, sc, progress=bar.update)
+    orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
+    agents = [AgentNode(bus, run, sid, controller=sc.controller, orbit=orbit, params=sc.controller_params,
+                        sense_kind=sc.sensing["kind"]) for sid in sc.ids]
+    extra = _start_inprocess_extras(bus, run, sc, out)
+    plant.wait_ready(timeout_s=1.0)
+    plant_summary = plant.run()
+    for x in extra:
+        x.close()
+    rec_stats = rec.close()
+    bar.close()
+    summary["wall_s"] = time.monotonic() - wall0
+    _finish_summary(summary, plant_summary, rec_stats, {a.id: a.rejections.total for a in agents})
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    return RunResult(summary, out)
+
+
+def _start_inprocess_extras(bus: Any, run: str, sc: Scenario, out: Path) -> list[Any]:
+    """Optional in-process companions (link channel, viewer bridge) that later issues add."""
+    return []
+
+
+def _child_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.update({"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"})
+    root = str(Path(__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+class MultiProcessRun:
+    def __init__(self, scenario_path: str, sc: Scenario, out: Path, run: str | None = None, progress: bool = True,
+                 overrides: dict[str, Any] | None = None) -> None:
+        self.scenario_path = str(Path(scenario_path).resolve())
+        self.sc = sc
+        self.out = out
+        self.run = run or new_run_id(sc.name)
+        self.progress = progress
+        self.overrides = overrides or {}
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.exited: dict[str, int] = {}
+        self.logs: dict[str, Any] = {}
+
+    def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
+        cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
+               "--scenario", self.scenario_path, "--out", str(self.out), *extra]
+        for opt, val in self.overrides.items():
+            if val is not None:
+                cmd += [f"--{opt}", str(val)]
+        logf = open(self.out / "logs" / f"{name}.log", "wb")
+        self.logs[name] = logf
+        self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=_child_env(),
+                                            stdin=subprocess.DEVNULL)
+
+    def _signal(self, name: str, sig: int) -> None:
+        p = self.procs.get(name)
+        if p is not None and p.poll() is None:
+            os.kill(p.pid, sig)  # by PID, never by name
+
+    def _stop(self, names: list[str], timeout_s: float = 10.0) -> None:
+        for n in names:
+            self._signal(n, signal.SIGTERM)
+        t_end = time.monotonic() + timeout_s
+        for n in names:
+            p = self.procs[n]
+            try:
+                p.wait(max(0.1, t_end - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                log.warning("%s (pid %d) did not stop on SIGTERM; SIGKILL", n, p.pid)
+                self._signal(n, signal.SIGKILL)
+                p.wait()
+
+    def _tail(self, name: str, lines: int = 15) -> str:
+        try:
+            return "\n".join((self.out / "logs" / f"{name}.log").read_text(errors="replace").splitlines()[-lines:])
+        except OSError:
+            return ""
+
+    def execute(self) -> RunResult:
+        from bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
+
+        self.out.mkdir(parents=True, exist_ok=True)
+        (self.out / "logs").mkdir(exist_ok=True)
+        summary = _base_summary(self.sc, self.run, "multi-process")
+        wall0 = time.monotonic()
+        router_ep = endpoint(free_loopback_port())
+        router = open_router(router_ep)
+        summary["router"] = router_ep
+        bar = _Progress(self.sc, self.progress)
+        watch = ZenohBus(router_ep)
+        keys = Keys(self.run)
+
+        def on_tick(_key: str, payload: bytes) -> None:
+            try:
+                bar.update(int(pb.Tick.FromString(payload).header.step))
+            except Exception:
+                pass
+
+        watch.subscribe(keys.clock, on_tick)
+        reason, code, interrupted = "", 0, False
+        try:
+            self._spawn("recorder", "recorder", router_ep)
+            for sid in self.sc.ids:
+                self._spawn(f"agent-{sid}", "agent", router_ep, ["--id", sid])
+            self._spawn("plant", "plant", router_ep)
+            summary["pids"] = {n: p.pid for n, p in self.procs.items()}
+            (self.out / "pids.json").write_text(json.dumps(summary["pids"], indent=1))
+            while True:
+                rc = self.procs["plant"].poll()
+                if rc is not None:
+                    if rc != 0:
+                        reason, code = f"plant exited with code {rc}:\n{self._tail('plant')}", 1
+                    break
+                for n, p in self.procs.items():
+                    if n not in self.exited and p.poll() is not None:
+                        self.exited[n] = p.returncode
+                        if n == "recorder":
+                            raise RunFailed(f"recorder exited with code {p.returncode}; the run cannot be recorded:\n{self._tail(n)}")
+                        log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
+                time.sleep(0.05)
+        except KeyboardInterrupt:
+            interrupted, reason, code = True, "interrupted (Ctrl-C)", 130
+        except RunFailed as exc:
+            reason, code = str(exc), 1
+        finally:
+            self._stop(["plant"])
+            time.sleep(0.3)  # let in-flight samples reach the recorder
+            self._stop([n for n in self.procs if n.startswith("agent-")])
+            time.sleep(0.2)
+            self._stop(["recorder"], timeout_s=30.0)
+            bar.close()
+            watch.close()
+            router.close()
+            for f in self.logs.values():
+                f.close()
+        summary["wall_s"] = time.monotonic() - wall0
+        summary["interrupted"] = interrupted
+        summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
+        plant_s = _read_json(self.out / "plant_summary.json")
+        rec_s = _read_json(self.out / "recorder_summary.json")
+        agents_rej = {}
+        for sid in self.sc.ids:
+            a = _read_json(self.out / "agents" / f"{sid}.json")
+            agents_rej[sid] = int(a.get("rejected_packets", 0)) if a else 0
+        _finish_summary(summary, plant_s or {}, rec_s or {}, agents_rej)
+        if code:
+            summary["failure"] = reason
+        (self.out / "summary.json").write_text(json.dumps(summary, indent=1))
+        return RunResult(summary, self.out, code, reason, summary.get("pids", {}))
+
+
+def _read_json(p: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None

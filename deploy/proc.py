@@ -1,0 +1,91 @@
+"""Entry points of the run's child processes: `python -m deploy.proc ROLE ...`.
+
+Each is a flight-software image or a ground process with its own Zenoh session; the launcher
+(deploy/launcher.py) starts them and ends them by PID. Children ignore SIGINT: on Ctrl-C the
+launcher stops them in order (plant, agents, recorder) so the recording is finished cleanly.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from bus.zenoh_bus import ZenohBus
+from deploy.scenario import load_scenario
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--router", required=True, help="zenoh endpoint of the run's router, e.g. tcp/127.0.0.1:7447")
+    p.add_argument("--run", required=True)
+    p.add_argument("--scenario", required=True)
+    p.add_argument("--out", required=True)
+    p.add_argument("--duration", type=float)
+    p.add_argument("--seed", type=int)
+    p.add_argument("--mode")
+    p.add_argument("--speed", type=float)
+
+
+def _stop_event() -> threading.Event:
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    return stop
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m deploy.proc")
+    sub = ap.add_subparsers(dest="role", required=True)
+    for role in ("plant", "agent", "recorder"):
+        p = sub.add_parser(role)
+        _common(p)
+        if role == "agent":
+            p.add_argument("--id", required=True)
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
+    stop = _stop_event()
+    sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
+    out = Path(args.out)
+    if args.role == "plant":
+        from plant.node import PlantNode
+
+        bus = ZenohBus(args.router)
+        node = PlantNode(bus, args.run, sc)
+        node.wait_ready()
+        summary = node.run()
+        (out / "plant_summary.json").write_text(json.dumps(summary, indent=1))
+        bus.close()
+        return 0
+    if args.role == "agent":
+        from agent.controller import OrbitInfo
+        from agent.node import AgentNode
+
+        bus = ZenohBus(args.router, lease_ms=2000)
+        node = AgentNode(bus, args.run, args.id, controller=sc.controller,
+                         orbit=OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps),
+                         params=sc.controller_params, sense_kind=sc.sensing["kind"])
+        stop.wait()
+        bus.close()
+        (out / "agents").mkdir(exist_ok=True)
+        (out / "agents" / f"{args.id}.json").write_text(json.dumps(
+            {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total}))
+        return 0
+    if args.role == "recorder":
+        from bus.recorder import RecorderNode
+
+        bus = ZenohBus(args.router)
+        node = RecorderNode(bus, args.run, out / "run.mcap")
+        stop.wait()
+        stats = node.close()
+        bus.close()
+        (out / "recorder_summary.json").write_text(json.dumps(stats))
+        return 0
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,236 @@
+"""The plant process logic: publish ticks, truth and stimuli; collect commands; propagate.
+
+Thin: the physics is plant/world.py, the stimuli plant/sensors.py, the synchronisation
+plant/pacing.py. The node works the same over the Zenoh bus (one process) and the in-memory bus
+(in-process batch runs).
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from bus import swarmhil_pb2 as pb
+from bus.base import Bus
+from bus.codec import RejectedPacket, Rejections, arr, decode, header, vec
+from bus.keys import Keys
+from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
+from plant.sensors import CameraGeometry, visibility_matrix
+from plant.world import World
+
+log = logging.getLogger("swarmhil.plant")
+
+
+@dataclass
+class PlantStats:
+    dead_agents: dict[str, dict[str, Any]] = field(default_factory=dict)
+    missed_deadlines: dict[str, int] = field(default_factory=dict)
+    late_commands: int = 0
+    steps: int = 0
+
+
+class PlantNode:
+    AGENT_PREFIX = "agent-"
+
+    def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
+                 progress: Callable[[int, float], None] | None = None) -> None:
+        self.bus = bus
+        self.keys = Keys(run)
+        self.run_id = run
+        self.sc = scenario
+        o = scenario.orbit
+        self.world = World(scenario.ids, scenario.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
+                           raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=scenario.fidelity, drag=scenario.drag,
+                           max_accel_mps2=scenario.max_accel_mps2)
+        self.cam = CameraGeometry(**scenario.camera)
+        self.step_s = scenario.step_s
+        self.pacer: Pacer = Lockstep(scenario.lockstep_timeout_s) if scenario.mode == "lockstep" else RealTime(scenario.step_s, scenario.speed)
+        self.box = CommandBox()
+        self.rejections = Rejections("plant")
+        self.stats = PlantStats()
+        self.expect_processes = expect_processes
+        self.progress = progress
+        self.present: set[str] = set()      # processes whose liveliness token is up
+        self.seen_alive: set[str] = set()   # agents that were up once
+        self.held = np.zeros((len(scenario.ids), 3))  # last command of each spacecraft (held on a miss)
+        self._missed_in_row = np.zeros(len(scenario.ids), dtype=int)
+        self._seq: dict[str, int] = {}
+        self._step = 0
+        self._noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
+        bus.subscribe(self.keys.act_all, self._on_command)
+        bus.watch_liveliness(self.keys.alive_all, self._on_liveliness)
+        self._token = bus.declare_liveliness(self.keys.alive("plant"))
+
+    # --- bus callbacks (dispatcher thread) -------------------------------------------------
+    def _on_liveliness(self, key: str, alive: bool) -> None:
+        proc = key.rsplit("/", 1)[-1]
+        if alive:
+            self.present.add(proc)
+            if proc.startswith(self.AGENT_PREFIX):
+                self.seen_alive.add(proc[len(self.AGENT_PREFIX):])
+        else:
+            self.present.discard(proc)
+            sc = proc[len(self.AGENT_PREFIX):] if proc.startswith(self.AGENT_PREFIX) else None
+            if sc in self.world.index and self.world.alive[self.world.index[sc]]:
+                self._mark_dead(sc, "liveliness token disappeared")
+        self.box.wake()
+
+    def _on_command(self, key: str, payload: bytes) -> None:
+        try:
+            _kind, sc, _ = self.keys.parse(key)
+            if sc not in self.world.index:
+                raise RejectedPacket(f"unknown spacecraft id {sc!r}")
+            cmd = decode(pb.ActuatorCommand, payload, run=self.run_id)
+            if cmd.header.source != sc:
+                raise RejectedPacket(f"header.source {cmd.header.source!r} does not match key id {sc!r}")
+        except (RejectedPacket, ValueError) as exc:
+            self.rejections.add(key, str(exc))
+            return
+        if not self.box.put(int(cmd.header.step), sc, arr(cmd.accel_mps2)):
+            self.stats.late_commands += 1
+
+    # --- helpers ----------------------------------------------------------------------------
+    def _hdr(self, key: str) -> pb.Header:
+        seq = self._seq.get(key, 0)
+        self._seq[key] = seq + 1
+        return header(self.run_id, "plant", self._step, self.world.t_s, seq)
+
+    def _event(self, kind: str, subject: str, detail: str) -> None:
+        ev = pb.Event(header=self._hdr(self.keys.event), kind=kind, subject=subject, detail=detail)
+        self.bus.publish(self.keys.event, ev.SerializeToString())
+        (log.info if kind.startswith("run_") else log.warning)("%s %s: %s", kind, subject, detail)
+
+    def _mark_dead(self, sc: str, reason: str) -> None:
+        i = self.world.index[sc]
+        if not self.world.alive[i]:
+            return
+        self.world.alive[i] = False
+        self.stats.dead_agents[sc] = {"step": self._step, "t_s": self.world.t_s, "reason": reason}
+        self._event("agent_dead", sc, reason)
+
+    def live_ids(self) -> set[str]:
+        return {sid for sid, a in zip(self.world.ids, self.world.alive) if a}
+
+    def wait_ready(self, timeout_s: float = 120.0) -> None:
+        """Wait for every agent's and expected process's liveliness token before step 0."""
+        want = {self.AGENT_PREFIX + s for s in self.world.ids} | set(self.expect_processes)
+        t_end = time.monotonic() + timeout_s
+        while not want <= self.present:
+            if time.monotonic() > t_end:
+                missing = sorted(want - self.present)
+                raise TimeoutError(f"processes not up after {timeout_s:.0f} s: {missing[:10]}")
+            time.sleep(0.01)
+
+    # --- the loop -----------------------------------------------------------------------------
+    def publish_step(self) -> None:
+        """Tick, truth and stimuli of the current step."""
+        k = self._step
+        u = self.world.u_rad
+        pos, vel = self.world.lvlh()
+        roe = self.world.roe_m()
+        alive_ids = [s for s, a in zip(self.world.ids, self.world.alive) if a]
+        tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u, alive=alive_ids,
+                       final=k >= self.sc.steps)
+        self.bus.publish(self.keys.clock, tick.SerializeToString())
+        truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=u, semi_major_axis_m=self.world.a_m,
+                         mean_motion_radps=self.world.n_radps)
+        for i, sid in enumerate(self.world.ids):
+            truth.bodies.append(pb.BodyState(
+                id=sid, kind="spacecraft", position_m=vec(pos[i]), velocity_mps=vec(vel[i]),
+                delta_v_mps=float(self.world.delta_v_mps[i]), alive=bool(self.world.alive[i]),
+                accel_cmd_mps2=vec(self.held[i] if k < self.sc.steps else np.zeros(3)), roe_m=roe[i].tolist()))
+        self._truth = truth
+        if k >= self.sc.steps:
+            self.bus.publish(self.keys.truth, truth.SerializeToString())
+            return
+        self._pending_truth = truth
+        vis = visibility_matrix(pos, self.cam, self.world.alive)
+        kind = self.sc.sensing["kind"]
+        for j, sid in enumerate(self.world.ids):
+            if not self.world.alive[j]:
+                continue
+            if kind == "rel":
+                stim = pb.RelStimulus(header=self._hdr(self.keys.sense(sid, "rel")), u_rad=u)
+                for kk in np.flatnonzero(vis[j]):
+                    rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
+                    if self._noise is not None:
+                        rp, rv = self._noise.apply(j, kk, rp, rv, u, k)
+                    stim.neighbours.append(pb.RelativeState(id=self.world.ids[kk], position_m=vec(rp), velocity_mps=vec(rv)))
+                self.bus.publish(self.keys.sense(sid, "rel"), stim.SerializeToString())
+            else:
+                from plant.scene_stimulus import scene_stimulus
+
+                stim = scene_stimulus(self, j, pos, vel, u)
+                self.bus.publish(self.keys.sense(sid, "scene"), stim.SerializeToString())
+
+    def collect_and_advance(self) -> None:
+        k = self._step
+        live = self.live_ids()
+        got = self.box.wait(self.live_ids, self.pacer.deadline(k))
+        for sid in sorted(live):
+            i = self.world.index[sid]
+            if sid in got:
+                self.held[i] = got[sid]
+                self._missed_in_row[i] = 0
+            elif self.world.alive[i]:
+                self.stats.missed_deadlines[sid] = self.stats.missed_deadlines.get(sid, 0) + 1
+                self._missed_in_row[i] += 1
+                self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
+                if self.pacer.name == "lockstep" and self._missed_in_row[i] >= self.sc.dead_after_missed:
+                    self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
+        self.held[~self.world.alive] = 0.0
+        # the truth of step k carries the command applied over [t_k, t_k+1)
+        for i, body in enumerate(self._pending_truth.bodies):
+            body.accel_cmd_mps2.CopyFrom(vec(self.world.limit(self.held)[i]))
+            body.alive = bool(self.world.alive[i])
+        self.bus.publish(self.keys.truth, self._pending_truth.SerializeToString())
+        self.world.step(self.held, self.step_s)
+        self.pacer.after_step(k)
+        self._step += 1
+        self.stats.steps = self._step
+
+    def run(self) -> dict[str, Any]:
+        self._event("run_start", "plant", json.dumps({"agents": len(self.world.ids), "steps": self.sc.steps, "mode": self.sc.mode}))
+        self.pacer.start()
+        wall0 = time.monotonic()
+        for k in range(self.sc.steps):
+            self.box.open(k)
+            self.publish_step()
+            self.collect_and_advance()
+            if self.progress:
+                self.progress(self._step, time.monotonic() - wall0)
+        self.publish_step()  # final tick + truth at t_end
+        self._event("run_end", "plant", f"{self._step} steps")
+        return self.summary()
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "steps": self.stats.steps,
+            "delta_v_mps": {s: float(v) for s, v in zip(self.world.ids, self.world.delta_v_mps)},
+            "delta_v_total_mps": float(self.world.delta_v_mps.sum()),
+            "dead_agents": self.stats.dead_agents,
+            "missed_deadlines": self.stats.missed_deadlines,
+            "late_commands": self.stats.late_commands,
+            "rejected_packets": {"plant": self.rejections.total, "plant_by_key": dict(self.rejections.by_key)},
+        }
+
+
+class _SensorNoise:
+    """Paper 002 section 5: Gaussian noise as a fraction of each ROE component of the pair (seeded)."""
+
+    def __init__(self, scenario: Any) -> None:
+        self.frac = float(scenario.sensing["roe_noise_fraction"])
+        self.n = scenario.orbit.mean_motion_radps
+        self.rng = np.random.default_rng([int(scenario.seed), 0x5E45])
+
+    def apply(self, j: int, k: int, rp: np.ndarray, rv: np.ndarray, u: float, step: int) -> tuple[np.ndarray, np.ndarray]:
+        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
+
+        roe = lvlh_to_roe(rp[None], rv[None], u, self.n)[0]
+        roe = roe * (1.0 + self.frac * self.rng.standard_normal(6))
+        p, v = roe_to_lvlh(roe[None], u, self.n)
+        return p[0], v[0]

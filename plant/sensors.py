@@ -1,0 +1,55 @@
+"""Sensor stimuli the plant computes from truth (DESIGN.md: plant owns stimulus generation).
+
+`rel` stimulus (issue 2): the ideal relative LVLH state of every spacecraft the observer's camera
+could see: range <= detection range and inside the square field of view around the boresight,
+which points along-track (+y LVLH, paper 002 section 3.1 / 5).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class CameraGeometry:
+    detection_range_m: float = 500.0
+    image_px: int = 1080
+    focal_px: float = 1000.0
+    boresight: tuple[float, float, float] = (0.0, 1.0, 0.0)  # LVLH, along-track
+
+    @property
+    def tan_half_fov(self) -> float:
+        """tan of the half field of view: (image_px / 2) / f = 0.54 -> 28.37 deg for the paper's camera."""
+        return (self.image_px / 2.0) / self.focal_px
+
+
+def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
+    """V[j, k] = True when k is within range and inside j's square FOV (boresight +y LVLH).
+
+    For boresight +y: rel = r_k - r_j must have rel_y > 0, |rel_x| <= tan * rel_y,
+    |rel_z| <= tan * rel_y and |rel| <= detection range. Dead spacecraft still reflect light, so
+    they stay visible; a dead observer sees nothing (its camera is off).
+    """
+    if cam.boresight != (0.0, 1.0, 0.0):
+        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
+    rel = pos_m[None, :, :] - pos_m[:, None, :]
+    ahead = rel[..., 1]
+    tan = cam.tan_half_fov
+    vis = (
+        (ahead > 0.0)
+        & (np.abs(rel[..., 0]) <= tan * ahead)
+        & (np.abs(rel[..., 2]) <= tan * ahead)
+        & (np.einsum("jki,jki->jk", rel, rel) <= cam.detection_range_m**2)
+    )
+    np.fill_diagonal(vis, False)
+    if alive is not None:
+        vis &= alive[:, None]
+    return vis
+
+
+def weakly_connected(vis: np.ndarray) -> bool:
+    from scipy.sparse.csgraph import connected_components
+
+    n, _ = connected_components(vis, directed=True, connection="weak")
+    return n == 1
