@@ -35,6 +35,7 @@ class Observation:
     rel_position_m: np.ndarray
     rel_velocity_mps: np.ndarray
     extra: dict[str, Any] = field(default_factory=dict)
+    isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step
 
 
 @dataclass
@@ -49,10 +50,20 @@ class Decision:
 
 
 @dataclass
+class Transmission:
+    """An inter-satellite-link packet to send (through the channel, bus/channel_node.py)."""
+
+    type: str
+    payload: bytes
+    dst: str = ""  # empty: broadcast to everyone in range
+
+
+@dataclass
 class Command:
     accel_mps2: np.ndarray
     mode: str = "idle"
     decisions: list[Decision] = field(default_factory=list)
+    transmissions: list[Transmission] = field(default_factory=list)
 
 
 class Controller(Protocol):

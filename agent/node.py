@@ -31,7 +31,8 @@ def observation_from_rel(stim: pb.RelStimulus) -> Observation:
 
 class AgentNode:
     def __init__(self, bus: Bus, run: str, sc_id: str, *, controller: str, orbit: OrbitInfo,
-                 params: dict[str, Any], sense_kind: str = "rel", decision_period_steps: int = 1) -> None:
+                 params: dict[str, Any], sense_kind: str = "rel", decision_period_steps: int = 1,
+                 beacon: Any = None) -> None:
         self.bus = bus
         self.run = run
         self.id = sc_id
@@ -46,6 +47,11 @@ class AgentNode:
         self._act_key = self.keys.act(sc_id)
         self._tm_key = self.keys.tm(sc_id)
         self._sense_key = self.keys.sense(sc_id, sense_kind)
+        self._tx_key = self.keys.isl_tx(sc_id)
+        self._rx_key = self.keys.isl_rx(sc_id)
+        self.inbox: list[pb.IslPacket] = []
+        self.beacon = beacon
+        bus.subscribe(self._rx_key, self._on_isl)
         bus.subscribe(self._sense_key, self._on_stimulus)
         self._token = bus.declare_liveliness(self.keys.alive(f"agent-{sc_id}"))
 
@@ -64,11 +70,27 @@ class AgentNode:
             return
         self.handle(stim)
 
+    def _on_isl(self, key: str, payload: bytes) -> None:
+        try:
+            pkt = decode(pb.IslPacket, payload, run=self.run)
+            if pkt.dst not in ("", self.id):
+                raise RejectedPacket(f"packet for {pkt.dst!r} delivered to {self.id}")
+        except RejectedPacket as exc:
+            self.rejections.add(key, str(exc))
+            return
+        self.inbox.append(pkt)
+
+    def _transmit(self, step: int, t: float, tx: Any) -> None:
+        pkt = pb.IslPacket(header=self._hdr(self._tx_key, step, t), src=self.id, dst=tx.dst, type=tx.type,
+                           payload=tx.payload, sent_t=t)
+        self.bus.publish(self._tx_key, pkt.SerializeToString())
+
     def handle(self, stim: Any) -> None:
         t0 = time.perf_counter()
         step, t = int(stim.header.step), stim.header.t
         if step % self.decision_period_steps == 0:
             obs = observation_from_rel(stim)
+            obs.isl_rx, self.inbox = self.inbox, []
             cmd = self.controller.step(obs)
             a = np.asarray(cmd.accel_mps2, dtype=float)
             if a.shape != (3,) or not np.all(np.isfinite(a)):
@@ -76,6 +98,13 @@ class AgentNode:
                 cmd = Command(accel_mps2=np.zeros(3), mode="fault")
             self.command = cmd
         compute_s = time.perf_counter() - t0
+        # transmissions go out before the command: the channel knows step k's traffic is complete
+        # once it has seen every live agent's command of step k (same session, same order)
+        txs = list(self.command.transmissions) if step % self.decision_period_steps == 0 else []
+        if self.beacon is not None:
+            txs += self.beacon.emit(step, t, self.command)
+        for tx in txs:
+            self._transmit(step, t, tx)
         act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=vec(self.command.accel_mps2),
                                  controller=self.controller.name)
         self.bus.publish(self._act_key, act.SerializeToString())

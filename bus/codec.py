@@ -22,6 +22,7 @@ log = logging.getLogger("swarmhil.codec")
 # Message type of each key kind (see bus/keys.py Keys.parse).
 TYPE_OF_KIND: dict[str, type[Message]] = {
     "clock": pb.Tick,
+    "sync": pb.Tick,
     "truth": pb.Truth,
     "event": pb.Event,
     "link_stats": pb.LinkStats,

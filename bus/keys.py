@@ -10,6 +10,7 @@
     swarm/<run>/link/stats            channel -> all      LinkStats
     swarm/<run>/alive/<process>       liveliness tokens
     swarm/<run>/event                 any -> all          Event (project addition, not in the contract list)
+    swarm/<run>/sync/<process>        companion -> plant  Tick: lockstep barrier "done with step k" (project addition)
 """
 from __future__ import annotations
 
@@ -52,6 +53,13 @@ class Keys:
     @property
     def link_stats(self) -> str:
         return f"{self.base}/link/stats"
+
+    def sync(self, process: str) -> str:
+        return f"{self.base}/sync/{check_token(process, 'process name')}"
+
+    @property
+    def sync_all(self) -> str:
+        return f"{self.base}/sync/*"
 
     def sense(self, sc: str, kind: str) -> str:
         return f"{self.base}/sc/{check_token(sc)}/sense/{check_token(kind, 'sensor kind')}"
@@ -116,6 +124,8 @@ class Keys:
                 return "isl_rx", sc, None
             case ["alive", proc]:
                 return "alive", proc, None
+            case ["sync", proc]:
+                return "sync", proc, None
         raise ValueError(f"key {key!r} is not a key of the swarmhil contract")
 
 

@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from bus import swarmhil_pb2 as pb
 from bus.keys import Keys
+from deploy.companions import enabled_companions
 from deploy.scenario import Scenario
 
 log = logging.getLogger("swarmhil.launcher")
@@ -100,10 +101,9 @@ class _Progress:
         self.bar.close()
 
 
-def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bool = False) -> RunResult:
+def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bool = False,
+                   opts: dict[str, Any] | None = None) -> RunResult:
     """Same plant, agents and recorder code in one process over the in-memory bus (batch mode)."""
-    from agent.controller import OrbitInfo
-    from agent.node import AgentNode
     from bus.memory import MemoryBus
     from bus.recorder import RecorderNode
     from plant.node import PlantNode
@@ -114,16 +114,17 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     bar = _Progress(sc, progress)
     wall0 = time.monotonic()
     bus = MemoryBus()
+    opts = opts or {}
     rec = RecorderNode(bus, run, out / "run.mcap")
-    plant = PlantNode(bus, run, sc, progress=bar.update)
-    orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
-    agents = [AgentNode(bus, run, sid, controller=sc.controller, orbit=orbit, params=sc.controller_params,
-                        sense_kind=sc.sensing["kind"]) for sid in sc.ids]
-    extra = _start_inprocess_extras(bus, run, sc, out)
+    comps = enabled_companions(sc, opts)
+    plant = PlantNode(bus, run, sc, expect_processes=("recorder", *[c.name for c in comps]),
+                      barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update)
+    started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
+    agents = [make_agent(bus, run, sc, sid) for sid in sc.ids]
     plant.wait_ready(timeout_s=1.0)
     plant_summary = plant.run()
-    for x in extra:
-        x.close()
+    for name, obj in started.items():
+        summary[name] = obj.close()
     rec_stats = rec.close()
     bar.close()
     summary["wall_s"] = time.monotonic() - wall0
@@ -132,9 +133,15 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     return RunResult(summary, out)
 
 
-def _start_inprocess_extras(bus: Any, run: str, sc: Scenario, out: Path) -> list[Any]:
-    """Optional in-process companions (link channel, viewer bridge) that later issues add."""
-    return []
+def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
+    """One spacecraft's flight software on a bus, configured from the scenario (both modes)."""
+    from agent.beacon import beacon_from_scenario
+    from agent.controller import OrbitInfo
+    from agent.node import AgentNode
+
+    orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
+    return AgentNode(bus, run, sid, controller=sc.controller, orbit=orbit, params=sc.controller_params,
+                     sense_kind=sc.sensing["kind"], beacon=beacon_from_scenario(sc, sid))
 
 
 def _child_env() -> dict[str, str]:
@@ -147,13 +154,15 @@ def _child_env() -> dict[str, str]:
 
 class MultiProcessRun:
     def __init__(self, scenario_path: str, sc: Scenario, out: Path, run: str | None = None, progress: bool = True,
-                 overrides: dict[str, Any] | None = None) -> None:
+                 overrides: dict[str, Any] | None = None, opts: dict[str, Any] | None = None) -> None:
         self.scenario_path = str(Path(scenario_path).resolve())
         self.sc = sc
         self.out = out
         self.run = run or new_run_id(sc.name)
         self.progress = progress
         self.overrides = overrides or {}
+        self.opts = opts or {}
+        self.companions = enabled_companions(sc, self.opts)
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
         self.logs: dict[str, Any] = {}
@@ -217,9 +226,13 @@ class MultiProcessRun:
         reason, code, interrupted = "", 0, False
         try:
             self._spawn("recorder", "recorder", router_ep)
+            for c in self.companions:
+                self._spawn(c.name, "companion", router_ep, ["--name", c.name, "--opts", json.dumps(self.opts)])
             for sid in self.sc.ids:
                 self._spawn(f"agent-{sid}", "agent", router_ep, ["--id", sid])
-            self._spawn("plant", "plant", router_ep)
+            self._spawn("plant", "plant", router_ep,
+                        ["--companions", ",".join(c.name for c in self.companions),
+                         "--barriers", ",".join(c.name for c in self.companions if c.barrier)])
             summary["pids"] = {n: p.pid for n, p in self.procs.items()}
             (self.out / "pids.json").write_text(json.dumps(summary["pids"], indent=1))
             while True:
@@ -231,7 +244,7 @@ class MultiProcessRun:
                 for n, p in self.procs.items():
                     if n not in self.exited and p.poll() is not None:
                         self.exited[n] = p.returncode
-                        if n == "recorder":
+                        if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
                             raise RunFailed(f"recorder exited with code {p.returncode}; the run cannot be recorded:\n{self._tail(n)}")
                         log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
                 time.sleep(0.05)
@@ -243,6 +256,15 @@ class MultiProcessRun:
             self._stop(["plant"])
             time.sleep(0.3)  # let in-flight samples reach the recorder
             self._stop([n for n in self.procs if n.startswith("agent-")])
+            if self.opts.get("viz") == "serve" and not interrupted and not code:
+                bar.close()
+                print("run finished; the viewer keeps serving until Ctrl-C", flush=True)
+                try:
+                    while self.procs.get("viz") is not None and self.procs["viz"].poll() is None:
+                        time.sleep(0.2)
+                except KeyboardInterrupt:
+                    pass
+            self._stop([c.name for c in self.companions])
             time.sleep(0.2)
             self._stop(["recorder"], timeout_s=30.0)
             bar.close()
@@ -259,6 +281,8 @@ class MultiProcessRun:
         for sid in self.sc.ids:
             a = _read_json(self.out / "agents" / f"{sid}.json")
             agents_rej[sid] = int(a.get("rejected_packets", 0)) if a else 0
+        for c in self.companions:
+            summary[c.name] = _read_json(self.out / f"{c.name}_summary.json") or {}
         _finish_summary(summary, plant_s or {}, rec_s or {}, agents_rej)
         if code:
             summary["failure"] = reason

@@ -40,11 +40,17 @@ def _stop_event() -> threading.Event:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
-    for role in ("plant", "agent", "recorder"):
+    for role in ("plant", "agent", "recorder", "companion"):
         p = sub.add_parser(role)
         _common(p)
         if role == "agent":
             p.add_argument("--id", required=True)
+        if role == "plant":
+            p.add_argument("--companions", default="")
+            p.add_argument("--barriers", default="")
+        if role == "companion":
+            p.add_argument("--name", required=True)
+            p.add_argument("--opts", default="{}")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
@@ -54,20 +60,19 @@ def main(argv: list[str] | None = None) -> int:
         from plant.node import PlantNode
 
         bus = ZenohBus(args.router)
-        node = PlantNode(bus, args.run, sc)
+        comps = tuple(c for c in args.companions.split(",") if c)
+        node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
+                         barriers=tuple(b for b in args.barriers.split(",") if b))
         node.wait_ready()
         summary = node.run()
         (out / "plant_summary.json").write_text(json.dumps(summary, indent=1))
         bus.close()
         return 0
     if args.role == "agent":
-        from agent.controller import OrbitInfo
-        from agent.node import AgentNode
+        from deploy.launcher import make_agent
 
         bus = ZenohBus(args.router, lease_ms=2000)
-        node = AgentNode(bus, args.run, args.id, controller=sc.controller,
-                         orbit=OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps),
-                         params=sc.controller_params, sense_kind=sc.sensing["kind"])
+        node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         bus.close()
         (out / "agents").mkdir(exist_ok=True)
@@ -83,6 +88,17 @@ def main(argv: list[str] | None = None) -> int:
         stats = node.close()
         bus.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
+        return 0
+    if args.role == "companion":
+        from deploy.companions import load
+
+        comp = load(args.name)
+        bus = ZenohBus(args.router)
+        obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
+        stop.wait()
+        stats = obj.close()
+        bus.close()
+        (out / f"{args.name}_summary.json").write_text(json.dumps(stats or {}, indent=1))
         return 0
     return 2
 

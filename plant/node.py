@@ -37,7 +37,7 @@ class PlantNode:
     AGENT_PREFIX = "agent-"
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
-                 progress: Callable[[int, float], None] | None = None) -> None:
+                 barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -52,7 +52,8 @@ class PlantNode:
         self.box = CommandBox()
         self.rejections = Rejections("plant")
         self.stats = PlantStats()
-        self.expect_processes = expect_processes
+        self.expect_processes = tuple(expect_processes) + tuple(b for b in barriers if b not in expect_processes)
+        self.barriers = tuple(barriers)
         self.progress = progress
         self.present: set[str] = set()      # processes whose liveliness token is up
         self.seen_alive: set[str] = set()   # agents that were up once
@@ -62,6 +63,8 @@ class PlantNode:
         self._step = 0
         self._noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
         bus.subscribe(self.keys.act_all, self._on_command)
+        if self.barriers:
+            bus.subscribe(self.keys.sync_all, self._on_barrier)
         bus.watch_liveliness(self.keys.alive_all, self._on_liveliness)
         self._token = bus.declare_liveliness(self.keys.alive("plant"))
 
@@ -92,6 +95,20 @@ class PlantNode:
             return
         if not self.box.put(int(cmd.header.step), sc, arr(cmd.accel_mps2)):
             self.stats.late_commands += 1
+
+    def _on_barrier(self, key: str, payload: bytes) -> None:
+        try:
+            _kind, proc, _ = self.keys.parse(key)
+            if proc not in self.barriers:
+                raise RejectedPacket(f"unknown lockstep participant {proc!r}")
+            tick = decode(pb.Tick, payload, run=self.run_id)
+        except (RejectedPacket, ValueError) as exc:
+            self.rejections.add(key, str(exc))
+            return
+        self.box.put(int(tick.header.step), f"sync:{proc}", None)
+
+    def _expected(self) -> set[str]:
+        return self.live_ids() | {f"sync:{b}" for b in self.barriers if b in self.present}
 
     # --- helpers ----------------------------------------------------------------------------
     def _hdr(self, key: str) -> pb.Header:
@@ -170,7 +187,10 @@ class PlantNode:
     def collect_and_advance(self) -> None:
         k = self._step
         live = self.live_ids()
-        got = self.box.wait(self.live_ids, self.pacer.deadline(k))
+        got = self.box.wait(self._expected, self.pacer.deadline(k))
+        for b in self.barriers:
+            if f"sync:{b}" not in got:
+                self._event("deadline_missed", b, f"no lockstep barrier for step {k}")
         for sid in sorted(live):
             i = self.world.index[sid]
             if sid in got:
