@@ -1,0 +1,38 @@
+# swarmhil: `make demo` runs the demo scenario, `make test` passes the tests. Both set everything up.
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: setup demo test test-system test-all bench proto clean
+
+$(STAMP): pyproject.toml
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	$(VENV)/bin/rerun analytics disable >/dev/null 2>&1 || true
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+demo: setup
+	$(PY) -m deploy.cli run deploy/scenarios/demo.toml --out runs/demo
+	$(PY) -m deploy.cli mcap info runs/demo/run.mcap | tail -n 5
+
+test: setup
+	$(PY) -m pytest -q
+
+# Long system runs (24 h scenarios, browser): marked `system`, run by CI after `make test`.
+test-system: setup
+	$(PY) -m pytest -q -m system --durations=0
+
+test-all: test test-system
+
+bench: setup
+	$(PY) bench/bench_backbone.py
+
+# Regenerate the committed protobuf code from bus/swarmhil.proto.
+proto: setup
+	$(PY) -m grpc_tools.protoc -I bus --python_out=bus --pyi_out=bus bus/swarmhil.proto
+
+clean:
+	rm -rf runs .pytest_cache

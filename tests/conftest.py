@@ -1,0 +1,33 @@
+"""Shared fixtures: repository paths, scenario writing, MCAP reading without the project's code."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+SCENARIOS = ROOT / "deploy" / "scenarios"
+
+
+@pytest.fixture
+def root() -> Path:
+    return ROOT
+
+
+def read_mcap(path: Path | str):
+    """Decode every message with the standard readers only: [(topic, log_time, publish_time, msg)]."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    out = []
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _schema, channel, message, decoded in reader.iter_decoded_messages():
+            out.append((channel.topic, message.log_time, message.publish_time, decoded))
+    return out
