@@ -234,7 +234,7 @@ class MultiProcessRun:
                         ["--companions", ",".join(c.name for c in self.companions),
                          "--barriers", ",".join(c.name for c in self.companions if c.barrier)])
             summary["pids"] = {n: p.pid for n, p in self.procs.items()}
-            (self.out / "pids.json").write_text(json.dumps(summary["pids"], indent=1))
+            (self.out / "run.json").write_text(json.dumps({"run": self.run, "router": router_ep, "pids": summary["pids"]}, indent=1))
             while True:
                 rc = self.procs["plant"].poll()
                 if rc is not None:
