@@ -61,6 +61,7 @@ class PlantNode:
         self._missed_in_row = np.zeros(len(scenario.ids), dtype=int)
         self._seq: dict[str, int] = {}
         self._step = 0
+        self.timing: dict[str, float] = {}
         self._noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
@@ -217,19 +218,28 @@ class PlantNode:
         self._event("run_start", "plant", json.dumps({"agents": len(self.world.ids), "steps": self.sc.steps, "mode": self.sc.mode}))
         self.pacer.start()
         wall0 = time.monotonic()
+        t_pub = t_loop = 0.0
         for k in range(self.sc.steps):
             self.box.open(k)
+            c0 = time.perf_counter()
             self.publish_step()
+            c1 = time.perf_counter()
             self.collect_and_advance()
+            t_pub += c1 - c0
+            t_loop += time.perf_counter() - c0
             if self.progress:
                 self.progress(self._step, time.monotonic() - wall0)
         self.publish_step()  # final tick + truth at t_end
+        self.timing = {"loop_wall_s": t_loop, "publish_s": t_pub, "wait_and_propagate_s": t_loop - t_pub,
+                       "propagate_s": self.world.wall_s}
         self._event("run_end", "plant", f"{self._step} steps")
         return self.summary()
 
     def summary(self) -> dict[str, Any]:
         return {
             "steps": self.stats.steps,
+            "loop_wall_s": self.timing.get("loop_wall_s", 0.0),
+            "plant_timing_s": self.timing,
             "delta_v_mps": {s: float(v) for s, v in zip(self.world.ids, self.world.delta_v_mps)},
             "delta_v_total_mps": float(self.world.delta_v_mps.sum()),
             "dead_agents": self.stats.dead_agents,

@@ -7,6 +7,8 @@ Two fidelities (issue 2): `linear` propagates the ROE exactly with the Keplerian
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from plant.dynamics import roe_linear
@@ -25,6 +27,7 @@ class World:
         self.max_accel_mps2 = float(max_accel_mps2)
         self.t_s = 0.0
         self.steps_done = 0
+        self.wall_s = 0.0  # wall time spent propagating (for benchmarks)
         n = len(self.ids)
         self.alive = np.ones(n, dtype=bool)
         self.delta_v_mps = np.zeros(n)
@@ -68,6 +71,7 @@ class World:
 
     def step(self, accel_mps2: np.ndarray, dt_s: float) -> None:
         """Advance by dt with each command held constant over the step; delta-v += |a| dt."""
+        c0 = time.perf_counter()
         a = self.limit(accel_mps2)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
@@ -77,3 +81,4 @@ class World:
             self._roe = roe_linear.propagate_roe(self._roe, a, self.u_rad, self.n_radps, dt_s)
         self.steps_done += 1
         self.t_s = self.steps_done * dt_s
+        self.wall_s += time.perf_counter() - c0
