@@ -199,3 +199,30 @@ os.kill(os.getpid(), signal.SIGKILL)
     steps = [m.header.step for _t, _l, _p, m in msgs]
     assert steps == list(range(len(steps)))
     assert 3000 - len(steps) < 4096 // 20  # at most the open chunk (a Tick is > 20 B) is lost
+
+
+def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> None:
+    """A frozen agent (SIGSTOP for 1 s) misses real-time deadlines: counted, command held, not dead."""
+    mp, out = _mp(tmp_path, "demo.toml", "rt", duration_s=800.0, mode="realtime", speed=100.0)
+    th = threading.Thread(target=lambda: setattr(mp, "result", mp.execute()))
+    th.start()
+    info = _wait_for(out / "run.json")
+    _wait_steps(info["router"], "rt", 20)
+    pid = info["pids"]["agent-sc03"]
+    os.kill(pid, signal.SIGSTOP)
+    time.sleep(1.0)
+    os.kill(pid, signal.SIGCONT)
+    th.join(120)
+    res = mp.result
+    assert res.exit_code == 0, res.reason
+    s = res.summary
+    assert s["dead_agents"] == {}
+    assert s["missed_deadlines"].get("sc03", 0) >= 5
+    msgs = read_mcap(out / "run.mcap")
+    missed = [m.header.step for t, _l, _p, m in msgs if t == "swarm/rt/event" and m.kind == "deadline_missed" and m.subject == "sc03"]
+    truth = {m.header.step: next(b for b in m.bodies if b.id == "sc03") for t, _l, _p, m in msgs if t == "swarm/rt/truth"}
+    held = [k for k in missed if k - 1 in truth]
+    assert held
+    for k in held:  # the command applied over a missed step equals the one before it
+        a, b = truth[k].accel_cmd_mps2, truth[k - 1].accel_cmd_mps2
+        assert (a.x, a.y, a.z) == (b.x, b.y, b.z)
