@@ -55,3 +55,11 @@ def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNu
         gain_per_s=float(params.get("gain_per_s", 1e-4)),
         max_accel_mps2=float(params.get("max_accel_mps2", 1e-3)),
     )
+
+
+@register("sabatini")
+def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
+    """Behavioural swarm keeping of paper 002 (agent/behaviour/sabatini.py); scipy is imported on use."""
+    from agent.behaviour.sabatini import make_sabatini
+
+    return make_sabatini(sc_id, orbit, params)

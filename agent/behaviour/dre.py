@@ -1,0 +1,116 @@
+"""Periodic time-varying LQR gains from the differential Riccati equation (paper 002 section 3.4).
+
+The plant of the behavioural laws is Eq. (2), d(dalpha)/dt = A dalpha + B(u) u_c, with the
+dimensionless ROE dalpha and u_c in m/s^2 (agent/roe.py). B depends on the reference argument of
+latitude u = n t, so the LQR gain comes from the differential Riccati equation (DRE)
+
+    -dP/dt = A' P + P A - P B(u) R^-1 B(u)' P + Q,        K(u) = R^-1 B(u)' P(u),
+
+whose stabilising solution is periodic in u with period 2 pi. It is found by integrating the DRE
+backward in time, one orbit at a time from P = 0, until P at the start of the orbit repeats; the
+last orbit is tabulated on a uniform grid of u. Weights (NOTES-002): Q as printed in the paper for
+the dimensionless ROE, R in SI (m/s^2)^-2, i.e. the paper's 1e4, 1e6, 1e5 in (km/s^2)^-2 become
+1e-2, 1 and 1e-1.
+
+The table is computed once per (orbit, weights, grid) and cached for the life of the process.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from agent.roe import input_matrix, state_matrix
+
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class GainTable:
+    """Periodic LQR gain tabulated by u: accel_mps2 = -gain(u) @ error_roe_m."""
+
+    u_grid_rad: np.ndarray  # (N,) uniform over [0, 2 pi)
+    gain_per_s2: np.ndarray  # (N, 3, 6) gain on the ROE error in metres: (m/s^2) per m
+    riccati: np.ndarray  # (N, 6, 6) P(u) of the dimensionless problem
+    orbits_to_converge: int
+
+    def gain(self, u_rad: float) -> np.ndarray:
+        """(3, 6) gain at u, linear interpolation between the periodic table's nodes."""
+        n_table = self.u_grid_rad.size
+        x = (float(u_rad) % TWO_PI) / TWO_PI * n_table
+        i0 = int(np.floor(x)) % n_table
+        f = x - np.floor(x)
+        return (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+
+
+def riccati_rate(t_s: float, p_flat: np.ndarray, a_mat: np.ndarray, q_mat: np.ndarray, r_inv: np.ndarray,
+                 a_m: float, n_radps: float) -> np.ndarray:
+    """dP/dt of the DRE (section 3.4), P flattened row-major; u = n t."""
+    p = p_flat.reshape(6, 6)
+    b = input_matrix(n_radps * t_s, a_m, n_radps)
+    pb = p @ b
+    dp = -(a_mat.T @ p + p @ a_mat - pb @ r_inv @ pb.T + q_mat)
+    return dp.ravel()
+
+
+def integrate_riccati_one_orbit(p_end: np.ndarray, a_m: float, n_radps: float, q_diag: np.ndarray,
+                                r_diag: np.ndarray, rtol: float = 1e-10):
+    """Integrate the DRE backward over one orbit, t = T -> 0 (u = 2 pi -> 0); returns the solve_ivp result."""
+    period_s = TWO_PI / n_radps
+    args = (state_matrix(n_radps), np.diag(q_diag), np.diag(1.0 / r_diag), a_m, n_radps)
+    scale = max(1.0, float(np.max(np.abs(p_end))))
+    return solve_ivp(riccati_rate, (period_s, 0.0), p_end.ravel(), method="DOP853", args=args,
+                     rtol=rtol, atol=rtol * scale, dense_output=True)
+
+
+def periodic_riccati(a_m: float, n_radps: float, q_diag: np.ndarray, r_diag: np.ndarray, n_table: int = 720,
+                     tol: float = 1e-9, max_orbits: int = 200) -> tuple[np.ndarray, np.ndarray, int]:
+    """Periodic solution P(u) of the DRE on u = 2 pi i / n_table; returns (u_grid, P (N,6,6), orbits used).
+
+    Converged when one more backward orbit changes P(0) by less than tol relative to max |P|.
+    """
+    q_diag = np.asarray(q_diag, dtype=float)
+    r_diag = np.asarray(r_diag, dtype=float)
+    p_end = np.zeros((6, 6))
+    for orbit in range(1, max_orbits + 1):
+        sol = integrate_riccati_one_orbit(p_end, a_m, n_radps, q_diag, r_diag)
+        if not sol.success:
+            raise RuntimeError(f"DRE integration failed: {sol.message}")
+        p_start = sol.y[:, -1].reshape(6, 6)
+        change = np.max(np.abs(p_start - p_end)) / max(np.max(np.abs(p_start)), 1e-300)
+        p_end = 0.5 * (p_start + p_start.T)
+        if orbit > 1 and change < tol:
+            break
+    else:
+        raise RuntimeError(f"DRE did not reach its periodic solution in {max_orbits} orbits (change {change:.2e})")
+    u_grid = TWO_PI * np.arange(n_table) / n_table
+    p_table = sol.sol(u_grid / n_radps).T.reshape(n_table, 6, 6)
+    p_table = 0.5 * (p_table + p_table.transpose(0, 2, 1))
+    return u_grid, p_table, orbit
+
+
+@lru_cache(maxsize=32)
+def _cached_table(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
+                  n_table: int) -> GainTable:
+    u_grid, p_table, orbits = periodic_riccati(a_m, n_radps, np.array(q_diag), np.array(r_diag), n_table)
+    r_inv = np.diag(1.0 / np.array(r_diag))
+    gains = np.empty((n_table, 3, 6))
+    for i, u in enumerate(u_grid):
+        gains[i] = r_inv @ input_matrix(u, a_m, n_radps).T @ p_table[i] / a_m  # per metre of ROE error
+    u_grid.setflags(write=False)
+    gains.setflags(write=False)
+    p_table.setflags(write=False)
+    return GainTable(u_grid, gains, p_table, orbits)
+
+
+def gain_table(a_m: float, n_radps: float, q_diag, r_diag, n_table: int = 720) -> GainTable:
+    """Cached periodic gain table for Q = diag(q_diag) (dimensionless ROE) and R = diag(r_diag) (SI).
+
+    A scalar r_diag means r * I3.
+    """
+    r = np.broadcast_to(np.asarray(r_diag, dtype=float), (3,))
+    q = np.asarray(q_diag, dtype=float).reshape(6)
+    return _cached_table(float(a_m), float(n_radps), tuple(float(x) for x in q), tuple(float(x) for x in r),
+                         int(n_table))

@@ -1,0 +1,199 @@
+"""Behavioural swarm keeping of paper 002 (sections 3.3-3.8) as flight software.
+
+Every decision step, for each visible neighbour k, spacecraft j:
+
+1. turns the measured LVLH state of k relative to j (r_k - r_j) into the ROE of j relative to k,
+   dalpha_jk = M(u) (r_j - r_k) (NOTES-002: the observer relative to the neighbour, so j's own
+   thrust enters through +B(u) and the CA offset da = +100 m makes j drift back, away from k);
+2. computes the decision distance d_min_jk = |a dl| - 2 |a de| (section 3.3) and picks
+   collision avoidance (d_min_jk < d_min), attraction (d_min_jk > 0.6 d_max) or alignment;
+3. builds the behaviour's reference state (sections 3.5-3.7, Algorithm 1):
+   - CA: de_ref = k_ecc d_min_trans de/|de|, di_ref = de_ref, da_ref = +100 m, weight 1;
+   - alignment: if TooSmall, TooLarge (d_max_trans = 0.9 d_jk tan theta_fov) or NotParallel,
+     de_ref, di_ref as CA; otherwise de, di are left as they are; da_ref = 0; the weight falls
+     linearly from 1 at d_min_jk = d_min to 0 at d_min_jk = 0.6 d_max;
+   - attraction: da_ref = 0 (only da is weighted), weight 1;
+4. sums u_c = -sum_k w_jk K_b(u) (dalpha_jk - dalpha_ref_jk) with the periodic DRE gains of each
+   behaviour (agent/behaviour/dre.py) and clips each axis to the actuator limit.
+
+Choices where the paper is silent (documented, not tuned): d_jk in d_max_trans is the measured
+range |r_k - r_j|; when |de| = 0 the reference direction is that of di, or radial (1, 0) if both
+vanish; the parallelism of a pair with |de| or |di| = 0 is 0 (NotParallel). dl of the reference is
+the measured one: dl is not weighted in any Q, so the DRE gives it no gain.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from agent.behaviour.dre import GainTable, gain_table
+from agent.controller import Command, Decision, Observation, OrbitInfo
+from agent.roe import lvlh_to_roe
+
+CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
+_TINY_M = 1e-9
+
+
+@dataclass(frozen=True)
+class SabatiniParams:
+    """Parameters of the behavioural law; defaults are the paper's (section 3, NOTES-002)."""
+
+    d_min_m: float = 100.0  # along-track minimum distance (section 3.2)
+    d_min_trans_m: float = 30.0  # radial / cross-track minimum distance
+    d_max_m: float = 500.0  # detection range
+    attraction_fraction: float = 0.6  # attraction when d_min_jk > 0.6 d_max (section 3.3)
+    k_ecc: float = 1.1
+    ca_da_offset_m: float = 100.0  # a * da_ref of collision avoidance (section 3.5)
+    parallel_min: float = 0.8  # NotParallel when |de.di|/(|de||di|) < 0.8 (Algorithm 1)
+    fov_margin: float = 0.9  # d_max_trans = 0.9 d_jk tan(theta_fov)
+    fov_half_angle_deg: float = float(np.degrees(np.arctan(0.54)))  # 1080 px, f = 1000 px: 28.37 deg
+    q_ca: tuple[float, ...] = (0.01, 0.0, 1.0, 1.0, 1.0, 1.0)
+    q_al: tuple[float, ...] = (1.0, 0.0, 1.0, 1.0, 1.0, 1.0)
+    q_att: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    r_ca_si: float = 1e-2  # paper 1e4 I3 in (km/s^2)^-2
+    r_al_si: float = 1.0  # paper 1e6
+    r_att_si: float = 1e-1  # paper 1e5
+    # per-axis actuator clip; the paper (section 4.2, Fig. 19) only says "milli-newton-level
+    # thrusters" for ~10 kg spacecraft (~1e-4 m/s^2); the two-satellite cases peak at 4.5e-5 m/s^2
+    max_accel_mps2: float = 1e-3
+    enable_collision_avoidance: bool = True
+    enable_alignment: bool = True
+    enable_attraction: bool = True
+    dre_table_size: int = 720  # gain table nodes per orbit (0.5 deg; a 10 s step is 0.63 deg)
+
+    @classmethod
+    def from_dict(cls, params: dict[str, Any]) -> "SabatiniParams":
+        known = {f.name: f for f in fields(cls)}
+        unknown = sorted(set(params) - set(known))
+        if unknown:
+            raise ValueError(f"unknown sabatini controller params {unknown}; known: {sorted(known)}")
+        kw: dict[str, Any] = {}
+        for key, value in params.items():
+            default = known[key].default
+            if isinstance(default, tuple):
+                kw[key] = tuple(float(x) for x in value)
+                if len(kw[key]) != 6:
+                    raise ValueError(f"{key} must have 6 entries, got {value!r}")
+            elif isinstance(default, bool):
+                kw[key] = bool(value)
+            elif isinstance(default, int):
+                kw[key] = int(value)
+            else:
+                kw[key] = float(value)
+        return cls(**kw)
+
+
+def relative_roe_observer(rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray, u_rad: float,
+                          n_radps: float) -> np.ndarray:
+    """dalpha_jk in metres: ROE of the observer j relative to neighbour k from the measured r_k - r_j."""
+    return lvlh_to_roe(-np.asarray(rel_position_m, float), -np.asarray(rel_velocity_mps, float), u_rad, n_radps)
+
+
+def decision_distance_m(roe_jk_m: np.ndarray) -> np.ndarray:
+    """d_min_jk = a(|dl| - 2|de|), the minimum along-track distance over an orbit (section 3.3)."""
+    return np.abs(roe_jk_m[..., 1]) - 2.0 * np.hypot(roe_jk_m[..., 2], roe_jk_m[..., 3])
+
+
+def parallelism(roe_jk_m: np.ndarray) -> np.ndarray:
+    """|de . di| / (|de| |di|), 0 when either vector vanishes (Algorithm 1, step 3)."""
+    r = roe_jk_m
+    den = np.hypot(r[..., 2], r[..., 3]) * np.hypot(r[..., 4], r[..., 5])
+    dot = np.abs(r[..., 2] * r[..., 4] + r[..., 3] * r[..., 5])
+    return np.where(den > _TINY_M**2, dot / np.where(den > _TINY_M**2, den, 1.0), 0.0)
+
+
+def safe_direction(roe_jk_m: np.ndarray) -> np.ndarray:
+    """(N,2) unit vector along de (fallback di, then (1, 0)) for the de/di reference of sections 3.5-3.6."""
+    de, di = roe_jk_m[:, 2:4], roe_jk_m[:, 4:6]
+    nde = np.hypot(de[:, :1], de[:, 1:])
+    ndi = np.hypot(di[:, :1], di[:, 1:])
+    out = np.zeros_like(de)
+    out[:, 0] = 1.0
+    out = np.where(ndi > _TINY_M, di / np.where(ndi > _TINY_M, ndi, 1.0), out)
+    return np.where(nde > _TINY_M, de / np.where(nde > _TINY_M, nde, 1.0), out)
+
+
+class SabatiniController:
+    """Behavioural controller (collision avoidance / alignment / attraction) of paper 002."""
+
+    name = "sabatini"
+
+    def __init__(self, sc_id: str, orbit: OrbitInfo, params: SabatiniParams) -> None:
+        self.sc_id = sc_id
+        self.a_m = float(orbit.semi_major_axis_m)
+        self.n_radps = float(orbit.mean_motion_radps)
+        self.p = params
+        self.tan_fov = float(np.tan(np.radians(params.fov_half_angle_deg)))
+        self.gains: dict[str, GainTable] = {
+            CA: gain_table(self.a_m, self.n_radps, params.q_ca, params.r_ca_si, params.dre_table_size),
+            ALIGN: gain_table(self.a_m, self.n_radps, params.q_al, params.r_al_si, params.dre_table_size),
+            ATTRACT: gain_table(self.a_m, self.n_radps, params.q_att, params.r_att_si, params.dre_table_size),
+        }
+
+    def classify(self, d_min_jk_m: np.ndarray) -> np.ndarray:
+        """Behaviour of each pair from its decision distance (section 3.3)."""
+        p = self.p
+        return np.where(d_min_jk_m < p.d_min_m, CA,
+                        np.where(d_min_jk_m > p.attraction_fraction * p.d_max_m, ATTRACT, ALIGN)).astype(object)
+
+    def references(self, roe_jk_m: np.ndarray, range_m: np.ndarray, behaviour: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(reference ROE (N,6), weight (N,), alignment-correcting flag (N,)) per pair (sections 3.5-3.7)."""
+        p = self.p
+        ref = roe_jk_m.copy()
+        safe = p.k_ecc * p.d_min_trans_m * safe_direction(roe_jk_m)
+        de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
+        di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
+        d_max_trans_m = p.fov_margin * range_m * self.tan_fov
+        too_large = (di_m > d_max_trans_m) | (de_m > d_max_trans_m)
+        too_small = (di_m < p.d_min_trans_m) | (de_m < p.d_min_trans_m)
+        not_parallel = parallelism(roe_jk_m) < p.parallel_min
+        is_ca, is_al, is_att = behaviour == CA, behaviour == ALIGN, behaviour == ATTRACT
+        correct = is_ca | (is_al & (too_large | too_small | not_parallel))
+        ref[correct, 2:4] = safe[correct]
+        ref[correct, 4:6] = safe[correct]
+        ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
+        ref[is_att, 2:6] = 0.0  # unweighted in Q_att; the reference of section 3.7 is zero
+        span = (p.attraction_fraction * p.d_max_m - p.d_min_m)
+        w_al = np.clip((p.attraction_fraction * p.d_max_m - decision_distance_m(roe_jk_m)) / span, 0.0, 1.0)
+        weight = np.where(is_al, w_al, 1.0)
+        return ref, weight, correct
+
+    def step(self, obs: Observation) -> Command:
+        ids = list(obs.neighbour_ids)
+        if not ids:
+            return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
+        rel_pos = np.asarray(obs.rel_position_m, float).reshape(len(ids), 3)
+        rel_vel = np.asarray(obs.rel_velocity_mps, float).reshape(len(ids), 3)
+        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, obs.u_rad, self.n_radps)
+        d_min_jk_m = decision_distance_m(roe_jk_m)
+        behaviour = self.classify(d_min_jk_m)
+        range_m = np.sqrt(np.einsum("ij,ij->i", rel_pos, rel_pos))
+        ref, weight, correct = self.references(roe_jk_m, range_m, behaviour)
+        enabled = {CA: self.p.enable_collision_avoidance, ALIGN: self.p.enable_alignment,
+                   ATTRACT: self.p.enable_attraction}
+        gain_now = {b: self.gains[b].gain(obs.u_rad) for b in (CA, ALIGN, ATTRACT) if enabled[b]}
+        contrib = np.zeros((len(ids), 3))
+        for i, b in enumerate(behaviour):
+            if b in gain_now:
+                contrib[i] = -weight[i] * (gain_now[b] @ (roe_jk_m[i] - ref[i]))
+        total = contrib.sum(axis=0)
+        accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
+        decisions = []
+        for i, sid in enumerate(ids):
+            b = behaviour[i]
+            label = b if enabled[b] else f"{b}_disabled"
+            if b == ALIGN and not correct[i] and enabled[b]:
+                label = ALIGN_DRIFT
+            decisions.append(Decision(neighbour=sid, behaviour=label, d_min_m=float(d_min_jk_m[i]),
+                                      roe_rel_m=roe_jk_m[i].copy(), accel_mps2=contrib[i].copy()))
+        active = [b for b in (CA, ALIGN, ATTRACT) if enabled[b] and np.any(behaviour == b)]
+        mode = active[0] if active else "coast"
+        return Command(accel_mps2=accel, mode=mode, decisions=decisions)
+
+
+def make_sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> SabatiniController:
+    """Factory for the controller registry: (sc_id, orbit, [controller.params]) -> controller."""
+    return SabatiniController(sc_id, orbit, SabatiniParams.from_dict(dict(params)))
