@@ -1,0 +1,185 @@
+"""Linear relative dynamics in relative orbital elements (ROE) about a near-circular reference.
+
+ROE in metres: roe_m = a (da, dl, dex, dey, dix, diy) (D'Amico 2010 ch. 2; Gaias & D'Amico;
+conventions and sign-corrected matrices in shared/seeds/NOTES-002.md). `u` is the mean argument
+of latitude of the reference, u(t) = u0 + n t. LVLH: x radial, y along-track, z cross-track.
+
+Keplerian dynamics: d(roe)/dt = A roe + B(u) accel, A[dl, da] = -3/2 n the only nonzero entry
+(A^2 = 0, so Phi(t) = I + A t), and B(u) the Gauss-variation input matrix (NOTES-002, times a).
+The linear map ROE -> LVLH is exactly the Hill-Clohessy-Wiltshire solution space: propagating ROE
+and mapping to LVLH reproduces HCW (tests/test_dynamics_linear.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from plant.dynamics.constants import MU_EARTH_M3PS2
+
+DA, DL, DEX, DEY, DIX, DIY = range(6)
+
+
+def mean_motion(a_m: float) -> float:
+    """Keplerian mean motion n = sqrt(mu / a^3) [rad/s]."""
+    return float(np.sqrt(MU_EARTH_M3PS2 / a_m**3))
+
+
+def _as_rows(x: np.ndarray, width: int, name: str) -> np.ndarray:
+    arr = np.asarray(x, dtype=float)
+    if arr.shape[-1] != width:
+        raise ValueError(f"{name} must have last dimension {width}, got shape {arr.shape}")
+    return arr
+
+
+def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.ndarray, np.ndarray]:
+    """Near-circular linear map ROE -> LVLH (NOTES-002 'Conventions'); returns pos_m, vel_mps (N, 3).
+
+    x = da - dex cos u - dey sin u        vx = n (dex sin u - dey cos u)
+    y = dl + 2 dex sin u - 2 dey cos u    vy = n (-3/2 da + 2 dex cos u + 2 dey sin u)
+    z = dix sin u - diy cos u             vz = n (dix cos u + diy sin u)
+    """
+    roe = _as_rows(roe_m, 6, "roe_m")
+    c, s = np.cos(u_rad), np.sin(u_rad)
+    da, dl, dex, dey, dix, diy = (roe[..., k] for k in range(6))
+    pos = np.stack(
+        (da - dex * c - dey * s, dl + 2.0 * dex * s - 2.0 * dey * c, dix * s - diy * c), axis=-1
+    )
+    vel = n_radps * np.stack(
+        (dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s), axis=-1
+    )
+    return pos, vel
+
+
+def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
+    """Exact inverse of `roe_to_lvlh`: the matrix M of NOTES-002 (paper 002 sec. 5, signs restored).
+
+    Rows with state (x, y, vx, vy, z, vz): [4,0,0,2/n,0,0], [0,1,-2/n,0,0,0],
+    [3c,0,s/n,2c/n,0,0], [3s,0,-c/n,2s/n,0,0], [0,0,0,0,s,c/n], [0,0,0,0,-c,s/n].
+    """
+    pos = _as_rows(pos_m, 3, "pos_m")
+    vel = _as_rows(vel_mps, 3, "vel_mps")
+    c, s = np.cos(u_rad), np.sin(u_rad)
+    x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
+    vx, vy, vz = (vel[..., k] / n_radps for k in range(3))
+    return np.stack(
+        (
+            4.0 * x + 2.0 * vy,
+            y - 2.0 * vx,
+            3.0 * c * x + s * vx + 2.0 * c * vy,
+            3.0 * s * x - c * vx + 2.0 * s * vy,
+            s * z + c * vz,
+            -c * z + s * vz,
+        ),
+        axis=-1,
+    )
+
+
+def input_matrix(u_rad: float, n_radps: float) -> np.ndarray:
+    """a B(u), shape (6, 3): d(roe_m)/dt from (radial, along-track, cross-track) accel [m/s^2].
+
+    a B(u) = 1/n [[0,2,0], [-2,0,0], [sin u, 2cos u, 0], [-cos u, 2sin u, 0], [0,0,cos u], [0,0,sin u]]
+    (NOTES-002, Gauss variational equations linearised about a circular orbit).
+    """
+    c, s = np.cos(u_rad), np.sin(u_rad)
+    return (
+        np.array(
+            [
+                [0.0, 2.0, 0.0],
+                [-2.0, 0.0, 0.0],
+                [s, 2.0 * c, 0.0],
+                [-c, 2.0 * s, 0.0],
+                [0.0, 0.0, c],
+                [0.0, 0.0, s],
+            ]
+        )
+        / n_radps
+    )
+
+
+def state_matrix(n_radps: float) -> np.ndarray:
+    """A, shape (6, 6): only A[dl, da] = -3/2 n (Keplerian drift of the mean argument of latitude)."""
+    a = np.zeros((6, 6))
+    a[DL, DA] = -1.5 * n_radps
+    return a
+
+
+def transition_matrix(n_radps: float, dt_s: float) -> np.ndarray:
+    """Phi(dt) = exp(A dt) = I + A dt (A is nilpotent)."""
+    return np.eye(6) + state_matrix(n_radps) * dt_s
+
+
+def zoh_input_matrix(u0_rad: float, n_radps: float, dt_s: float) -> np.ndarray:
+    """Gamma = integral_0^dt Phi(dt - s) a B(u0 + n s) ds, shape (6, 3), in closed form.
+
+    With u1 = u0 + n dt, um = (u0 + u1)/2, h = sin(n dt / 2) (differences of sines/cosines written
+    as products, so there is no cancellation for small n dt):
+      cos u0 - cos u1 = 2 sin um h,   sin u1 - sin u0 = 2 cos um h.
+    Rows: da [0, 2dt/n, 0]; dl [-2dt/n, -3/2 dt^2, 0] (the da row through A[dl, da]);
+    dex [(cos u0 - cos u1), 2 (sin u1 - sin u0), 0]/n^2; dey [-(sin u1 - sin u0), 2 (cos u0 - cos u1), 0]/n^2;
+    dix [0, 0, sin u1 - sin u0]/n^2; diy [0, 0, cos u0 - cos u1]/n^2.
+    """
+    n = n_radps
+    um = u0_rad + 0.5 * n * dt_s
+    h = np.sin(0.5 * n * dt_s)
+    dcos = 2.0 * np.sin(um) * h / n**2  # (cos u0 - cos u1) / n^2
+    dsin = 2.0 * np.cos(um) * h / n**2  # (sin u1 - sin u0) / n^2
+    return np.array(
+        [
+            [0.0, 2.0 * dt_s / n, 0.0],
+            [-2.0 * dt_s / n, -1.5 * dt_s**2, 0.0],
+            [dcos, 2.0 * dsin, 0.0],
+            [-dsin, 2.0 * dcos, 0.0],
+            [0.0, 0.0, dsin],
+            [0.0, 0.0, dcos],
+        ]
+    )
+
+
+def propagate_roe(
+    roe_m: np.ndarray, accel_mps2: np.ndarray, u0_rad: float, n_radps: float, dt_s: float
+) -> np.ndarray:
+    """Exact solution over dt of d(roe)/dt = A roe + a B(u0 + n t) accel, accel held constant (ZOH).
+
+    roe(dt) = Phi(dt) roe(0) + Gamma(u0, dt) accel (see `zoh_input_matrix`). Shapes (N, 6), (N, 3).
+    """
+    roe = _as_rows(roe_m, 6, "roe_m")
+    accel = _as_rows(accel_mps2, 3, "accel_mps2")
+    out = roe.copy()
+    out[..., DL] += -1.5 * n_radps * dt_s * roe[..., DA]
+    return out + accel @ zoh_input_matrix(u0_rad, n_radps, dt_s).T
+
+
+class LinearRoePlant:
+    """Relative-motion plant on the linear ROE model, same interface as `AbsoluteJ2Plant`.
+
+    The reference is the Keplerian circular orbit of semi-major axis a; `inc_rad` and `raan_rad`
+    are kept for interface symmetry (the linear Keplerian model does not depend on them).
+    Commands are LVLH accelerations held constant over each step (exact ZOH, `propagate_roe`).
+    """
+
+    def __init__(
+        self, a_m: float, inc_rad: float, raan_rad: float, u0_rad: float, roe_m: np.ndarray
+    ) -> None:
+        self.a_m = float(a_m)
+        self.inc_rad = float(inc_rad)
+        self.raan_rad = float(raan_rad)
+        self.n_radps = mean_motion(self.a_m)
+        self.u0_rad = float(u0_rad)
+        self.roe_m = np.array(_as_rows(roe_m, 6, "roe_m"), dtype=float, ndmin=2)
+        self.t_s = 0.0
+
+    def reference_u(self) -> float:
+        """Mean argument of latitude of the reference, u0 + n t, wrapped to [0, 2 pi)."""
+        return float(np.mod(self.u0_rad + self.n_radps * self.t_s, 2.0 * np.pi))
+
+    def step(self, accel_lvlh_mps2: np.ndarray | None, dt_s: float) -> None:
+        """Advance every spacecraft by dt_s with its LVLH acceleration (N, 3) held over the step."""
+        accel = np.zeros((len(self.roe_m), 3)) if accel_lvlh_mps2 is None else accel_lvlh_mps2
+        accel = np.asarray(accel, dtype=float)
+        if accel.shape != (len(self.roe_m), 3):
+            raise ValueError(f"accel_lvlh_mps2 must be ({len(self.roe_m)}, 3), got {accel.shape}")
+        self.roe_m = propagate_roe(self.roe_m, accel, self.reference_u(), self.n_radps, dt_s)
+        self.t_s += dt_s
+
+    def relative_lvlh(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) [m] and velocities (N, 3) [m/s] relative to the reference, in its LVLH."""
+        return roe_to_lvlh(self.roe_m, self.reference_u(), self.n_radps)
