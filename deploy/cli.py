@@ -5,8 +5,11 @@ import json
 import logging
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
+
+from deploy.cli_viz import viz_option
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -27,9 +30,11 @@ def main(verbose: int) -> None:
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
+@viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool) -> None:
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
+    from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
     from deploy.scenario import ScenarioError, load_scenario
 
@@ -40,10 +45,11 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     rid = run_id or new_run_id(sc.name)
     out_dir = Path(out) if out else Path("runs") / rid
     progress = not no_progress and sys.stderr.isatty()
+    opts = viz_opts(in_process=in_process, **viz)
     if in_process:
-        res = run_in_process(sc, out_dir, rid, progress=progress)
+        res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
-        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress,
+        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
                               overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
     s = res.summary
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
@@ -79,6 +85,9 @@ def mcap_info(src: str) -> None:
 
     for topic, n in sorted(topic_counts(src).items()):
         click.echo(f"{n:8d}  {topic}")
+
+
+from deploy.cli_viz import replay as _replay_cmd; main.add_command(_replay_cmd)  # noqa: E402,E702
 
 
 if __name__ == "__main__":

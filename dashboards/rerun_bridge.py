@@ -1,0 +1,602 @@
+"""swarmhil samples -> Rerun: the one logger behind the live viewer bridge and the MCAP replay.
+
+`SwarmLogger.ingest(key, payload)` takes raw samples of `swarm/<run>/**` exactly as the bus or
+the MCAP file gives them and only queues them (cheap, so a bus callback never stalls);
+`flush()` decodes what is queued and sends it to Rerun in column batches (`send_columns`), one
+call per entity per flush rather than one `log` per message (STACK-NOTES: far faster).
+
+Timelines: "step" (sequence, header.step) and "sim_time" (duration, header.t seconds).
+
+Entity paths (`Paths`, the one place they are spelled), positions in metres in the LVLH frame of
+the reference orbit (x radial, y along-track, z cross-track):
+
+    world/sc/<id>                 Points3D, one labelled point per spacecraft (truth), coloured by
+                                  the agent's mode (Telemetry.mode: behaviour or controller state),
+                                  dark grey once the plant counts it dead
+    world/trails                  Points3D, every spacecraft each step; the blueprint shows them over
+                                  a trailing visible time range (one orbit) instead of re-logging strips
+    world/visibility              LineStrips3D, observer -> observed segments of the camera digraph
+                                  computed from truth (range <= 500 m, square FOV tan 0.54 about +y)
+    world/links                   LineStrips3D, src -> dst of the ISL deliveries stamped with that step
+                                  (an empty batch on steps without any, so they are short-lived)
+    world/targets/<id>            Points3D, bodies of kind "target"
+    world/estimates/<id>          Points3D, where agent <id> believes its neighbours are (own true
+                                  position + estimated relative position: Telemetry.tracks, else the
+                                  decisions' relative ROE through the linear ROE map), coloured by
+                                  the behaviour it chose for each
+    world/estimates/<id>/error    LineStrips3D, estimate -> true position of that neighbour
+    metrics/connectivity/weakly_connected_components   Scalars (alive spacecraft only)
+    metrics/delta_v/total_mps     Scalars, sum of the cumulative dV of every spacecraft
+    link/messages/{tx,rx}         Scalars, cumulative counts (LinkStats)
+    link/bytes/{payload,wire}     Scalars, cumulative bytes over every link (LinkStats)
+    link/dropped                  Scalars, cumulative drops of every cause (LinkStats)
+    cameras/<id>                  EncodedImage, foxglove CompressedImage frames on sc/<id>/tm/image
+    events                        TextLog of Event messages (agent_dead, deadline_missed, ...)
+"""
+from __future__ import annotations
+
+import math
+import zlib
+from collections import defaultdict
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from bus import swarmhil_pb2 as pb
+from bus.codec import RejectedPacket, Rejections, decode
+from bus.keys import Keys
+
+APP_ID = "swarmhil"
+STEP = "step"
+SIM_TIME = "sim_time"
+
+SC_RADIUS_UI = -6.0       # negative radii are UI points: visible at any zoom
+TRAIL_RADIUS_UI = -1.5
+ESTIMATE_RADIUS_UI = -3.0
+TARGET_RADIUS_UI = -9.0
+LINE_RADIUS_UI = -0.75
+
+# Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
+MODE_COLOURS: dict[str, tuple[int, int, int]] = {
+    "collision_avoidance": (230, 57, 70),
+    "attraction": (244, 162, 37),
+    "alignment": (72, 191, 99),
+    "alignment_drift": (155, 214, 96),
+    "coast": (84, 140, 235),
+    "search": (176, 120, 230),
+    "drift-null": (40, 190, 205),
+    "idle": (150, 150, 150),
+    "none": (150, 150, 150),
+    "fault": (255, 0, 200),
+}
+DEAD_COLOUR = (64, 64, 64)
+TARGET_COLOUR = (255, 215, 0)
+VISIBILITY_COLOUR = (170, 170, 170)
+LINK_COLOUR = (0, 230, 255)
+ERROR_COLOUR = (255, 80, 80)
+EVENT_LEVELS = {"agent_dead": "ERROR", "rejected_packet": "WARN", "deadline_missed": "WARN"}
+
+
+def mode_colour(name: str) -> tuple[int, int, int]:
+    """Colour of a mode or behaviour label; `x_disabled` is a dimmed `x`."""
+    if name in MODE_COLOURS:
+        return MODE_COLOURS[name]
+    if name.endswith("_disabled") and name[: -len("_disabled")] in MODE_COLOURS:
+        return tuple(int(c * 0.45) for c in MODE_COLOURS[name[: -len("_disabled")]])  # type: ignore[return-value]
+    h = zlib.crc32(name.encode())
+    return (64 + h % 160, 64 + (h >> 8) % 160, 64 + (h >> 16) % 160)
+
+
+def id_colours(n: int) -> np.ndarray:
+    """n distinguishable colours (golden-angle hues), uint8 (n, 3): the trail of each spacecraft."""
+    hue = (np.arange(n) * 0.618033988749895) % 1.0
+    k = (np.array([5.0, 3.0, 1.0])[None, :] + hue[:, None] * 6.0) % 6.0
+    rgb = 1.0 - 0.55 * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)  # HSV -> RGB with s=0.55, v=1
+    return (rgb * 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class CameraRule:
+    """The camera of paper 002 as a visibility rule: range and square FOV about +y LVLH."""
+
+    detection_range_m: float = 500.0
+    tan_half_fov: float = 0.54   # (image_px / 2) / focal_px = 540 / 1000
+
+    @classmethod
+    def from_scenario(cls, camera: dict[str, Any] | None) -> "CameraRule":
+        cam = camera or {}
+        image_px = float(cam.get("image_px", 1080))
+        focal_px = float(cam.get("focal_px", 1000.0))
+        return cls(float(cam.get("detection_range_m", 500.0)), image_px / 2.0 / focal_px)
+
+    def as_dict(self) -> dict[str, float]:
+        return {"detection_range_m": self.detection_range_m, "tan_half_fov": self.tan_half_fov}
+
+
+def visibility(pos_m: np.ndarray, alive: np.ndarray, rule: CameraRule) -> np.ndarray:
+    """V[..., j, k]: k within range of j and inside j's square FOV about +y (paper 002 sec. 3.1, 5).
+
+    rel = r_k - r_j; visible iff rel_y > 0, |rel_x| <= tan*rel_y, |rel_z| <= tan*rel_y,
+    |rel| <= range. A dead observer sees nothing; a dead body is still seen. pos_m (..., N, 3),
+    alive (..., N).
+    """
+    rel = pos_m[..., None, :, :] - pos_m[..., :, None, :]
+    ahead = rel[..., 1]
+    tan = rule.tan_half_fov
+    vis = ((ahead > 0.0) & (np.abs(rel[..., 0]) <= tan * ahead) & (np.abs(rel[..., 2]) <= tan * ahead)
+           & (np.einsum("...i,...i->...", rel, rel) <= rule.detection_range_m ** 2))
+    n = pos_m.shape[-2]
+    vis &= ~np.eye(n, dtype=bool)
+    return vis & np.asarray(alive, bool)[..., :, None]
+
+
+def weak_components(vis: np.ndarray, alive: np.ndarray) -> np.ndarray:
+    """Number of weakly connected components of the digraph among alive nodes, per step.
+
+    vis (M, N, N), alive (M, N) -> (M,) int. Label propagation on the undirected graph: every node
+    takes the smallest label among itself and its neighbours until nothing changes (<= N rounds).
+    """
+    m, n, _ = vis.shape
+    adj = (vis | np.swapaxes(vis, 1, 2)) & alive[:, :, None] & alive[:, None, :]
+    big = n + 1
+    labels = np.where(alive, np.arange(n)[None, :], big)
+    for _ in range(n):
+        nb = np.where(adj, labels[:, None, :], big).min(axis=2)
+        new = np.minimum(labels, nb)
+        if np.array_equal(new, labels):
+            break
+        labels = new
+    return np.array([len(np.unique(row[row < big])) for row in labels])
+
+
+def roe_rel_to_position_m(roe_rel_m: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
+    """Relative LVLH position of a pair from its relative ROE (the flight software's own map)."""
+    from agent.roe import roe_to_lvlh
+
+    return roe_to_lvlh(np.asarray(roe_rel_m, float).reshape(-1, 6), u_rad, n_radps)[0]
+
+
+@dataclass
+class TruthFrame:
+    step: int
+    t_s: float
+    u_rad: float
+    n_radps: float
+    ids: tuple[str, ...]          # spacecraft
+    pos_m: np.ndarray             # (N, 3)
+    alive: np.ndarray             # (N,)
+    delta_v_mps: np.ndarray       # (N,)
+    target_ids: tuple[str, ...]
+    target_pos_m: np.ndarray      # (T, 3)
+
+    def position_of(self, sid: str) -> np.ndarray | None:
+        try:
+            return self.pos_m[self.ids.index(sid)]
+        except ValueError:
+            return None
+
+
+def truth_frame(msg: pb.Truth) -> TruthFrame:
+    sc = [b for b in msg.bodies if b.kind != "target"]
+    tg = [b for b in msg.bodies if b.kind == "target"]
+
+    def xyz(bodies: list[pb.BodyState]) -> np.ndarray:
+        return np.array([(b.position_m.x, b.position_m.y, b.position_m.z) for b in bodies], float).reshape(-1, 3)
+
+    return TruthFrame(int(msg.header.step), float(msg.header.t), float(msg.u_rad), float(msg.mean_motion_radps),
+                      tuple(b.id for b in sc), xyz(sc), np.array([b.alive for b in sc], bool),
+                      np.array([b.delta_v_mps for b in sc], float), tuple(b.id for b in tg), xyz(tg))
+
+
+class Paths:
+    WORLD = "world"
+    AXES = "world/axes"
+    TRAILS = "world/trails"
+    VISIBILITY = "world/visibility"
+    LINKS = "world/links"
+    WCC = "metrics/connectivity/weakly_connected_components"
+    DV_TOTAL = "metrics/delta_v/total_mps"
+    LINK_TX = "link/messages/tx"
+    LINK_RX = "link/messages/rx"
+    LINK_PAYLOAD_B = "link/bytes/payload"
+    LINK_WIRE_B = "link/bytes/wire"
+    LINK_DROPPED = "link/dropped"
+    EVENTS = "events"
+
+    @staticmethod
+    def sc(sid: str) -> str:
+        return f"world/sc/{sid}"
+
+    @staticmethod
+    def target(tid: str) -> str:
+        return f"world/targets/{tid}"
+
+    @staticmethod
+    def estimates(sid: str) -> str:
+        return f"world/estimates/{sid}"
+
+    @staticmethod
+    def estimate_error(sid: str) -> str:
+        return f"world/estimates/{sid}/error"
+
+    @staticmethod
+    def camera(sid: str) -> str:
+        return f"cameras/{sid}"
+
+
+def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> rrb.Blueprint:
+    """Default layout: 3D swarm with trails and the event log; time series on the right."""
+    trail = rrb.VisibleTimeRanges([
+        rrb.VisibleTimeRange(STEP, start=rrb.TimeRangeBoundary.cursor_relative(seq=-int(trail_steps)),
+                             end=rrb.TimeRangeBoundary.cursor_relative()),
+        rrb.VisibleTimeRange(SIM_TIME, start=rrb.TimeRangeBoundary.cursor_relative(seconds=-trail_steps * step_s),
+                             end=rrb.TimeRangeBoundary.cursor_relative()),
+    ])
+    left = rrb.Vertical(
+        rrb.Spatial3DView(origin=Paths.WORLD, name="swarm (LVLH, m)", overrides={Paths.TRAILS: trail}),
+        rrb.TextLogView(origin=Paths.EVENTS, name="events"),
+        row_shares=[4, 1],
+    )
+    plots: list[Any] = [
+        rrb.TimeSeriesView(origin="metrics/connectivity", name="weakly connected components"),
+        rrb.TimeSeriesView(origin="metrics/delta_v", name="total ΔV (m/s)"),
+        rrb.TimeSeriesView(origin="link/messages", name="link messages"),
+        rrb.TimeSeriesView(origin="link/bytes", name="link bytes"),
+    ]
+    cams = sorted(cameras)[:4]
+    if cams:
+        plots.append(rrb.Grid(*[rrb.Spatial2DView(origin=Paths.camera(c), name=f"camera {c}") for c in cams]))
+    return rrb.Blueprint(
+        rrb.Horizontal(left, rrb.Vertical(*plots), column_shares=[3, 2]),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline=STEP),
+        collapse_panels=False,
+    )
+
+
+class SwarmLogger:
+    """Queues raw samples of one run and logs them to a RecordingStream in column batches.
+
+    Not thread-safe: call ingest/flush from one thread or under one lock (viz_node does).
+    """
+
+    HISTORY_STEPS = 600   # truth frames kept for late telemetry, link deliveries and images
+
+    def __init__(self, rec: rr.RecordingStream, run: str, *, camera: CameraRule | None = None,
+                 trail_steps: int = 570, step_s: float = 10.0, auto_flush_steps: int = 256) -> None:
+        self.rec = rec
+        self.run = run
+        self.keys = Keys(run)
+        self.camera = camera or CameraRule()
+        self.trail_steps = int(trail_steps)
+        self.step_s = float(step_s)
+        self.auto_flush_steps = auto_flush_steps
+        self.rejections = Rejections("viz")
+        self.counts: dict[str, int] = defaultdict(int)
+        self._raw: dict[str, list[tuple[str | None, bytes]]] = defaultdict(list)
+        self._truth_queued = 0
+        self._history: dict[int, TruthFrame] = {}
+        self._links: dict[int, list[tuple[str, str]]] = defaultdict(list)
+        self._links_new: set[int] = set()
+        self._tm_waiting: list[tuple[str, pb.Telemetry]] = []
+        self._static_ids: tuple[str, ...] | None = None
+        self._static_targets: set[str] = set()
+        self._last_mode: dict[str, str] = {}
+        self._had_estimates: dict[str, bool] = {}
+        self._was_alive: dict[str, bool] = {}
+        self._cameras: set[str] = set()
+        self.flushes = 0
+        self.last_step = -1
+
+    # --- input ------------------------------------------------------------------------------
+    def ingest(self, key: str, payload: bytes) -> bool:
+        """Queue one sample; True when enough truth is queued that the caller should flush."""
+        try:
+            kind, sid, _ = self.keys.parse(key)
+        except ValueError as exc:
+            self.rejections.add(key, str(exc))
+            return False
+        if kind not in ("truth", "tm", "tm_image", "event", "link_stats", "isl_rx"):
+            return False
+        self.counts[kind] += 1
+        self._raw[kind].append((sid, payload))
+        if kind == "truth":
+            self._truth_queued += 1
+            return self._truth_queued >= self.auto_flush_steps
+        return False
+
+    def send_blueprint(self) -> None:
+        self.rec.send_blueprint(blueprint(self.trail_steps, self.step_s, self._cameras))
+
+    # --- output -----------------------------------------------------------------------------
+    def flush(self, final: bool = False) -> None:
+        """Decode everything queued and log it; telemetry whose truth has not come yet waits."""
+        raw, self._raw = self._raw, defaultdict(list)
+        self._truth_queued = 0
+        frames = self._decode_truths(raw.get("truth", []))
+        for sid, payload in raw.get("isl_rx", []):
+            self._queue_delivery(sid, payload)
+        late_link_steps = {s for s in self._links_new if s in self._history and s not in {f.step for f in frames}}
+        self._links_new = set()
+        if frames:
+            self._log_frames(frames)
+        if late_link_steps:
+            self._log_links(sorted(late_link_steps))
+        self._log_telemetry(raw.get("tm", []), final)
+        self._log_events(raw.get("event", []))
+        self._log_link_stats(raw.get("link_stats", []))
+        self._log_images(raw.get("tm_image", []))
+        self._prune()
+        self.flushes += 1
+
+    def _decode(self, cls: type, key_kind: str, payload: bytes) -> Any | None:
+        try:
+            return decode(cls, payload, run=self.run)
+        except RejectedPacket as exc:
+            self.rejections.add(key_kind, str(exc))
+            return None
+
+    def _decode_truths(self, items: list[tuple[str | None, bytes]]) -> list[TruthFrame]:
+        frames = []
+        for _sid, payload in items:
+            msg = self._decode(pb.Truth, "truth", payload)
+            if msg is None:
+                continue
+            f = truth_frame(msg)
+            frames.append(f)
+            self._history[f.step] = f
+        frames.sort(key=lambda f: f.step)
+        return frames
+
+    def _queue_delivery(self, dst: str | None, payload: bytes) -> None:
+        pkt = self._decode(pb.IslPacket, "isl_rx", payload)
+        if pkt is None:
+            return
+        step = int(pkt.header.step)
+        self._links[step].append((pkt.src, pkt.dst or (dst or "")))
+        self._links_new.add(step)
+
+    def _send(self, path: str, steps: Any, times_s: Any, columns: Any) -> None:
+        self.rec.send_columns(path, indexes=[rr.TimeColumn(STEP, sequence=np.asarray(steps, np.int64)),
+                                             rr.TimeColumn(SIM_TIME, duration=np.asarray(times_s, float))],
+                              columns=columns)
+
+    def _log_static(self, f: TruthFrame) -> None:
+        if self._static_ids is None:
+            self.rec.log(Paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_X_UP, static=True)
+            self.rec.log(Paths.AXES, rr.Arrows3D(vectors=np.eye(3) * 100.0, colors=[(230, 60, 60), (60, 200, 60), (70, 110, 255)],
+                                                 labels=["x radial", "y along-track", "z cross-track"], radii=-1.0),
+                         static=True)
+            self.send_blueprint()
+        if f.ids != self._static_ids:
+            for sid in f.ids:
+                self.rec.log(Paths.sc(sid), rr.Points3D.from_fields(labels=[sid], radii=[SC_RADIUS_UI], show_labels=True),
+                             static=True)
+            self.rec.log(Paths.TRAILS, rr.Points3D.from_fields(colors=id_colours(len(f.ids)), radii=[TRAIL_RADIUS_UI]),
+                         static=True)
+            self._static_ids = f.ids
+        for tid in f.target_ids:
+            if tid not in self._static_targets:
+                self.rec.log(Paths.target(tid), rr.Points3D.from_fields(labels=[tid], radii=[TARGET_RADIUS_UI],
+                                                                      colors=[TARGET_COLOUR]), static=True)
+                self._static_targets.add(tid)
+
+    def _log_frames(self, frames: list[TruthFrame]) -> None:
+        # runs of consecutive frames with the same bodies are logged as one batch per entity
+        start = 0
+        for i in range(1, len(frames) + 1):
+            if i == len(frames) or frames[i].ids != frames[start].ids or frames[i].target_ids != frames[start].target_ids:
+                self._log_frame_batch(frames[start:i])
+                start = i
+
+    def _log_frame_batch(self, frames: list[TruthFrame]) -> None:
+        f0 = frames[0]
+        self._log_static(f0)
+        steps = np.array([f.step for f in frames], np.int64)
+        t_s = np.array([f.t_s for f in frames])
+        pos = np.stack([f.pos_m for f in frames])          # (M, N, 3)
+        alive = np.stack([f.alive for f in frames])         # (M, N)
+        m, n = alive.shape
+        self.last_step = max(self.last_step, int(steps[-1]))
+        for i, sid in enumerate(f0.ids):
+            self._send(Paths.sc(sid), steps, t_s, rr.Points3D.columns(positions=pos[:, i, :]))
+        self._send(Paths.TRAILS, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(np.full(m, n)))
+        vis = visibility(pos, alive, self.camera)
+        s_idx, j_idx, k_idx = np.nonzero(vis)
+        strips = np.stack([pos[s_idx, j_idx], pos[s_idx, k_idx]], axis=1)
+        self._send(Paths.VISIBILITY, steps, t_s,
+                   rr.LineStrips3D.columns(strips=strips, radii=np.full(len(strips), LINE_RADIUS_UI, np.float32),
+                                           colors=np.tile(np.array(VISIBILITY_COLOUR, np.uint8), (len(strips), 1)))
+                   .partition(np.bincount(s_idx, minlength=m)))
+        self._send(Paths.WCC, steps, t_s, rr.Scalars.columns(scalars=weak_components(vis, alive).astype(float)))
+        self._send(Paths.DV_TOTAL, steps, t_s, rr.Scalars.columns(scalars=np.stack([f.delta_v_mps for f in frames]).sum(axis=1)))
+        for ti, tid in enumerate(f0.target_ids):
+            self._send(Paths.target(tid), steps, t_s, rr.Points3D.columns(positions=np.stack([f.target_pos_m[ti] for f in frames])))
+        self._log_links([int(s) for s in steps])
+        self._log_deaths(frames)
+
+    def _log_links(self, steps: list[int]) -> None:
+        """ISL deliveries of each step as segments between the true positions (empty when none)."""
+        segs, counts, times = [], [], []
+        for s in steps:
+            f = self._history[s]
+            c = 0
+            for src, dst in self._links.get(s, ()):
+                a, b = f.position_of(src), f.position_of(dst)
+                if a is not None and b is not None:
+                    segs.append((a, b))
+                    c += 1
+            counts.append(c)
+            times.append(f.t_s)
+        strips = np.array(segs, float).reshape(-1, 2, 3)
+        self._send(Paths.LINKS, steps, times,
+                   rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(LINK_COLOUR, np.uint8), (len(strips), 1)),
+                                           radii=np.full(len(strips), 2 * LINE_RADIUS_UI, np.float32)).partition(counts))
+
+    def _log_deaths(self, frames: list[TruthFrame]) -> None:
+        for f in frames:
+            for sid, a in zip(f.ids, f.alive):
+                if self._was_alive.get(sid, True) and not a:
+                    self._send(Paths.sc(sid), [f.step], [f.t_s], rr.Points3D.columns(colors=[DEAD_COLOUR]))
+                    self._send(Paths.estimates(sid), [f.step], [f.t_s], rr.Points3D.columns(positions=np.zeros((0, 3))).partition([0]))
+                    self._send(Paths.estimate_error(sid), [f.step], [f.t_s],
+                               rr.LineStrips3D.columns(strips=np.zeros((0, 2, 3))).partition([0]))
+                    self._last_mode[sid] = "dead"
+                self._was_alive[sid] = bool(a)
+
+    def _log_telemetry(self, items: list[tuple[str | None, bytes]], final: bool) -> None:
+        tms = list(self._tm_waiting)
+        self._tm_waiting = []
+        for sid, payload in items:
+            msg = self._decode(pb.Telemetry, "tm", payload)
+            if msg is not None and sid is not None:
+                tms.append((sid, msg))
+        tms.sort(key=lambda x: (x[0], x[1].header.step))
+        by_sc: dict[str, list[pb.Telemetry]] = defaultdict(list)
+        for sid, msg in tms:
+            by_sc[sid].append(msg)
+        for sid, msgs in by_sc.items():
+            self._log_modes(sid, msgs)
+            ready = [m for m in msgs if int(m.header.step) in self._history]
+            waiting = [m for m in msgs if int(m.header.step) not in self._history]
+            if not final:
+                self._tm_waiting += [(sid, m) for m in waiting]
+            if ready:
+                self._log_estimates(sid, ready)
+
+    def _log_modes(self, sid: str, msgs: list[pb.Telemetry]) -> None:
+        steps, times, colours = [], [], []
+        for m in msgs:
+            if self._last_mode.get(sid) in (m.mode, "dead"):
+                continue
+            self._last_mode[sid] = m.mode
+            steps.append(int(m.header.step))
+            times.append(m.header.t)
+            colours.append(mode_colour(m.mode))
+        if steps:
+            self._send(Paths.sc(sid), steps, times, rr.Points3D.columns(colors=np.array(colours, np.uint8)))
+
+    def _log_estimates(self, sid: str, msgs: list[pb.Telemetry]) -> None:
+        steps, times, pts, cols, n_pts, errs, n_errs = [], [], [], [], [], [], []
+        for m in msgs:
+            f = self._history[int(m.header.step)]
+            own = f.position_of(sid)
+            if own is None:
+                continue
+            behaviour = {d.neighbour: d.behaviour for d in m.decisions}
+            est: list[tuple[str, np.ndarray]] = []
+            if len(m.tracks):
+                est = [(tr.truth_id, own + (tr.position_m.x, tr.position_m.y, tr.position_m.z)) for tr in m.tracks]
+            elif len(m.decisions):
+                rel = roe_rel_to_position_m(np.array([list(d.roe_rel_m) for d in m.decisions if len(d.roe_rel_m) == 6]),
+                                            f.u_rad, f.n_radps)
+                est = [(d.neighbour, own + r) for d, r in zip([d for d in m.decisions if len(d.roe_rel_m) == 6], rel)]
+            if not est and not self._had_estimates.get(sid):
+                continue  # nothing to show and nothing to clear
+            self._had_estimates[sid] = bool(est)
+            ne = 0
+            for nb, p in est:
+                pts.append(p)
+                cols.append(mode_colour(behaviour.get(nb, "none")))
+                true_p = f.position_of(nb) if nb else None
+                if true_p is not None:
+                    errs.append((p, true_p))
+                    ne += 1
+            steps.append(f.step)
+            times.append(f.t_s)
+            n_pts.append(len(est))
+            n_errs.append(ne)
+        if not steps:
+            return
+        self._send(Paths.estimates(sid), steps, times,
+                   rr.Points3D.columns(positions=np.array(pts, float).reshape(-1, 3), colors=np.array(cols, np.uint8).reshape(-1, 3),
+                                       radii=np.full(len(pts), ESTIMATE_RADIUS_UI, np.float32)).partition(n_pts))
+        strips = np.array(errs, float).reshape(-1, 2, 3)
+        self._send(Paths.estimate_error(sid), steps, times,
+                   rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(ERROR_COLOUR, np.uint8), (len(strips), 1)),
+                                           radii=np.full(len(strips), LINE_RADIUS_UI, np.float32)).partition(n_errs))
+
+    def _log_events(self, items: list[tuple[str | None, bytes]]) -> None:
+        steps, times, texts, levels = [], [], [], []
+        for _sid, payload in items:
+            ev = self._decode(pb.Event, "event", payload)
+            if ev is None:
+                continue
+            steps.append(int(ev.header.step))
+            times.append(ev.header.t)
+            texts.append(f"{ev.kind} {ev.subject}: {ev.detail}" if ev.detail else f"{ev.kind} {ev.subject}")
+            levels.append(EVENT_LEVELS.get(ev.kind, "INFO"))
+        if steps:
+            self._send(Paths.EVENTS, steps, times, rr.TextLog.columns(text=texts, level=levels))
+
+    def _log_link_stats(self, items: list[tuple[str | None, bytes]]) -> None:
+        rows = []
+        for _sid, payload in items:
+            st = self._decode(pb.LinkStats, "link_stats", payload)
+            if st is None:
+                continue
+            links = st.links
+            rows.append((int(st.header.step), st.header.t, float(st.tx_messages), float(st.rx_messages),
+                         float(sum(c.payload_bytes for c in links)), float(sum(c.wire_bytes for c in links)),
+                         float(sum(c.dropped_range + c.dropped_occulted + c.dropped_lost + c.dropped_queue for c in links))))
+        if not rows:
+            return
+        rows.sort(key=lambda r: r[0])
+        cols = np.array([r[2:] for r in rows])
+        steps, times = [r[0] for r in rows], [r[1] for r in rows]
+        for i, path in enumerate((Paths.LINK_TX, Paths.LINK_RX, Paths.LINK_PAYLOAD_B, Paths.LINK_WIRE_B, Paths.LINK_DROPPED)):
+            self._send(path, steps, times, rr.Scalars.columns(scalars=cols[:, i]))
+
+    def _log_images(self, items: list[tuple[str | None, bytes]]) -> None:
+        if not items:
+            return
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+
+        new_camera = False
+        for sid, payload in items:
+            try:
+                img = CompressedImage.FromString(payload)
+            except Exception as exc:  # noqa: BLE001 - protobuf raises several types
+                self.rejections.add("tm_image", f"CompressedImage does not decode: {exc}")
+                continue
+            if sid is None or not img.data:
+                continue
+            t_s = img.timestamp.seconds + img.timestamp.nanos * 1e-9
+            step = self._step_at(t_s)
+            fmt = (img.format or "jpeg").lower()
+            self._send(Paths.camera(sid), [step], [t_s],
+                       rr.EncodedImage.columns(blob=[img.data], media_type=[f"image/{fmt}"]))
+            if sid not in self._cameras:
+                self._cameras.add(sid)
+                new_camera = True
+        if new_camera:
+            self.send_blueprint()
+
+    def _step_at(self, t_s: float) -> int:
+        """Step of the truth frame nearest in time (images carry a timestamp, not a step)."""
+        if self._history:
+            return min(self._history.values(), key=lambda f: abs(f.t_s - t_s)).step
+        return int(round(t_s / self.step_s)) if self.step_s > 0 else 0
+
+    def _prune(self) -> None:
+        if len(self._history) <= self.HISTORY_STEPS:
+            return
+        keep = sorted(self._history)[-self.HISTORY_STEPS:]
+        cut = keep[0]
+        self._history = {s: self._history[s] for s in keep}
+        for s in [s for s in self._links if s < cut]:
+            del self._links[s]
+
+    def stats(self) -> dict[str, Any]:
+        return {"samples": dict(self.counts), "rejected": self.rejections.total, "flushes": self.flushes,
+                "last_step": self.last_step, "cameras": sorted(self._cameras)}
+
+
+def trail_steps_for(step_s: float, n_radps: float, viz_cfg: dict[str, Any] | None = None) -> int:
+    """Trail length in steps: `[viz] trail_s` of the scenario, else one orbital period 2*pi/n."""
+    trail_s = float((viz_cfg or {}).get("trail_s", 2.0 * math.pi / n_radps))
+    return max(1, int(round(trail_s / step_s)))

@@ -1,0 +1,239 @@
+"""The viewer bridge companion "viz" (deploy/companions.py): the run's samples -> Rerun.
+
+Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries;
+bus callbacks only queue the raw bytes (dashboards/rerun_bridge.py), and a timer flushes them in
+column batches every FLUSH_PERIOD_S, so the bridge costs little and the plant never waits for it
+(LOCKSTEP_BARRIER = False: not a lockstep participant).
+
+Modes (opts["viz"]):
+    save     RUN_DIR/run.rrd (FileSink)
+    serve    gRPC server sink on 127.0.0.1:opts["viz_port"] plus the web viewer of the wheel
+             (`rerun --serve-web --bind 127.0.0.1 ...`, a child process ended by PID) on
+             127.0.0.1:opts["web_port"]; also writes RUN_DIR/run.rrd. The URL goes to the log,
+             RUN_DIR/viewer_url.txt and the summary.
+    connect  stream to a running viewer at opts["viz_url"] (default rerun+http://127.0.0.1:9876/proxy);
+             also writes RUN_DIR/run.rrd.
+Rerun servers bind 127.0.0.1 only (STACK-NOTES: rr.serve_grpc / serve_web_viewer bind 0.0.0.0).
+Rerun is imported only when a bridge starts: the launcher imports this module for every run.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+from urllib.parse import quote
+
+from bus.keys import Keys
+
+log = logging.getLogger("swarmhil.viz")
+
+LOCKSTEP_BARRIER = False
+MODES = ("save", "serve", "connect")
+LOOPBACK = "127.0.0.1"
+DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
+FLUSH_PERIOD_S = 0.25
+
+_analytics_done = False
+
+
+def enabled(sc: Any, opts: dict[str, Any]) -> bool:
+    return opts.get("viz") in MODES
+
+
+def start(bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "VizNode":
+    return VizNode(bus, run, sc, Path(out), opts)
+
+
+def rerun_exe() -> str:
+    """The rerun CLI of this Python environment (the wheel's binary), else the one on PATH."""
+    here = Path(sys.executable).with_name("rerun")
+    if here.exists():
+        return str(here)
+    found = shutil.which("rerun")
+    if not found:
+        raise FileNotFoundError("the rerun CLI (rerun-sdk wheel) is not installed")
+    return found
+
+
+def disable_analytics() -> None:
+    """`rerun analytics disable` once per process, before anything starts the CLI or a viewer."""
+    global _analytics_done
+    if _analytics_done:
+        return
+    try:
+        subprocess.run([rerun_exe(), "analytics", "disable"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, timeout=30, check=False)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        log.warning("rerun analytics disable failed: %s", exc)
+    _analytics_done = True
+
+
+def grpc_url(port: int) -> str:
+    return f"rerun+http://{LOOPBACK}:{port}/proxy"
+
+
+def web_url(web_port: int, grpc_port: int) -> str:
+    return f"http://{LOOPBACK}:{web_port}/?url={quote(grpc_url(grpc_port), safe='')}"
+
+
+def free_port() -> int:
+    from bus.zenoh_bus import free_loopback_port
+
+    return free_loopback_port()
+
+
+class WebViewer:
+    """`rerun --serve-web` serving the wheel's web viewer on 127.0.0.1, pointed at a gRPC proxy URL."""
+
+    def __init__(self, web_port: int, grpc_port: int, log_path: Path | None = None) -> None:
+        disable_analytics()
+        self.url = web_url(web_port, grpc_port)
+        cmd = [rerun_exe(), "--serve-web", "--bind", LOOPBACK, "--web-viewer-port", str(web_port), grpc_url(grpc_port)]
+        self._logf = open(log_path, "wb") if log_path else subprocess.DEVNULL
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._logf, stderr=subprocess.STDOUT)
+
+    def wait_listening(self, port: int, timeout_s: float = 20.0) -> bool:
+        import socket
+
+        t_end = time.monotonic() + timeout_s
+        while time.monotonic() < t_end and self.proc.poll() is None:
+            with socket.socket() as s:
+                if s.connect_ex((LOOPBACK, port)) == 0:
+                    return True
+            time.sleep(0.1)
+        return False
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            os.kill(self.proc.pid, signal.SIGTERM)  # by PID: the child this object started
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                os.kill(self.proc.pid, signal.SIGKILL)
+                self.proc.wait()
+        if self._logf is not subprocess.DEVNULL:
+            self._logf.close()
+
+
+def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, viz_port: int | None = None,
+                   viz_url: str | None = None) -> Any:
+    """A RecordingStream with the sinks of a mode (rrd: also write this file)."""
+    import rerun as rr
+
+    from dashboards.rerun_bridge import APP_ID
+
+    rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
+    sinks: list[Any] = []
+    if mode == "serve":
+        sinks.append(rr.GrpcServerSink(bind_ip=LOOPBACK, port=int(viz_port or 0)))
+    elif mode == "connect":
+        sinks.append(rr.GrpcSink(viz_url or DEFAULT_CONNECT_URL))
+    if rrd is not None:
+        sinks.append(rr.FileSink(str(rrd)))
+    rec.set_sinks(*sinks)
+    return rec
+
+
+class VizNode:
+    def __init__(self, bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
+        from dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
+
+        self.mode = opts.get("viz")
+        if self.mode not in MODES:
+            raise ValueError(f"viz mode {self.mode!r} is not one of {MODES}")
+        self.bus = bus
+        self.run = run
+        self.out = out
+        self.opts = opts
+        out.mkdir(parents=True, exist_ok=True)
+        disable_analytics()
+        self.rrd = out / "run.rrd"
+        self.url: str | None = None
+        self.web: WebViewer | None = None
+        if self.mode == "serve":
+            self.viz_port = int(opts.get("viz_port") or free_port())
+            self.web_port = int(opts.get("web_port") or free_port())
+        self.rec = open_recording(run, run, mode=self.mode, rrd=self.rrd,
+                                  viz_port=getattr(self, "viz_port", None), viz_url=opts.get("viz_url"))
+        if self.mode == "serve":
+            (out / "logs").mkdir(exist_ok=True)
+            self.web = WebViewer(self.web_port, self.viz_port, out / "logs" / "viz-web.log")
+            self.url = self.web.url
+            (out / "viewer_url.txt").write_text(self.url + "\n")
+            log.warning("viewer: %s", self.url)
+        elif self.mode == "connect":
+            self.url = opts.get("viz_url") or DEFAULT_CONNECT_URL
+        self.camera = CameraRule.from_scenario(getattr(sc, "camera", None))
+        self.trail_steps = trail_steps_for(sc.step_s, sc.orbit.mean_motion_radps, getattr(sc, "sections", {}).get("viz"))
+        self.logger = SwarmLogger(self.rec, run, camera=self.camera, trail_steps=self.trail_steps, step_s=sc.step_s)
+        self.logger.send_blueprint()
+        self._lock = threading.Lock()
+        self._flush_s = 0.0
+        self._stop = threading.Event()
+        keys = Keys(run)
+        self._subs = [bus.subscribe(kx, self._on_sample) for kx in (
+            keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.link_stats,
+            f"{keys.base}/isl/rx/*")]
+        self._timer = threading.Thread(target=self._flush_loop, name="viz-flush", daemon=True)
+        self._timer.start()
+        self._token = bus.declare_liveliness(keys.alive("viz"))
+
+    def _on_sample(self, key: str, payload: bytes) -> None:
+        with self._lock:
+            due = self.logger.ingest(key, payload)
+        if due:
+            self.flush()
+
+    def flush(self, final: bool = False) -> None:
+        with self._lock:
+            t0 = time.perf_counter()
+            self.logger.flush(final=final)
+            self._flush_s += time.perf_counter() - t0
+
+    def _flush_loop(self) -> None:
+        while not self._stop.wait(FLUSH_PERIOD_S):
+            try:
+                self.flush()
+            except Exception:  # the viewer must never take the run down
+                log.exception("viz flush failed")
+
+    def _hold(self) -> None:
+        """In-process serve runs: keep serving after the run until Ctrl-C (the launcher does it for processes)."""
+        print(f"run finished; the viewer keeps serving at {self.url} until Ctrl-C", flush=True)
+        try:
+            while self.web is not None and self.web.proc.poll() is None:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+
+    def close(self) -> dict[str, Any]:
+        for s in self._subs:
+            try:
+                s.undeclare()
+            except Exception:
+                pass
+        flush = getattr(self.bus, "flush", None)
+        if flush:
+            flush()
+        self._stop.set()
+        self._timer.join(timeout=5)
+        self.flush(final=True)
+        self.rec.flush()
+        if self.mode == "serve" and self.opts.get("viz_hold"):
+            self._hold()
+        try:
+            self._token.undeclare()
+        except Exception:
+            pass
+        if self.web is not None:
+            self.web.close()
+        self.rec.disconnect()
+        return {"mode": self.mode, "rrd": str(self.rrd), "url": self.url, "camera": self.camera.as_dict(),
+                "trail_steps": self.trail_steps, "flush_cpu_s": round(self._flush_s, 3), **self.logger.stats()}
