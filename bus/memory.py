@@ -23,6 +23,7 @@ class _Sub:
         self.active = False
         if self in self.bus._subs:
             self.bus._subs.remove(self)
+            self.bus._routes.clear()
 
 
 @dataclass
@@ -52,6 +53,7 @@ class _Watch:
 class MemoryBus:
     def __init__(self) -> None:
         self._subs: list[_Sub] = []
+        self._routes: dict[str, list[_Sub]] = {}  # key -> matching subscribers (cleared on (un)subscribe)
         self._watches: list[_Watch] = []
         self._tokens: set[str] = set()
         self._queue: deque[tuple[str, bytes]] = deque()
@@ -67,8 +69,11 @@ class MemoryBus:
         try:
             while self._queue:
                 k, p = self._queue.popleft()
-                for sub in list(self._subs):
-                    if sub.active and key_matches(sub.key_expr, k):
+                route = self._routes.get(k)
+                if route is None:
+                    route = self._routes[k] = [s for s in self._subs if key_matches(s.key_expr, k)]
+                for sub in route:
+                    if sub.active:
                         sub.callback(k, p)
         finally:
             self._dispatching = False
@@ -76,6 +81,7 @@ class MemoryBus:
     def subscribe(self, key_expr: str, callback: SampleCallback) -> _Sub:
         sub = _Sub(self, key_expr, callback)
         self._subs.append(sub)
+        self._routes.clear()
         return sub
 
     def declare_liveliness(self, key: str) -> _Token:
