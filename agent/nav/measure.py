@@ -1,0 +1,103 @@
+"""Camera measurements of a neighbour and their models (paper 002 sec. 5, issue 4).
+
+Measurement of one blob: z = (u_px, v_px, s_px) with s = sqrt(area_px).
+
+Area model of a body in nominal attitude (body axes = camera axes) at camera-frame (x, y, z):
+a patch dA with normal n at p images to f^2 dA |n.p| / z^3 pixels (solid angle dA|n.p|/|p|^3
+times f^2/cos^3 of the off-axis angle), so
+    area_px = f^2 / z^2 * (A_z + A_x |x|/z + A_y |y|/z),
+with (A_x, A_y, A_z) the silhouette areas along the body axes (SpacecraftShape.projected_areas_m2).
+Paper 002's rough range keeps only the face-on term: z = f sqrt(A_true / A_blob).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from agent.camera.model import R_CAM_FROM_LVLH, R_LVLH_FROM_CAM, Camera
+from agent.camera.shape import SpacecraftShape
+from agent.roe import roe_to_lvlh
+
+
+@dataclass(frozen=True)
+class MeasurementModel:
+    """Camera, body shape and the error model of a blob measurement.
+
+    Centroid error per image axis: a body `ext` < 1 px long on that axis lights the same pixels
+    wherever it lies within (1 - ext) px, so its centroid is quantised: max(0, 1 - ext)/sqrt(12),
+    plus a floor (noise, sub-pixel phase) measured on rendered frames; tests/test_nav_ekf.py
+    checks the resulting filter consistency.
+    sqrt-area error: the blob's photometric sigma plus a relative shape-model error.
+    """
+
+    camera: Camera
+    areas_m2: np.ndarray  # (A_x, A_y, A_z), SpacecraftShape.projected_areas_m2
+    extent_m: tuple[float, float]  # body size along camera x and y in nominal attitude
+    centroid_floor_px: float = 0.03
+    area_rel_sigma: float = 0.003
+
+    @staticmethod
+    def for_shape(camera: Camera, shape: SpacecraftShape, **kw) -> "MeasurementModel":
+        span = shape.body_side_m + 2.0 * shape.panel_length_m
+        height = max(shape.body_side_m, shape.panel_width_m)
+        return MeasurementModel(camera, shape.projected_areas_m2, (span, height), **kw)
+
+
+def rough_position_cam(centroid_px: np.ndarray, area_px: np.ndarray, camera: Camera, area_true_m2: float) -> np.ndarray:
+    """Paper 002 sec. 5: depth z = f sqrt(A_true / A_blob), then x, y from the pinhole relation. (M, 3)."""
+    z = camera.focal_px * np.sqrt(area_true_m2 / np.maximum(area_px, 1e-9))
+    ray = camera.ray(centroid_px)
+    return ray * z[:, None]
+
+
+def roe_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
+    """T (3, 6): LVLH relative position = T @ roe_m (position rows of the ROE -> LVLH map)."""
+    return roe_to_lvlh(np.eye(6), u_rad, n_radps)[0].T
+
+
+def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """h(x) (3,), its Jacobian H (3, 6) w.r.t. roe_m, and the camera-frame position (3,)."""
+    cam = model.camera
+    t = R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+    p = t @ roe_m
+    x, y, z = p
+    f = cam.focal_px
+    ax, ay, az = model.areas_m2
+    k = az + (ax * abs(x) + ay * abs(y)) / z
+    sk = np.sqrt(max(k, 1e-12))
+    h = np.array([cam.cx + f * x / z, cam.cy + f * y / z, f * sk / z])
+    jp = np.array(
+        [
+            [f / z, 0.0, -f * x / z**2],
+            [0.0, f / z, -f * y / z**2],
+            [
+                f / z * ax * np.sign(x) / (2.0 * sk * z),
+                f / z * ay * np.sign(y) / (2.0 * sk * z),
+                -f * sk / z**2 - f / z * (ax * abs(x) + ay * abs(y)) / (2.0 * sk * z**2),
+            ],
+        ]
+    )
+    return h, jp @ t, p
+
+
+def measurement(centroid_px: np.ndarray, area_px: float) -> np.ndarray:
+    """Blob -> z = (u, v, sqrt(area))."""
+    return np.array([centroid_px[0], centroid_px[1], np.sqrt(max(area_px, 1e-12))])
+
+
+def noise_cov(model: MeasurementModel, z_m: float, area_px: float, area_sigma_px: float) -> np.ndarray:
+    """R (3, 3) of (u, v, sqrt(area)) for a body at depth z_m (MeasurementModel docstring);
+    sigma_s = sigma_A / (2 sqrt A) from the blob's photometric sigma, plus the relative model error."""
+    f = model.camera.focal_px
+    z = max(z_m, 1e-3)
+    su2, sv2 = (
+        max(0.0, 1.0 - f * ext / z) ** 2 / 12.0 + model.centroid_floor_px**2 for ext in model.extent_m
+    )
+    s = np.sqrt(max(area_px, 1e-12))
+    ss2 = (area_sigma_px / (2.0 * s)) ** 2 + (model.area_rel_sigma * s) ** 2
+    return np.diag([su2, sv2, ss2])
+
+
+def cam_to_lvlh(p_cam: np.ndarray) -> np.ndarray:
+    return np.asarray(p_cam) @ R_LVLH_FROM_CAM.T

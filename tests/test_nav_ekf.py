@@ -1,0 +1,95 @@
+"""The ROE EKF on rendered frames: error consistent with covariance (NEES), track life cycle (issue 4)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from agent.blob import Blobs, extract_blobs
+from agent.camera import Camera, Renderer, SpacecraftShape
+from agent.nav import EkfConfig, EkfNavigator
+from plant.dynamics import roe_linear
+from plant.scene import scene
+
+A_M = 6878137.0
+N_RADPS = roe_linear.mean_motion(A_M)
+SIGMA_ACC = 1e-6  # the neighbour's unknown acceleration, truth and filter alike
+
+
+def simulated_pass(seed: int, renderer: Renderer, n_frames: int, dt_s: float = 10.0, accel_obs=None, tell_filter=True):
+    """One neighbour 150-400 m ahead, random ROE, random white acceleration; rendered frames.
+    Returns the per-frame (error, covariance) of the confirmed track (None before confirmation)."""
+    rng = np.random.default_rng(seed)
+    roe = np.array([[rng.uniform(-5, 5), rng.uniform(150, 400), *rng.uniform(-20, 20, 4)]])
+    u = rng.uniform(0, 2 * np.pi)
+    nav = EkfNavigator(renderer.camera, renderer.shape, A_M, N_RADPS, EkfConfig(accel_sigma_mps2=SIGMA_ACC))
+    out = []
+    own = None
+    for k in range(n_frames):
+        pos, _ = roe_linear.roe_to_lvlh(roe, u, N_RADPS)
+        sc = scene(np.zeros(3), pos, ["b"])
+        blobs = extract_blobs(renderer.render_rois(sc.position_cam_m, sc.rot_body_to_cam, frame=seed * 10_000 + k), renderer.detector)
+        tracks = nav.update(k * dt_s, u, blobs, own if tell_filter else None)
+        out.append((tracks[0].roe_m - roe[0], tracks[0].covariance_m2) if len(tracks) == 1 else None)
+        acc = rng.normal(0.0, SIGMA_ACC, (1, 3))
+        if accel_obs is not None:
+            acc = acc - accel_obs
+        own = accel_obs
+        roe = roe_linear.propagate_roe(roe, acc, u, N_RADPS, dt_s)
+        u += N_RADPS * dt_s
+    return out
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    return Renderer(Camera(), SpacecraftShape())
+
+
+def test_nees_within_chi_square_bounds(renderer):
+    """Average NEES over Monte-Carlo passes (6 DOF state) within the two-sided 99 % chi-square
+    interval, once the initial prior has been forgotten (frame >= 20 of 100)."""
+    n_runs, n_frames, skip = 10, 100, 20
+    nees = np.full((n_runs, n_frames - skip), np.nan)
+    for r in range(n_runs):
+        for k, item in enumerate(simulated_pass(r, renderer, n_frames)[skip:]):
+            assert item is not None, "the track was lost"
+            e, p = item
+            nees[r, k] = e @ np.linalg.solve(p, e)
+    lo, hi = chi2.ppf([0.005, 0.995], 6 * n_runs) / n_runs
+    anees = nees.mean(axis=0)  # average over runs at each frame
+    assert lo < nees.mean() < hi, f"mean NEES {nees.mean():.2f} outside [{lo:.2f}, {hi:.2f}]"
+    assert np.mean((anees > lo) & (anees < hi)) > 0.9
+
+
+def test_observer_thrust_is_accounted_for(renderer):
+    accel = np.array([0.0, 2e-5, 1e-5])
+    told = simulated_pass(3, renderer, 60, accel_obs=accel, tell_filter=True)
+    blind = simulated_pass(3, renderer, 60, accel_obs=accel, tell_filter=False)
+    e_told, p_told = told[-1]
+    e_blind, _ = blind[-1]
+    assert e_told @ np.linalg.solve(p_told, e_told) < chi2.ppf(0.999, 6)
+    assert np.linalg.norm(e_blind) > 5 * np.linalg.norm(e_told)
+
+
+def _blob_at(uv, area):
+    return Blobs(np.array([uv], float), np.array([area]), np.array([0.03]), np.array([4]), np.array([[0, 0, 1, 1]]))
+
+
+def test_track_creation_confirmation_gating_and_deletion():
+    cam = Camera()
+    nav = EkfNavigator(cam, SpacecraftShape(), A_M, N_RADPS, EkfConfig(confirm_hits=3, max_misses=2))
+    area = 0.24e6 / 200.0**2  # a body 200 m dead ahead
+    out = [nav.update(10.0 * k, 0.0, _blob_at((540.0, 540.0), area)) for k in range(3)]
+    assert [len(t) for t in out] == [0, 0, 1]  # confirmed at the third hit
+    tid = out[-1][0].track_id
+    # a blob far from the prediction is gated out: it starts a new tentative track
+    two = Blobs.concat([_blob_at((540.0, 540.0), area), _blob_at((900.0, 200.0), 4 * area)])
+    tracks = nav.update(30.0, 0.0, two)
+    assert [t.track_id for t in tracks] == [tid]
+    assert len(nav.tracks) == 2
+    # no blobs: the tentative track dies at once, the confirmed one coasts for max_misses frames
+    assert [t.track_id for t in nav.update(40.0, 0.0, Blobs.empty())] == [tid]
+    assert len(nav.tracks) == 1
+    assert len(nav.update(50.0, 0.0, Blobs.empty())) == 1
+    assert nav.update(60.0, 0.0, Blobs.empty()) == []
+    assert nav.tracks == []
