@@ -87,8 +87,31 @@ def mcap_info(src: str) -> None:
         click.echo(f"{n:8d}  {topic}")
 
 
+@main.command()
+@click.argument("scenario", type=click.Path(exists=True, dir_okay=False))
+@click.option("--out", "out", type=click.Path(dir_okay=False), default="compose.yml", show_default=True)
+@click.option("--run-id", help="Run id; default <scenario>-<time>-<hex>.")
+@click.option("--image", default="swarmhil:latest", show_default=True)
+def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
+    """Write a compose file that starts the run's processes as containers, each agent its own."""
+    from deploy.compose import write_compose
+    from deploy.launcher import new_run_id
+    from deploy.scenario import ScenarioError, load_scenario
+
+    try:
+        sc = load_scenario(scenario)
+    except ScenarioError as exc:
+        raise click.ClickException(str(exc)) from None
+    path = write_compose(sc, scenario, run_id or new_run_id(sc.name), Path(out), image=image)
+    click.echo(f"wrote {path} ({len(sc.ids)} agents)")
+
+
+from deploy.cli_report import report as _report_cmd; main.add_command(_report_cmd)  # noqa: E402,E702
+from deploy.cli_report import sweep as _sweep_cmd; main.add_command(_sweep_cmd)  # noqa: E402,E702
 from deploy.cli_viz import replay as _replay_cmd; main.add_command(_replay_cmd)  # noqa: E402,E702
+from deploy.cli_bandwidth import report_bandwidth as _bandwidth_cmd; main.add_command(_bandwidth_cmd)  # noqa: E402,E702
 
 
 if __name__ == "__main__":
     main()
+

@@ -51,7 +51,17 @@ def main(argv: list[str] | None = None) -> int:
         if role == "companion":
             p.add_argument("--name", required=True)
             p.add_argument("--opts", default="{}")
+    r = sub.add_parser("router", help="a Zenoh router session (for compose deployments)")
+    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/router:7447")
     args = ap.parse_args(argv)
+    if args.role == "router":
+        from bus.zenoh_bus import open_router
+
+        stop = _stop_event()
+        session = open_router(args.listen)
+        stop.wait()
+        session.close()
+        return 0
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
