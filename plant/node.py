@@ -16,7 +16,7 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header, vec
+from bus.codec import RejectedPacket, Rejections, arr, decode, header
 from bus.keys import Keys
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensors import CameraGeometry, visibility_matrix
@@ -62,6 +62,12 @@ class PlantNode:
         self._seq: dict[str, int] = {}
         self._step = 0
         self.timing: dict[str, float] = {}
+        self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
+        self._scene = None
+        if scenario.sensing["kind"] == "scene":
+            from plant.scene_stimulus import SceneStimulusBuilder
+
+            self._scene = SceneStimulusBuilder(scenario)
         self._noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
@@ -145,45 +151,46 @@ class PlantNode:
 
     # --- the loop -----------------------------------------------------------------------------
     def publish_step(self) -> None:
-        """Tick, truth and stimuli of the current step."""
+        """Tick, truth and stimuli of the current step (arrays turned into lists once: numpy
+        scalar access per field costs more than the rest of the step)."""
         k = self._step
+        final = k >= self.sc.steps
         u = self.world.u_rad
         pos, vel = self.world.lvlh()
-        roe = self.world.roe_m()
-        alive_ids = [s for s, a in zip(self.world.ids, self.world.alive) if a]
-        tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u, alive=alive_ids,
-                       final=k >= self.sc.steps)
+        ids = self.world.ids
+        alive = self.world.alive.tolist()
+        tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
+                       alive=[s for s, a in zip(ids, alive) if a], final=final)
         self.bus.publish(self.keys.clock, tick.SerializeToString())
         truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=u, semi_major_axis_m=self.world.a_m,
                          mean_motion_radps=self.world.n_radps)
-        for i, sid in enumerate(self.world.ids):
-            truth.bodies.append(pb.BodyState(
-                id=sid, kind="spacecraft", position_m=vec(pos[i]), velocity_mps=vec(vel[i]),
-                delta_v_mps=float(self.world.delta_v_mps[i]), alive=bool(self.world.alive[i]),
-                accel_cmd_mps2=vec(self.held[i] if k < self.sc.steps else np.zeros(3)), roe_m=roe[i].tolist()))
-        self._truth = truth
-        if k >= self.sc.steps:
+        P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
+        for i, sid in enumerate(ids):
+            b = truth.bodies.add(id=sid, kind="spacecraft", delta_v_mps=DV[i], alive=alive[i], roe_m=R[i])
+            b.position_m.x, b.position_m.y, b.position_m.z = P[i]
+            b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = V[i]
+        if final:
             self.bus.publish(self.keys.truth, truth.SerializeToString())
             return
         self._pending_truth = truth
         vis = visibility_matrix(pos, self.cam, self.world.alive)
         kind = self.sc.sensing["kind"]
-        for j, sid in enumerate(self.world.ids):
-            if not self.world.alive[j]:
+        for j, sid in enumerate(ids):
+            if not alive[j]:
                 continue
+            key = self._sense_keys[j]
             if kind == "rel":
-                stim = pb.RelStimulus(header=self._hdr(self.keys.sense(sid, "rel")), u_rad=u)
-                for kk in np.flatnonzero(vis[j]):
+                stim = pb.RelStimulus(header=self._hdr(key), u_rad=u)
+                for kk in np.flatnonzero(vis[j]).tolist():
                     rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
                     if self._noise is not None:
                         rp, rv = self._noise.apply(j, kk, rp, rv, u, k)
-                    stim.neighbours.append(pb.RelativeState(id=self.world.ids[kk], position_m=vec(rp), velocity_mps=vec(rv)))
-                self.bus.publish(self.keys.sense(sid, "rel"), stim.SerializeToString())
+                    nb = stim.neighbours.add(id=ids[kk])
+                    nb.position_m.x, nb.position_m.y, nb.position_m.z = rp.tolist()
+                    nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = rv.tolist()
             else:
-                from plant.scene_stimulus import scene_stimulus
-
-                stim = scene_stimulus(self, j, pos, vel, u)
-                self.bus.publish(self.keys.sense(sid, "scene"), stim.SerializeToString())
+                stim = self._scene.stimulus(j, pos, u, self._hdr(key))
+            self.bus.publish(key, stim.SerializeToString())
 
     def collect_and_advance(self) -> None:
         k = self._step
@@ -205,9 +212,12 @@ class PlantNode:
                     self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
         self.held[~self.world.alive] = 0.0
         # the truth of step k carries the command applied over [t_k, t_k+1)
+        applied = self.world.limit(self.held).tolist()
+        alive = self.world.alive.tolist()
         for i, body in enumerate(self._pending_truth.bodies):
-            body.accel_cmd_mps2.CopyFrom(vec(self.world.limit(self.held)[i]))
-            body.alive = bool(self.world.alive[i])
+            a = body.accel_cmd_mps2
+            a.x, a.y, a.z = applied[i]
+            body.alive = alive[i]
         self.bus.publish(self.keys.truth, self._pending_truth.SerializeToString())
         self.world.step(self.held, self.step_s)
         self.pacer.after_step(k)
