@@ -76,8 +76,8 @@ def _number(src: str, t: dict[str, Any], name: str, default: float, lo: float, h
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise _bad(src, name, "must be a finite number", v)
     if v < lo or (lo_open and v == lo) or v > hi:
-        rng = f"{'(' if lo_open else '['}{lo}, {hi}]"
-        raise _bad(src, name, f"must be in {rng}", v)
+        bound = f"{'>' if lo_open else '>='} {lo:g}" if hi == math.inf else f"in [{lo:g}, {hi:g}]"
+        raise _bad(src, name, f"must be {bound}", v)
     return float(v)
 
 
