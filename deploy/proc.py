@@ -37,6 +37,17 @@ def _stop_event() -> threading.Event:
     return stop
 
 
+def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
+    """Close the session, but never let a hung close (STACK-NOTES) keep the process alive."""
+    t = threading.Thread(target=bus.close, daemon=True)
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():
+        logging.getLogger("swarmhil.proc").warning("zenoh session close took over %.0f s; exiting anyway", timeout_s)
+        sys.stdout.flush()
+        os._exit(0)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
@@ -84,10 +95,10 @@ def main(argv: list[str] | None = None) -> int:
         bus = ZenohBus(args.router, lease_ms=2000)
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
-        bus.close()
         (out / "agents").mkdir(exist_ok=True)
         (out / "agents" / f"{args.id}.json").write_text(json.dumps(
             {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total}))
+        _close_within(bus)
         return 0
     if args.role == "recorder":
         from bus.recorder import RecorderNode
@@ -107,8 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
         stop.wait()
         stats = obj.close()
-        bus.close()
         (out / f"{args.name}_summary.json").write_text(json.dumps(stats or {}, indent=1))
+        _close_within(bus)
         return 0
     return 2
 

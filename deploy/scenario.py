@@ -200,6 +200,13 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         lockstep_timeout_s=timeout, dead_after_missed=dead_after,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
     )
+    if "link" in doc:
+        from bus.channel import LinkConfigError, parse_link_config
+
+        try:
+            parse_link_config(doc["link"], src, seed)
+        except LinkConfigError as exc:
+            raise ScenarioError(str(exc)) from None
     if "spacecraft" in doc:
         sc.ids, sc.roe_m = _explicit(src, doc["spacecraft"])
     elif "dispersion" in doc:

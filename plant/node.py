@@ -165,14 +165,17 @@ class PlantNode:
         truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=u, semi_major_axis_m=self.world.a_m,
                          mean_motion_radps=self.world.n_radps)
         P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
+        A = self.world.last_accel_mps2.tolist()
         for i, sid in enumerate(ids):
             b = truth.bodies.add(id=sid, kind="spacecraft", delta_v_mps=DV[i], alive=alive[i], roe_m=R[i])
             b.position_m.x, b.position_m.y, b.position_m.z = P[i]
             b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = V[i]
+            b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z = A[i]
+        # truth of step k goes out before the stimuli, so the link channel knows where everyone is
+        # at the time agents transmit in step k
+        self.bus.publish(self.keys.truth, truth.SerializeToString())
         if final:
-            self.bus.publish(self.keys.truth, truth.SerializeToString())
             return
-        self._pending_truth = truth
         vis = visibility_matrix(pos, self.cam, self.world.alive)
         kind = self.sc.sensing["kind"]
         for j, sid in enumerate(ids):
@@ -211,14 +214,6 @@ class PlantNode:
                 if self.pacer.name == "lockstep" and self._missed_in_row[i] >= self.sc.dead_after_missed:
                     self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
         self.held[~self.world.alive] = 0.0
-        # the truth of step k carries the command applied over [t_k, t_k+1)
-        applied = self.world.limit(self.held).tolist()
-        alive = self.world.alive.tolist()
-        for i, body in enumerate(self._pending_truth.bodies):
-            a = body.accel_cmd_mps2
-            a.x, a.y, a.z = applied[i]
-            body.alive = alive[i]
-        self.bus.publish(self.keys.truth, self._pending_truth.SerializeToString())
         self.world.step(self.held, self.step_s)
         self.pacer.after_step(k)
         self._step += 1

@@ -130,7 +130,7 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     truth = [m for t, _l, _p, m in msgs if t == "swarm/kill/truth"]
     sc02 = [next(b for b in m.bodies if b.id == "sc02") for m in truth]
     assert all(not b.alive for b in sc02[died + 1:]) and all(b.alive for b in sc02[: died - 1])
-    assert all(b.accel_cmd_mps2.x == b.accel_cmd_mps2.y == b.accel_cmd_mps2.z == 0 for b in sc02[died + 1:])
+    assert all(b.accel_cmd_mps2.x == b.accel_cmd_mps2.y == b.accel_cmd_mps2.z == 0 for b in sc02[died + 2:])
     dv = [b.delta_v_mps for b in sc02]
     assert dv[-1] == dv[died + 1]  # it coasts
     # every other agent kept commanding to the end
@@ -221,8 +221,8 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     msgs = read_mcap(out / "run.mcap")
     missed = [m.header.step for t, _l, _p, m in msgs if t == "swarm/rt/event" and m.kind == "deadline_missed" and m.subject == "sc03"]
     truth = {m.header.step: next(b for b in m.bodies if b.id == "sc03") for t, _l, _p, m in msgs if t == "swarm/rt/truth"}
-    held = [k for k in missed if k - 1 in truth]
+    held = [k for k in missed if k + 1 in truth]
     assert held
-    for k in held:  # the command applied over a missed step equals the one before it
-        a, b = truth[k].accel_cmd_mps2, truth[k - 1].accel_cmd_mps2
+    for k in held:  # the command applied over a missed step k (in truth k+1) equals the one over step k-1
+        a, b = truth[k + 1].accel_cmd_mps2, truth[k].accel_cmd_mps2
         assert (a.x, a.y, a.z) == (b.x, b.y, b.z)

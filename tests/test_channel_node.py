@@ -9,11 +9,10 @@ import pytest
 
 from bus import swarmhil_pb2 as pb
 from bus import channel_node
-from bus.channel import LinkConfigError
 from bus.codec import header, vec
 from bus.keys import Keys
 from bus.memory import MemoryBus
-from deploy.scenario import load_scenario, parse_scenario
+from deploy.scenario import ScenarioError, load_scenario, parse_scenario
 
 from conftest import read_mcap
 
@@ -142,8 +141,8 @@ def test_enabled_and_validation() -> None:
     assert not channel_node.enabled(_scenario({"enabled": False, "range_m": 500.0}), {})
     doc = {"run": {"name": "x"}, "spacecraft": [{"id": "a", "roe_m": [0] * 6}]}
     assert not channel_node.enabled(parse_scenario(doc, "x.toml"), {})
-    with pytest.raises(LinkConfigError, match=r"chan.toml: \[link\].range_m"):
-        channel_node.enabled(_scenario({"range_m": -5.0}), {})
+    with pytest.raises(ScenarioError, match=r"chan.toml: \[link\].range_m"):  # at load time, naming the field
+        _scenario({"range_m": -5.0})
     assert channel_node.LOCKSTEP_BARRIER is True
 
 
