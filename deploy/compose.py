@@ -12,6 +12,7 @@ from typing import Any
 
 import yaml
 
+from deploy.companions import enabled_companions
 from deploy.scenario import Scenario
 
 ROUTER_EP = "tcp/router:7447"
@@ -32,10 +33,15 @@ def compose_document(sc: Scenario, scenario_file: str, run: str, *, image: str =
         "router": svc(["router", "--listen", ROUTER_EP]),
         "recorder": svc(["recorder", *common_args], volumes=volumes, depends_on=["router"]),
     }
+    comps = enabled_companions(sc, {})  # the link channel when the scenario has [link]
+    for c in comps:
+        services[c.name] = svc(["companion", *common_args, "--name", c.name, "--opts", "{}"], volumes=volumes,
+                               depends_on=["router"])
     for sid in sc.ids:
         services[f"agent-{sid}"] = svc(["agent", *common_args, "--id", sid], volumes=volumes, depends_on=["router"])
-    services["plant"] = svc(["plant", *common_args], volumes=volumes, restart="no",
-                            depends_on=["router", "recorder", *[f"agent-{s}" for s in sc.ids]])
+    services["plant"] = svc(["plant", *common_args, "--companions", ",".join(c.name for c in comps),
+                             "--barriers", ",".join(c.name for c in comps if c.barrier)], volumes=volumes, restart="no",
+                            depends_on=["router", "recorder", *[c.name for c in comps], *[f"agent-{s}" for s in sc.ids]])
     return {
         "name": f"swarmhil-{sc.name}".lower(),
         "services": services,

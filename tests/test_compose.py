@@ -51,6 +51,14 @@ def test_compose_document_structure() -> None:
     assert set(plant["depends_on"]) >= {"router", "recorder", *agents}
 
 
+def test_compose_starts_the_link_channel_when_the_scenario_has_one() -> None:
+    sc = load_scenario(SCENARIOS / "sabatini-20-beacon.toml")
+    doc = compose_document(sc, str(SCENARIOS / "sabatini-20-beacon.toml"), "r2")
+    assert "channel" in doc["services"]
+    cmd = doc["services"]["plant"]["command"]
+    assert cmd[cmd.index("--barriers") + 1] == "channel"
+
+
 def test_compose_file_validates_with_compose_v2(tmp_path: Path) -> None:
     exe = _compose_binary()
     out = tmp_path / "compose.yml"
