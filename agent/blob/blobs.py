@@ -50,8 +50,15 @@ class Blobs:
         return Blobs(b.centroid_px[order], b.area_px[order], b.area_sigma_px[order], b.n_pixels[order], b.bbox_px[order])
 
 
-def blobs_in_stack(image_e: np.ndarray, origin_px: np.ndarray, size_px: np.ndarray, detector: Detector, min_pixels: int = 2) -> Blobs:
-    """Blobs of a stack of canvases image_e (G, H, W) whose valid parts are size_px (G, 2) at origin_px (G, 2)."""
+def blobs_in_stack(
+    image_e: np.ndarray, origin_px: np.ndarray, size_px: np.ndarray, detector: Detector, min_pixels: int = 2, backend: str = "numpy"
+) -> Blobs:
+    """Blobs of a stack of canvases image_e (G, H, W) whose valid parts are size_px (G, 2) at origin_px (G, 2).
+
+    backend "numpy": scipy.ndimage labelling; "numba": agent.camera._fast.blobs (same definition).
+    """
+    if backend == "numba":
+        return _blobs_numba(image_e, origin_px, size_px, detector, min_pixels)
     labels, n = ndimage.label(image_e > detector.threshold_e, structure=_PLANAR_8)
     if n == 0:
         return Blobs.empty()
@@ -87,9 +94,20 @@ def blobs_in_stack(image_e: np.ndarray, origin_px: np.ndarray, size_px: np.ndarr
     return Blobs(centroid[order], area[order], area_sigma[order], counts[order], bbox[order])
 
 
-def extract_blobs(stacks: list[RoiStack], detector: Detector, min_pixels: int = 2) -> Blobs:
+def _blobs_numba(image_e, origin_px, size_px, detector: Detector, min_pixels: int) -> Blobs:
+    from agent.camera import _fast
+
+    return Blobs(
+        *_fast.blobs(
+            np.ascontiguousarray(image_e), np.ascontiguousarray(origin_px), np.ascontiguousarray(size_px),
+            detector.threshold_e, min_pixels, detector.signal_e, detector.read_noise_e,
+        )
+    )  # fmt: skip
+
+
+def extract_blobs(stacks: list[RoiStack], detector: Detector, min_pixels: int = 2, backend: str = "numpy") -> Blobs:
     """Blobs of a rendered frame given as ROI canvases (`Renderer.render_rois`)."""
-    return Blobs.concat([blobs_in_stack(st.image_e, st.origin_px, st.size_px, detector, min_pixels) for st in stacks])
+    return Blobs.concat([blobs_in_stack(st.image_e, st.origin_px, st.size_px, detector, min_pixels, backend) for st in stacks])
 
 
 def extract_blobs_full(image_e: np.ndarray, detector: Detector, min_pixels: int = 2) -> Blobs:
