@@ -124,3 +124,20 @@ def test_tracks_feed_the_controller_observation(renderer):
     truth_pos = frames[-1][1]
     for p in pos:
         assert np.min(np.linalg.norm(truth_pos - p, axis=1)) < 10.0
+
+
+@pytest.mark.parametrize("imaging, navigator", [("exact", "rough"), ("render", "rough"), ("render", "ekf")])
+def test_vision_nav_pipeline(imaging, navigator):
+    from agent.nav.pipeline import VisionNav
+
+    vn = VisionNav(A_M, N_RADPS, imaging=imaging, navigator=navigator)
+    roe = np.array([[2.0, 250.0, 5.0, -5.0, 10.0, 0.0]])
+    u = 0.7
+    for k in range(5):
+        pos, vel = roe_linear.roe_to_lvlh(roe, u, N_RADPS)
+        sc = scene(np.zeros(3), pos, ["a"])
+        tracks = vn.step(10.0 * k, u, sc.position_cam_m, sc.rot_body_to_cam, frame=k)
+        roe = roe_linear.propagate_roe(roe, np.zeros((1, 3)), u, N_RADPS, 10.0)
+        u += 10.0 * N_RADPS
+    assert len(vn.last_blobs) == 1 and len(tracks) == 1
+    assert np.linalg.norm(tracks[0].position_m - pos[0]) < 10.0

@@ -34,8 +34,8 @@ class MeasurementModel:
     camera: Camera
     areas_m2: np.ndarray  # (A_x, A_y, A_z), SpacecraftShape.projected_areas_m2
     extent_m: tuple[float, float]  # body size along camera x and y in nominal attitude
-    centroid_floor_px: float = 0.03
-    area_rel_sigma: float = 0.003
+    centroid_floor_px: float = 0.025
+    area_rel_sigma: float = 0.0025
 
     @staticmethod
     def for_shape(camera: Camera, shape: SpacecraftShape, **kw) -> "MeasurementModel":

@@ -1,0 +1,64 @@
+"""Camera -> blobs -> navigation for one spacecraft, in one object (issue 4 scenarios).
+
+Modes of imaging: "exact" (paper 002's assumption: exact area and centroid, no image) or
+"render" (the ROI renderer with noise, then blob extraction). Navigators: "rough" or "ekf".
+Input is the `scene` stimulus (agent never sees other truth): positions of the bodies in the
+camera frame and their attitudes body -> camera.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from agent.blob.blobs import Blobs, exact_blobs, extract_blobs
+from agent.camera.model import Camera
+from agent.camera.render import Detector, Renderer, RoiStack
+from agent.camera.shape import SpacecraftShape
+from agent.nav import make_navigator
+from agent.nav.base import Track
+
+
+class VisionNav:
+    def __init__(
+        self,
+        a_m: float,
+        n_radps: float,
+        imaging: str = "render",
+        navigator: str = "ekf",
+        camera: Camera | None = None,
+        shape: SpacecraftShape | None = None,
+        detector: Detector | None = None,
+        backend: str = "numpy",
+        min_pixels: int = 2,
+        nav_params: dict[str, Any] | None = None,
+    ) -> None:
+        if imaging not in ("exact", "render"):
+            raise ValueError(f"unknown imaging {imaging!r}; known: exact, render")
+        self.imaging = imaging
+        self.renderer = Renderer(camera, shape, detector, backend=backend)
+        self.min_pixels = min_pixels
+        self.navigator = make_navigator(navigator, self.renderer.camera, self.renderer.shape, a_m, n_radps, nav_params)
+        self.last_blobs: Blobs = Blobs.empty()
+        self.last_stacks: list[RoiStack] = []
+
+    def step(
+        self,
+        t_s: float,
+        u_rad: float,
+        pos_cam_m: np.ndarray,
+        rot_body_to_cam: np.ndarray,
+        frame: int,
+        own_accel_mps2: np.ndarray | None = None,
+    ) -> list[Track]:
+        """One camera frame: image the scene, extract blobs, update the navigator."""
+        r = self.renderer
+        pos = np.asarray(pos_cam_m, dtype=float).reshape(-1, 3)
+        rot = np.asarray(rot_body_to_cam, dtype=float).reshape(-1, 3, 3)
+        if self.imaging == "exact":
+            self.last_stacks = []
+            self.last_blobs = exact_blobs(pos, rot, r.camera, r.shape)
+        else:
+            self.last_stacks = r.render_rois(pos, rot, frame=frame)
+            self.last_blobs = extract_blobs(self.last_stacks, r.detector, self.min_pixels, backend=r.backend)
+        return self.navigator.update(t_s, u_rad, self.last_blobs, own_accel_mps2)
