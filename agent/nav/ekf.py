@@ -19,7 +19,7 @@ or when its prediction leaves the field of view or range by a margin.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from agent.camera.model import R_LVLH_FROM_CAM, Camera
 from agent.camera.shape import SpacecraftShape
 from agent.nav.associate import assign
 from agent.nav.base import Track
-from agent.nav.measure import MeasurementModel, measurement, noise_cov, predict
+from agent.nav.measure import MeasurementModel, noise_cov, predict
 from agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
 
 
@@ -53,7 +53,6 @@ class _EkfTrack:
     hits: int = 1
     misses: int = 0
     blob_index: int = -1
-    extra: dict = field(default_factory=dict)
 
 
 def transition(n_radps: float, dt_s: float) -> np.ndarray:

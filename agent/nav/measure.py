@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.camera.model import R_CAM_FROM_LVLH, R_LVLH_FROM_CAM, Camera
+from agent.camera.model import R_CAM_FROM_LVLH, Camera
 from agent.camera.shape import SpacecraftShape
 from agent.roe import roe_to_lvlh
 
@@ -81,11 +81,6 @@ def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: f
     return h, jp @ t, p
 
 
-def measurement(centroid_px: np.ndarray, area_px: float) -> np.ndarray:
-    """Blob -> z = (u, v, sqrt(area))."""
-    return np.array([centroid_px[0], centroid_px[1], np.sqrt(max(area_px, 1e-12))])
-
-
 def noise_cov(model: MeasurementModel, z_m: float, area_px: float, area_sigma_px: float) -> np.ndarray:
     """R (3, 3) of (u, v, sqrt(area)) for a body at depth z_m (MeasurementModel docstring);
     sigma_s = sigma_A / (2 sqrt A) from the blob's photometric sigma, plus the relative model error."""
@@ -97,7 +92,3 @@ def noise_cov(model: MeasurementModel, z_m: float, area_px: float, area_sigma_px
     s = np.sqrt(max(area_px, 1e-12))
     ss2 = (area_sigma_px / (2.0 * s)) ** 2 + (model.area_rel_sigma * s) ** 2
     return np.diag([su2, sv2, ss2])
-
-
-def cam_to_lvlh(p_cam: np.ndarray) -> np.ndarray:
-    return np.asarray(p_cam) @ R_LVLH_FROM_CAM.T
