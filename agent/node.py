@@ -32,7 +32,7 @@ def observation_from_rel(stim: pb.RelStimulus) -> Observation:
 class AgentNode:
     def __init__(self, bus: Bus, run: str, sc_id: str, *, controller: str, orbit: OrbitInfo,
                  params: dict[str, Any], sense_kind: str = "rel", decision_period_steps: int = 1,
-                 beacon: Any = None) -> None:
+                 beacon: Any = None, perception: Any = None) -> None:
         self.bus = bus
         self.run = run
         self.id = sc_id
@@ -51,6 +51,9 @@ class AgentNode:
         self._rx_key = self.keys.isl_rx(sc_id)
         self.inbox: list[pb.IslPacket] = []
         self.beacon = beacon
+        self.perception = perception
+        if sense_kind == "scene" and perception is None:
+            raise ValueError(f"{sc_id}: the scene stimulus needs a perception pipeline ([nav] table)")
         bus.subscribe(self._rx_key, self._on_isl)
         bus.subscribe(self._sense_key, self._on_stimulus)
         self._token = bus.declare_liveliness(self.keys.alive(f"agent-{sc_id}"))
@@ -85,11 +88,21 @@ class AgentNode:
                            payload=tx.payload, sent_t=t)
         self.bus.publish(self._tx_key, pkt.SerializeToString())
 
+    def _publish_image(self, png: bytes, t: float) -> None:
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+
+        img = CompressedImage(frame_id=f"{self.id}/camera", data=png, format="png")
+        img.timestamp.seconds, img.timestamp.nanos = int(t), int(round((t - int(t)) * 1e9))
+        self.bus.publish(self.keys.tm_image(self.id), img.SerializeToString())
+
     def handle(self, stim: Any) -> None:
         t0 = time.perf_counter()
         step, t = int(stim.header.step), stim.header.t
+        if self.perception is not None:  # camera frame -> blobs -> tracks, every frame
+            obs = self.perception.observe(stim, self.command.accel_mps2)
         if step % self.decision_period_steps == 0:
-            obs = observation_from_rel(stim)
+            if self.perception is None:
+                obs = observation_from_rel(stim)
             obs.isl_rx, self.inbox = self.inbox, []
             cmd = self.controller.step(obs)
             a = np.asarray(cmd.accel_mps2, dtype=float)
@@ -111,6 +124,11 @@ class AgentNode:
         tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
                           controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),
                           compute_s=compute_s, rejected_packets=self.rejections.total)
+        if self.perception is not None:
+            tm.tracks.extend(self.perception.track_messages())
+            png = self.perception.debug_image(t)
+            if png is not None:
+                self._publish_image(png, t)
         for d in self.command.decisions:
             tm.decisions.append(pb.NeighbourDecision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
                                                      roe_rel_m=[float(x) for x in d.roe_rel_m], accel_mps2=vec(d.accel_mps2)))

@@ -74,6 +74,10 @@ class Keys:
     def tm(self, sc: str) -> str:
         return f"{self.base}/sc/{check_token(sc)}/tm"
 
+    def tm_image(self, sc: str) -> str:
+        """Debug camera frames (foxglove.CompressedImage), under the agent's telemetry key."""
+        return f"{self.base}/sc/{check_token(sc)}/tm/image"
+
     @property
     def tm_all(self) -> str:
         return f"{self.base}/sc/*/tm"

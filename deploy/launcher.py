@@ -140,8 +140,15 @@ def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
     from agent.node import AgentNode
 
     orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
+    perception = None
+    if sc.sensing["kind"] == "scene":
+        from agent.perception import Perception, nav_config
+
+        perception = Perception(orbit.semi_major_axis_m, orbit.mean_motion_radps, nav_config(sc.sections.get("nav")),
+                                sc.camera)
     return AgentNode(bus, run, sid, controller=sc.controller, orbit=orbit, params=sc.controller_params,
-                     sense_kind=sc.sensing["kind"], beacon=beacon_from_scenario(sc, sid))
+                     sense_kind=sc.sensing["kind"], beacon=beacon_from_scenario(sc, sid), perception=perception,
+                     decision_period_steps=sc.decision_period_steps)
 
 
 def _child_env() -> dict[str, str]:

@@ -58,6 +58,7 @@ class Scenario:
     roe_m: np.ndarray  # (N, 6)
     lockstep_timeout_s: float
     dead_after_missed: int
+    decision_period_steps: int = 1
     sections: dict[str, Any] = field(default_factory=dict)  # raw tables for link, beacon, nav, viz
 
     @property
@@ -120,6 +121,12 @@ def _table(src: str, doc: dict[str, Any], name: str, allowed: set[str] | None) -
     return t
 
 
+def _vec3(src: str, where: str, value: Any) -> list[float]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise _err(src, where, "must be a list of three numbers", value)
+    return [_num(src, f"{where}[{i}]", v) for i, v in enumerate(value)]
+
+
 def _roe6(src: str, where: str, value: Any) -> np.ndarray:
     if not isinstance(value, list) or len(value) != 6:
         raise _err(src, where, "must be a list of six numbers (metres: a*da, a*dl, a*dex, a*dey, a*dix, a*diy)", value)
@@ -176,7 +183,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     }
     act = _table(src, doc, "actuator", {"max_accel_mps2"})
     max_accel = _positive(src, "[actuator].max_accel_mps2", act.get("max_accel_mps2", 1e-3))
-    ctl = _table(src, doc, "controller", {"name", "params"})
+    ctl = _table(src, doc, "controller", {"name", "params", "decision_period_s"})
     from agent.controller import known_controllers
 
     controller = _choice(src, "[controller].name", ctl.get("name", "null"), tuple(known_controllers()))
@@ -184,11 +191,24 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if not isinstance(params, dict):
         raise _err(src, "[controller].params", "must be a table", params)
     params = {"max_accel_mps2": max_accel, **params}
-    sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction"})
+    decision_period = _positive(src, "[controller].decision_period_s", ctl.get("decision_period_s", step))
+    decision_steps = int(round(decision_period / step))
+    if decision_steps < 1 or abs(decision_steps * step - decision_period) > 1e-9 * decision_period:
+        raise _err(src, "[controller].decision_period_s", f"must be a whole number of steps of {step} s", decision_period)
+    sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad"})
     sensing = {
         "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), ("rel", "scene")),
         "roe_noise_fraction": _num(src, "[sensing].roe_noise_fraction", sens.get("roe_noise_fraction", 0.0), 0.0, 10.0),
+        "pointing_error_rad": _vec3(src, "[sensing].pointing_error_rad", sens.get("pointing_error_rad", [0.0, 0.0, 0.0])),
+        "pointing_jitter_rad": _num(src, "[sensing].pointing_jitter_rad", sens.get("pointing_jitter_rad", 0.0), 0.0, 0.1),
     }
+    if sensing["kind"] == "scene":
+        from agent.perception import nav_config
+
+        try:
+            nav_config(doc.get("nav"))
+        except ValueError as exc:
+            raise ScenarioError(f"{src}: {exc}") from None
     tm = _table(src, doc, "time", {"lockstep_timeout_s", "dead_after_missed"})
     timeout = _positive(src, "[time].lockstep_timeout_s", tm.get("lockstep_timeout_s", 5.0))
     dead_after = int(_positive(src, "[time].dead_after_missed", tm.get("dead_after_missed", 3)))
@@ -197,7 +217,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         name=name, source=src, duration_s=duration, step_s=step, seed=seed, mode=mode, speed=speed,
         orbit=orbit, fidelity=fidelity, drag=drag, camera=camera, max_accel_mps2=max_accel,
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
-        lockstep_timeout_s=timeout, dead_after_missed=dead_after,
+        lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
     )
     if "link" in doc:

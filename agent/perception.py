@@ -1,0 +1,102 @@
+"""Perception of the flight software for the `scene` stimulus (issue 4): camera -> blobs ->
+navigation, turned into the controller's Observation, the telemetry tracks and debug images.
+
+The agent only uses what its camera would see: the poses in the camera frame (to render or, in
+the paper's exact mode, to measure area and centroid exactly). The pointing error in the
+stimulus is a fact of the simulation, not known to the flight software, and is not used.
+"""
+from __future__ import annotations
+
+import io
+from typing import Any
+
+import numpy as np
+
+from agent.camera.model import quat_to_matrix
+from agent.controller import Observation
+from agent.nav.base import Track, observation_arrays
+from agent.nav.pipeline import VisionNav
+from bus import swarmhil_pb2 as pb
+
+NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample"}
+
+
+def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
+    """Validated [nav] table with defaults (errors name the field)."""
+    t = dict(table or {})
+    unknown = sorted(set(t) - NAV_FIELDS)
+    if unknown:
+        raise ValueError(f"[nav].{unknown[0]} is not a known field; known: {sorted(NAV_FIELDS)}")
+    cfg = {"imaging": t.get("imaging", "render"), "navigator": t.get("navigator", "ekf"),
+           "backend": t.get("backend", "numpy"), "min_pixels": int(t.get("min_pixels", 2)),
+           "params": dict(t.get("params", {})), "debug_image_period_s": float(t.get("debug_image_period_s", 0.0)),
+           "debug_image_downsample": int(t.get("debug_image_downsample", 4))}
+    if cfg["imaging"] not in ("exact", "render"):
+        raise ValueError(f"[nav].imaging must be 'exact' or 'render' (got {cfg['imaging']!r})")
+    if cfg["navigator"] not in ("rough", "ekf"):
+        raise ValueError(f"[nav].navigator must be 'rough' or 'ekf' (got {cfg['navigator']!r})")
+    if cfg["backend"] not in ("numpy", "numba", "auto"):
+        raise ValueError(f"[nav].backend must be 'numpy', 'numba' or 'auto' (got {cfg['backend']!r})")
+    if cfg["debug_image_period_s"] < 0 or cfg["debug_image_downsample"] < 1:
+        raise ValueError("[nav].debug_image_period_s must be >= 0 and debug_image_downsample >= 1")
+    return cfg
+
+
+class Perception:
+    def __init__(self, a_m: float, n_radps: float, cfg: dict[str, Any], camera_cfg: dict[str, Any] | None = None) -> None:
+        from agent.camera.model import Camera
+
+        cam = None
+        if camera_cfg:
+            px = int(camera_cfg.get("image_px", 1080))
+            cam = Camera(width_px=px, height_px=px, focal_px=float(camera_cfg.get("focal_px", 1000.0)),
+                         max_range_m=float(camera_cfg.get("detection_range_m", 500.0)))
+        self.cfg = cfg
+        self.vision = VisionNav(a_m, n_radps, imaging=cfg["imaging"], navigator=cfg["navigator"], camera=cam,
+                                backend=cfg["backend"], min_pixels=cfg["min_pixels"], nav_params=cfg["params"])
+        self.tracks: list[Track] = []
+        self._next_image_t = 0.0
+
+    def observe(self, stim: pb.SceneStimulus, own_accel_mps2: np.ndarray) -> Observation:
+        n = len(stim.bodies)
+        pos = np.array([[b.position_cam_m.x, b.position_cam_m.y, b.position_cam_m.z] for b in stim.bodies]).reshape(n, 3)
+        rot = np.array([quat_to_matrix(np.array([b.attitude_cam.w, b.attitude_cam.x, b.attitude_cam.y, b.attitude_cam.z]))
+                        for b in stim.bodies]).reshape(n, 3, 3)
+        self.tracks = self.vision.step(stim.header.t, stim.u_rad, pos, rot, int(stim.header.step), own_accel_mps2)
+        ids, rp, rv = observation_arrays(self.tracks)
+        return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad, neighbour_ids=ids,
+                           rel_position_m=rp, rel_velocity_mps=rv)
+
+    def track_messages(self) -> list[pb.TrackEstimate]:
+        out = []
+        for tr in self.tracks:
+            m = pb.TrackEstimate(track=tr.track_id, roe_m=[float(x) for x in tr.roe_m], age_steps=int(tr.age_steps))
+            if tr.covariance_m2 is not None:
+                m.covariance_m2.extend(float(x) for x in np.asarray(tr.covariance_m2).ravel())
+            m.position_m.x, m.position_m.y, m.position_m.z = np.asarray(tr.position_m, float).tolist()
+            m.velocity_mps.x, m.velocity_mps.y, m.velocity_mps.z = np.asarray(tr.velocity_mps, float).tolist()
+            out.append(m)
+        return out
+
+    def debug_image(self, t_s: float) -> bytes | None:
+        """PNG of the last frame, downsampled (block max, so one-pixel blobs stay visible), at most every debug_image_period_s; None otherwise."""
+        period = self.cfg["debug_image_period_s"]
+        if period <= 0 or t_s + 1e-9 < self._next_image_t:
+            return None
+        self._next_image_t = t_s + period
+        from PIL import Image
+
+        from agent.camera.render import compose_frame
+
+        frame = compose_frame(self.vision.last_stacks, self.vision.renderer.camera)
+        if self.cfg["imaging"] == "exact":  # no image in the paper's exact mode: draw the blob centroids
+            for (u, v) in self.vision.last_blobs.centroid_px:
+                r, c = int(v), int(u)
+                frame[max(r - 2, 0):r + 3, max(c - 2, 0):c + 3] = self.vision.renderer.detector.signal_e
+        d = self.cfg["debug_image_downsample"]
+        h, w = (frame.shape[0] // d) * d, (frame.shape[1] // d) * d
+        small = frame[:h, :w].reshape(h // d, d, w // d, d).max(axis=(1, 3))
+        img = np.clip(small / self.vision.renderer.detector.signal_e * 255.0, 0, 255).astype(np.uint8)
+        buf = io.BytesIO()
+        Image.fromarray(img, mode="L").save(buf, format="PNG")
+        return buf.getvalue()
