@@ -260,7 +260,7 @@ class MultiProcessRun:
         except RunFailed as exc:
             reason, code = str(exc), 1
         finally:
-            self._stop(["plant"])
+            self._stop(["plant"], timeout_s=30.0)
             time.sleep(0.3)  # let in-flight samples reach the recorder
             self._stop([n for n in self.procs if n.startswith("agent-")])
             if self.opts.get("viz") == "serve" and not interrupted and not code:

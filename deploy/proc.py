@@ -85,9 +85,9 @@ def main(argv: list[str] | None = None) -> int:
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
         node.wait_ready()
-        summary = node.run()
+        summary = node.run(should_stop=stop.is_set)
         (out / "plant_summary.json").write_text(json.dumps(summary, indent=1))
-        bus.close()
+        _close_within(bus)
         return 0
     if args.role == "agent":
         from deploy.launcher import make_agent
@@ -107,8 +107,8 @@ def main(argv: list[str] | None = None) -> int:
         node = RecorderNode(bus, args.run, out / "run.mcap")
         stop.wait()
         stats = node.close()
-        bus.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
+        _close_within(bus)
         return 0
     if args.role == "companion":
         from deploy.companions import load

@@ -150,11 +150,11 @@ class PlantNode:
             time.sleep(0.01)
 
     # --- the loop -----------------------------------------------------------------------------
-    def publish_step(self) -> None:
+    def publish_step(self, final: bool = False) -> None:
         """Tick, truth and stimuli of the current step (arrays turned into lists once: numpy
         scalar access per field costs more than the rest of the step)."""
         k = self._step
-        final = k >= self.sc.steps
+        final = final or k >= self.sc.steps
         u = self.world.u_rad
         pos, vel = self.world.lvlh()
         ids = self.world.ids
@@ -219,12 +219,16 @@ class PlantNode:
         self._step += 1
         self.stats.steps = self._step
 
-    def run(self) -> dict[str, Any]:
+    def run(self, should_stop: Callable[[], bool] = lambda: False) -> dict[str, Any]:
+        """Run every step (or until should_stop() is true: the run then ends early, cleanly)."""
         self._event("run_start", "plant", json.dumps({"agents": len(self.world.ids), "steps": self.sc.steps, "mode": self.sc.mode}))
         self.pacer.start()
         wall0 = time.monotonic()
         t_pub = t_loop = 0.0
         for k in range(self.sc.steps):
+            if should_stop():
+                self._event("run_stopped", "plant", f"stopped at step {k} of {self.sc.steps}")
+                break
             self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()
@@ -234,7 +238,7 @@ class PlantNode:
             t_loop += time.perf_counter() - c0
             if self.progress:
                 self.progress(self._step, time.monotonic() - wall0)
-        self.publish_step()  # final tick + truth at t_end
+        self.publish_step(final=True)  # final tick + truth at t_end
         self.timing = {"loop_wall_s": t_loop, "publish_s": t_pub, "wait_and_propagate_s": t_loop - t_pub,
                        "propagate_s": self.world.wall_s}
         self._event("run_end", "plant", f"{self._step} steps")

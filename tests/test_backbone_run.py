@@ -226,3 +226,25 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     for k in held:  # the command applied over a missed step k (in truth k+1) equals the one over step k-1
         a, b = truth[k + 1].accel_cmd_mps2, truth[k].accel_cmd_mps2
         assert (a.x, a.y, a.z) == (b.x, b.y, b.z)
+
+
+def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
+    """SIGINT to the launcher (Ctrl-C): every child stopped, a finished, readable MCAP, exit 130."""
+    out = tmp_path / "cc"
+    p = subprocess.Popen([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
+                          "--run-id", "cc", "--mode", "realtime", "--speed", "20", "--no-progress"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    info = _wait_for(out / "run.json")
+    _wait_steps(info["router"], "cc", 5)
+    p.send_signal(signal.SIGINT)
+    stdout, stderr = p.communicate(timeout=60)
+    assert p.returncode == 130, stderr
+    assert "interrupted" in stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["interrupted"] is True, s
+    assert 5 <= s.get("steps", -1) < 180, s
+    for name, pid in info["pids"].items():  # every child is gone
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+    msgs = read_mcap(out / "run.mcap")  # finished properly: the indexed reader opens it
+    assert sum(1 for t, *_ in msgs if t == "swarm/cc/truth") >= 5
