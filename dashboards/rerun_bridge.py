@@ -3,16 +3,21 @@
 `SwarmLogger.ingest(key, payload)` takes raw samples of `swarm/<run>/**` exactly as the bus or
 the MCAP file gives them and only queues them (cheap, so a bus callback never stalls);
 `flush()` decodes what is queued and sends it to Rerun in column batches (`send_columns`), one
-call per entity per flush rather than one `log` per message (STACK-NOTES: far faster).
+call per entity per flush rather than one `log` per message (STACK-NOTES: far faster); the
+whole swarm is one entity for the same reason.
+
+Mode colours and estimates of step k are logged once step k is complete (a later truth has come,
+or the final flush): then every agent's telemetry of step k is in, whatever the arrival order.
 
 Timelines: "step" (sequence, header.step) and "sim_time" (duration, header.t seconds).
 
 Entity paths (`Paths`, the one place they are spelled), positions in metres in the LVLH frame of
 the reference orbit (x radial, y along-track, z cross-track):
 
-    world/sc/<id>                 Points3D, one labelled point per spacecraft (truth), coloured by
-                                  the agent's mode (Telemetry.mode: behaviour or controller state),
-                                  dark grey once the plant counts it dead
+    world/swarm                   Points3D, one labelled point per spacecraft (truth; labels static,
+                                  in the order of Truth.bodies), coloured by the agent's mode
+                                  (Telemetry.mode: behaviour or controller state), dark grey once the
+                                  plant counts it dead
     world/trails                  Points3D, every spacecraft each step; the blueprint shows them over
                                   a trailing visible time range (one orbit) instead of re-logging strips
     world/visibility              LineStrips3D, observer -> observed segments of the camera digraph
@@ -20,11 +25,11 @@ the reference orbit (x radial, y along-track, z cross-track):
     world/links                   LineStrips3D, src -> dst of the ISL deliveries stamped with that step
                                   (an empty batch on steps without any, so they are short-lived)
     world/targets/<id>            Points3D, bodies of kind "target"
-    world/estimates/<id>          Points3D, where agent <id> believes its neighbours are (own true
+    world/estimates               Points3D, where each agent believes its neighbours are (its true
                                   position + estimated relative position: Telemetry.tracks, else the
                                   decisions' relative ROE through the linear ROE map), coloured by
-                                  the behaviour it chose for each
-    world/estimates/<id>/error    LineStrips3D, estimate -> true position of that neighbour
+                                  the behaviour it chose for each (labels "agent>neighbour")
+    world/estimates/error         LineStrips3D, estimate -> true position of that neighbour
     metrics/connectivity/weakly_connected_components   Scalars (alive spacecraft only)
     metrics/delta_v/total_mps     Scalars, sum of the cumulative dV of every spacecraft
     link/messages/{tx,rx}         Scalars, cumulative counts (LinkStats)
@@ -44,9 +49,10 @@ from typing import Any, Iterable
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
-from bus.codec import RejectedPacket, Rejections, decode
+from bus.codec import Rejections
 from bus.keys import Keys
 
 APP_ID = "swarmhil"
@@ -194,9 +200,12 @@ def truth_frame(msg: pb.Truth) -> TruthFrame:
 class Paths:
     WORLD = "world"
     AXES = "world/axes"
+    SWARM = "world/swarm"
     TRAILS = "world/trails"
     VISIBILITY = "world/visibility"
     LINKS = "world/links"
+    ESTIMATES = "world/estimates"
+    ESTIMATE_ERRORS = "world/estimates/error"
     WCC = "metrics/connectivity/weakly_connected_components"
     DV_TOTAL = "metrics/delta_v/total_mps"
     LINK_TX = "link/messages/tx"
@@ -207,20 +216,8 @@ class Paths:
     EVENTS = "events"
 
     @staticmethod
-    def sc(sid: str) -> str:
-        return f"world/sc/{sid}"
-
-    @staticmethod
     def target(tid: str) -> str:
         return f"world/targets/{tid}"
-
-    @staticmethod
-    def estimates(sid: str) -> str:
-        return f"world/estimates/{sid}"
-
-    @staticmethod
-    def estimate_error(sid: str) -> str:
-        return f"world/estimates/{sid}/error"
 
     @staticmethod
     def camera(sid: str) -> str:
@@ -236,7 +233,7 @@ def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> r
                              end=rrb.TimeRangeBoundary.cursor_relative()),
     ])
     left = rrb.Vertical(
-        rrb.Spatial3DView(origin=Paths.WORLD, name="swarm (LVLH, m)", overrides={Paths.TRAILS: trail}),
+        rrb.Spatial3DView(origin=Paths.WORLD, name="swarm, LVLH m (x radial red, y along-track green, z cross-track blue)", overrides={Paths.TRAILS: trail}),
         rrb.TextLogView(origin=Paths.EVENTS, name="events"),
         row_shares=[4, 1],
     )
@@ -256,6 +253,10 @@ def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> r
         rrb.TimePanel(timeline=STEP),
         collapse_panels=False,
     )
+
+
+def _colour_array(colours: list[tuple[int, int, int]]) -> np.ndarray:
+    return np.array(colours, np.uint8).reshape(-1, 3)
 
 
 class SwarmLogger:
@@ -282,12 +283,14 @@ class SwarmLogger:
         self._history: dict[int, TruthFrame] = {}
         self._links: dict[int, list[tuple[str, str]]] = defaultdict(list)
         self._links_new: set[int] = set()
-        self._tm_waiting: list[tuple[str, pb.Telemetry]] = []
+        self._tm: dict[int, dict[str, pb.Telemetry]] = defaultdict(dict)
+        self._done_step = -1           # mode colours and estimates are logged up to this step
+        self._modes: dict[str, str] = {}
+        self._last_colours: np.ndarray | None = None
+        self._colour_key: tuple[Any, ...] | None = None
+        self._had_estimates = False
         self._static_ids: tuple[str, ...] | None = None
         self._static_targets: set[str] = set()
-        self._last_mode: dict[str, str] = {}
-        self._had_estimates: dict[str, bool] = {}
-        self._was_alive: dict[str, bool] = {}
         self._cameras: set[str] = set()
         self.flushes = 0
         self.last_step = -1
@@ -314,19 +317,21 @@ class SwarmLogger:
 
     # --- output -----------------------------------------------------------------------------
     def flush(self, final: bool = False) -> None:
-        """Decode everything queued and log it; telemetry whose truth has not come yet waits."""
+        """Decode everything queued and log it."""
         raw, self._raw = self._raw, defaultdict(list)
         self._truth_queued = 0
         frames = self._decode_truths(raw.get("truth", []))
         for sid, payload in raw.get("isl_rx", []):
             self._queue_delivery(sid, payload)
-        late_link_steps = {s for s in self._links_new if s in self._history and s not in {f.step for f in frames}}
+        fresh = {f.step for f in frames}
+        late_link_steps = sorted(s for s in self._links_new if s in self._history and s not in fresh)
         self._links_new = set()
         if frames:
             self._log_frames(frames)
         if late_link_steps:
-            self._log_links(sorted(late_link_steps))
-        self._log_telemetry(raw.get("tm", []), final)
+            self._log_links(late_link_steps)
+        self._queue_telemetry(raw.get("tm", []))
+        self._log_completed_steps(final)
         self._log_events(raw.get("event", []))
         self._log_link_stats(raw.get("link_stats", []))
         self._log_images(raw.get("tm_image", []))
@@ -334,11 +339,17 @@ class SwarmLogger:
         self.flushes += 1
 
     def _decode(self, cls: type, key_kind: str, payload: bytes) -> Any | None:
+        """Parse and check the run; no per-field finiteness walk (bus/codec.decode costs ~100 us a
+        message: too much for the viewer, which only draws what it gets)."""
         try:
-            return decode(cls, payload, run=self.run)
-        except RejectedPacket as exc:
-            self.rejections.add(key_kind, str(exc))
+            msg = cls.FromString(payload)
+        except (DecodeError, RuntimeWarning, ValueError) as exc:
+            self.rejections.add(key_kind, f"{cls.DESCRIPTOR.name}: payload of {len(payload)} B does not decode ({exc})")
             return None
+        if msg.header.run != self.run:
+            self.rejections.add(key_kind, f"{cls.DESCRIPTOR.name}: header.run {msg.header.run!r} is not {self.run!r}")
+            return None
+        return msg
 
     def _decode_truths(self, items: list[tuple[str | None, bytes]]) -> list[TruthFrame]:
         frames = []
@@ -368,17 +379,18 @@ class SwarmLogger:
     def _log_static(self, f: TruthFrame) -> None:
         if self._static_ids is None:
             self.rec.log(Paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_X_UP, static=True)
-            self.rec.log(Paths.AXES, rr.Arrows3D(vectors=np.eye(3) * 100.0, colors=[(230, 60, 60), (60, 200, 60), (70, 110, 255)],
-                                                 labels=["x radial", "y along-track", "z cross-track"], radii=-1.0),
-                         static=True)
+            self.rec.log(Paths.AXES, rr.Arrows3D(vectors=np.eye(3) * 50.0, colors=[(230, 60, 60), (60, 200, 60), (70, 110, 255)],
+                                                 labels=["x radial", "y along-track", "z cross-track"], show_labels=False,
+                                                 radii=-1.0), static=True)
             self.send_blueprint()
         if f.ids != self._static_ids:
-            for sid in f.ids:
-                self.rec.log(Paths.sc(sid), rr.Points3D.from_fields(labels=[sid], radii=[SC_RADIUS_UI], show_labels=True),
-                             static=True)
+            self.rec.log(Paths.SWARM, rr.Points3D.from_fields(labels=list(f.ids), radii=[SC_RADIUS_UI], show_labels=True),
+                         static=True)
             self.rec.log(Paths.TRAILS, rr.Points3D.from_fields(colors=id_colours(len(f.ids)), radii=[TRAIL_RADIUS_UI]),
                          static=True)
             self._static_ids = f.ids
+            self._last_colours = None
+            self._colour_key = None
         for tid in f.target_ids:
             if tid not in self._static_targets:
                 self.rec.log(Paths.target(tid), rr.Points3D.from_fields(labels=[tid], radii=[TARGET_RADIUS_UI],
@@ -402,9 +414,9 @@ class SwarmLogger:
         alive = np.stack([f.alive for f in frames])         # (M, N)
         m, n = alive.shape
         self.last_step = max(self.last_step, int(steps[-1]))
-        for i, sid in enumerate(f0.ids):
-            self._send(Paths.sc(sid), steps, t_s, rr.Points3D.columns(positions=pos[:, i, :]))
-        self._send(Paths.TRAILS, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(np.full(m, n)))
+        per_step = np.full(m, n)
+        self._send(Paths.SWARM, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(per_step))
+        self._send(Paths.TRAILS, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(per_step))
         vis = visibility(pos, alive, self.camera)
         s_idx, j_idx, k_idx = np.nonzero(vis)
         strips = np.stack([pos[s_idx, j_idx], pos[s_idx, k_idx]], axis=1)
@@ -417,7 +429,6 @@ class SwarmLogger:
         for ti, tid in enumerate(f0.target_ids):
             self._send(Paths.target(tid), steps, t_s, rr.Points3D.columns(positions=np.stack([f.target_pos_m[ti] for f in frames])))
         self._log_links([int(s) for s in steps])
-        self._log_deaths(frames)
 
     def _log_links(self, steps: list[int]) -> None:
         """ISL deliveries of each step as segments between the true positions (empty when none)."""
@@ -437,88 +448,93 @@ class SwarmLogger:
                    rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(LINK_COLOUR, np.uint8), (len(strips), 1)),
                                            radii=np.full(len(strips), 2 * LINE_RADIUS_UI, np.float32)).partition(counts))
 
-    def _log_deaths(self, frames: list[TruthFrame]) -> None:
-        for f in frames:
-            for sid, a in zip(f.ids, f.alive):
-                if self._was_alive.get(sid, True) and not a:
-                    self._send(Paths.sc(sid), [f.step], [f.t_s], rr.Points3D.columns(colors=[DEAD_COLOUR]))
-                    self._send(Paths.estimates(sid), [f.step], [f.t_s], rr.Points3D.columns(positions=np.zeros((0, 3))).partition([0]))
-                    self._send(Paths.estimate_error(sid), [f.step], [f.t_s],
-                               rr.LineStrips3D.columns(strips=np.zeros((0, 2, 3))).partition([0]))
-                    self._last_mode[sid] = "dead"
-                self._was_alive[sid] = bool(a)
-
-    def _log_telemetry(self, items: list[tuple[str | None, bytes]], final: bool) -> None:
-        tms = list(self._tm_waiting)
-        self._tm_waiting = []
+    def _queue_telemetry(self, items: list[tuple[str | None, bytes]]) -> None:
         for sid, payload in items:
             msg = self._decode(pb.Telemetry, "tm", payload)
-            if msg is not None and sid is not None:
-                tms.append((sid, msg))
-        tms.sort(key=lambda x: (x[0], x[1].header.step))
-        by_sc: dict[str, list[pb.Telemetry]] = defaultdict(list)
-        for sid, msg in tms:
-            by_sc[sid].append(msg)
-        for sid, msgs in by_sc.items():
-            self._log_modes(sid, msgs)
-            ready = [m for m in msgs if int(m.header.step) in self._history]
-            waiting = [m for m in msgs if int(m.header.step) not in self._history]
-            if not final:
-                self._tm_waiting += [(sid, m) for m in waiting]
-            if ready:
-                self._log_estimates(sid, ready)
-
-    def _log_modes(self, sid: str, msgs: list[pb.Telemetry]) -> None:
-        steps, times, colours = [], [], []
-        for m in msgs:
-            if self._last_mode.get(sid) in (m.mode, "dead"):
+            if msg is None or sid is None:
                 continue
-            self._last_mode[sid] = m.mode
-            steps.append(int(m.header.step))
-            times.append(m.header.t)
-            colours.append(mode_colour(m.mode))
-        if steps:
-            self._send(Paths.sc(sid), steps, times, rr.Points3D.columns(colors=np.array(colours, np.uint8)))
-
-    def _log_estimates(self, sid: str, msgs: list[pb.Telemetry]) -> None:
-        steps, times, pts, cols, n_pts, errs, n_errs = [], [], [], [], [], [], []
-        for m in msgs:
-            f = self._history[int(m.header.step)]
-            own = f.position_of(sid)
-            if own is None:
+            step = int(msg.header.step)
+            if step <= self._done_step:
+                self._modes[sid] = msg.mode   # late: its step is drawn already; keep the mode current
                 continue
-            behaviour = {d.neighbour: d.behaviour for d in m.decisions}
-            est: list[tuple[str, np.ndarray]] = []
-            if len(m.tracks):
-                est = [(tr.truth_id, own + (tr.position_m.x, tr.position_m.y, tr.position_m.z)) for tr in m.tracks]
-            elif len(m.decisions):
-                rel = roe_rel_to_position_m(np.array([list(d.roe_rel_m) for d in m.decisions if len(d.roe_rel_m) == 6]),
-                                            f.u_rad, f.n_radps)
-                est = [(d.neighbour, own + r) for d, r in zip([d for d in m.decisions if len(d.roe_rel_m) == 6], rel)]
-            if not est and not self._had_estimates.get(sid):
-                continue  # nothing to show and nothing to clear
-            self._had_estimates[sid] = bool(est)
-            ne = 0
-            for nb, p in est:
-                pts.append(p)
-                cols.append(mode_colour(behaviour.get(nb, "none")))
-                true_p = f.position_of(nb) if nb else None
-                if true_p is not None:
-                    errs.append((p, true_p))
-                    ne += 1
-            steps.append(f.step)
-            times.append(f.t_s)
-            n_pts.append(len(est))
-            n_errs.append(ne)
-        if not steps:
+            self._tm[step][sid] = msg
+
+    def _log_completed_steps(self, final: bool) -> None:
+        """Mode colours and estimates of every step whose telemetry is complete (see module doc)."""
+        last = max(self._history) if self._history else -1
+        todo = sorted(s for s in self._history if self._done_step < s and (s < last or final))
+        c_steps, c_times, c_rows = [], [], []
+        e_steps, e_times, e_pts, e_cols, e_lbls, e_n, e_errs, e_nerr = [], [], [], [], [], [], [], []
+        for s in todo:
+            f = self._history[s]
+            tms = self._tm.pop(s, {})
+            for sid, msg in tms.items():
+                self._modes[sid] = msg.mode
+            key = (f.ids, f.alive.tobytes(), tuple(self._modes.get(sid, "idle") for sid in f.ids))
+            if key != self._colour_key:
+                colours = _colour_array([DEAD_COLOUR if not a else mode_colour(mode) for a, mode in zip(f.alive, key[2])])
+                if self._last_colours is None or not np.array_equal(colours, self._last_colours):
+                    c_steps.append(s)
+                    c_times.append(f.t_s)
+                    c_rows.append(colours)
+                    self._last_colours = colours
+                self._colour_key = key
+            n0, ne0 = len(e_pts), len(e_errs)
+            for sid in sorted(tms):
+                self._estimates(f, sid, tms[sid], e_pts, e_cols, e_lbls, e_errs)
+            if len(e_pts) > n0 or self._had_estimates:
+                e_steps.append(s)
+                e_times.append(f.t_s)
+                e_n.append(len(e_pts) - n0)
+                e_nerr.append(len(e_errs) - ne0)
+                self._had_estimates = len(e_pts) > n0
+            self._done_step = s
+        if todo and self._last_colours is not None and (not c_steps or c_steps[-1] != todo[-1]):
+            # repeat the colours at the newest step of each flush: a viewer that joins late gets the
+            # newest data first (GrpcServerSink newest_first) and must not wait for the first row
+            c_steps.append(todo[-1])
+            c_times.append(self._history[todo[-1]].t_s)
+            c_rows.append(self._last_colours)
+        for s in [s for s in self._tm if s <= self._done_step]:
+            for sid, msg in self._tm.pop(s).items():
+                self._modes[sid] = msg.mode
+        if c_steps:
+            self._send(Paths.SWARM, c_steps, c_times,
+                       rr.Points3D.columns(colors=np.concatenate(c_rows)).partition([len(c) for c in c_rows]))
+        if e_steps:
+            self._send(Paths.ESTIMATES, e_steps, e_times,
+                       rr.Points3D.columns(positions=np.array(e_pts, float).reshape(-1, 3), colors=_colour_array(e_cols),
+                                           labels=e_lbls, radii=np.full(len(e_pts), ESTIMATE_RADIUS_UI, np.float32))
+                       .partition(e_n))
+            strips = np.array(e_errs, float).reshape(-1, 2, 3)
+            self._send(Paths.ESTIMATE_ERRORS, e_steps, e_times,
+                       rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(ERROR_COLOUR, np.uint8), (len(strips), 1)),
+                                               radii=np.full(len(strips), LINE_RADIUS_UI, np.float32)).partition(e_nerr))
+
+    @staticmethod
+    def _estimates(f: TruthFrame, sid: str, m: pb.Telemetry, pts: list, cols: list, lbls: list, errs: list) -> None:
+        """Append agent sid's estimated neighbour positions (and errors against truth) at frame f."""
+        if not len(m.tracks) and not len(m.decisions):
             return
-        self._send(Paths.estimates(sid), steps, times,
-                   rr.Points3D.columns(positions=np.array(pts, float).reshape(-1, 3), colors=np.array(cols, np.uint8).reshape(-1, 3),
-                                       radii=np.full(len(pts), ESTIMATE_RADIUS_UI, np.float32)).partition(n_pts))
-        strips = np.array(errs, float).reshape(-1, 2, 3)
-        self._send(Paths.estimate_error(sid), steps, times,
-                   rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(ERROR_COLOUR, np.uint8), (len(strips), 1)),
-                                           radii=np.full(len(strips), LINE_RADIUS_UI, np.float32)).partition(n_errs))
+        own = f.position_of(sid)
+        if own is None:
+            return
+        behaviour = {d.neighbour: d.behaviour for d in m.decisions}
+        if len(m.tracks):
+            est = [(tr.truth_id, own + (tr.position_m.x, tr.position_m.y, tr.position_m.z)) for tr in m.tracks]
+        else:
+            ds = [d for d in m.decisions if len(d.roe_rel_m) == 6]
+            if not ds:
+                return
+            rel = roe_rel_to_position_m(np.array([list(d.roe_rel_m) for d in ds]), f.u_rad, f.n_radps)
+            est = [(d.neighbour, own + r) for d, r in zip(ds, rel)]
+        for nb, p in est:
+            pts.append(p)
+            cols.append(mode_colour(behaviour.get(nb, "none")))
+            lbls.append(f"{sid}>{nb}" if nb else sid)
+            true_p = f.position_of(nb) if nb else None
+            if true_p is not None:
+                errs.append((p, true_p))
 
     def _log_events(self, items: list[tuple[str | None, bytes]]) -> None:
         steps, times, texts, levels = [], [], [], []
@@ -560,15 +576,14 @@ class SwarmLogger:
         for sid, payload in items:
             try:
                 img = CompressedImage.FromString(payload)
-            except Exception as exc:  # noqa: BLE001 - protobuf raises several types
+            except (DecodeError, RuntimeWarning, ValueError) as exc:
                 self.rejections.add("tm_image", f"CompressedImage does not decode: {exc}")
                 continue
             if sid is None or not img.data:
                 continue
             t_s = img.timestamp.seconds + img.timestamp.nanos * 1e-9
-            step = self._step_at(t_s)
             fmt = (img.format or "jpeg").lower()
-            self._send(Paths.camera(sid), [step], [t_s],
+            self._send(Paths.camera(sid), [self._step_at(t_s)], [t_s],
                        rr.EncodedImage.columns(blob=[img.data], media_type=[f"image/{fmt}"]))
             if sid not in self._cameras:
                 self._cameras.add(sid)

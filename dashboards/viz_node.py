@@ -52,14 +52,33 @@ def start(bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "VizN
 
 
 def rerun_exe() -> str:
-    """The rerun CLI of this Python environment (the wheel's binary), else the one on PATH."""
-    here = Path(sys.executable).with_name("rerun")
-    if here.exists():
-        return str(here)
+    """The rerun binary of the wheel (package rerun_cli), else the `rerun` on PATH.
+
+    The binary itself, not the venv's `bin/rerun` Python wrapper: the wrapper runs the binary as a
+    child, so ending the wrapper by PID would leave the server running.
+    """
+    try:
+        import rerun_cli
+
+        exe = Path(rerun_cli.__file__).with_name("rerun")
+        if exe.exists():
+            return str(exe)
+    except ImportError:
+        pass
     found = shutil.which("rerun")
     if not found:
         raise FileNotFoundError("the rerun CLI (rerun-sdk wheel) is not installed")
     return found
+
+
+def _die_with_parent() -> None:
+    """Child pre-exec: SIGTERM when the process that started it dies (Linux prctl PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)
+    except OSError:
+        pass
 
 
 def disable_analytics() -> None:
@@ -80,7 +99,8 @@ def grpc_url(port: int) -> str:
 
 
 def web_url(web_port: int, grpc_port: int) -> str:
-    return f"http://{LOOPBACK}:{web_port}/?url={quote(grpc_url(grpc_port), safe='')}"
+    """The page to open, in the form `rerun --serve-web` prints (every character of the data URL escaped)."""
+    return f"http://{LOOPBACK}:{web_port}?url={quote(grpc_url(grpc_port), safe='').replace('.', '%2E')}"
 
 
 def free_port() -> int:
@@ -97,7 +117,8 @@ class WebViewer:
         self.url = web_url(web_port, grpc_port)
         cmd = [rerun_exe(), "--serve-web", "--bind", LOOPBACK, "--web-viewer-port", str(web_port), grpc_url(grpc_port)]
         self._logf = open(log_path, "wb") if log_path else subprocess.DEVNULL
-        self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._logf, stderr=subprocess.STDOUT)
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=self._logf, stderr=subprocess.STDOUT,
+                                     preexec_fn=_die_with_parent if sys.platform == "linux" else None)
 
     def wait_listening(self, port: int, timeout_s: float = 20.0) -> bool:
         import socket
@@ -132,7 +153,7 @@ def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, 
     rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
     sinks: list[Any] = []
     if mode == "serve":
-        sinks.append(rr.GrpcServerSink(bind_ip=LOOPBACK, port=int(viz_port or 0)))
+        sinks.append(rr.GrpcServerSink(bind_ip=LOOPBACK, port=int(viz_port or 0), newest_first=True))
     elif mode == "connect":
         sinks.append(rr.GrpcSink(viz_url or DEFAULT_CONNECT_URL))
     if rrd is not None:
@@ -193,9 +214,9 @@ class VizNode:
 
     def flush(self, final: bool = False) -> None:
         with self._lock:
-            t0 = time.perf_counter()
+            t0 = time.thread_time()
             self.logger.flush(final=final)
-            self._flush_s += time.perf_counter() - t0
+            self._flush_s += time.thread_time() - t0  # CPU of this thread (Rerun encodes on its own threads)
 
     def _flush_loop(self) -> None:
         while not self._stop.wait(FLUSH_PERIOD_S):

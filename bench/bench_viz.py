@@ -1,0 +1,87 @@
+"""Cost of the viewer bridge: lockstep wall time with and without `--viz save` (issue 6; goal <= 10 %).
+
+The same `swarmhil run SCENARIO --duration D --no-progress` invocation, alternately without and
+with `--viz save`, `--repeats` times each. The stepping wall time of a run is read from its
+recording: reception time of the first to the last clock tick (process start-up, which the viewer
+does not change, is left out); the launcher's total wall time is reported too. The ratio is of
+the medians, measured in this one invocation.
+
+    .venv/bin/python bench/bench_viz.py [--scenario deploy/scenarios/sabatini-20.toml] [--duration 7200] [--repeats 3]
+
+Writes bench/results/bench_viz.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def stepping_wall_s(mcap_path: Path) -> tuple[float, int]:
+    """(last - first reception time of swarm/<run>/clock, number of ticks) from the recording."""
+    from mcap.reader import make_reader
+
+    times = []
+    with open(mcap_path, "rb") as f:
+        for _s, ch, m in make_reader(f).iter_messages():
+            if ch.topic.endswith("/clock"):
+                times.append(m.log_time)
+    return (max(times) - min(times)) / 1e9, len(times)
+
+
+def one_run(scenario: str, duration_s: float, viz: bool, work: Path, i: int) -> dict:
+    out = work / f"{'viz' if viz else 'plain'}-{i}"
+    cmd = [sys.executable, "-m", "deploy.cli", "run", scenario, "--duration", str(duration_s), "--mode", "lockstep",
+           "--no-progress", "--out", str(out)] + (["--viz", "save"] if viz else [])
+    t0 = time.monotonic()
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout}{r.stderr}")
+    summary = json.loads((out / "summary.json").read_text())
+    step_s, ticks = stepping_wall_s(out / "run.mcap")
+    return {"viz": viz, "stepping_wall_s": step_s, "ticks": ticks, "launcher_wall_s": summary["wall_s"],
+            "cli_wall_s": time.monotonic() - t0, "viz_flush_cpu_s": (summary.get("viz") or {}).get("flush_cpu_s")}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default=str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"))
+    ap.add_argument("--duration", type=float, default=7200.0, help="simulated seconds per run")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "bench_viz.json"))
+    a = ap.parse_args()
+    runs = []
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-viz-") as tmp:
+        for i in range(a.repeats):
+            for viz in (False, True):   # alternate, so drifts in machine load hit both alike
+                r = one_run(a.scenario, a.duration, viz, Path(tmp), i)
+                runs.append(r)
+                print(f"{'with --viz save' if viz else 'without viz    '}  stepping {r['stepping_wall_s']:7.2f} s "
+                      f"({r['ticks']} ticks)  launcher {r['launcher_wall_s']:7.2f} s", flush=True)
+    med = {v: statistics.median(r["stepping_wall_s"] for r in runs if r["viz"] is v) for v in (False, True)}
+    med_l = {v: statistics.median(r["launcher_wall_s"] for r in runs if r["viz"] is v) for v in (False, True)}
+    result = {
+        "scenario": a.scenario, "duration_s": a.duration, "repeats": a.repeats,
+        "median_stepping_wall_s": {"without": med[False], "with_viz_save": med[True]},
+        "ratio_stepping": med[True] / med[False],
+        "median_launcher_wall_s": {"without": med_l[False], "with_viz_save": med_l[True]},
+        "ratio_launcher": med_l[True] / med_l[False],
+        "goal": "ratio_stepping <= 1.10",
+        "runs": runs,
+    }
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(result, indent=1))
+    print(f"stepping wall time with/without --viz save: {result['ratio_stepping']:.3f} "
+          f"(medians {med[True]:.2f} s / {med[False]:.2f} s); launcher wall {result['ratio_launcher']:.3f}; "
+          f"wrote {a.out}")
+
+
+if __name__ == "__main__":
+    main()

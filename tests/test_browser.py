@@ -1,0 +1,221 @@
+"""The served web viewer in a real browser during a live lockstep run (issue 6).
+
+Headless Chromium (Debian `chromium`) driven by playwright-core from npm (flags as in
+STACK-NOTES), both installed here on demand: chromium with apt-get when /usr/bin/chromium is
+missing, playwright-core into tests/.browser (ignored by git). The test starts
+`swarmhil run ... --viz serve` on 127.0.0.1, opens the printed URL, waits until the viewer shows
+data, takes a screenshot (kept as tests/artifacts/viewer.png) and checks its pixels: the 3D view
+must hold the spacecraft colours of the run's modes, which neither a blank page nor the loading
+screen has. It is skipped, with the reason, only where Chromium cannot be installed.
+
+Run it: `.venv/bin/python -m pytest -m browser tests/test_browser.py` (or `python tests/test_browser.py URL OUT.png`
+to shoot any served viewer).
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CACHE = ROOT / "tests" / ".browser"
+ARTIFACTS = ROOT / "tests" / "artifacts"
+CHROMIUM = "/usr/bin/chromium"
+PLAYWRIGHT_CORE = "playwright-core@1.65.1"
+
+# STACK-NOTES: flags for the web viewer in headless Chromium (WebGL2 on SwiftShader), no traffic
+# to any host but this one.
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE localhost, EXCLUDE 127.0.0.1"]
+
+SHOT_JS = r"""
+// Open the page, then capture a screenshot every few seconds (to OUT, atomically) until OUT.done
+// exists or the deadline passes: the caller judges each picture.
+const { chromium } = require(process.env.PW_CORE);
+const fs = require('fs');
+(async () => {
+  const [url, out, deadlineS, udd] = process.argv.slice(2);
+  const t0 = Date.now();
+  const ctx = await chromium.launchPersistentContext(udd, {
+    executablePath: process.env.CHROMIUM, headless: true, viewport: { width: 1600, height: 1000 },
+    args: JSON.parse(process.env.CHROMIUM_ARGS) });
+  const page = ctx.pages()[0] || await ctx.newPage();
+  await page.goto(url, { timeout: 120000 });
+  const cdp = await ctx.newCDPSession(page);  // CDP capture: no wait for an idle frame (SwiftShader redraws)
+  while (!fs.existsSync(out + '.done') && (Date.now() - t0) < parseFloat(deadlineS) * 1000) {
+    await page.waitForTimeout(3000);
+    const shot = await cdp.send('Page.captureScreenshot', { format: 'png' });
+    fs.writeFileSync(out + '.tmp', Buffer.from(shot.data, 'base64'));
+    fs.renameSync(out + '.tmp', out);
+  }
+  await ctx.close();
+})().catch(e => { console.error(e); process.exit(1); });
+"""
+
+
+def ensure_chromium() -> str | None:
+    """Path of Chromium, installing Debian's package if needed; None (with why) if impossible."""
+    if Path(CHROMIUM).exists():
+        return None
+    if shutil.which("apt-get") is None:
+        return "no apt-get to install Debian's chromium"
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    try:
+        subprocess.run(["apt-get", "update", "-qq"], env=env, check=True, capture_output=True, timeout=600)
+        subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env, check=True, capture_output=True, timeout=1200)
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
+        return f"apt-get install chromium failed: {exc}"
+    return None if Path(CHROMIUM).exists() else "apt-get installed no /usr/bin/chromium"
+
+
+def ensure_playwright_core() -> Path:
+    """playwright-core from npm into tests/.browser (a cache dir that ignores itself for git)."""
+    mod = CACHE / "node_modules" / "playwright-core"
+    if not mod.exists():
+        CACHE.mkdir(parents=True, exist_ok=True)
+        (CACHE / ".gitignore").write_text("*\n")
+        if not (CACHE / "package.json").exists():
+            (CACHE / "package.json").write_text(json.dumps({"name": "swarmhil-browser-test", "private": True}))
+        subprocess.run(["npm", "install", "--no-audit", "--no-fund", "--silent", PLAYWRIGHT_CORE], cwd=CACHE,
+                       check=True, capture_output=True, timeout=600)
+    return mod
+
+
+def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0) -> bool:
+    """Open url in headless Chromium and save 1600x1000 PNGs to out until until(out) is true.
+
+    Returns whether until(out) became true before the deadline (without until: one picture after ~3 s).
+    """
+    mod = ensure_playwright_core()
+    script = CACHE / "shot.js"
+    script.write_text(SHOT_JS)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    done = Path(str(out) + ".done")
+    for p in (out, done):
+        p.unlink(missing_ok=True)
+    ok = False
+    with tempfile.TemporaryDirectory(prefix="swarmhil-chromium-") as udd:
+        env = dict(os.environ, PW_CORE=str(mod), CHROMIUM=CHROMIUM, CHROMIUM_ARGS=json.dumps(CHROMIUM_ARGS))
+        node = subprocess.Popen(["node", str(script), url, str(out), str(deadline_s), udd], env=env,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            seen = 0.0
+            while node.poll() is None:
+                time.sleep(1.0)
+                if out.exists() and out.stat().st_mtime != seen:
+                    seen = out.stat().st_mtime
+                    if until is None or until(out):
+                        ok = True
+                        done.touch()
+            _out, err = node.communicate(timeout=120)
+        finally:
+            if node.poll() is None:
+                os.kill(node.pid, signal.SIGKILL)  # by PID: the node process started here
+                node.wait()
+            done.unlink(missing_ok=True)
+    if node.returncode != 0:
+        raise RuntimeError(f"screenshot failed: {err[-2000:]}")
+    return ok
+
+
+VIEW3D = (0.02, 0.06, 0.58, 0.62)   # the 3D view in the default blueprint, as fractions of the window
+
+
+def _pixels(png: Path, box: tuple[float, float, float, float]) -> np.ndarray:
+    from PIL import Image
+
+    img = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    h, w, _ = img.shape
+    return img[int(box[1] * h):int(box[3] * h), int(box[0] * w):int(box[2] * w)]
+
+
+def colour_fraction(png: Path, colours: list[tuple[int, int, int]], box: tuple[float, float, float, float],
+                    tol: int = 40) -> float:
+    """Fraction of the pixels in box = (x0, y0, x1, y1) (window fractions) within tol of any of colours."""
+    px = _pixels(png, box)
+    hit = np.zeros(px.shape[:2], bool)
+    for c in colours:
+        hit |= np.all(np.abs(px - np.array(c)) <= tol, axis=2)
+    return float(hit.mean())
+
+
+def distinct_colours(png: Path, box: tuple[float, float, float, float]) -> int:
+    px = _pixels(png, box) // 16
+    return len(np.unique(px.reshape(-1, 3), axis=0))
+
+
+def shows_swarm(png: Path) -> bool:
+    """The 3D view holds spacecraft in their mode colours, which a blank or loading page has not.
+
+    The welcome/loading screen has a few dozen distinct (16-level) colours and none of the modes';
+    the swarm view has hundreds (shaded spheres, trails, grid, labels) and the mode colours.
+    """
+    from dashboards.rerun_bridge import MODE_COLOURS
+
+    modes = [MODE_COLOURS[m] for m in ("drift-null", "search", "coast")]
+    return colour_fraction(png, modes, VIEW3D) > 1e-4 and distinct_colours(png, VIEW3D) > 100
+
+
+@pytest.mark.system
+@pytest.mark.browser
+def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
+    why = ensure_chromium()
+    if why:
+        pytest.skip(f"Chromium cannot be installed here: {why}")
+    ensure_playwright_core()
+    out = tmp_path / "run"
+    # 6 agents (drift-null) in lockstep for simulated days: still running when the picture is taken
+    cmd = [sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),
+           "--out", str(out), "--duration", "864000", "--mode", "lockstep", "--no-progress", "--viz", "serve"]
+    cli_log = tmp_path / "cli.log"
+    log = open(cli_log, "w")
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    shot = ARTIFACTS / "viewer.png"
+    try:
+        url = None
+        t_end = time.monotonic() + 120
+        while url is None and time.monotonic() < t_end and proc.poll() is None:
+            m = re.search(r"viewer: (http://127\.0\.0\.1:\d+/?\?url=\S+)", cli_log.read_text())
+            url = m.group(1) if m else None
+            time.sleep(0.2)
+        assert url, f"no viewer URL printed:\n{cli_log.read_text()}"
+        # wait until the run steps and the bridge has logged data
+        rrd = out / "run.rrd"
+        t_end = time.monotonic() + 240
+        while not (rrd.exists() and rrd.stat().st_size > 50_000) and time.monotonic() < t_end:
+            assert proc.poll() is None, f"the run ended early:\n{cli_log.read_text()}"
+            time.sleep(0.5)
+        assert rrd.exists(), "the bridge logged nothing"
+        ok = screenshot(url, shot, until=shows_swarm, deadline_s=300.0)
+        live = proc.poll() is None
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGINT)  # Ctrl-C: the launcher stops its children by PID
+            try:
+                proc.wait(90)
+            except subprocess.TimeoutExpired:
+                os.kill(proc.pid, signal.SIGKILL)
+                proc.wait()
+        log.close()
+    assert shot.exists(), "no screenshot"
+    assert live, "the run ended before the screenshot: it was not taken during a live run"
+    assert ok, (f"the 3D view never showed the swarm (mode-coloured fraction "
+                f"{colour_fraction(shot, [(40, 190, 205)], VIEW3D):.1e}, {distinct_colours(shot, VIEW3D)} colours); see {shot}")
+
+
+if __name__ == "__main__":
+    # python tests/test_browser.py URL OUT.png [SECONDS]: one screenshot of any served viewer
+    screenshot(sys.argv[1], Path(sys.argv[2]), until=None, deadline_s=float(sys.argv[3]) if len(sys.argv) > 3 else 20.0)
