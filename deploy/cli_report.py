@@ -1,0 +1,186 @@
+"""`swarmhil report RUN_DIR` and `swarmhil sweep SCENARIO --param P --values ...` (issue 3).
+
+The sweep runs one in-process (batch) run per value, `--jobs` at a time in a process pool, writes
+each case's report, and one sweep report (dV and connectivity against the parameter, paper 002
+Figs. 30-31). `--param` is a dotted path into the scenario TOML (`sensing.roe_noise_fraction`,
+`controller.params.k_ecc`, `dispersion.along_track_spacing_m`, `run.seed`, ...); values are
+comma-separated numbers, strings or JSON lists (`[20,40,30,30,30,30],[10,40,15,15,15,15]`).
+`--seeds` repeats every value with each [run].seed (for a generated dispersion the seed also
+changes the initial conditions; with explicit [[spacecraft]] it changes only the noise).
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+
+def parse_values(text: str) -> list[Any]:
+    """Split on commas outside brackets; each item as JSON (number, list, bool) or else a string."""
+    items, depth, cur = [], 0, ""
+    for ch in text:
+        if ch == "," and depth == 0:
+            items.append(cur)
+            cur = ""
+            continue
+        depth += ch == "["
+        depth -= ch == "]"
+        cur += ch
+    items.append(cur)
+    out = []
+    for it in (s.strip() for s in items):
+        if not it:
+            raise click.BadParameter(f"empty value in {text!r}")
+        try:
+            out.append(json.loads(it))
+        except ValueError:
+            out.append(it)
+    return out
+
+
+def set_param(doc: dict[str, Any], param: str, value: Any) -> dict[str, Any]:
+    """A copy of the scenario document with doc[a][b]... = value for param 'a.b...'."""
+    doc = copy.deepcopy(doc)
+    keys = param.split(".")
+    node = doc
+    for k in keys[:-1]:
+        node = node.setdefault(k, {})
+        if not isinstance(node, dict):
+            raise click.BadParameter(f"{param}: {k} is not a table in the scenario")
+    node[keys[-1]] = value
+    return doc
+
+
+def _label(param: str, value: Any, seed: int | None) -> str:
+    v = json.dumps(value, separators=(",", ":")) if not isinstance(value, str) else value
+    safe = "".join(c if c.isalnum() or c in "._-" else "_" for c in v)[:40]
+    return f"{param.split('.')[-1]}={safe}" + ("" if seed is None else f"_seed{seed}")
+
+
+def run_case(scenario_path: str, param: str, value: Any, seed: int | None, duration_s: float | None,
+             out_dir: str, run_id: str, figures: bool = True) -> dict[str, Any]:
+    """One sweep case (in a pool worker): in-process run, then its report. Errors are returned."""
+    import tomllib
+
+    from dashboards.report import write_report
+    from deploy.launcher import run_in_process
+    from deploy.scenario import parse_scenario
+    from plant.sensors import CameraGeometry
+
+    case: dict[str, Any] = {"value": value, "seed": seed, "dir": out_dir, "run": run_id}
+    t0 = time.monotonic()
+    try:
+        doc = set_param(tomllib.loads(Path(scenario_path).read_text()), param, value)
+        sc = parse_scenario(doc, Path(scenario_path).name).with_overrides(duration_s=duration_s, seed=seed)
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "scenario_doc.json").write_text(json.dumps(doc, indent=1, default=str))
+        res = run_in_process(sc, out, run_id, progress=False)
+        cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
+        write_report(out, cam=cam, figures=figures)
+        case["delta_v_total_mps"] = res.summary["delta_v_total_mps"]
+    except Exception as exc:  # noqa: BLE001 - reported in the sweep table, the other cases go on
+        case["error"] = f"{type(exc).__name__}: {exc}"
+    case["wall_s"] = time.monotonic() - t0
+    return case
+
+
+@click.command("report")
+@click.argument("run_dir", type=click.Path(exists=True, file_okay=False))
+@click.option("--steady-from-h", type=float, help="Start of the steady-state window [h] (default: last sixth of the run).")
+@click.option("--scenario", "scenario", type=click.Path(exists=True, dir_okay=False),
+              help="Scenario file to take the camera from (default: the run's, else the paper's camera).")
+def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> None:
+    """Metrics (into RUN_DIR/summary.json) and RUN_DIR/report/index.html from RUN_DIR/run.mcap.
+
+    For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
+    """
+    from dashboards.report import write_report, write_sweep_report
+    from plant.sensors import CameraGeometry
+
+    cam = None
+    if scenario:
+        from deploy.scenario import load_scenario
+
+        c = load_scenario(scenario).camera
+        cam = CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
+    steady_s = None if steady_from_h is None else steady_from_h * 3600.0
+    sweep_file = Path(run_dir) / "sweep.json"
+    try:
+        if sweep_file.is_file():
+            sw = json.loads(sweep_file.read_text())
+            for case in sw["cases"]:
+                if not case.get("error"):
+                    d = Path(case["dir"])
+                    write_report(d, cam=cam, steady_from_s=steady_s, figures=(d / "report" / "index.html").is_file())
+            click.echo(f"wrote {write_sweep_report(run_dir, sw['param'], sw['cases'])}")
+            return
+        page = write_report(run_dir, cam=cam, steady_from_s=steady_s)
+    except (OSError, ValueError) as exc:
+        raise click.ClickException(str(exc)) from None
+    met = json.loads((Path(run_dir) / "summary.json").read_text())["metrics"]
+    c, ctl = met["connectivity"], met["control"]
+    click.echo(f"always weakly connected: {c['always_weakly_connected']} (max {c['max_components']} components); "
+               f"total dV {ctl['delta_v_total_mps']:.4f} m/s; closest approach "
+               f"{met['closest_approach']['all_pairs']['distance_m']:.2f} m")
+    click.echo(f"wrote {page}")
+
+
+@click.command("sweep")
+@click.argument("scenario", type=click.Path(exists=True, dir_okay=False))
+@click.option("--param", required=True, help="Dotted scenario path, e.g. sensing.roe_noise_fraction.")
+@click.option("--values", "values_text", required=True, help="Comma-separated values, e.g. 0,0.1,0.2,0.3,0.35.")
+@click.option("--seeds", help="Comma-separated [run].seed values; every value is run with each.")
+@click.option("--out", "out", type=click.Path(file_okay=False), help="Output directory (default runs/sweep-<scenario>-<time>).")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Cases run at once (process pool).")
+@click.option("--duration", type=float, help="Simulated seconds (overrides [run].duration_s).")
+@click.option("--case-reports/--no-case-reports", default=True, show_default=True,
+              help="Write each case's own report (figures); the metrics are always computed.")
+def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: str | None, jobs: int,
+          duration: float | None, case_reports: bool) -> None:
+    """Run SCENARIO once per value of --param (in-process batch runs in parallel) and write one report."""
+    import multiprocessing as mp
+    import tomllib
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from dashboards.report import write_sweep_report
+    from deploy.launcher import new_run_id
+    from deploy.scenario import ScenarioError, parse_scenario
+
+    values = parse_values(values_text)
+    seed_list: list[int | None] = [None] if not seeds else [int(s) for s in seeds.split(",")]
+    doc = tomllib.loads(Path(scenario).read_text())
+    try:  # fail fast on a bad parameter or value, before starting anything
+        for v in values:
+            parse_scenario(set_param(doc, param, v), Path(scenario).name)
+    except ScenarioError as exc:
+        raise click.ClickException(str(exc)) from None
+    name = doc.get("run", {}).get("name", Path(scenario).stem)
+    out_dir = Path(out) if out else Path("runs") / f"sweep-{new_run_id(name)}"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cases = [(v, s) for v in values for s in seed_list]
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    results: list[dict[str, Any]] = [{} for _ in cases]
+    t0 = time.monotonic()
+    with ProcessPoolExecutor(max_workers=max(1, jobs), mp_context=mp.get_context("spawn")) as pool:
+        futs = {}
+        for i, (v, s) in enumerate(cases):
+            d = out_dir / _label(param, v, s)
+            rid = f"{new_run_id(name)}-c{i:02d}"
+            futs[pool.submit(run_case, str(Path(scenario).resolve()), param, v, s, duration, str(d), rid,
+                             case_reports)] = i
+        for f in as_completed(futs):
+            r = f.result()
+            results[futs[f]] = r
+            status = r.get("error") or f"total dV {r['delta_v_total_mps']:.4f} m/s"
+            click.echo(f"[{time.monotonic() - t0:7.0f} s] {param}={r['value']} seed={r['seed']}: {status}")
+    page = write_sweep_report(out_dir, param, results)
+    click.echo(f"wrote {page}")
+    if any(r.get("error") for r in results):
+        sys.exit(1)
