@@ -158,11 +158,14 @@ def weak_components(vis: np.ndarray, alive: np.ndarray) -> np.ndarray:
     return np.array([len(np.unique(row[row < big])) for row in labels])
 
 
-def roe_rel_to_position_m(roe_rel_m: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
-    """Relative LVLH position of a pair from its relative ROE (the flight software's own map)."""
+def roe_rel_to_position_m(roe_rel_m: np.ndarray, u_rad: Any, n_radps: float) -> np.ndarray:
+    """Relative LVLH positions (K, 3) of pairs from their relative ROE (K, 6) in metres at u (scalar or (K,)).
+
+    The flight software's own linear map (agent/roe.py, D'Amico; NOTES-002): what the agent believes.
+    """
     from agent.roe import roe_to_lvlh
 
-    return roe_to_lvlh(np.asarray(roe_rel_m, float).reshape(-1, 6), u_rad, n_radps)[0]
+    return roe_to_lvlh(np.asarray(roe_rel_m, float).reshape(-1, 6), np.asarray(u_rad, float), n_radps)[0]
 
 
 @dataclass
@@ -178,11 +181,13 @@ class TruthFrame:
     target_ids: tuple[str, ...]
     target_pos_m: np.ndarray      # (T, 3)
 
+    _index: dict[str, int] | None = None
+
     def position_of(self, sid: str) -> np.ndarray | None:
-        try:
-            return self.pos_m[self.ids.index(sid)]
-        except ValueError:
-            return None
+        if self._index is None:
+            self._index = {s: i for i, s in enumerate(self.ids)}
+        i = self._index.get(sid)
+        return None if i is None else self.pos_m[i]
 
 
 def truth_frame(msg: pb.Truth) -> TruthFrame:
@@ -257,6 +262,72 @@ def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> r
 
 def _colour_array(colours: list[tuple[int, int, int]]) -> np.ndarray:
     return np.array(colours, np.uint8).reshape(-1, 3)
+
+
+class _Estimates:
+    """Believed neighbour positions of many agents and steps, resolved in one vectorised pass.
+
+    Each estimate is the agent's true position plus its estimated relative position: a track's
+    position_m, or a decision's relative ROE mapped to LVLH at the step's u (one call for all).
+    """
+
+    def __init__(self) -> None:
+        self.own: list[np.ndarray] = []
+        self.rel: list[Any] = []          # relative position, or None for a decision (ROE row below)
+        self.true: list[np.ndarray | None] = []
+        self.colours: list[tuple[int, int, int]] = []
+        self.labels: list[str] = []
+        self.roe: list[list[float]] = []
+        self.roe_u: list[float] = []
+        self.roe_n: list[float] = []
+        self.roe_slot: list[int] = []
+        self.n_err = 0
+
+    @property
+    def n(self) -> int:
+        return len(self.own)
+
+    def _append(self, own: np.ndarray, rel: Any, true: np.ndarray | None, behaviour: str, label: str) -> None:
+        self.own.append(own)
+        self.rel.append(rel)
+        self.true.append(true)
+        self.colours.append(mode_colour(behaviour))
+        self.labels.append(label)
+        self.n_err += true is not None
+
+    def add(self, f: TruthFrame, sid: str, m: pb.Telemetry) -> None:
+        if not len(m.tracks) and not len(m.decisions):
+            return
+        own = f.position_of(sid)
+        if own is None:
+            return
+        behaviour = {d.neighbour: d.behaviour for d in m.decisions}
+        if len(m.tracks):
+            for tr in m.tracks:
+                nb = tr.truth_id
+                self._append(own, (tr.position_m.x, tr.position_m.y, tr.position_m.z), f.position_of(nb) if nb else None,
+                             behaviour.get(nb, "none"), f"{sid}>{nb}" if nb else sid)
+            return
+        for d in m.decisions:
+            if len(d.roe_rel_m) != 6:
+                continue
+            self.roe_slot.append(self.n)
+            self.roe.append(list(d.roe_rel_m))
+            self.roe_u.append(f.u_rad)
+            self.roe_n.append(f.n_radps)
+            self._append(own, None, f.position_of(d.neighbour), d.behaviour, f"{sid}>{d.neighbour}")
+
+    def resolve(self) -> tuple[np.ndarray, np.ndarray]:
+        """(estimated positions (n, 3), error segments estimate -> truth (n_err, 2, 3))."""
+        rel = np.zeros((self.n, 3))
+        direct = [i for i, r in enumerate(self.rel) if r is not None]
+        if direct:
+            rel[direct] = np.array([self.rel[i] for i in direct], float)
+        if self.roe:
+            rel[self.roe_slot] = roe_rel_to_position_m(np.array(self.roe), np.array(self.roe_u), self.roe_n[0])  # position needs no n
+        pts = np.array(self.own, float).reshape(-1, 3) + rel
+        err = [(pts[i], t) for i, t in enumerate(self.true) if t is not None]
+        return pts, np.array(err, float).reshape(-1, 2, 3)
 
 
 class SwarmLogger:
@@ -464,7 +535,8 @@ class SwarmLogger:
         last = max(self._history) if self._history else -1
         todo = sorted(s for s in self._history if self._done_step < s and (s < last or final))
         c_steps, c_times, c_rows = [], [], []
-        e_steps, e_times, e_pts, e_cols, e_lbls, e_n, e_errs, e_nerr = [], [], [], [], [], [], [], []
+        est = _Estimates()
+        e_steps, e_times, e_n, e_nerr = [], [], [], []
         for s in todo:
             f = self._history[s]
             tms = self._tm.pop(s, {})
@@ -479,15 +551,15 @@ class SwarmLogger:
                     c_rows.append(colours)
                     self._last_colours = colours
                 self._colour_key = key
-            n0, ne0 = len(e_pts), len(e_errs)
+            n0, ne0 = est.n, est.n_err
             for sid in sorted(tms):
-                self._estimates(f, sid, tms[sid], e_pts, e_cols, e_lbls, e_errs)
-            if len(e_pts) > n0 or self._had_estimates:
+                est.add(f, sid, tms[sid])
+            if est.n > n0 or self._had_estimates:
                 e_steps.append(s)
                 e_times.append(f.t_s)
-                e_n.append(len(e_pts) - n0)
-                e_nerr.append(len(e_errs) - ne0)
-                self._had_estimates = len(e_pts) > n0
+                e_n.append(est.n - n0)
+                e_nerr.append(est.n_err - ne0)
+                self._had_estimates = est.n > n0
             self._done_step = s
         if todo and self._last_colours is not None and (not c_steps or c_steps[-1] != todo[-1]):
             # repeat the colours at the newest step of each flush: a viewer that joins late gets the
@@ -502,39 +574,13 @@ class SwarmLogger:
             self._send(Paths.SWARM, c_steps, c_times,
                        rr.Points3D.columns(colors=np.concatenate(c_rows)).partition([len(c) for c in c_rows]))
         if e_steps:
+            pts, strips = est.resolve()
             self._send(Paths.ESTIMATES, e_steps, e_times,
-                       rr.Points3D.columns(positions=np.array(e_pts, float).reshape(-1, 3), colors=_colour_array(e_cols),
-                                           labels=e_lbls, radii=np.full(len(e_pts), ESTIMATE_RADIUS_UI, np.float32))
-                       .partition(e_n))
-            strips = np.array(e_errs, float).reshape(-1, 2, 3)
+                       rr.Points3D.columns(positions=pts, colors=_colour_array(est.colours), labels=est.labels,
+                                           radii=np.full(len(pts), ESTIMATE_RADIUS_UI, np.float32)).partition(e_n))
             self._send(Paths.ESTIMATE_ERRORS, e_steps, e_times,
                        rr.LineStrips3D.columns(strips=strips, colors=np.tile(np.array(ERROR_COLOUR, np.uint8), (len(strips), 1)),
                                                radii=np.full(len(strips), LINE_RADIUS_UI, np.float32)).partition(e_nerr))
-
-    @staticmethod
-    def _estimates(f: TruthFrame, sid: str, m: pb.Telemetry, pts: list, cols: list, lbls: list, errs: list) -> None:
-        """Append agent sid's estimated neighbour positions (and errors against truth) at frame f."""
-        if not len(m.tracks) and not len(m.decisions):
-            return
-        own = f.position_of(sid)
-        if own is None:
-            return
-        behaviour = {d.neighbour: d.behaviour for d in m.decisions}
-        if len(m.tracks):
-            est = [(tr.truth_id, own + (tr.position_m.x, tr.position_m.y, tr.position_m.z)) for tr in m.tracks]
-        else:
-            ds = [d for d in m.decisions if len(d.roe_rel_m) == 6]
-            if not ds:
-                return
-            rel = roe_rel_to_position_m(np.array([list(d.roe_rel_m) for d in ds]), f.u_rad, f.n_radps)
-            est = [(d.neighbour, own + r) for d, r in zip(ds, rel)]
-        for nb, p in est:
-            pts.append(p)
-            cols.append(mode_colour(behaviour.get(nb, "none")))
-            lbls.append(f"{sid}>{nb}" if nb else sid)
-            true_p = f.position_of(nb) if nb else None
-            if true_p is not None:
-                errs.append((p, true_p))
 
     def _log_events(self, items: list[tuple[str | None, bytes]]) -> None:
         steps, times, texts, levels = [], [], [], []

@@ -2,8 +2,8 @@
 
 Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries;
 bus callbacks only queue the raw bytes (dashboards/rerun_bridge.py), and a timer flushes them in
-column batches every FLUSH_PERIOD_S, so the bridge costs little and the plant never waits for it
-(LOCKSTEP_BARRIER = False: not a lockstep participant).
+column batches every FLUSH_PERIOD_S (0.5 s live, 2 s when only saving), so the bridge costs little
+and the plant never waits for it (LOCKSTEP_BARRIER = False: not a lockstep participant).
 
 Modes (opts["viz"]):
     save     RUN_DIR/run.rrd (FileSink)
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -38,7 +39,7 @@ LOCKSTEP_BARRIER = False
 MODES = ("save", "serve", "connect")
 LOOPBACK = "127.0.0.1"
 DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
-FLUSH_PERIOD_S = 0.25
+FLUSH_PERIOD_S = {"save": 2.0, "serve": 0.5, "connect": 0.5}   # batch more when nobody watches live
 
 _analytics_done = False
 
@@ -219,7 +220,7 @@ class VizNode:
             self._flush_s += time.thread_time() - t0  # CPU of this thread (Rerun encodes on its own threads)
 
     def _flush_loop(self) -> None:
-        while not self._stop.wait(FLUSH_PERIOD_S):
+        while not self._stop.wait(FLUSH_PERIOD_S[self.mode]):
             try:
                 self.flush()
             except Exception:  # the viewer must never take the run down
@@ -256,5 +257,7 @@ class VizNode:
         if self.web is not None:
             self.web.close()
         self.rec.disconnect()
+        ru = resource.getrusage(resource.RUSAGE_SELF)
         return {"mode": self.mode, "rrd": str(self.rrd), "url": self.url, "camera": self.camera.as_dict(),
-                "trail_steps": self.trail_steps, "flush_cpu_s": round(self._flush_s, 3), **self.logger.stats()}
+                "trail_steps": self.trail_steps, "flush_cpu_s": round(self._flush_s, 3),
+                "process_cpu_s": round(ru.ru_utime + ru.ru_stime, 3), **self.logger.stats()}
