@@ -217,5 +217,7 @@ def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
 
 
 if __name__ == "__main__":
-    # python tests/test_browser.py URL OUT.png [SECONDS]: one screenshot of any served viewer
-    screenshot(sys.argv[1], Path(sys.argv[2]), until=None, deadline_s=float(sys.argv[3]) if len(sys.argv) > 3 else 20.0)
+    # python tests/test_browser.py URL OUT.png [SECONDS]: a screenshot of any served viewer after SECONDS
+    wait_s = float(sys.argv[3]) if len(sys.argv) > 3 else 20.0
+    t0 = time.monotonic()
+    screenshot(sys.argv[1], Path(sys.argv[2]), until=lambda _p: time.monotonic() - t0 > wait_s, deadline_s=wait_s + 300)
