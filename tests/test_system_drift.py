@@ -42,7 +42,7 @@ def test_drift20_24h_multiprocess_disperses_like_fig7(tmp_path: Path) -> None:
         assert slope == pytest.approx(expected, rel=1e-6, abs=1e-9)
     spread0 = np.ptp(pos[0, :, 1])
     spread1 = np.ptp(pos[-1, :, 1])
-    assert spread1 > 5 * spread0
+    assert spread1 > 2 * spread0  # 3.8 km of slots grows to ~11 km in a day (a*da ~ 20 m, 1 sigma)
     cam = CameraGeometry()
     assert weakly_connected(visibility_matrix(pos[0], cam))
     assert not weakly_connected(visibility_matrix(pos[-1], cam))
