@@ -170,6 +170,7 @@ def shows_swarm(png: Path) -> bool:
 
 @pytest.mark.system
 @pytest.mark.browser
+@pytest.mark.timeout(1800)  # a fresh machine installs Chromium (apt) and playwright-core (npm) first
 def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
     why = ensure_chromium()
     if why:
