@@ -1,6 +1,16 @@
 """Perception of the flight software for the `scene` stimulus (issue 4): camera -> blobs ->
 navigation, turned into the controller's Observation, the telemetry tracks and debug images.
 
+Which tracks the controller gets: every track the navigator outputs (confirmed tracks) goes to the
+telemetry; the controller gets those whose ROE estimate is navigation-grade, i.e. the 1-sigma
+(sqrt of the diagonal of the track covariance) of each of a*da, a*dex, a*dey, a*dix, a*diy is at
+most [nav].control_max_sigma_m (0: no such test; estimators without a covariance always pass).
+These are the components the behavioural law's gains act on; a*dl has no gain (it only enters the
+choice of behaviour, against thresholds of 100 m and 300 m) and is left out. A track
+is confirmed after three frames, but its a*da and a*de are then still wrong by tens of metres
+(velocity from 20 s of bearings): acting on that costs dV for nothing. docs/camera-navigation.md
+gives the physical argument for the value used in the scenarios.
+
 The agent only uses what its camera would see: the poses in the camera frame (to render or, in
 the paper's exact mode, to measure area and centroid exactly). The pointing error in the
 stimulus is a fact of the simulation, not known to the flight software, and is not used.
@@ -18,7 +28,8 @@ from agent.nav.base import Track, observation_arrays
 from agent.nav.pipeline import VisionNav
 from bus import swarmhil_pb2 as pb
 
-NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample"}
+NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample",
+              "control_max_sigma_m"}
 
 
 def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
@@ -30,7 +41,8 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
     cfg = {"imaging": t.get("imaging", "render"), "navigator": t.get("navigator", "ekf"),
            "backend": t.get("backend", "numpy"), "min_pixels": int(t.get("min_pixels", 2)),
            "params": dict(t.get("params", {})), "debug_image_period_s": float(t.get("debug_image_period_s", 0.0)),
-           "debug_image_downsample": int(t.get("debug_image_downsample", 4))}
+           "debug_image_downsample": int(t.get("debug_image_downsample", 4)),
+           "control_max_sigma_m": float(t.get("control_max_sigma_m", 0.0))}
     if cfg["imaging"] not in ("exact", "render"):
         raise ValueError(f"[nav].imaging must be 'exact' or 'render' (got {cfg['imaging']!r})")
     if cfg["navigator"] not in ("rough", "ekf"):
@@ -39,7 +51,21 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"[nav].backend must be 'numpy', 'numba' or 'auto' (got {cfg['backend']!r})")
     if cfg["debug_image_period_s"] < 0 or cfg["debug_image_downsample"] < 1:
         raise ValueError("[nav].debug_image_period_s must be >= 0 and debug_image_downsample >= 1")
+    if not cfg["control_max_sigma_m"] >= 0:
+        raise ValueError(f"[nav].control_max_sigma_m must be >= 0 (got {cfg['control_max_sigma_m']!r})")
     return cfg
+
+
+GAINED_ROE = [0, 2, 3, 4, 5]  # a*da, a*dex, a*dey, a*dix, a*diy: the components with a gain in agent/behaviour
+
+
+def control_tracks(tracks: list[Track], max_sigma_m: float) -> list[Track]:
+    """Tracks whose 1-sigma of a*da, a*de and a*di components is at most max_sigma_m (all of them if
+    max_sigma_m is 0 or a track has no covariance): those the controller may act on (module docstring)."""
+    if max_sigma_m <= 0:
+        return list(tracks)
+    return [t for t in tracks if t.covariance_m2 is None
+            or float(np.sqrt(np.max(np.diagonal(np.asarray(t.covariance_m2))[GAINED_ROE]))) <= max_sigma_m]
 
 
 class Perception:
@@ -63,7 +89,7 @@ class Perception:
         rot = np.array([quat_to_matrix(np.array([b.attitude_cam.w, b.attitude_cam.x, b.attitude_cam.y, b.attitude_cam.z]))
                         for b in stim.bodies]).reshape(n, 3, 3)
         self.tracks = self.vision.step(stim.header.t, stim.u_rad, pos, rot, int(stim.header.step), own_accel_mps2)
-        ids, rp, rv = observation_arrays(self.tracks)
+        ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"]))
         return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad, neighbour_ids=ids,
                            rel_position_m=rp, rel_velocity_mps=rv)
 

@@ -4,7 +4,8 @@ The same `swarmhil run SCENARIO --duration D --no-progress` invocation, alternat
 with `--viz save`, `--repeats` times each. The stepping wall time of a run is read from its
 recording: reception time of the first to the last clock tick (process start-up, which the viewer
 does not change, is left out); the launcher's total wall time is reported too. The ratio is of
-the medians, measured in this one invocation.
+the medians, measured in this one invocation. The CPU time of every process of the run (start-up
+included) is compared too: on a shared, loaded machine it is steadier than wall time.
 
     .venv/bin/python bench/bench_viz.py [--scenario deploy/scenarios/sabatini-20.toml] [--duration 7200] [--repeats 3]
 
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import statistics
 import subprocess
 import sys
@@ -41,13 +43,19 @@ def one_run(scenario: str, duration_s: float, viz: bool, work: Path, i: int) -> 
     cmd = [sys.executable, "-m", "deploy.cli", "run", scenario, "--duration", str(duration_s), "--mode", "lockstep",
            "--no-progress", "--out", str(out)] + (["--viz", "save"] if viz else [])
     t0 = time.monotonic()
-    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
+    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{r.stdout}{r.stderr}")
     summary = json.loads((out / "summary.json").read_text())
     step_s, ticks = stepping_wall_s(out / "run.mcap")
+    v = summary.get("viz") or {}
     return {"viz": viz, "stepping_wall_s": step_s, "ticks": ticks, "launcher_wall_s": summary["wall_s"],
-            "cli_wall_s": time.monotonic() - t0, "viz_flush_cpu_s": (summary.get("viz") or {}).get("flush_cpu_s")}
+            "cli_wall_s": time.monotonic() - t0,
+            # CPU of every process of the run (the CLI and all it waited for), start-up included
+            "run_cpu_s": (ru1.ru_utime + ru1.ru_stime) - (ru0.ru_utime + ru0.ru_stime),
+            "viz_process_cpu_s": v.get("process_cpu_s"), "viz_flush_cpu_s": v.get("flush_cpu_s")}
 
 
 def main() -> None:
@@ -64,23 +72,31 @@ def main() -> None:
                 r = one_run(a.scenario, a.duration, viz, Path(tmp), i)
                 runs.append(r)
                 print(f"{'with --viz save' if viz else 'without viz    '}  stepping {r['stepping_wall_s']:7.2f} s "
-                      f"({r['ticks']} ticks)  launcher {r['launcher_wall_s']:7.2f} s", flush=True)
+                      f"({r['ticks']} ticks)  launcher {r['launcher_wall_s']:7.2f} s  run CPU {r['run_cpu_s']:7.2f} s"
+                      + (f"  (viz process {r['viz_process_cpu_s']:.2f} s)" if viz else ""), flush=True)
     med = {v: statistics.median(r["stepping_wall_s"] for r in runs if r["viz"] is v) for v in (False, True)}
     med_l = {v: statistics.median(r["launcher_wall_s"] for r in runs if r["viz"] is v) for v in (False, True)}
+    med_c = {v: statistics.median(r["run_cpu_s"] for r in runs if r["viz"] is v) for v in (False, True)}
+    pairs = [runs[i + 1]["stepping_wall_s"] / runs[i]["stepping_wall_s"] for i in range(0, len(runs), 2)]
     result = {
         "scenario": a.scenario, "duration_s": a.duration, "repeats": a.repeats,
         "median_stepping_wall_s": {"without": med[False], "with_viz_save": med[True]},
         "ratio_stepping": med[True] / med[False],
         "median_launcher_wall_s": {"without": med_l[False], "with_viz_save": med_l[True]},
         "ratio_launcher": med_l[True] / med_l[False],
+        "paired_ratios_stepping": pairs,
+        "median_run_cpu_s": {"without": med_c[False], "with_viz_save": med_c[True]},
+        "ratio_run_cpu": med_c[True] / med_c[False],
+        "median_viz_process_cpu_s": statistics.median(r["viz_process_cpu_s"] for r in runs if r["viz"]),
         "goal": "ratio_stepping <= 1.10",
         "runs": runs,
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(result, indent=1))
     print(f"stepping wall time with/without --viz save: {result['ratio_stepping']:.3f} "
-          f"(medians {med[True]:.2f} s / {med[False]:.2f} s); launcher wall {result['ratio_launcher']:.3f}; "
-          f"wrote {a.out}")
+          f"(medians {med[True]:.2f} s / {med[False]:.2f} s; paired ratios {', '.join(f'{x:.2f}' for x in pairs)}); "
+          f"launcher wall {result['ratio_launcher']:.3f}; run CPU {result['ratio_run_cpu']:.3f} "
+          f"(viz process {result['median_viz_process_cpu_s']:.2f} s of {med_c[True]:.1f} s); wrote {a.out}")
 
 
 if __name__ == "__main__":

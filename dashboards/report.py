@@ -302,6 +302,10 @@ def _page(title: str, head_rows: list[tuple[str, str]], figures: list[tuple[str,
             "</body></html>")
 
 
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None else f"{100.0 * x:.1f} %"
+
+
 def _check(ok: bool) -> str:
     return '<span class="ok">yes</span>' if ok else '<span class="bad">no</span>'
 
@@ -320,14 +324,14 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
     return [
         ("run", _fmt(summary.get("run"))),
         ("scenario / controller", f"{_fmt(summary.get('scenario'))} / {_fmt(summary.get('controller'))}"),
-        ("spacecraft, duration", f"{met['connectivity'].get('largest_component_end', '?')} in largest component at end; "
-                                 f"{summary.get('agents', '?')} spacecraft, {_fmt(met['t_end_s'] / H)} h"),
-        ("weakly connected over every orbit (union of the last orbit's digraphs)",
-         f"{_fmt(c.get('orbit_union_weakly_connected_fraction'))} of steps after the first orbit; "
+        ("spacecraft, duration", f"{summary.get('agents', '?')} spacecraft, {_fmt(met['t_end_s'] / H)} h"),
+        ("always weakly connected (every step)",
+         f"{_check(c['always_weakly_connected'])} ({_pct(c['weakly_connected_fraction'])} of the steps; max "
+         f"{c['max_components']} components, {c['components_end']} at the end (largest {c['largest_component_end']}); "
+         f"first split {'never' if c['first_split_t_s'] is None else _fmt(c['first_split_t_s'] / H) + ' h'})"),
+        ("weakly connected over each orbit (union of the last orbit's digraphs)",
+         f"{_pct(c.get('orbit_union_weakly_connected_fraction'))} of the steps after the first orbit; "
          f"max {c.get('orbit_union_max_components')} components"),
-        ("always weakly connected", f"{_check(c['always_weakly_connected'])} (fraction of steps {_fmt(c['weakly_connected_fraction'])}, "
-                                    f"max {c['max_components']} components, first split "
-                                    f"{'never' if c['first_split_t_s'] is None else _fmt(c['first_split_t_s'] / H) + ' h'})"),
         (f"along-track to closest visible, t >= {st:.1f} h [m]", mn(cv["along_track_m"])),
         ("  orbit-minimum a(|dl|-2|de|) [m]", mn(cv["along_track_orbit_min_m"])),
         ("  radial a|de| [m]", mn(cv["radial_m"])),
@@ -481,17 +485,20 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
         ax[1].legend(loc="lower left")
         ax[1].set_title("Swarm integrity")
         figs.append((_save(fig, out / "sweep_dv_connectivity.png"), "Total dV and connectivity per case (paper Fig. 30)."))
-        fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+        fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
         for i, r in enumerate(good):
             ser = np.load(Path(r["dir"]) / SERIES)
             lab = f"{param}={r['value']}" + (f" seed {r['seed']}" if r.get("seed") is not None else "")
             ax[0].step(ser["t_s"] / H, ser["n_components"], where="post", lw=0.9, label=lab, color=f"C{i % 10}")
-            ax[1].plot(ser["t_s"] / H, ser["delta_v_total_mps"], lw=0.9, label=lab, color=f"C{i % 10}")
-        ax[0].set_ylabel("weakly connected components")
+            if "n_components_orbit" in ser:
+                ax[1].step(ser["t_s"] / H, ser["n_components_orbit"], where="post", lw=0.9, color=f"C{i % 10}")
+            ax[2].plot(ser["t_s"] / H, ser["delta_v_total_mps"], lw=0.9, label=lab, color=f"C{i % 10}")
+        ax[0].set_ylabel("weakly connected\ncomponents")
         ax[0].set_title("Connectedness per case (paper Fig. 31)")
         ax[0].legend(fontsize=6, ncol=2)
-        ax[1].set_ylabel("total dV [m/s]")
-        ax[1].set_xlabel("time [h]")
+        ax[1].set_ylabel("components of the\nunion over the last orbit")
+        ax[2].set_ylabel("total dV [m/s]")
+        ax[2].set_xlabel("time [h]")
         figs.append((_save(fig, out / "sweep_components_dv_time.png"), "Components and total dV over time, per case."))
     head = [("parameter", html.escape(param)), ("cases", str(len(rows)))]
     cols = ["value", "seed", "delta_v_total_mps", "delta_v_last_hour_mps", "weakly_connected_fraction",

@@ -11,11 +11,31 @@ agent.nav.measure; noise from the blob's photometric sigma and the camera model.
 Why an EKF and not a UKF: the measurement is smooth and nearly linear over the covariance of a
 converged track (sub-pixel, a few per cent in range); the Jacobian is cheap and closed-form.
 
+Manoeuvring neighbours (interacting multiple model, Bar-Shalom, Li & Kirubarajan 2001, "Estimation
+with Applications to Tracking and Navigation", sec. 11.6): the neighbour's unknown control is the
+process noise, and its level changes by orders of magnitude over a run (paper 002's law: ~1e-5 m/s^2
+while the swarm forms, ~1e-7 once it has settled, the ideal 24 h run). One white level cannot fit
+both: set for the transient it keeps ~1 m of a*da error forever (the settled relative state is then
+known no better than the transient one); set for the settled swarm the filter is inconsistent
+while the neighbour manoeuvres, its gate rejects the neighbour's blob and the track is lost. With
+`manoeuvre_accel_sigma_mps2` > 0 each track runs two such filters, "quiet" (accel_sigma_mps2) and
+"manoeuvring", mixed every frame by the IMM with a Markov switch whose mean sojourn times are
+`quiet_sojourn_s` and `manoeuvre_sojourn_s`; the mode probabilities follow the innovations'
+likelihoods. Association, gating and the output use the moment-matched mixture (mean and
+covariance of the two). With manoeuvre_accel_sigma_mps2 = 0 (the default) it is the single EKF above.
+
 Tracks: an unassigned blob starts a tentative track (position from bearing and the area model,
 velocity prior N(0, sigma_v^2 I)); association is global nearest neighbour on the Mahalanobis
-distance of the innovation, gated at chi^2_3(99.9 %) = 16.27; a track is confirmed after
+distance of the innovation, gated at chi^2_3(99.9 %) = 16.27, the pairs chosen by likelihood
+(`assign_likelihood`: Mahalanobis distance plus ln det S); a track is confirmed after
 `confirm_hits` updates; deleted after `max_misses` consecutive misses (a tentative one after one),
-or when its prediction leaves the field of view or range by a margin.
+or when its prediction leaves the field of view or range by a margin. Out of view is not gone: with
+`max_coast_s` > 0, a confirmed track whose prediction is outside the field of view or beyond the
+detection range is kept (not output) for up to max_coast_s after its last blob instead, and takes
+the blob back through the same gate when the relative orbit brings the neighbour into view again
+(the ROE hardly change meanwhile, so the converged estimate is kept instead of restarting from a
+0.2 m/s velocity prior); predicted in view and not seen for max_misses frames, it is deleted.
+Output: confirmed tracks with at most max_misses consecutive misses.
 """
 from __future__ import annotations
 
@@ -28,7 +48,7 @@ from agent.camera.model import R_LVLH_FROM_CAM, Camera
 from agent.camera.shape import SpacecraftShape
 from agent.nav.associate import assign
 from agent.nav.base import Track
-from agent.nav.measure import MeasurementModel, noise_cov, predict
+from agent.nav.measure import MeasurementModel, camera_position_matrix, noise_cov, predict
 from agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
 
 
@@ -42,17 +62,65 @@ class EkfConfig:
     max_misses: int = 5
     fov_margin: float = 1.2  # delete a coasting track predicted beyond margin * half FOV
     range_margin: float = 1.5  # ... or beyond margin * the camera's max range
+    max_coast_s: float = 0.0  # > 0: a confirmed track predicted out of view coasts this long (docstring)
+    manoeuvre_accel_sigma_mps2: float = 0.0  # > 0: IMM with a second, manoeuvring model (docstring)
+    quiet_sojourn_s: float = 5677.0  # mean time in each IMM mode (Markov switch); default one orbit
+    manoeuvre_sojourn_s: float = 5677.0
+
+    def sigmas_mps2(self) -> list[float]:
+        """Process-noise levels of the models: [quiet] or [quiet, manoeuvring]."""
+        if self.manoeuvre_accel_sigma_mps2 > 0.0:
+            return [self.accel_sigma_mps2, self.manoeuvre_accel_sigma_mps2]
+        return [self.accel_sigma_mps2]
+
+    def switch_matrix(self, dt_s: float) -> np.ndarray:
+        """(M, M) Markov mode transition over dt: pi[i, j] = P(mode j now | mode i before)."""
+        if self.manoeuvre_accel_sigma_mps2 <= 0.0:
+            return np.ones((1, 1))
+        p01 = 1.0 - np.exp(-dt_s / self.quiet_sojourn_s)
+        p10 = 1.0 - np.exp(-dt_s / self.manoeuvre_sojourn_s)
+        return np.array([[1.0 - p01, p01], [p10, 1.0 - p10]])
+
+    def stationary_modes(self) -> np.ndarray:
+        if self.manoeuvre_accel_sigma_mps2 <= 0.0:
+            return np.ones(1)
+        w = np.array([self.quiet_sojourn_s, self.manoeuvre_sojourn_s])
+        return w / w.sum()
 
 
 @dataclass
 class _EkfTrack:
     track_id: str
-    x: np.ndarray
-    p: np.ndarray
+    x: np.ndarray  # (6,) mixture mean (the estimate)
+    p: np.ndarray  # (6, 6) mixture covariance
+    xm: np.ndarray  # (M, 6) per-model means
+    pm: np.ndarray  # (M, 6, 6) per-model covariances
+    mu: np.ndarray  # (M,) model probabilities
     age: int = 0
     hits: int = 1
     misses: int = 0
     blob_index: int = -1
+    last_hit_t_s: float = 0.0
+
+    def combine(self) -> None:
+        """Moment-matched mixture of the models -> x, p."""
+        self.x = self.mu @ self.xm
+        d = self.xm - self.x
+        self.p = np.einsum("m,mij->ij", self.mu, self.pm) + np.einsum("m,mi,mj->ij", self.mu, d, d)
+
+
+def assign_likelihood(d2: np.ndarray, logdet_s: np.ndarray, gate_chi2: float) -> list[tuple[int, int]]:
+    """Track-blob pairs inside the gate (d2 <= gate_chi2) that maximise the summed log-likelihood,
+    i.e. minimise sum(d2 + ln det S) = -2 ln N(nu; 0, S) + const (Blackman & Popoli 1999, "Design
+    and Analysis of Modern Tracking Systems", sec. 6.5). On d2 alone an uncertain track always
+    looks nearer: a new tentative track on the same spacecraft would take the blob from the
+    converged one frame after frame, until the converged track died of misses."""
+    ok = d2 <= gate_chi2
+    if not ok.any():
+        return []
+    cost = d2 + logdet_s
+    cost = np.where(ok, cost - cost[ok].min(), np.inf)
+    return assign(cost, float(cost[ok].max()))
 
 
 def transition(n_radps: float, dt_s: float) -> np.ndarray:
@@ -88,23 +156,35 @@ class EkfNavigator:
 
     # -- filter steps -------------------------------------------------------------------------
     def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
+        """IMM interaction (mixing) then each model's prediction; one model: the plain EKF step."""
         if dt <= 0.0:
             return
         phi = transition(self.n, dt)
         gam = input_gamma(u0, self.a_m, self.n, dt)
-        q = self.cfg.accel_sigma_mps2**2 * gam @ gam.T
+        gg = gam @ gam.T
+        qs = np.array([s**2 * gg for s in self.cfg.sigmas_mps2()])
         shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
+        pi = self.cfg.switch_matrix(dt)
         for tr in self.tracks:
-            tr.x = phi @ tr.x - shift
-            tr.p = phi @ tr.p @ phi.T + q
+            c = pi.T @ tr.mu  # predicted mode probabilities
+            w = pi * tr.mu[:, None] / np.maximum(c[None, :], 1e-300)  # w[i, j] = P(i before | j now)
+            x0 = w.T @ tr.xm
+            d = tr.xm[:, None, :] - x0[None, :, :]  # (i, j, 6)
+            p0 = np.einsum("ij,ikl->jkl", w, tr.pm) + np.einsum("ij,ijk,ijl->jkl", w, d, d)
+            tr.xm = x0 @ phi.T - shift
+            pm = phi @ p0 @ phi.T + qs
+            tr.pm = 0.5 * (pm + pm.transpose(0, 2, 1))
+            tr.mu = c
+            tr.combine()
 
     def _innovations(self, u_rad: float, blobs: Blobs):
         """Per track: h, H, and per (track, blob): innovation nu (T, M, 3), S (T, M, 3, 3)."""
         t, m = len(self.tracks), len(blobs)
         zs = np.stack((blobs.centroid_px[:, 0], blobs.centroid_px[:, 1], np.sqrt(np.maximum(blobs.area_px, 1e-12))), axis=1)
         hs, jacs, depth = [], [], []
+        t_cam = camera_position_matrix(u_rad, self.n)
         for tr in self.tracks:
-            h, jac, p = predict(self.model, tr.x, u_rad, self.n)
+            h, jac, p = predict(self.model, tr.x, u_rad, self.n, t_cam)
             hs.append(h)
             jacs.append(jac)
             depth.append(p[2])
@@ -115,6 +195,28 @@ class EkfNavigator:
             for j in range(m):
                 s[i, j] = hph + noise_cov(self.model, depth[i], blobs.area_px[j], blobs.area_sigma_px[j])
         return zs, hs, jacs, depth, nu, s
+
+    def _update(self, tr: _EkfTrack, z: np.ndarray, r: np.ndarray, u_rad: float) -> None:
+        """Each model's EKF update (Joseph form) with measurement z, noise R; mode probabilities
+        from the innovation likelihoods N(nu; 0, S) (IMM); then the mixture."""
+        loglik = np.zeros(len(tr.mu))
+        t_cam = camera_position_matrix(u_rad, self.n)
+        for m in range(len(tr.mu)):
+            h, jac, _ = predict(self.model, tr.xm[m], u_rad, self.n, t_cam)
+            sm = jac @ tr.pm[m] @ jac.T + r
+            nu = z - h
+            sinv = np.linalg.inv(sm)
+            gain = tr.pm[m] @ jac.T @ sinv
+            ikh = np.eye(6) - gain @ jac
+            tr.xm[m] = tr.xm[m] + gain @ nu
+            pm = ikh @ tr.pm[m] @ ikh.T + gain @ r @ gain.T
+            tr.pm[m] = 0.5 * (pm + pm.T)  # round-off: P spans ~1e-5 to ~1e5 m^2 while the velocity prior is forgotten
+            loglik[m] = -0.5 * (nu @ sinv @ nu + np.linalg.slogdet(2.0 * np.pi * sm)[1])
+        if len(tr.mu) > 1:
+            w = np.log(np.maximum(tr.mu, 1e-300)) + loglik
+            w = np.exp(w - w.max())
+            tr.mu = w / w.sum()
+        tr.combine()
 
     def _new_track(self, u_rad: float, centroid: np.ndarray, area: float, area_sigma: float) -> _EkfTrack:
         cam, mdl, cfg = self.camera, self.model, self.cfg
@@ -131,24 +233,31 @@ class EkfNavigator:
         mp, mv = lvlh_to_roe_matrices(u_rad, self.n)
         x = mp @ pos
         p = mp @ pos_cov @ mp.T + cfg.init_velocity_sigma_mps**2 * mv @ mv.T
-        tr = _EkfTrack(f"e{self._next_id}", x, p)
+        mu = self.cfg.stationary_modes()
+        tr = _EkfTrack(f"e{self._next_id}", x, p, np.tile(x, (len(mu), 1)), np.tile(p, (len(mu), 1, 1)), mu)
         self._next_id += 1
         return tr
 
-    def _alive(self, tr: _EkfTrack, u_rad: float) -> bool:
-        cfg = self.cfg
-        if tr.misses == 0:
-            return True
-        if tr.hits < cfg.confirm_hits or tr.misses > cfg.max_misses:
-            return False
+    def _in_view(self, tr: _EkfTrack, u_rad: float, fov_margin: float, range_margin: float) -> bool:
+        """The track's predicted position lies within fov_margin * the half FOV and range_margin * the range."""
         _, _, p = predict(self.model, tr.x, u_rad, self.n)
         tan_x, tan_y = (np.tan(a) for a in self.camera.half_fov_rad)
         return bool(
             p[2] > 0
-            and abs(p[0]) <= cfg.fov_margin * tan_x * p[2]
-            and abs(p[1]) <= cfg.fov_margin * tan_y * p[2]
-            and np.linalg.norm(p) <= cfg.range_margin * self.camera.max_range_m
+            and abs(p[0]) <= fov_margin * tan_x * p[2]
+            and abs(p[1]) <= fov_margin * tan_y * p[2]
+            and np.linalg.norm(p) <= range_margin * self.camera.max_range_m
         )
+
+    def _alive(self, tr: _EkfTrack, t_s: float, u_rad: float) -> bool:
+        cfg = self.cfg
+        if tr.misses == 0:
+            return True
+        if tr.hits < cfg.confirm_hits:
+            return False
+        if cfg.max_coast_s > 0.0 and not self._in_view(tr, u_rad, 1.0, 1.0):
+            return t_s - tr.last_hit_t_s <= cfg.max_coast_s  # out of view, not gone: coast
+        return tr.misses <= cfg.max_misses and self._in_view(tr, u_rad, cfg.fov_margin, cfg.range_margin)
 
     # -- the Navigator interface --------------------------------------------------------------
     def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
@@ -162,29 +271,29 @@ class EkfNavigator:
         if self.tracks and len(blobs):
             zs, hs, jacs, depth, nu, s = self._innovations(u_rad, blobs)
             d2 = np.einsum("tmi,tmi->tm", nu, np.linalg.solve(s, nu[..., None])[..., 0])
-            pairs = assign(d2, self.cfg.gate_chi2)
+            pairs = assign_likelihood(d2, np.linalg.slogdet(s)[1], self.cfg.gate_chi2)
             for i, j in pairs:
                 tr = self.tracks[i]
-                gain = tr.p @ jacs[i].T @ np.linalg.inv(s[i, j])
-                ikh = np.eye(6) - gain @ jacs[i]
                 r = s[i, j] - jacs[i] @ tr.p @ jacs[i].T
-                tr.x = tr.x + gain @ nu[i, j]
-                tr.p = ikh @ tr.p @ ikh.T + gain @ r @ gain.T
+                self._update(tr, zs[j], r, u_rad)
                 tr.hits += 1
                 tr.misses = 0
+                tr.last_hit_t_s = t_s
                 tr.blob_index = j
         matched_t = {i for i, _ in pairs}
         for i, tr in enumerate(self.tracks):
             if i not in matched_t:
                 tr.misses += 1
-        self.tracks = [tr for tr in self.tracks if self._alive(tr, u_rad)]
+        self.tracks = [tr for tr in self.tracks if self._alive(tr, t_s, u_rad)]
         matched_b = {j for _, j in pairs}
         for j in range(len(blobs)):
             if j not in matched_b:
                 tr = self._new_track(u_rad, blobs.centroid_px[j], float(blobs.area_px[j]), float(blobs.area_sigma_px[j]))
                 tr.blob_index = j
+                tr.last_hit_t_s = t_s
                 self.tracks.append(tr)
-        return [self._output(tr, u_rad) for tr in self.tracks if tr.hits >= self.cfg.confirm_hits]
+        return [self._output(tr, u_rad) for tr in self.tracks
+                if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
 
     def _output(self, tr: _EkfTrack, u_rad: float) -> Track:
         pos, vel = roe_to_lvlh(tr.x, u_rad, self.n)

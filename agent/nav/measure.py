@@ -56,10 +56,17 @@ def roe_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
     return roe_to_lvlh(np.eye(6), u_rad, n_radps)[0].T
 
 
-def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """h(x) (3,), its Jacobian H (3, 6) w.r.t. roe_m, and the camera-frame position (3,)."""
+def camera_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
+    """(3, 6): camera-frame position of the neighbour = this @ roe_m (nominal pointing)."""
+    return R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+
+
+def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: float,
+            t_cam: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """h(x) (3,), its Jacobian H (3, 6) w.r.t. roe_m, and the camera-frame position (3,).
+    `t_cam`: camera_position_matrix(u_rad, n_radps) if the caller has it already (one per frame)."""
     cam = model.camera
-    t = R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+    t = camera_position_matrix(u_rad, n_radps) if t_cam is None else t_cam
     p = t @ roe_m
     x, y, z = p
     f = cam.focal_px

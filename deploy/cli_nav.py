@@ -1,0 +1,33 @@
+"""`swarmhil report-nav RUN_DIR [RUN_DIR ...] --out DIR` (issue 4).
+
+For each run: the navigation error of every track against truth (RUN_DIR/navreport/index.html,
+nav_summary.json, nav_table.md, PNGs). Then one comparison table over the runs, the first being the
+dV reference (DIR/comparison.md, .json, .html): total dV, weak connectivity, separations, closest
+approach, navigation error. Everything is computed from each RUN_DIR/run.mcap alone
+(dashboards/navreport.py; swarm metrics from dashboards/metrics.py).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("report-nav")
+@click.argument("run_dirs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.option("--out", "out", required=True, type=click.Path(file_okay=False), help="Directory of the comparison table.")
+@click.option("--label", "labels", multiple=True, help="Row label per RUN_DIR, in order (default: scenario name).")
+def report_nav(run_dirs: tuple[str, ...], out: str, labels: tuple[str, ...]) -> None:
+    """Navigation error against truth per run, and a comparison table across the runs."""
+    from dashboards.navreport import write_comparison, write_nav_report
+
+    if labels and len(labels) != len(run_dirs):
+        raise click.BadParameter(f"{len(labels)} --label for {len(run_dirs)} RUN_DIRs", param_hint="--label")
+    try:
+        for d in run_dirs:
+            click.echo(f"wrote {write_nav_report(d)}")
+        table = write_comparison(run_dirs, out, list(labels) or None)
+    except (OSError, ValueError) as exc:
+        raise click.ClickException(str(exc)) from None
+    click.echo(Path(table).read_text(), nl=False)
+    click.echo(f"wrote {table}")
