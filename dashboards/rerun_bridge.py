@@ -6,8 +6,8 @@ the MCAP file gives them and only queues them (cheap, so a bus callback never st
 call per entity per flush rather than one `log` per message (STACK-NOTES: far faster); the
 whole swarm is one entity for the same reason.
 
-Mode colours and estimates of step k are logged once step k is complete (a later truth has come,
-or the final flush): then every agent's telemetry of step k is in, whatever the arrival order.
+Mode colours and estimates of step k are logged once step k is complete (truth k+2 has come, or
+the final flush): then every agent's telemetry of step k is in, whatever the arrival order.
 
 Timelines: "step" (sequence, header.step) and "sim_time" (duration, header.t seconds).
 
@@ -533,7 +533,10 @@ class SwarmLogger:
     def _log_completed_steps(self, final: bool) -> None:
         """Mode colours and estimates of every step whose telemetry is complete (see module doc)."""
         last = max(self._history) if self._history else -1
-        todo = sorted(s for s in self._history if self._done_step < s and (s < last or final))
+        # step k is complete once truth k+2 is in: the plant publishes truth k+2 only after every
+        # agent's command of step k+1, which each agent sends after its telemetry of step k, so
+        # through the router every receiver (live bridge, recorder) has that telemetry by then
+        todo = sorted(s for s in self._history if self._done_step < s and (s < last - 1 or final))
         c_steps, c_times, c_rows = [], [], []
         est = _Estimates()
         e_steps, e_times, e_n, e_nerr = [], [], [], []
