@@ -220,7 +220,8 @@ def rasterize(a: np.ndarray, b: np.ndarray, canvas: np.ndarray, size_px: np.ndar
     thin = np.abs(width) < 1e-9
     mean = np.where(thin, np.clip(0.5 * (ta + tb), 0.0, 1.0), (_phi(tb) - _phi(ta)) / np.where(thin, 1.0, width))
     part = np.bincount(base[m] + col, weights=dy[m] * mean, minlength=n_acc)
-    cov = np.cumsum(cover.reshape(n_g, hp, wp + 1), axis=2)
+    # float64 even when no piece crosses a row (np.bincount of an empty input is int64)
+    cov = np.cumsum(cover.reshape(n_g, hp, wp + 1), axis=2, dtype=np.float64)
     cov += part.reshape(n_g, hp, wp + 1)
     cov = cov[..., :wp]
     cov *= _SIGN  # the boundary runs clockwise (negative orientation) in (u, v)
