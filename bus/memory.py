@@ -6,10 +6,13 @@ the order is the same breadth-first order for every run (determinism) and callba
 """
 from __future__ import annotations
 
+import logging
 from collections import deque
 from dataclasses import dataclass
 
 from bus.base import LivelinessCallback, SampleCallback, key_matches
+
+log = logging.getLogger("swarmhil.memory")
 
 
 @dataclass
@@ -59,6 +62,7 @@ class MemoryBus:
         self._queue: deque[tuple[str, bytes]] = deque()
         self._dispatching = False
         self.published = 0
+        self.callback_errors = 0
 
     def publish(self, key: str, payload: bytes) -> None:
         self.published += 1
@@ -74,7 +78,11 @@ class MemoryBus:
                     route = self._routes[k] = [s for s in self._subs if key_matches(s.key_expr, k)]
                 for sub in route:
                     if sub.active:
-                        sub.callback(k, p)
+                        try:
+                            sub.callback(k, p)
+                        except Exception:  # as the Zenoh dispatcher: one node's bug never stops the others
+                            self.callback_errors += 1
+                            log.exception("callback for %s failed", k)
         finally:
             self._dispatching = False
 

@@ -53,3 +53,13 @@ def test_memory_bus_breadth_first_and_liveliness() -> None:
     bus.watch_liveliness("swarm/r/alive/*", lambda k, alive: seen.append((k, alive)))
     tok.undeclare()
     assert seen == [("swarm/r/alive/x", True), ("swarm/r/alive/x", False)]
+
+
+def test_memory_bus_isolates_a_failing_callback() -> None:
+    """Like the Zenoh dispatcher: one node's exception is logged and counted, the others still get the sample."""
+    bus = MemoryBus()
+    got: list[str] = []
+    bus.subscribe("k", lambda k, p: 1 / 0)
+    bus.subscribe("k", lambda k, p: got.append(k))
+    bus.publish("k", b"")
+    assert got == ["k"] and bus.callback_errors == 1
