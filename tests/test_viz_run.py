@@ -145,3 +145,39 @@ def test_sabatini_20_with_viz_save(tmp_path: Path) -> None:
     res = CliRunner().invoke(cli_main, ["replay", str(out / "run.mcap"), "--rrd", str(rep)])
     assert res.exit_code == 0, res.output
     check_same_views(out / "run.rrd", rep)
+
+
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")
+def test_connect_mode_streams_to_a_running_server(tmp_path: Path) -> None:
+    """`--viz connect URL`: a `rerun --serve-grpc` on 127.0.0.1 (saving what it gets) receives the views."""
+    import os
+    import signal
+    import socket
+    import time
+
+    from dashboards.viz_node import free_port
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    disable_analytics()
+    port = free_port()
+    received = tmp_path / "received.rrd"
+    srv = subprocess.Popen([rerun_exe(), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port), "--save", str(received)],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    try:
+        t_end = time.monotonic() + 30
+        while time.monotonic() < t_end:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            time.sleep(0.1)
+        sc = load_scenario(SCENARIOS / "demo.toml").with_overrides(duration_s=200.0)
+        run_in_process(sc, tmp_path / "run", "viz-connect",
+                       opts={"viz": "connect", "viz_url": f"rerun+http://127.0.0.1:{port}/proxy"})
+        time.sleep(2.0)
+    finally:
+        os.kill(srv.pid, signal.SIGINT)   # by PID: the server started here
+        srv.wait(30)
+    got = read_rrd(received)["/world/swarm"]["Points3D:positions"]
+    assert got == read_rrd(tmp_path / "run" / "run.rrd")["/world/swarm"]["Points3D:positions"]
+    assert len(got) == 21
