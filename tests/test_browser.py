@@ -56,7 +56,10 @@ const fs = require('fs');
   const cdp = await ctx.newCDPSession(page);  // CDP capture: no wait for an idle frame (SwiftShader redraws)
   while (!fs.existsSync(out + '.done') && (Date.now() - t0) < parseFloat(deadlineS) * 1000) {
     await page.waitForTimeout(3000);
-    const shot = await cdp.send('Page.captureScreenshot', { format: 'png' });
+    // a renderer busy ingesting data can hold a capture for long: give up on this one after 60 s
+    const shot = await Promise.race([cdp.send('Page.captureScreenshot', { format: 'png' }),
+                                     new Promise(r => setTimeout(() => r(null), 60000))]);
+    if (shot === null) continue;
     fs.writeFileSync(out + '.tmp', Buffer.from(shot.data, 'base64'));
     fs.renameSync(out + '.tmp', out);
   }
@@ -112,7 +115,12 @@ def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             seen = 0.0
+            hard_end = time.monotonic() + deadline_s + 180.0
             while node.poll() is None:
+                if time.monotonic() > hard_end:
+                    os.kill(node.pid, signal.SIGTERM)  # playwright closes its Chromium on SIGTERM
+                    node.wait(30)
+                    break
                 time.sleep(1.0)
                 if out.exists() and out.stat().st_mtime != seen:
                     seen = out.stat().st_mtime
@@ -125,8 +133,8 @@ def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0
                 os.kill(node.pid, signal.SIGKILL)  # by PID: the node process started here
                 node.wait()
             done.unlink(missing_ok=True)
-    if node.returncode != 0:
-        raise RuntimeError(f"screenshot failed: {err[-2000:]}")
+    if node.returncode != 0 and not ok:
+        raise RuntimeError(f"screenshot failed (exit {node.returncode}): {err[-2000:]}")
     return ok
 
 
