@@ -222,8 +222,8 @@ class VizNode:
         self._flush_s = 0.0
         self._stop = threading.Event()
         keys = Keys(run)
-        # truth first: the logger counts step k complete once truth k+1 is in, and every telemetry of
-        # step k reaches Zenoh before truth k+1, so draining truth before the rest never splits a step
+        # truth first: the logger counts step k complete once truth k+2 is in, and every telemetry of
+        # step k reaches Zenoh before that truth, so draining truth before the rest never splits a step
         key_exprs = (keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.link_stats,
                      f"{keys.base}/isl/rx/*")
         self._rings: list[Any] = []
