@@ -139,7 +139,7 @@ class PlantNode:
     def live_ids(self) -> set[str]:
         return {sid for sid, a in zip(self.world.ids, self.world.alive) if a}
 
-    def wait_ready(self, timeout_s: float = 120.0) -> None:
+    def wait_ready(self, timeout_s: float = 600.0) -> None:
         """Wait for every agent's and expected process's liveliness token before step 0."""
         want = {self.AGENT_PREFIX + s for s in self.world.ids} | set(self.expect_processes)
         t_end = time.monotonic() + timeout_s
