@@ -4,9 +4,9 @@ Subscribes to truth, telemetry (and camera frames), events, link statistics and 
 (over Zenoh: ring-channel subscribers drained every DRAIN_PERIOD_S, so no Python runs on Zenoh's
 threads); the samples are only queued (dashboards/rerun_bridge.py), and a timer flushes them in
 column batches every FLUSH_PERIOD_S (0.5 s live, 2 s when only saving), so the bridge costs little
-and the plant never waits for it (LOCKSTEP_BARRIER = False: not a lockstep participant). As its own
-process it lowers its scheduling priority (nice NICE), so on a busy machine the run goes first and
-the bridge catches up in the gaps of the lockstep exchange.
+and the plant never waits for it (LOCKSTEP_BARRIER = False: not a lockstep participant). When only
+saving, as its own process, it lowers its scheduling priority (nice NICE), so on a busy machine the
+run goes first and the bridge catches up in the gaps of the lockstep exchange.
 
 Modes (opts["viz"]):
     save     RUN_DIR/run.rrd (FileSink)
@@ -195,7 +195,7 @@ class VizNode:
         self.opts = opts
         out.mkdir(parents=True, exist_ok=True)
         self.nice = 0
-        if type(bus).__name__ != "MemoryBus":   # its own process (deploy/proc.py), not an in-process run
+        if self.mode == "save" and type(bus).__name__ != "MemoryBus":  # own process, nobody watching live
             self.nice = os.nice(NICE)
         disable_analytics()
         self.rrd = out / "run.rrd"
