@@ -352,20 +352,25 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
 
 
 def _camera_for(run_dir: Path, summary: dict[str, Any]) -> CameraGeometry:
+    """The camera of a run: from earlier metrics, the sweep's scenario_doc.json, the scenario file
+    of the same name in deploy/scenarios, or else the paper's (500 m, 1080 px, f = 1000 px)."""
     cam = summary.get("metrics", {}).get("camera")
     if cam:
         return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
+    doc_path = run_dir / "scenario_doc.json"
+    if doc_path.is_file():
+        c = json.loads(doc_path.read_text()).get("camera", {})
+        return CameraGeometry(c.get("detection_range_m", 500.0), int(c.get("image_px", 1080)), c.get("focal_px", 1000.0))
     src = summary.get("scenario_file")
-    here = Path(__file__).resolve().parent.parent / "deploy" / "scenarios"
-    for cand in (run_dir / "scenario.toml", here / str(src)):
-        if src and cand.is_file():
-            try:
-                from deploy.scenario import load_scenario
+    path = Path(__file__).resolve().parent.parent / "deploy" / "scenarios" / str(src)
+    if src and path.is_file():
+        from deploy.scenario import ScenarioError, load_scenario
 
-                c = load_scenario(cand).camera
-                return CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
-            except Exception:  # noqa: BLE001 - a scenario that no longer parses: paper defaults
-                break
+        try:
+            c = load_scenario(path).camera
+            return CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
+        except ScenarioError:
+            pass
     return CameraGeometry()
 
 
