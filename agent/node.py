@@ -43,6 +43,7 @@ class AgentNode:
         self.rejections = Rejections(f"agent {sc_id}")
         self.command = Command(accel_mps2=np.zeros(3))
         self.steps = 0
+        self.faults: dict[str, int] = {}  # "nav" / "controller": steps whose software raised (handled)
         self._seq: dict[str, int] = {}
         self._act_key = self.keys.act(sc_id)
         self._tm_key = self.keys.tm(sc_id)
@@ -95,16 +96,34 @@ class AgentNode:
         img.timestamp.seconds, img.timestamp.nanos = int(t), int(round((t - int(t)) * 1e9))
         self.bus.publish(self.keys.tm_image(self.id), img.SerializeToString())
 
+    def _fault(self, where: str, step: int) -> None:
+        """Count a handled software fault; the first of each kind is logged with its traceback."""
+        n = self.faults[where] = self.faults.get(where, 0) + 1
+        if n == 1:
+            log.exception("%s: %s fault at step %d (handled; further ones are only counted)", self.id, where, step)
+        else:
+            log.warning("%s: %s fault #%d at step %d", self.id, where, n, step)
+
     def handle(self, stim: Any) -> None:
         t0 = time.perf_counter()
         step, t = int(stim.header.step), stim.header.t
         if self.perception is not None:  # camera frame -> blobs -> tracks, every frame
-            obs = self.perception.observe(stim, self.command.accel_mps2)
+            try:
+                obs = self.perception.observe(stim, self.command.accel_mps2)
+            except Exception:  # noqa: BLE001 - a navigation fault must not stop the flight software
+                self._fault("nav", step)
+                self.perception.reset()  # restart navigation from the next frame (no tracks now)
+                obs = Observation(step=step, t_s=t, u_rad=stim.u_rad, neighbour_ids=[],
+                                  rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
         if step % self.decision_period_steps == 0:
             if self.perception is None:
                 obs = observation_from_rel(stim)
             obs.isl_rx, self.inbox = self.inbox, []
-            cmd = self.controller.step(obs)
+            try:
+                cmd = self.controller.step(obs)
+            except Exception:  # noqa: BLE001 - as above: command zero this step, count, go on
+                self._fault("controller", step)
+                cmd = Command(accel_mps2=np.zeros(3), mode="fault")
             a = np.asarray(cmd.accel_mps2, dtype=float)
             if a.shape != (3,) or not np.all(np.isfinite(a)):
                 log.error("%s: controller %s returned %r; commanding zero", self.id, self.controller.name, a)

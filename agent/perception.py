@@ -78,10 +78,16 @@ class Perception:
             cam = Camera(width_px=px, height_px=px, focal_px=float(camera_cfg.get("focal_px", 1000.0)),
                          max_range_m=float(camera_cfg.get("detection_range_m", 500.0)))
         self.cfg = cfg
-        self.vision = VisionNav(a_m, n_radps, imaging=cfg["imaging"], navigator=cfg["navigator"], camera=cam,
-                                backend=cfg["backend"], min_pixels=cfg["min_pixels"], nav_params=cfg["params"])
+        self._make_vision = lambda: VisionNav(a_m, n_radps, imaging=cfg["imaging"], navigator=cfg["navigator"], camera=cam,
+                                              backend=cfg["backend"], min_pixels=cfg["min_pixels"], nav_params=cfg["params"])
+        self.vision = self._make_vision()
         self.tracks: list[Track] = []
         self._next_image_t = 0.0
+
+    def reset(self) -> None:
+        """Forget every track and start navigation afresh (after a handled fault)."""
+        self.vision = self._make_vision()
+        self.tracks = []
 
     def observe(self, stim: pb.SceneStimulus, own_accel_mps2: np.ndarray) -> Observation:
         n = len(stim.bodies)

@@ -128,6 +128,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     rec_stats = rec.close()
     bar.close()
     summary["wall_s"] = time.monotonic() - wall0
+    summary["agent_faults"] = {a.id: a.faults for a in agents if a.faults}
     _finish_summary(summary, plant_summary, rec_stats, {a.id: a.rejections.total for a in agents})
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     return RunResult(summary, out)
@@ -284,10 +285,13 @@ class MultiProcessRun:
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         plant_s = _read_json(self.out / "plant_summary.json")
         rec_s = _read_json(self.out / "recorder_summary.json")
-        agents_rej = {}
+        agents_rej, faults = {}, {}
         for sid in self.sc.ids:
             a = _read_json(self.out / "agents" / f"{sid}.json")
             agents_rej[sid] = int(a.get("rejected_packets", 0)) if a else 0
+            if a and a.get("faults"):
+                faults[sid] = a["faults"]
+        summary["agent_faults"] = faults
         for c in self.companions:
             summary[c.name] = _read_json(self.out / f"{c.name}_summary.json") or {}
         _finish_summary(summary, plant_s or {}, rec_s or {}, agents_rej)

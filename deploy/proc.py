@@ -84,7 +84,13 @@ def main(argv: list[str] | None = None) -> int:
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
-        node.wait_ready()
+        try:
+            node.wait_ready()
+        except TimeoutError as exc:  # the launcher sees exit code 3 and says why
+            logging.getLogger("swarmhil.proc").error("plant: %s", exc)
+            (out / "plant_error.txt").write_text(f"{exc}\n")
+            _close_within(bus)
+            os._exit(3)  # a Zenoh session thread must not keep a failed plant alive
         summary = node.run(should_stop=stop.is_set)
         (out / "plant_summary.json").write_text(json.dumps(summary, indent=1))
         _close_within(bus)
@@ -97,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)
         (out / "agents" / f"{args.id}.json").write_text(json.dumps(
-            {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total}))
+            {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total,
+             "faults": node.faults}))
         _close_within(bus)
         return 0
     if args.role == "recorder":

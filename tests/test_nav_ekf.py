@@ -93,3 +93,26 @@ def test_track_creation_confirmation_gating_and_deletion():
     assert len(nav.update(50.0, 0.0, Blobs.empty())) == 1
     assert nav.update(60.0, 0.0, Blobs.empty()) == []
     assert nav.tracks == []
+
+
+def test_tracks_behind_the_camera_or_with_singular_s_are_not_associated_and_nothing_raises():
+    from agent.nav.ekf import gated_distances
+
+    nu = np.array([[[1.0, 1.0, 0.1]], [[1.0, 1.0, 0.1]], [[1.0, 1.0, 0.1]], [[0.5, -0.5, 0.0]]])
+    s = np.stack([np.eye(3)[None], np.eye(3)[None], np.zeros((1, 3, 3)), 4.0 * np.eye(3)[None]])
+    d2, logdet = gated_distances(nu, s, np.array([-50.0, 0.5, 200.0, 200.0]))
+    assert np.isinf(d2[:3]).all()  # behind the camera, nearer than MIN_DEPTH_M, singular S
+    assert d2[3, 0] == pytest.approx((0.25 + 0.25) / 4.0) and logdet[3, 0] == pytest.approx(np.log(64.0))
+    # a confirmed track coasting out of view drifts behind the camera: updates go on without raising
+    cam = Camera()
+    nav = EkfNavigator(cam, SpacecraftShape(), A_M, N_RADPS, EkfConfig(max_coast_s=6000.0))
+    area = 0.24e6 / 200.0**2
+    for k in range(3):
+        nav.update(10.0 * k, 0.0, _blob_at((540.0, 540.0), area))
+    assert len(nav.tracks) == 1
+    nav.tracks[0].xm[:, 1] = -200.0  # now 200 m behind: the prediction has depth < 0
+    nav.tracks[0].combine()
+    tracks = nav.update(30.0, 0.0, _blob_at((540.0, 540.0), area))
+    assert len(nav.tracks) == 2  # the blob starts a new tentative track ...
+    assert [(t.track_id, t.blob_index) for t in tracks] == [("e0", -1)]  # ... the coasting one is not associated
+    assert all(np.isfinite(tr.p).all() for tr in nav.tracks)

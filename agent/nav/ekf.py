@@ -123,6 +123,33 @@ def assign_likelihood(d2: np.ndarray, logdet_s: np.ndarray, gate_chi2: float) ->
     return assign(cost, float(cost[ok].max()))
 
 
+MIN_DEPTH_M = 1.0  # a track predicted nearer than this in front of the camera (or behind it) is not associated
+
+
+def gated_distances(nu: np.ndarray, s: np.ndarray, depth_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Squared Mahalanobis distances d2 (T, M) = nu' S^-1 nu and ln det S for every (track, blob).
+
+    A track predicted behind the camera or nearer than MIN_DEPTH_M has no valid projection (the
+    pinhole Jacobian goes as 1/z): its row is +inf, as is any (track, blob) whose S is singular or
+    non-finite. Such tracks coast on their prediction; none raises (a coasting track that drifted
+    behind the camera once made np.linalg.solve raise and stopped an agent's step)."""
+    t, m = nu.shape[:2]
+    d2 = np.full((t, m), np.inf)
+    logdet = np.zeros((t, m))
+    ok = (depth_m > MIN_DEPTH_M) & np.all(np.isfinite(s), axis=(2, 3)).all(axis=1) & np.all(np.isfinite(nu), axis=(1, 2))
+    if not ok.any():
+        return d2, logdet
+    sign, ld = np.linalg.slogdet(s[ok])
+    good = sign > 0
+    sol = np.zeros_like(nu[ok])
+    if good.any():
+        sol[good] = np.linalg.solve(s[ok][good], nu[ok][good][..., None])[..., 0]
+    d2_ok = np.where(good, np.einsum("tmi,tmi->tm", nu[ok], sol), np.inf)
+    d2[ok] = d2_ok
+    logdet[ok] = np.where(good, ld, 0.0)
+    return d2, logdet
+
+
 def transition(n_radps: float, dt_s: float) -> np.ndarray:
     return np.eye(6) + state_matrix(n_radps) * dt_s
 
@@ -153,6 +180,7 @@ class EkfNavigator:
         self._t: float | None = None
         self._u: float | None = None
         self._next_id = 0
+        self.faults = 0  # updates skipped (singular or non-finite S) + tracks dropped as non-finite
 
     # -- filter steps -------------------------------------------------------------------------
     def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
@@ -205,7 +233,11 @@ class EkfNavigator:
             h, jac, _ = predict(self.model, tr.xm[m], u_rad, self.n, t_cam)
             sm = jac @ tr.pm[m] @ jac.T + r
             nu = z - h
-            sinv = np.linalg.inv(sm)
+            try:
+                sinv = np.linalg.inv(sm)
+            except np.linalg.LinAlgError:
+                self.faults += 1  # S singular: skip this frame's update of the track, keep the prediction
+                return
             gain = tr.pm[m] @ jac.T @ sinv
             ikh = np.eye(6) - gain @ jac
             tr.xm[m] = tr.xm[m] + gain @ nu
@@ -270,8 +302,8 @@ class EkfNavigator:
         pairs: list[tuple[int, int]] = []
         if self.tracks and len(blobs):
             zs, hs, jacs, depth, nu, s = self._innovations(u_rad, blobs)
-            d2 = np.einsum("tmi,tmi->tm", nu, np.linalg.solve(s, nu[..., None])[..., 0])
-            pairs = assign_likelihood(d2, np.linalg.slogdet(s)[1], self.cfg.gate_chi2)
+            d2, logdet = gated_distances(nu, s, np.asarray(depth))
+            pairs = assign_likelihood(d2, logdet, self.cfg.gate_chi2)
             for i, j in pairs:
                 tr = self.tracks[i]
                 r = s[i, j] - jacs[i] @ tr.p @ jacs[i].T
@@ -284,7 +316,9 @@ class EkfNavigator:
         for i, tr in enumerate(self.tracks):
             if i not in matched_t:
                 tr.misses += 1
-        self.tracks = [tr for tr in self.tracks if self._alive(tr, t_s, u_rad)]
+        finite = [bool(np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.p))) for tr in self.tracks]
+        self.faults += finite.count(False)
+        self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, u_rad)]
         matched_b = {j for _, j in pairs}
         for j in range(len(blobs)):
             if j not in matched_b:
