@@ -53,7 +53,26 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
         raise ValueError("[nav].debug_image_period_s must be >= 0 and debug_image_downsample >= 1")
     if not cfg["control_max_sigma_m"] >= 0:
         raise ValueError(f"[nav].control_max_sigma_m must be >= 0 (got {cfg['control_max_sigma_m']!r})")
+    _check_nav_params(cfg["navigator"], cfg["params"])
     return cfg
+
+
+def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
+    """[nav.params] are the chosen navigator's settings: EkfConfig's fields, or the rough navigator's gate_px;
+    each a finite number >= 0 (confirm_hits and max_misses integers)."""
+    import dataclasses
+    import math
+
+    from agent.nav.ekf import EkfConfig
+
+    known = {f.name for f in dataclasses.fields(EkfConfig)} if navigator == "ekf" else {"gate_px"}
+    for key, val in params.items():
+        if key not in known:
+            raise ValueError(f"[nav.params].{key} is not a setting of the {navigator!r} navigator; known: {sorted(known)}")
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val < 0:
+            raise ValueError(f"[nav.params].{key} must be a finite number >= 0 (got {val!r})")
+        if key in ("confirm_hits", "max_misses") and (not float(val).is_integer() or val < 1):
+            raise ValueError(f"[nav.params].{key} must be an integer >= 1 (got {val!r})")
 
 
 GAINED_ROE = [0, 2, 3, 4, 5]  # a*da, a*dex, a*dey, a*dix, a*diy: the components with a gain in agent/behaviour

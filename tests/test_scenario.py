@@ -29,6 +29,11 @@ def base() -> dict:
     (lambda d: d["spacecraft"][0].update(id="a/b"), "[[spacecraft]][0].id"),
     (lambda d: d["spacecraft"].append({"id": "a", "roe_m": [0] * 6}), "[[spacecraft]][1].id"),
     (lambda d: d.update(bogus={}), "[bogus]"),
+    (lambda d: d.update(sensing={"kind": "scene"}, nav={"navigator": "kalman"}), "[nav].navigator"),
+    (lambda d: d.update(sensing={"kind": "scene"}, nav={"params": {"accel_sigmaa_mps2": 1e-6}}), "[nav.params].accel_sigmaa_mps2"),
+    (lambda d: d.update(sensing={"kind": "scene"}, nav={"params": {"accel_sigma_mps2": float("nan")}}), "[nav.params].accel_sigma_mps2"),
+    (lambda d: d.update(sensing={"kind": "scene"}, nav={"params": {"confirm_hits": 2.5}}), "[nav.params].confirm_hits"),
+    (lambda d: d.update(sensing={"kind": "scene"}, nav={"navigator": "rough", "params": {"gate_chi2": 9.0}}), "[nav.params].gate_chi2"),
 ])
 def test_errors_name_the_field(mutate, field: str) -> None:
     d = base()
