@@ -4,7 +4,7 @@ Bodies in nominal attitude at 30-500 m, spread uniformly over the field of view 
 usual view: a few pixels to a few tens of pixels each). Goal: <= 0.2 ms per frame.
 Times are medians of the CPU time of this thread (time.thread_time), which other processes on a
 busy machine inflate less than wall time; the wall-time median is printed too. One run measures
-both backends: numpy (the reference, default) and numba (optional, compiled once and cached).
+both backends: numpy (the reference, default) and numba (compiled once and cached).
 
     .venv/bin/python bench/bench_camera.py [--frames 300]
 """

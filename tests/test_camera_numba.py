@@ -1,4 +1,4 @@
-"""The compiled backend (optional numba) renders and labels exactly what the numpy reference does."""
+"""The compiled backend (numba) renders and labels exactly what the numpy reference does."""
 from __future__ import annotations
 
 import numpy as np

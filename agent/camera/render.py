@@ -270,7 +270,7 @@ class Renderer:
     """Renders scenes for one camera: ROI canvases (flight path) or a full frame (test path).
 
     backend: "numpy" (reference) or "numba" (agent.camera._fast, the same equations compiled;
-    needs the optional numba package). "auto" picks numba when it is installed.
+    numba is a core dependency). "auto" picks numba when it can be imported.
     """
 
     def __init__(
