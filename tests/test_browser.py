@@ -8,6 +8,11 @@ data, takes a screenshot (kept as tests/artifacts/viewer.png) and checks its pix
 must hold the spacecraft colours of the run's modes, which neither a blank page nor the loading
 screen has. It is skipped, with the reason, only where Chromium cannot be installed.
 
+A capture resolves only with the renderer's next frame, which the software-rendered viewer
+catching up with a live stream can take over a minute to draw on a loaded machine: the helper
+waits for each capture (a capture abandoned after 60 s once made the test fail on the first,
+pre-data picture; docs/viewer.md). With -s it prints each capture's time and the test's duration.
+
 Run it: `.venv/bin/python -m pytest -m browser tests/test_browser.py` (or `python tests/test_browser.py URL OUT.png`
 to shoot any served viewer).
 """
@@ -54,16 +59,24 @@ const fs = require('fs');
   const page = ctx.pages()[0] || await ctx.newPage();
   await page.goto(url, { timeout: 120000 });
   const cdp = await ctx.newCDPSession(page);  // CDP capture: no wait for an idle frame (SwiftShader redraws)
+  // the caller has its picture (OUT.done): stop, even with a capture still pending
+  const done = new Promise(r => { const iv = setInterval(() => { if (fs.existsSync(out + '.done')) { clearInterval(iv); r(null); } }, 500); });
+  let n = 0;
   while (!fs.existsSync(out + '.done') && (Date.now() - t0) < parseFloat(deadlineS) * 1000) {
     await page.waitForTimeout(3000);
-    // a renderer busy ingesting data can hold a capture for long: give up on this one after 60 s
-    const shot = await Promise.race([cdp.send('Page.captureScreenshot', { format: 'png' }),
-                                     new Promise(r => setTimeout(() => r(null), 60000))]);
-    if (shot === null) continue;
+    // Wait for this capture however long it takes: it resolves with the renderer's next frame, and
+    // a software-rendered viewer catching up with a live stream on a loaded machine can take
+    // minutes for one. Abandoning it and asking again throws that frame away, so nothing newer
+    // than the first (loading or welcome) picture is ever saved. The caller enforces the deadline.
+    const tc = Date.now();
+    const shot = await Promise.race([cdp.send('Page.captureScreenshot', { format: 'png' }), done]);
+    if (shot === null) break;
     fs.writeFileSync(out + '.tmp', Buffer.from(shot.data, 'base64'));
     fs.renameSync(out + '.tmp', out);
+    console.log(`capture ${n++} at ${((tc - t0) / 1000).toFixed(1)} s took ${((Date.now() - tc) / 1000).toFixed(1)} s`);
   }
-  await ctx.close();
+  await Promise.race([ctx.close(), new Promise(r => setTimeout(r, 30000))]);
+  process.exit(0);  // the .done poller would keep node alive
 })().catch(e => { console.error(e); process.exit(1); });
 """
 
@@ -115,7 +128,7 @@ def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             seen = 0.0
-            hard_end = time.monotonic() + deadline_s + 180.0
+            hard_end = time.monotonic() + deadline_s + 300.0  # a pending capture may take minutes (SHOT_JS)
             while node.poll() is None:
                 if time.monotonic() > hard_end:
                     os.kill(node.pid, signal.SIGTERM)  # playwright closes its Chromium on SIGTERM
@@ -128,6 +141,7 @@ def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0
                         ok = True
                         done.touch()
             _out, err = node.communicate(timeout=120)
+            print(_out, end="", flush=True)  # the capture times (shown with pytest -s)
         finally:
             if node.poll() is None:
                 os.kill(node.pid, signal.SIGKILL)  # by PID: the node process started here
@@ -190,8 +204,12 @@ def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
            "--out", str(out), "--duration", "864000", "--mode", "lockstep", "--no-progress", "--viz", "serve"]
     cli_log = tmp_path / "cli.log"
     log = open(cli_log, "w")
+    t0 = time.monotonic()
+    # SIGINT at its default in the run, so the Ctrl-C below stops it cleanly even when this test was
+    # started from a shell that ignores SIGINT in background jobs (the ignore would be inherited)
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                            env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                            env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     shot = ARTIFACTS / "viewer.png"
     try:
         url = None
@@ -208,8 +226,11 @@ def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
             assert proc.poll() is None, f"the run ended early:\n{cli_log.read_text()}"
             time.sleep(0.5)
         assert rrd.exists(), "the bridge logged nothing"
+        t_open = time.monotonic()
         ok = screenshot(url, shot, until=shows_swarm, deadline_s=300.0)
         live = proc.poll() is None
+        print(f"browser test: URL and data after {t_open - t0:.1f} s, viewer showed the swarm: {ok} "
+              f"after {time.monotonic() - t_open:.1f} s in the browser", flush=True)
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGINT)  # Ctrl-C: the launcher stops its children by PID
@@ -219,6 +240,7 @@ def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
                 os.kill(proc.pid, signal.SIGKILL)
                 proc.wait()
         log.close()
+        print(f"browser test: {time.monotonic() - t0:.1f} s in all (run stopped)", flush=True)
     assert shot.exists(), "no screenshot"
     assert live, "the run ended before the screenshot: it was not taken during a live run"
     assert ok, (f"the 3D view never showed the swarm (mode-coloured fraction "
