@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -13,6 +14,13 @@ if str(ROOT) not in sys.path:
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 SCENARIOS = ROOT / "deploy" / "scenarios"
+
+
+def sigint_default() -> None:
+    """preexec_fn for a child a test stops with SIGINT: a shell that runs `make test` in the
+    background starts it with SIGINT ignored, and children inherit that (the Ctrl-C test then
+    waited 60 s for a launcher that never saw the signal)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 @pytest.fixture

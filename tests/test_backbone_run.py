@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import ROOT, SCENARIOS, read_mcap
+from conftest import ROOT, SCENARIOS, read_mcap, sigint_default
 from deploy.launcher import MultiProcessRun, run_in_process
 from deploy.scenario import load_scenario
 
@@ -233,7 +233,7 @@ def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
     out = tmp_path / "cc"
     p = subprocess.Popen([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
                           "--run-id", "cc", "--mode", "realtime", "--speed", "20", "--no-progress"],
-                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     info = _wait_for(out / "run.json")
     _wait_steps(info["router"], "cc", 5)
     p.send_signal(signal.SIGINT)

@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from dashboards.replay import read_rrd
 from dashboards.viz_node import disable_analytics, rerun_exe
+from conftest import sigint_default
 from deploy.cli import main as cli_main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -163,7 +164,8 @@ def test_connect_mode_streams_to_a_running_server(tmp_path: Path) -> None:
     port = free_port()
     received = tmp_path / "received.rrd"
     srv = subprocess.Popen([rerun_exe(), "--serve-grpc", "--bind", "127.0.0.1", "--port", str(port), "--save", str(received)],
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
+                           preexec_fn=sigint_default)
     try:
         t_end = time.monotonic() + 30
         while time.monotonic() < t_end:
