@@ -61,11 +61,16 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
     """[nav.params] are the chosen navigator's settings: EkfConfig's fields, or the rough navigator's gate_px;
     each a finite number >= 0 (confirm_hits and max_misses integers)."""
     import dataclasses
+    import inspect
     import math
 
     from agent.nav.ekf import EkfConfig
+    from agent.nav.rough import RoughNavigator
 
-    known = {f.name for f in dataclasses.fields(EkfConfig)} if navigator == "ekf" else {"gate_px"}
+    if navigator == "ekf":
+        known = {f.name for f in dataclasses.fields(EkfConfig)}
+    else:  # what make_navigator passes on as keywords: the constructor's arguments after the fixed ones
+        known = set(list(inspect.signature(RoughNavigator.__init__).parameters)[5:])
     for key, val in params.items():
         if key not in known:
             raise ValueError(f"[nav.params].{key} is not a setting of the {navigator!r} navigator; known: {sorted(known)}")

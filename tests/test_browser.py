@@ -33,6 +33,8 @@ from typing import Any
 import numpy as np
 import pytest
 
+from conftest import sigint_default
+
 ROOT = Path(__file__).resolve().parent.parent
 CACHE = ROOT / "tests" / ".browser"
 ARTIFACTS = ROOT / "tests" / "artifacts"
@@ -209,7 +211,7 @@ def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
     # started from a shell that ignores SIGINT in background jobs (the ignore would be inherited)
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                             env=dict(os.environ, PYTHONPATH=str(ROOT)),
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=sigint_default)
     shot = ARTIFACTS / "viewer.png"
     try:
         url = None
