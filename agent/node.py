@@ -138,7 +138,7 @@ class AgentNode:
         for tx in txs:
             self._transmit(step, t, tx)
         act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=vec(self.command.accel_mps2),
-                                 controller=self.controller.name)
+                                 controller=self.controller.name, isl_tx_count=len(txs))
         self.bus.publish(self._act_key, act.SerializeToString())
         tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
                           controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),

@@ -350,6 +350,10 @@ class LinkModel:
         self._scheduled: list[Delivery] = []        # evaluated, waiting for their receiver step
         self._truth: dict[int, tuple[np.ndarray, float]] = {}
         self.max_truth_lag_steps = 0
+        self.truth_keep_steps = 64  # truth kept behind the newest step, for packets that arrive late
+
+    def has_truth(self, step: int) -> bool:
+        return int(step) in self._truth
 
     # inputs
     def submit(self, src: str, dst: str, typ: str, payload: bytes, seq: int, send_step: int, send_t: float) -> None:
@@ -365,9 +369,12 @@ class LinkModel:
     def _time(self, step: int) -> float:
         return step * self.step_s
 
-    def _offer_submitted(self) -> list[TxPacket]:
-        batch = sorted(self._submitted, key=lambda p: (p.send_step, self.index[p.src], p.seq, p.arrival))
-        self._submitted = []
+    def _offer_submitted(self, upto_step: int) -> list[TxPacket]:
+        """Offer to the radios the packets sent at steps <= upto_step; packets dated later (they
+        reached the channel before their step's window) stay held."""
+        ready = [p for p in self._submitted if p.send_step <= upto_step]
+        self._submitted = [p for p in self._submitted if p.send_step > upto_step]
+        batch = sorted(ready, key=lambda p: (p.send_step, self.index[p.src], p.seq, p.arrival))
         started: list[TxPacket] = []
         for p in batch:
             p.tx_index = self._tx_index[p.src]
@@ -406,7 +413,7 @@ class LinkModel:
                                                 p.send_step, p.send_t, arrive_t, due, wire_bytes=p.wire_bytes))
 
     def _progress(self, until_t: float, window_step: int) -> None:
-        self._on_air += self._offer_submitted()
+        self._on_air += self._offer_submitted(window_step)
         for s in self.ids:
             self._on_air += self.radios[s].advance(until_t)
         waiting = []
@@ -441,7 +448,8 @@ class LinkModel:
 
     def _prune_truth(self) -> None:
         keep_from = min([p.send_step for p in self._on_air] + [p.send_step for r in self.radios.values() for p in r.queue]
-                        + [p.send_step for p in self._submitted] + [max(self._truth, default=0)])
+                        + [p.send_step for p in self._submitted]
+                        + [max(self._truth, default=0) - self.truth_keep_steps])
         for k in [k for k in self._truth if k < keep_from]:
             del self._truth[k]
 

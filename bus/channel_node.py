@@ -6,17 +6,26 @@ at the time of sending), every agent's `isl/tx/<id>` and `sc/<id>/act`; delivers
 and, as a lockstep participant, a barrier `Tick` on `sync/channel` with header.step = k once step
 k's deliveries are out.
 
-Step k's window closes when every live agent's command of step k has arrived (an agent publishes
-its transmissions of step k before its command, on the same session, so all of step k's traffic
-is in by then). Deliveries published then reach the receivers before the plant (which waits for
-the barrier) publishes step k+1's stimuli: the receiver's `obs.isl_rx` at step k+1 holds them,
-deterministically. A packet needs the truth of its sending step for range and occultation; when
-that truth has not arrived when the window closes (the plant publishes the truth of step k after
-the barrier of step k), the packet goes out at the next window, so it is seen one step later.
+Dating (issue 10). Every packet is dated by the step it was sent in, read from its own
+header.step, never by the channel's clock: messages from the plant (tick, truth) and from the
+agents (packets, commands) reach the channel over different paths, so a packet or a command of
+step k may arrive before the channel has seen tick k (it is held until then), or, from a late
+agent, after the window of step k has closed (it is evaluated against the truth of its own step,
+kept for `LinkModel.truth_keep_steps`, and delivered at the next window; counted as late).
+
+Step k's window closes when the truth of step k is in, every live agent's command of step k has
+arrived, and with it every packet the command announces (`ActuatorCommand.isl_tx_count`: an
+agent publishes its transmissions of step k before its command, but samples on different keys
+need not arrive in that order, so the count, not the order, tells the channel it has them all). The plant publishes tick k and truth k before
+the stimuli of step k, and waits for this barrier before step k+1: the receiver's `obs.isl_rx` at
+step k+1 holds step k's deliveries, deterministically. In lockstep no window closes on wall
+time, except (a) an agent declared dead (its liveliness token goes), (b) the plant moving on to
+step k+1 without the barrier (its own lockstep deadline), or (c) the stall timeout
+(`stall_timeout_s`, long), which is reported as an `Event` of kind "link_stall".
 
 Bad input (undecodable, foreign run, unknown or forged source, unknown destination, oversized
-payload) is rejected, counted and recorded as an `Event` (kind "rejected_packet"); the channel
-carries on.
+payload, a step outside the open window) is rejected, counted and recorded as an `Event` (kind
+"rejected_packet"); the channel carries on.
 
 Delivered packets carry header.source "channel", header.step = the receiver step that first sees
 them, header.t = that step's time, and the sender's src, dst, type, payload and sent_t.
@@ -43,6 +52,8 @@ log = logging.getLogger("swarmhil.channel")
 
 LOCKSTEP_BARRIER = True
 NAME = "channel"
+STALL_TIMEOUT_S = 60.0  # lockstep: a window still open this long after its tick is a stall (an error event)
+EARLY_STEPS = 1         # a packet or command may be dated at most this many steps after the channel's tick
 
 
 def enabled(sc: Any, opts: dict[str, Any]) -> bool:
@@ -60,18 +71,21 @@ def enabled(sc: Any, opts: dict[str, Any]) -> bool:
 def start(bus: Bus, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "ChannelNode":
     cfg = parse_link_config(sc.sections["link"], sc.source, sc.seed)
     if sc.mode == "lockstep":
-        watchdog_s = 0.8 * sc.lockstep_timeout_s
+        # never on wall time in lockstep but for a real stall: the plant's own deadline moves the
+        # clock on long before this fires (a forced window then comes with tick k+1)
+        watchdog_s, stall = max(STALL_TIMEOUT_S, 4.0 * sc.lockstep_timeout_s), True
     else:
-        watchdog_s = 0.7 * sc.step_s / sc.speed
+        watchdog_s, stall = 0.7 * sc.step_s / sc.speed, False
     from bus.memory import MemoryBus
 
     return ChannelNode(bus, run, cfg, sc.ids, sc.step_s, ref_radius_m=sc.orbit.semi_major_axis_m,
-                       watchdog_s=None if isinstance(bus, MemoryBus) else watchdog_s)
+                       watchdog_s=None if isinstance(bus, MemoryBus) else watchdog_s, stall_is_error=stall)
 
 
 class ChannelNode:
     def __init__(self, bus: Bus, run: str, cfg: LinkConfig, ids: list[str], step_s: float, *,
-                 ref_radius_m: float = 6878137.0, watchdog_s: float | None = None) -> None:
+                 ref_radius_m: float = 6878137.0, watchdog_s: float | None = None,
+                 stall_is_error: bool = False) -> None:
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
@@ -89,9 +103,18 @@ class ChannelNode:
         self.step = -1                  # the plant's current step (last tick)
         self.t = 0.0
         self._expected: set[str] = set()
-        self._acted: set[str] = set()
+        self._acted: dict[str, int] = {}   # agent -> packets its command of this step announces
         self._window_done = True
         self._dead: set[str] = set()
+        self._closed_upto = -1          # the newest step whose window has closed
+        self._early_acts: dict[int, dict[str, int]] = {}  # commands that arrived before their tick
+        self._tx_seen: dict[int, dict[str, int]] = {}     # step -> sender -> packets received on its key
+        self._stall_is_error = stall_is_error
+        self.early_packets = 0          # packets that reached the channel before their step's tick
+        self.early_commands = 0
+        self.late_packets = 0           # packets that reached it after their step's window closed
+        self.stalls = 0
+        self.waited_for_packets = 0     # windows whose last packet came after every command
         self._next_stats_t = 0.0
         self._stats_dirty = False
         self._finished = False
@@ -158,7 +181,11 @@ class ChannelNode:
                 self._finish(k)
                 return
             self._expected = (set(tick.alive) & self.known) - self._dead
-            self._acted = set()
+            self._acted = self._early_acts.pop(k, {})
+            for old in [s for s in self._early_acts if s < k]:
+                del self._early_acts[old]
+            for old in [s for s in self._tx_seen if s < k - 1]:
+                del self._tx_seen[old]
             self._window_done = False
             self._tick_wall = time.monotonic()
             self._maybe_close()
@@ -179,6 +206,7 @@ class ChannelNode:
         with self._lock:
             a_m = truth.semi_major_axis_m if truth.semi_major_axis_m > 0 else self.ref_radius_m
             self.model.set_truth(int(truth.header.step), pos, a_m)
+            self._maybe_close()
 
     def _on_tx(self, key: str, payload: bytes) -> None:
         try:
@@ -194,11 +222,34 @@ class ChannelNode:
             return
         reason = check_tx(key_id, pkt.src, pkt.dst, len(pkt.payload), self.known, self.cfg.max_payload_bytes)
         with self._lock:
+            if key_id in self.known:  # what the sender's command will announce: arrivals on its key
+                seen = self._tx_seen.setdefault(int(pkt.header.step), {})
+                seen[key_id] = seen.get(key_id, 0) + 1
             if reason:
                 self._reject(key, subject, reason)
+            else:
+                self._accept_tx(key, subject, pkt)
+            self._tx_arrived()
+
+    def _accept_tx(self, key: str, subject: str, pkt: pb.IslPacket) -> None:
+        """Date a valid packet by its own header.step and hand it to the model (lock held)."""
+        step = int(pkt.header.step)
+        newest = max(self.step, 0) + EARLY_STEPS
+        if step > newest:
+            self._reject(key, subject, f"bad step: packet dated step {step}, the channel is at step {self.step} "
+                                       f"(accepts up to {newest})")
+            return
+        if step <= self._closed_upto:
+            if not self.model.has_truth(step):
+                self._reject(key, subject, f"late packet: step {step} is older than the truth kept "
+                                           f"({self.model.truth_keep_steps} steps)")
                 return
-            step = max(self.step, 0)
-            self.model.submit(pkt.src, pkt.dst, pkt.type, pkt.payload, pkt.header.seq, step, step * self.step_s)
+            self.late_packets += 1
+            log.warning("late packet from %s dated step %d (window closed up to %d): delivered at the next window",
+                        pkt.src, step, self._closed_upto)
+        elif step > self.step:
+            self.early_packets += 1
+        self.model.submit(pkt.src, pkt.dst, pkt.type, pkt.payload, pkt.header.seq, step, step * self.step_s)
 
     def _on_act(self, key: str, payload: bytes) -> None:
         try:
@@ -208,10 +259,14 @@ class ChannelNode:
             return  # the plant validates and counts bad commands
         if cmd.header.source != sc or cmd.header.run != self.run:
             return
+        k = int(cmd.header.step)
         with self._lock:
-            if int(cmd.header.step) == self.step and not self._window_done:
-                self._acted.add(sc)
+            if k == self.step and not self._window_done:
+                self._acted[sc] = int(cmd.isl_tx_count)
                 self._maybe_close()
+            elif self.step < k <= max(self.step, 0) + EARLY_STEPS:
+                self._early_acts.setdefault(k, {})[sc] = int(cmd.isl_tx_count)  # before its tick: held
+                self.early_commands += 1
 
     def _on_liveliness(self, key: str, alive: bool) -> None:
         proc = key.rsplit("/", 1)[-1]
@@ -227,13 +282,28 @@ class ChannelNode:
                 self._maybe_close()
 
     # --- windows ----------------------------------------------------------------------------------
+    def _missing(self) -> list[str]:
+        """Live agents whose command, or one of the packets it announces, has not arrived yet."""
+        seen = self._tx_seen.get(self.step, {})
+        return sorted(s for s in self._expected if s not in self._acted or seen.get(s, 0) < self._acted[s])
+
     def _maybe_close(self) -> None:
-        if not self._window_done and self.step >= 0 and self._expected <= self._acted:
+        if (not self._window_done and self.step >= 0 and self.model.has_truth(self.step)
+                and not self._missing()):
             self._close_window()
+
+    def _tx_arrived(self) -> None:
+        """A packet came in: it may be the last one a command announced."""
+        if not self._window_done and self.step >= 0 and self._expected <= set(self._acted):
+            before = self._window_done
+            self._maybe_close()
+            if self._window_done and not before:
+                self.waited_for_packets += 1
 
     def _close_window(self) -> None:
         k = self.step
         self._window_done = True
+        self._closed_upto = max(self._closed_upto, k)
         self.windows += 1
         self._publish(self.model.window(k))
         if self.t + 1e-9 >= self._next_stats_t:
@@ -247,8 +317,16 @@ class ChannelNode:
         with self._lock:
             if step == self.step and not self._window_done and not self._finished:
                 self.forced_windows += 1
-                missing = sorted(self._expected - self._acted)
-                log.warning("step %d: no command yet from %s; closing the link window", step, missing[:5])
+                missing = self._missing()
+                truth = "in" if self.model.has_truth(step) else "missing"
+                detail = (f"step {step}: window open {self._watchdog_s:.0f} s after its tick; no command yet from "
+                          f"{missing[:5]}, truth {truth}; closing it")
+                if self._stall_is_error:
+                    self.stalls += 1
+                    log.error("link stall: %s", detail)
+                    self._event("link_stall", NAME, detail)
+                else:
+                    log.warning("%s", detail)
                 self._close_window()
 
     def _watchdog(self) -> None:
@@ -299,6 +377,11 @@ class ChannelNode:
             "pending_at_end": self.model.pending(),
             "windows": self.windows,
             "forced_windows": self.forced_windows,
+            "stalls": self.stalls,
+            "early_packets": self.early_packets,
+            "early_commands": self.early_commands,
+            "late_packets": self.late_packets,
+            "waited_for_packets": self.waited_for_packets,
             "max_truth_lag_steps": self.model.max_truth_lag_steps,
             "stats_published": self.stats_published,
             "events_published": self.events_published,

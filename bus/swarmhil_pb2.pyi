@@ -137,14 +137,16 @@ class SceneStimulus(_message.Message):
     def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., u_rad: _Optional[float] = ..., bodies: _Optional[_Iterable[_Union[ScenePose, _Mapping]]] = ..., pointing_error_rad: _Optional[_Union[Vector3, _Mapping]] = ...) -> None: ...
 
 class ActuatorCommand(_message.Message):
-    __slots__ = ("header", "accel_mps2", "controller")
+    __slots__ = ("header", "accel_mps2", "controller", "isl_tx_count")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     ACCEL_MPS2_FIELD_NUMBER: _ClassVar[int]
     CONTROLLER_FIELD_NUMBER: _ClassVar[int]
+    ISL_TX_COUNT_FIELD_NUMBER: _ClassVar[int]
     header: Header
     accel_mps2: Vector3
     controller: str
-    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., controller: _Optional[str] = ...) -> None: ...
+    isl_tx_count: int
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., controller: _Optional[str] = ..., isl_tx_count: _Optional[int] = ...) -> None: ...
 
 class NeighbourDecision(_message.Message):
     __slots__ = ("neighbour", "behaviour", "d_min_m", "roe_rel_m", "accel_mps2")

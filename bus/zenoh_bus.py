@@ -64,6 +64,14 @@ class ZenohBus:
     Zenoh delivers samples on its own threads; the callbacks here only enqueue, and one
     dispatcher thread runs the node callbacks in arrival order (STACK-NOTES: a slow callback
     delays every other subscriber of the session).
+
+    Order across keys (issue 10): zenoh-python runs a plain Python callable on a separate thread
+    per subscriber (`zenoh.handlers.Callback(..., indirect=True)`, the default), so two samples
+    published in order on two keys by one session could reach the dispatcher queue in the other
+    order (an agent's `isl/tx` packet after its `act` command: the link channel then closed the
+    window without it). The enqueue callbacks here are declared `indirect=False`: they run on
+    the network thread that received the samples, in the order the link delivered them, and do
+    nothing but a queue put, so they never block that thread.
     """
 
     def __init__(self, connect: str, *, lease_ms: int | None = None) -> None:
@@ -100,7 +108,7 @@ class ZenohBus:
         def on_sample(sample: zenoh.Sample) -> None:
             q.put((callback, str(sample.key_expr), sample.payload.to_bytes()))
 
-        sub = self.session.declare_subscriber(key_expr, on_sample)
+        sub = self.session.declare_subscriber(key_expr, zenoh.handlers.Callback(on_sample, indirect=False))
         self._handles.append(sub)
         return sub
 
@@ -115,7 +123,8 @@ class ZenohBus:
         def on_change(sample: zenoh.Sample) -> None:
             q.put((callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
-        sub = self.session.liveliness().declare_subscriber(key_expr, on_change, history=True)
+        sub = self.session.liveliness().declare_subscriber(key_expr, zenoh.handlers.Callback(on_change, indirect=False),
+                                                           history=True)
         self._handles.append(sub)
         return sub
 

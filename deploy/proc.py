@@ -15,6 +15,7 @@ import sys
 import threading
 from pathlib import Path
 
+from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
 from deploy.scenario import load_scenario
 
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "plant":
         from plant.node import PlantNode
 
-        bus = ZenohBus(args.router)
+        bus = with_faults(ZenohBus(args.router), "plant")
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "agent":
         from deploy.launcher import make_agent
 
-        bus = ZenohBus(args.router, lease_ms=2000)
+        bus = with_faults(ZenohBus(args.router, lease_ms=2000), f"agent-{args.id}")
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)
@@ -121,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         from deploy.companions import load
 
         comp = load(args.name)
-        bus = ZenohBus(args.router)
+        bus = with_faults(ZenohBus(args.router), args.name)
         obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
         stop.wait()
         stats = obj.close()

@@ -58,7 +58,7 @@ def _scenario(link: dict) -> object:
 
 
 class FakePlant:
-    """Publishes what the plant would: tick k, then (after the agents and the barrier) truth k."""
+    """Publishes what the plant would: tick k and truth k (before the stimuli), then waits for the barrier."""
 
     def __init__(self, bus: MemoryBus, positions: dict[str, list[float]]) -> None:
         self.bus, self.k, self.keys = bus, Keys(RUN), Keys(RUN)
@@ -102,6 +102,7 @@ def test_barrier_deliveries_and_rejections_on_a_fake_plant(tmp_path: Path) -> No
     steps = 6
     for k in range(steps):
         plant.tick(k)
+        plant.truth(k)
         _tx(bus, "a", "a", k)                                  # valid broadcast: b in range, c not
         _tx(bus, "c", "c", k, dst="b")                         # valid, addressed: b in range of c
         _tx(bus, "b", "a", k)                                  # forged source
@@ -114,15 +115,14 @@ def test_barrier_deliveries_and_rejections_on_a_fake_plant(tmp_path: Path) -> No
         for s in IDS:
             _act(bus, s, k)
         assert plant.syncs[-1] == k  # the barrier of step k came once every agent had acted
-        plant.truth(k)
     plant.tick(steps, final=True)
     summary = node.close()
     assert plant.syncs == list(range(steps))
     # a broadcast from a reaches b only; c's addressed packets reach b; nothing reaches c
     assert [(p.src, p.dst) for p in rx["b"]] == [("a", ""), ("c", "b")] * steps
     assert rx["a"] == [] and rx["c"] == []
-    # delivered at the receiver step 2 after sending (the truth of step k comes after barrier k)
-    assert [p.header.step for p in rx["b"][::2]] == [k + 2 for k in range(steps - 2)] + [steps, steps]
+    # delivered at the receiver step after sending (the truth of step k comes with tick k)
+    assert [p.header.step for p in rx["b"][::2]] == [k + 1 for k in range(steps)]
     assert [p.sent_t for p in rx["b"][::2]] == [10.0 * k for k in range(steps)]
     tot = summary["totals"]
     assert tot["tx_messages"] == 2 * steps and tot["rx_messages"] == 2 * steps
@@ -223,3 +223,86 @@ def test_truth_positions_reach_the_model_by_id(tmp_path: Path) -> None:
     pos, a_m = node.model._truth[3]
     assert a_m == 7e6 and pos[0, 0] == 1.0 and pos[2, 0] == 3.0 and np.isnan(pos[1]).all()
     node.close()
+
+
+def _act_n(bus: MemoryBus, sid: str, step: int, n_tx: int) -> None:
+    cmd = pb.ActuatorCommand(header=header(RUN, sid, step, 10.0 * step, step), accel_mps2=vec([0, 0, 0]),
+                             isl_tx_count=n_tx)
+    bus.publish(Keys(RUN).act(sid), cmd.SerializeToString())
+
+
+def _rx_log(bus: MemoryBus) -> list[tuple[str, str, float, int]]:
+    got: list[tuple[str, str, float, int]] = []
+    for s in IDS:
+        bus.subscribe(Keys(RUN).isl_rx(s), lambda _k, p, s=s: got.append(
+            (s, pb.IslPacket.FromString(p).src, pb.IslPacket.FromString(p).sent_t, pb.IslPacket.FromString(p).header.step)))
+    return got
+
+
+POS = {"a": [0, 0, 0], "b": [0, 100.0, 0], "c": [0, 200.0, 0]}
+
+
+def test_packets_and_commands_before_their_tick_are_held_and_dated_by_their_own_step(tmp_path: Path) -> None:
+    """Issue 10: everything of step k arrives before tick k; deliveries as if in order."""
+    bus = MemoryBus()
+    plant = FakePlant(bus, POS)
+    got = _rx_log(bus)
+    node = channel_node.start(bus, RUN, _scenario({"range_m": 150.0}), tmp_path, {})
+    for k in range(4):
+        _tx(bus, "a", "a", k)                 # before tick k: held (the channel is still at step k-1)
+        for s in IDS:
+            _act_n(bus, s, k, 1 if s == "a" else 0)
+        assert plant.syncs == list(range(k))  # no barrier for step k before its tick and truth
+        plant.tick(k)
+        assert plant.syncs == list(range(k))  # ... nor before its truth
+        plant.truth(k)
+        assert plant.syncs == list(range(k + 1))
+    plant.tick(4, final=True)
+    s = node.close()
+    assert sorted(got) == sorted(("b", "a", 10.0 * k, k + 1) for k in range(4))
+    assert s["early_packets"] == 4 and s["early_commands"] == 12 and s["forced_windows"] == 0 and s["late_packets"] == 0
+
+
+def test_a_window_waits_for_every_packet_its_commands_announce(tmp_path: Path) -> None:
+    bus = MemoryBus()
+    plant = FakePlant(bus, POS)
+    got = _rx_log(bus)
+    node = channel_node.start(bus, RUN, _scenario({"range_m": 150.0}), tmp_path, {})
+    plant.tick(0)
+    plant.truth(0)
+    for s in IDS:
+        _act_n(bus, s, 0, 2 if s == "b" else 0)  # b's command overtook its two packets
+    assert plant.syncs == []
+    _tx(bus, "b", "b", 0)
+    assert plant.syncs == []
+    _tx(bus, "b", "b", 0, dst="c")
+    assert plant.syncs == [0]
+    plant.tick(1, final=True)
+    s = node.close()
+    assert sorted(got) == [("a", "b", 0.0, 1), ("c", "b", 0.0, 1), ("c", "b", 0.0, 1)]
+    assert s["waited_for_packets"] == 1 and s["late_packets"] == 0
+
+
+def test_late_packets_keep_their_send_step_and_bad_steps_are_rejected(tmp_path: Path) -> None:
+    """A packet after its window (the plant moved on without it) is range-checked against the truth
+    of its own step and delivered at the next window; a packet dated beyond the next step is rejected."""
+    bus = MemoryBus()
+    plant = FakePlant(bus, dict(POS))
+    got = _rx_log(bus)
+    node = channel_node.start(bus, RUN, _scenario({"range_m": 150.0}), tmp_path, {})
+    plant.tick(0)
+    plant.truth(0)
+    for s in ("a", "c"):
+        _act_n(bus, s, 0, 0)
+    plant.tick(1)                                  # b never acted: the plant moved on (forced window 0)
+    plant.positions["a"] = [0, 1000.0, 0]          # at step 1 a is out of everyone's range ...
+    plant.truth(1)
+    _tx(bus, "a", "a", 0)                          # ... but its late packet of step 0 was sent in range of b
+    _tx(bus, "a", "a", 7)                          # dated far ahead: rejected
+    for s in IDS:
+        _act_n(bus, s, 1, 0)
+    plant.tick(2, final=True)
+    s = node.close()
+    assert got == [("b", "a", 0.0, 2)]
+    assert s["late_packets"] == 1 and s["forced_windows"] == 1
+    assert s["rejected_by_reason"] == {"bad step": 1}
