@@ -29,7 +29,7 @@ from plant.dynamics.constants import (
     OMEGA_EARTH_RADPS,
     R_EARTH_M,
 )
-from plant.dynamics.frames import cross, eci_to_lvlh, lvlh_vector_to_eci
+from plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
 from plant.dynamics.rk_tableau import rk_step
 
 __all__ = [
@@ -291,15 +291,7 @@ class AbsoluteJ2Plant:
         Angle from the ascending node to r in the orbit plane; it differs from the mean argument of
         latitude of the linear model by J2 short-period terms (~1e-3 rad at 500 km).
         """
-        r, v = self._y[0, :3], self._y[0, 3:]
-        h = cross(r, v)
-        h_hat = h / np.linalg.norm(h)
-        node = np.array([-h[1], h[0], 0.0])
-        node_norm = np.linalg.norm(node)
-        if node_norm < 1e-12 * np.linalg.norm(h):  # equatorial: measure from ECI x
-            return float(np.mod(np.arctan2(r[1], r[0]) * np.sign(h[2]), 2.0 * np.pi))
-        node /= node_norm
-        return float(np.mod(np.arctan2(np.dot(cross(node, r), h_hat), np.dot(node, r)), 2.0 * np.pi))
+        return argument_of_latitude(self._y[0, :3], self._y[0, 3:])
 
     def relative_lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 3) [m] and velocities (N, 3) [m/s] relative to the reference, in its rotating
