@@ -1,9 +1,10 @@
 """The plant's truth: translational state of every spacecraft, actuator limits, delta-v accounting.
 
-Two fidelities (issue 2): `linear` propagates the ROE exactly with the Keplerian model of paper
-002 (command held constant over the step, plant/dynamics/roe_linear.py); `j2` integrates two-body
-+ J2 (+ optional drag) absolute orbits and converts them to the reference LVLH every step
-(plant/dynamics/absolute_j2.py).
+The dynamics are a propagator chosen by name (`fidelity`, plant/dynamics/propagator.py) among
+those working in the reference LVLH frame: `linear` propagates the ROE exactly with the Keplerian
+model of paper 002 (plant/dynamics/roe_linear.py); `j2` integrates two-body + J2 (+ optional drag)
+absolute orbits and converts them to the reference LVLH every step (plant/dynamics/absolute_j2.py);
+`cw` is Clohessy-Wiltshire about the circular reference (plant/dynamics/cw.py).
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import time
 import numpy as np
 
 from plant.dynamics import roe_linear
+from plant.dynamics.limits import limit_per_axis
+from plant.dynamics.propagator import Propagator, make_propagator
 
 
 class World:
@@ -32,40 +35,35 @@ class World:
         self.alive = np.ones(n, dtype=bool)
         self.delta_v_mps = np.zeros(n)
         self.last_accel_mps2 = np.zeros((n, 3))
-        if fidelity == "linear":
-            self._roe = np.array(roe_m, dtype=float).reshape(n, 6)
-            self._abs = None
-        elif fidelity == "j2":
-            from plant.dynamics.absolute_j2 import AbsoluteJ2Plant
-
-            self._roe = None
-            self._abs = AbsoluteJ2Plant(self.a_m, inc_rad, raan_rad, self.u0_rad, np.asarray(roe_m, float), j2=True, drag=drag)
-        else:
-            raise ValueError(f"unknown plant fidelity {fidelity!r}; known: linear, j2")
+        init = {"a_m": self.a_m, "inc_rad": inc_rad, "raan_rad": raan_rad, "u0_rad": self.u0_rad,
+                "roe_m": np.array(roe_m, dtype=float).reshape(n, 6)}
+        if drag is not None:
+            init["drag"] = drag
+        self.propagator: Propagator = make_propagator(fidelity, **init)
+        if self.propagator.frame != "lvlh":
+            raise ValueError(f"plant fidelity {fidelity!r} is not a relative (LVLH) propagator")
 
     @property
     def u_rad(self) -> float:
-        """Reference argument of latitude (mean, for the linear model; osculating for j2)."""
-        if self._abs is not None:
-            return float(self._abs.reference_u())
-        return self.u0_rad + self.n_radps * self.t_s
+        """Reference argument of latitude (mean, for linear/cw; osculating for j2)."""
+        return self.propagator.u_rad
 
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """(N,3) positions and velocities in the reference LVLH frame."""
-        if self._abs is not None:
-            return self._abs.relative_lvlh()
-        return roe_linear.roe_to_lvlh(self._roe, self.u_rad, self.n_radps)
+        return self.propagator.state()
 
     def roe_m(self) -> np.ndarray:
-        """(N,6) ROE in metres (for j2: the linear map of the LVLH state, an osculating approximation)."""
-        if self._roe is not None:
-            return self._roe.copy()
-        pos, vel = self._abs.relative_lvlh()
+        """(N,6) ROE in metres (for models without ROE state: the linear map of the LVLH state,
+        an osculating approximation for j2)."""
+        own = getattr(self.propagator, "roe_m", None)
+        if own is not None:
+            return own()
+        pos, vel = self.propagator.state()
         return roe_linear.lvlh_to_roe(pos, vel, self.u_rad, self.n_radps)
 
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
         """Actuator model: each axis saturates at +-max_accel (three thruster pairs); dead spacecraft coast."""
-        a = np.clip(np.asarray(accel_mps2, float), -self.max_accel_mps2, self.max_accel_mps2)
+        a = limit_per_axis(accel_mps2, self.max_accel_mps2)
         a[~self.alive] = 0.0
         return a
 
@@ -75,10 +73,7 @@ class World:
         a = self.limit(accel_mps2)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
-        if self._abs is not None:
-            self._abs.step(a, dt_s)
-        else:
-            self._roe = roe_linear.propagate_roe(self._roe, a, self.u_rad, self.n_radps, dt_s)
+        self.propagator.step(a, dt_s)
         self.steps_done += 1
         self.t_s = self.steps_done * dt_s
         self.wall_s += time.perf_counter() - c0

@@ -2,7 +2,7 @@
 
 The plant integrates the reference orbit and every spacecraft as one ECI state vector with a
 fixed-step 8th-order Runge-Kutta (the Dormand-Prince 8(5,3) tableau of DOP853, Hairer, Norsett &
-Wanner, Solving ODEs I, sec. II.10, without step control), and gives relative states in the
+Wanner, Solving ODEs I, sec. II.10, without step control; `rk_tableau`), and gives relative states in the
 reference's rotating LVLH frame (`frames.eci_to_lvlh`).
 
 Forces (Vallado, 4th ed.): point mass -mu r/|r|^3; J2 (eq. 8-30)
@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _dop853
 
 from plant.dynamics.constants import (
     ATMOSPHERE_H0_M,
@@ -30,7 +29,8 @@ from plant.dynamics.constants import (
     OMEGA_EARTH_RADPS,
     R_EARTH_M,
 )
-from plant.dynamics.frames import cross, eci_to_lvlh, lvlh_vector_to_eci
+from plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
+from plant.dynamics.rk_tableau import rk_step
 
 __all__ = [
     "AbsoluteJ2Plant",
@@ -43,11 +43,6 @@ __all__ = [
     "rk8_step",
 ]
 
-# Dormand-Prince 8th-order tableau (the 12 stages of scipy's DOP853; error estimators unused).
-_N_STAGES = _dop853.N_STAGES
-_RK_A = np.array(_dop853.A[:_N_STAGES, :_N_STAGES], dtype=float)
-_RK_B = np.array(_dop853.B, dtype=float)
-_RK_C = np.array(_dop853.C[:_N_STAGES], dtype=float)
 _J2_COEFF = -1.5 * J2 * MU_EARTH_M3PS2 * R_EARTH_M**2
 
 
@@ -182,12 +177,8 @@ def drag_accel(
 
 
 def rk8_step(f, t: float, y: np.ndarray, h: float) -> np.ndarray:
-    """One fixed step of the 8th-order Dormand-Prince Runge-Kutta (DOP853 tableau) of y' = f(t, y)."""
-    k = np.empty((_N_STAGES, y.size))
-    k[0] = f(t, y)
-    for s in range(1, _N_STAGES):
-        k[s] = f(t + _RK_C[s] * h, y + h * (_RK_A[s, :s] @ k[:s]))
-    return y + h * (_RK_B @ k)
+    """One fixed step of the 8th-order Dormand-Prince Runge-Kutta (DOP853 tableau, `rk_tableau`) of y' = f(t, y)."""
+    return rk_step(f, t, y, h)
 
 
 # --------------------------------------------------------------------------------------- plant
@@ -300,15 +291,7 @@ class AbsoluteJ2Plant:
         Angle from the ascending node to r in the orbit plane; it differs from the mean argument of
         latitude of the linear model by J2 short-period terms (~1e-3 rad at 500 km).
         """
-        r, v = self._y[0, :3], self._y[0, 3:]
-        h = cross(r, v)
-        h_hat = h / np.linalg.norm(h)
-        node = np.array([-h[1], h[0], 0.0])
-        node_norm = np.linalg.norm(node)
-        if node_norm < 1e-12 * np.linalg.norm(h):  # equatorial: measure from ECI x
-            return float(np.mod(np.arctan2(r[1], r[0]) * np.sign(h[2]), 2.0 * np.pi))
-        node /= node_norm
-        return float(np.mod(np.arctan2(np.dot(cross(node, r), h_hat), np.dot(node, r)), 2.0 * np.pi))
+        return argument_of_latitude(self._y[0, :3], self._y[0, 3:])
 
     def relative_lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 3) [m] and velocities (N, 3) [m/s] relative to the reference, in its rotating

@@ -92,3 +92,20 @@ def lvlh_vector_to_eci(r_m: np.ndarray, v_mps: np.ndarray, vec_lvlh: np.ndarray)
     c_v = f_y_h * r_norm
     c_h = vec_lvlh[..., 2] * inv_h
     return c_r[..., None] * r_m + c_v[..., None] * v_mps + c_h[..., None] * h
+
+
+def argument_of_latitude(r_m: np.ndarray, v_mps: np.ndarray) -> float:
+    """Osculating (true) argument of latitude of one body (r, v shape (3,)), in [0, 2 pi).
+
+    Angle from the ascending node n = z_ECI x h to r in the orbit plane (Vallado sec. 2.5);
+    for an equatorial orbit it is measured from ECI x (true longitude).
+    """
+    r, v = r_m, v_mps
+    h = cross(r, v)
+    h_hat = h / np.linalg.norm(h)
+    node = np.array([-h[1], h[0], 0.0])
+    node_norm = np.linalg.norm(node)
+    if node_norm < 1e-12 * np.linalg.norm(h):  # equatorial: measure from ECI x
+        return float(np.mod(np.arctan2(r[1], r[0]) * np.sign(h[2]), 2.0 * np.pi))
+    node /= node_norm
+    return float(np.mod(np.arctan2(np.dot(cross(node, r), h_hat), np.dot(node, r)), 2.0 * np.pi))

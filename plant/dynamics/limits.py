@@ -1,0 +1,64 @@
+"""Actuator limits on force, acceleration or torque commands, pure functions over (N, 3) arrays.
+
+Two models (issue 11, per-spacecraft actuator limits):
+- `per_axis`: each body axis saturates on its own at +-max (three opposed thruster pairs or
+  three reaction wheels): u_i <- clip(u_i, -max_i, max_i). The direction of the command may turn.
+- `norm`: the vector is scaled down to the ball |u| <= max, direction kept (one gimballed
+  thruster, or a torque budget shared by the axes): u <- u min(1, max/|u|).
+`max` is a scalar, one value per craft (N,), or, for `per_axis`, one value per craft and axis (N, 3).
+"""
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+LimitMode = Literal["per_axis", "norm"]
+LIMIT_MODES: tuple[str, ...] = ("per_axis", "norm")
+
+
+def _check_max(max_value: float | np.ndarray) -> np.ndarray:
+    m = np.asarray(max_value, dtype=float)
+    if np.any(~np.isfinite(m)) or np.any(m < 0.0):
+        raise ValueError(f"actuator limit must be finite and >= 0, got {max_value!r}")
+    return m
+
+
+def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray:
+    """Saturate each axis: clip(u, -max, max); max scalar, (N,) or (N, 3). Returns a new (N, 3) array."""
+    u = np.asarray(command, dtype=float)
+    m = _check_max(max_value)
+    if m.ndim == 1:
+        m = m[:, None]
+    return np.clip(u, -m, m)
+
+
+def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray:
+    """Scale each row into the ball |u| <= max, direction kept; max scalar or (N,). Returns a new array."""
+    u = np.asarray(command, dtype=float)
+    m = _check_max(max_value)
+    if m.ndim > 1:
+        raise ValueError(f"a norm limit is one value per craft, got shape {m.shape}")
+    norm = np.linalg.norm(u, axis=-1)
+    over = norm > m
+    scale = np.ones_like(norm)
+    np.divide(np.broadcast_to(m, norm.shape), norm, out=scale, where=over)
+    return u * scale[..., None]
+
+
+def limit_command(command: np.ndarray, max_value: float | np.ndarray, mode: str) -> np.ndarray:
+    """`limit_per_axis` or `limit_norm` by name (`LIMIT_MODES`)."""
+    if mode == "per_axis":
+        return limit_per_axis(command, max_value)
+    if mode == "norm":
+        return limit_norm(command, max_value)
+    raise ValueError(f"unknown actuator limit mode {mode!r}; known: {', '.join(LIMIT_MODES)}")
+
+
+def force_to_accel(force_n: np.ndarray, mass_kg: float | np.ndarray) -> np.ndarray:
+    """a = F / m per craft; force (N, 3) [N], mass scalar or (N,) [kg] (constant mass)."""
+    m = np.asarray(mass_kg, dtype=float)
+    if np.any(~(m > 0.0)):
+        raise ValueError(f"mass_kg must be > 0, got {mass_kg!r}")
+    f = np.asarray(force_n, dtype=float)
+    return f / (m[..., None] if m.ndim else m)

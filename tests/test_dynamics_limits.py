@@ -1,0 +1,52 @@
+"""Actuator limits (plant/dynamics/limits.py) against hand-computed cases."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from plant.dynamics.limits import force_to_accel, limit_command, limit_norm, limit_per_axis
+
+
+def test_per_axis_clips_each_axis() -> None:
+    u = np.array([[3.0, -4.0, 0.5], [0.1, 0.2, -0.3]])
+    np.testing.assert_array_equal(limit_per_axis(u, 1.0), [[1.0, -1.0, 0.5], [0.1, 0.2, -0.3]])
+    np.testing.assert_array_equal(limit_per_axis(u, np.array([2.0, 0.15])), [[2.0, -2.0, 0.5], [0.1, 0.15, -0.15]])
+    per = np.array([[1.0, 5.0, 0.1], [1.0, 1.0, 1.0]])
+    np.testing.assert_array_equal(limit_per_axis(u, per), [[1.0, -4.0, 0.1], [0.1, 0.2, -0.3]])
+
+
+def test_per_axis_equals_worlds_clip() -> None:
+    """Bit-identical to plant/world.py's np.clip(a, -max, max)."""
+    a = np.random.default_rng(0).normal(0, 2e-3, (50, 3))
+    assert np.array_equal(limit_per_axis(a, 1e-3), np.clip(a, -1e-3, 1e-3))
+
+
+def test_norm_keeps_direction_and_caps_magnitude() -> None:
+    u = np.array([[3.0, -4.0, 0.0], [0.1, 0.2, -0.2], [0.0, 0.0, 0.0]])
+    out = limit_norm(u, 1.0)
+    np.testing.assert_allclose(out[0], [0.6, -0.8, 0.0], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(out[1:], u[1:])  # under the limit (|u| = 0.3) and zero untouched
+    out = limit_norm(u, np.array([10.0, 0.15, 1.0]))
+    np.testing.assert_array_equal(out[0], u[0])
+    np.testing.assert_allclose(np.linalg.norm(out[1]), 0.15, rtol=1e-15)
+    np.testing.assert_allclose(out[1] / 0.15, u[1] / 0.3, rtol=1e-15)
+
+
+def test_by_name_and_errors() -> None:
+    u = np.array([[2.0, 0.0, 2.0]])
+    np.testing.assert_array_equal(limit_command(u, 1.0, "per_axis"), [[1.0, 0.0, 1.0]])
+    np.testing.assert_allclose(limit_command(u, 1.0, "norm"), [[2**-0.5, 0.0, 2**-0.5]], rtol=1e-15)
+    with pytest.raises(ValueError, match="unknown actuator limit mode 'box'"):
+        limit_command(u, 1.0, "box")
+    with pytest.raises(ValueError, match=">= 0"):
+        limit_norm(u, -1.0)
+    with pytest.raises(ValueError, match="one value per craft"):
+        limit_norm(u, np.ones((1, 3)))
+
+
+def test_force_to_accel() -> None:
+    f = np.array([[10.0, 0.0, -5.0], [1.0, 1.0, 1.0]])
+    np.testing.assert_array_equal(force_to_accel(f, np.array([100.0, 2.0])), [[0.1, 0.0, -0.05], [0.5, 0.5, 0.5]])
+    np.testing.assert_array_equal(force_to_accel(f, 10.0), f / 10.0)
+    with pytest.raises(ValueError, match="mass_kg must be > 0"):
+        force_to_accel(f, np.array([1.0, 0.0]))
