@@ -76,14 +76,30 @@ ControllerFactory = Callable[[str, OrbitInfo, dict[str, Any]], Controller]
 """(spacecraft id, orbit, scenario `controller` params) -> controller."""
 
 _REGISTRY: dict[str, ControllerFactory] = {}
+_VALIDATORS: dict[str, Callable[[dict[str, Any]], Any]] = {}
 
 
-def register(name: str) -> Callable[[ControllerFactory], ControllerFactory]:
+def register(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
+             ) -> Callable[[ControllerFactory], ControllerFactory]:
+    """Register a controller factory under `name`; `validate(params)` (optional) raises ValueError
+    or TypeError naming a bad or unknown parameter, so the scenario loader rejects it at load time
+    instead of every agent failing at start."""
     def deco(factory: ControllerFactory) -> ControllerFactory:
         _REGISTRY[name] = factory
+        if validate is not None:
+            _VALIDATORS[name] = validate
         return factory
 
     return deco
+
+
+def validate_params(name: str, params: dict[str, Any]) -> None:
+    """Check a controller's params with its registered validator (no-op when it has none)."""
+    from agent import controllers  # noqa: F401  (registers the built-in controllers)
+
+    check = _VALIDATORS.get(name)
+    if check is not None:
+        check(dict(params))
 
 
 def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:

@@ -48,7 +48,19 @@ def _null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> NullControlle
     return NullController()
 
 
-@register("drift-null")
+def _check_drift_null(params: dict[str, Any]) -> None:
+    unknown = sorted(set(params) - {"gain_per_s", "max_accel_mps2"})
+    if unknown:
+        raise ValueError(f"unknown parameter {unknown[0]!r}; known: ['gain_per_s', 'max_accel_mps2']")
+
+
+def _check_sabatini(params: dict[str, Any]) -> None:
+    from agent.behaviour.sabatini import SabatiniParams
+
+    SabatiniParams.from_dict(dict(params))
+
+
+@register("drift-null", validate=_check_drift_null)
 def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNullController:
     return DriftNullController(
         orbit,
@@ -57,7 +69,7 @@ def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNu
     )
 
 
-@register("sabatini")
+@register("sabatini", validate=_check_sabatini)
 def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
     """Behavioural swarm keeping of paper 002 (agent/behaviour/sabatini.py); scipy is imported on use."""
     from agent.behaviour.sabatini import make_sabatini

@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
 from mcap.writer import CompressionType, Writer
@@ -107,6 +107,20 @@ class McapRecorder:
         self.by_topic[key] = self.by_topic.get(key, 0) + 1
         self.bytes_by_topic[key] = self.bytes_by_topic.get(key, 0) + len(payload)
 
+    def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
+        """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully
+        resolved configuration as JSON, key "json"), and the validated scenario document as the
+        attachment "scenario.json" (DESIGN, MCAP contract): a recording needs nothing else."""
+        import json
+
+        self._w.add_metadata("swarmhil.run", {"run": self.run, "software_version": str(config.get("software_version")),
+                                              "scenario": str(config.get("run", {}).get("name")),
+                                              "scenario_file": str(config.get("scenario_file"))})
+        self._w.add_metadata("swarmhil.config", {"json": json.dumps(config, default=float)})
+        if document is not None:
+            self._w.add_attachment(create_time=time.time_ns(), log_time=0, name="scenario.json",
+                                   media_type="application/json", data=json.dumps(document, indent=1).encode())
+
     def close(self) -> None:
         if self._closed:
             return
@@ -118,10 +132,13 @@ class McapRecorder:
 class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer."""
 
-    def __init__(self, bus: Bus, run: str, path: str | Path) -> None:
+    def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
+                 document: dict[str, Any] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.rec = McapRecorder(path, run)
+        if config is not None:
+            self.rec.describe_run(config, document)
         self._sub = bus.subscribe(self.keys.all, self.rec.write)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))
 

@@ -30,18 +30,22 @@ def main(verbose: int) -> None:
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
+@click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
+              help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, **viz: Any) -> None:
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, sets: tuple[str, ...],
+        **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
     from deploy.scenario import ScenarioError, load_scenario
 
     try:
-        sc = load_scenario(scenario).with_overrides(duration_s=duration, seed=seed, mode=mode, speed=speed)
-    except ScenarioError as exc:
-        raise click.ClickException(str(exc)) from None
+        sc = load_scenario(scenario, sets).with_overrides(duration_s=duration, seed=seed, mode=mode, speed=speed)
+    except ScenarioError as exc:  # one line naming the field, exit code 2 (usage error), no traceback
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
     rid = run_id or new_run_id(sc.name)
     out_dir = Path(out) if out else Path("runs") / rid
     progress = not no_progress and sys.stderr.isatty()

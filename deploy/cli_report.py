@@ -45,16 +45,14 @@ def parse_values(text: str) -> list[Any]:
 
 
 def set_param(doc: dict[str, Any], param: str, value: Any) -> dict[str, Any]:
-    """A copy of the scenario document with doc[a][b]... = value for param 'a.b...'."""
-    doc = copy.deepcopy(doc)
-    keys = param.split(".")
-    node = doc
-    for k in keys[:-1]:
-        node = node.setdefault(k, {})
-        if not isinstance(node, dict):
-            raise click.BadParameter(f"{param}: {k} is not a table in the scenario")
-    node[keys[-1]] = value
-    return doc
+    """A copy of the scenario document with doc[a][b]... = value for param 'a.b...' (the path rules
+    of `--set`, deploy/overrides.py)."""
+    from deploy.overrides import OverrideError, set_path
+
+    try:
+        return set_path(doc, param, value)
+    except OverrideError as exc:
+        raise click.BadParameter(str(exc)) from None
 
 
 def _label(param: str, value: Any, seed: int | None) -> str:
@@ -64,7 +62,7 @@ def _label(param: str, value: Any, seed: int | None) -> str:
 
 
 def run_case(scenario_path: str, param: str, value: Any, seed: int | None, duration_s: float | None,
-             out_dir: str, run_id: str, figures: bool = True) -> dict[str, Any]:
+             out_dir: str, run_id: str, figures: bool = True, sets: tuple[str, ...] = ()) -> dict[str, Any]:
     """One sweep case (in a pool worker): in-process run, then its report. Errors are returned."""
     import tomllib
 
@@ -76,8 +74,11 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
     case: dict[str, Any] = {"value": value, "seed": seed, "dir": out_dir, "run": run_id}
     t0 = time.monotonic()
     try:
-        doc = set_param(tomllib.loads(Path(scenario_path).read_text()), param, value)
+        from deploy.overrides import apply_sets
+
+        doc = set_param(apply_sets(tomllib.loads(Path(scenario_path).read_text()), list(sets)), param, value)
         sc = parse_scenario(doc, Path(scenario_path).name).with_overrides(duration_s=duration_s, seed=seed)
+        sc.sets = tuple(sets) + (f"{param}={json.dumps(value)}",)
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / "scenario_doc.json").write_text(json.dumps(doc, indent=1, default=str))
@@ -142,8 +143,10 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> N
 @click.option("--duration", type=float, help="Simulated seconds (overrides [run].duration_s).")
 @click.option("--case-reports/--no-case-reports", default=True, show_default=True,
               help="Write each case's own report (figures); the metrics are always computed.")
+@click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
+              help="Override a scenario field for every case (repeatable; value parsed as TOML).")
 def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: str | None, jobs: int,
-          duration: float | None, case_reports: bool) -> None:
+          duration: float | None, case_reports: bool, sets: tuple[str, ...]) -> None:
     """Run SCENARIO once per value of --param (in-process batch runs in parallel) and write one report."""
     import multiprocessing as mp
     import tomllib
@@ -155,12 +158,16 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
 
     values = parse_values(values_text)
     seed_list: list[int | None] = [None] if not seeds else [int(s) for s in seeds.split(",")]
-    doc = tomllib.loads(Path(scenario).read_text())
+    from deploy.overrides import OverrideError, apply_sets
+
     try:  # fail fast on a bad parameter or value, before starting anything
+        doc = apply_sets(tomllib.loads(Path(scenario).read_text()), list(sets))
         for v in values:
             parse_scenario(set_param(doc, param, v), Path(scenario).name)
-    except ScenarioError as exc:
-        raise click.ClickException(str(exc)) from None
+    except (ScenarioError, OverrideError, click.BadParameter, tomllib.TOMLDecodeError) as exc:
+        msg = exc.format_message() if isinstance(exc, click.BadParameter) else str(exc)
+        click.echo(f"error: {msg}", err=True)
+        sys.exit(2)
     name = doc.get("run", {}).get("name", Path(scenario).stem)
     out_dir = Path(out) if out else Path("runs") / f"sweep-{new_run_id(name)}"
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -174,7 +181,7 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
             d = out_dir / _label(param, v, s)
             rid = f"{new_run_id(name)}-c{i:02d}"
             futs[pool.submit(run_case, str(Path(scenario).resolve()), param, v, s, duration, str(d), rid,
-                             case_reports)] = i
+                             case_reports, tuple(sets))] = i
         for f in as_completed(futs):
             r = f.result()
             results[futs[f]] = r

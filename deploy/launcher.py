@@ -25,7 +25,7 @@ from tqdm import tqdm
 from bus import swarmhil_pb2 as pb
 from bus.keys import Keys
 from deploy.companions import enabled_companions
-from deploy.scenario import Scenario
+from deploy.scenario import Scenario, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
 
@@ -63,6 +63,7 @@ def _base_summary(sc: Scenario, run: str, mode_label: str) -> dict[str, Any]:
         "reference_orbit": {"semi_major_axis_m": sc.orbit.semi_major_axis_m,
                             "mean_motion_radps": sc.orbit.mean_motion_radps,
                             "inclination_deg": sc.orbit.inclination_rad * 57.29577951308232},
+        "config": sc.resolved(),  # the fully resolved configuration (also MCAP metadata "swarmhil.config")
     }
 
 
@@ -115,7 +116,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     wall0 = time.monotonic()
     bus = MemoryBus()
     opts = opts or {}
-    rec = RecorderNode(bus, run, out / "run.mcap")
+    rec = RecorderNode(bus, run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
     comps = enabled_companions(sc, opts)
     plant = PlantNode(bus, run, sc, expect_processes=("recorder", *[c.name for c in comps]),
                       barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update)
@@ -147,7 +148,8 @@ def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
 
         perception = Perception(orbit.semi_major_axis_m, orbit.mean_motion_radps, nav_config(sc.sections.get("nav")),
                                 sc.camera)
-    return AgentNode(bus, run, sid, controller=sc.controller, orbit=orbit, params=sc.controller_params,
+    controller, params = sc.controller_of(sid)
+    return AgentNode(bus, run, sid, controller=controller, orbit=orbit, params=params,
                      sense_kind=sc.sensing["kind"], beacon=beacon_from_scenario(sc, sid), perception=perception,
                      decision_period_steps=sc.decision_period_steps)
 
@@ -215,6 +217,9 @@ class MultiProcessRun:
 
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
+        # every child reads the one validated document (after --set), not the user's file
+        (self.out / "scenario.json").write_text(json.dumps(resolved_document(self.sc), indent=1))
+        self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
         router_ep = endpoint(free_loopback_port())

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
-from deploy.scenario import load_scenario
+from deploy.scenario import load_scenario, resolved_document
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
         from bus.recorder import RecorderNode
 
         bus = ZenohBus(args.router)
-        node = RecorderNode(bus, args.run, out / "run.mcap")
+        node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
         stop.wait()
         stats = node.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))

@@ -17,8 +17,9 @@ from bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
-    "spacecraft", "link", "beacon", "nav", "time", "viz",
+    "spacecraft", "body", "link", "beacon", "nav", "time", "viz",
 }
+PROPAGATORS = ("linear", "j2", "cw", "inertial")  # plant/dynamics/propagator.py
 
 
 class ScenarioError(ValueError):
@@ -60,6 +61,63 @@ class Scenario:
     dead_after_missed: int
     decision_period_steps: int = 1
     sections: dict[str, Any] = field(default_factory=dict)  # raw tables for link, beacon, nav, viz
+    spacecraft: list[Any] = field(default_factory=list)     # plant.bodies.SpacecraftSpec, one per id
+    bodies: list[Any] = field(default_factory=list)         # plant.bodies.BodySpec
+    actuator_limit: str = "per_axis"
+    doc: dict[str, Any] = field(default_factory=dict)       # the document after --set, as validated
+    sets: tuple[str, ...] = ()                              # the --set overrides applied
+
+    def spec(self, sc_id: str) -> Any:
+        """The SpacecraftSpec of one spacecraft (generated ones get defaults)."""
+        for s in self.spacecraft:
+            if s.id == sc_id:
+                return s
+        raise KeyError(f"unknown spacecraft id {sc_id!r}")
+
+    def controller_of(self, sc_id: str) -> tuple[str, dict[str, Any]]:
+        """(controller name, params) of one spacecraft: its own, over the swarm's [controller]."""
+        s = self.spec(sc_id)
+        return (s.controller or self.controller), {**self.controller_params, **s.params}
+
+    def resolved(self) -> dict[str, Any]:
+        """The fully resolved configuration (defaults filled in), JSON-ready: what a recording carries."""
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            ver = version("swarmhil")
+        except PackageNotFoundError:
+            ver = "unknown"
+        link = None
+        if "link" in self.sections:
+            from bus.channel import link_enabled, parse_link_config
+
+            if link_enabled(self.sections["link"]):
+                link = parse_link_config(self.sections["link"], self.source, self.seed).to_dict()
+        return {
+            "software_version": ver,
+            "scenario_file": self.source,
+            "sets": list(self.sets),
+            "run": {"name": self.name, "duration_s": self.duration_s, "step_s": self.step_s, "seed": self.seed,
+                    "mode": self.mode, "speed": self.speed, "steps": self.steps},
+            "orbit": {"semi_major_axis_m": self.orbit.semi_major_axis_m,
+                      "inclination_deg": math.degrees(self.orbit.inclination_rad),
+                      "raan_deg": math.degrees(self.orbit.raan_rad), "u0_deg": math.degrees(self.orbit.u0_rad),
+                      "mean_motion_radps": self.orbit.mean_motion_radps},
+            "plant": {"fidelity": self.fidelity, "drag": self.drag},
+            "camera": dict(self.camera),
+            "actuator": {"max_accel_mps2": self.max_accel_mps2, "limit": self.actuator_limit},
+            "controller": {"name": self.controller, "params": self.controller_params,
+                           "decision_period_s": self.decision_period_steps * self.step_s},
+            "sensing": dict(self.sensing),
+            "time": {"lockstep_timeout_s": self.lockstep_timeout_s, "dead_after_missed": self.dead_after_missed},
+            "link": link,
+            "beacon": self.sections.get("beacon"),
+            "nav": self.sections.get("nav"),
+            "viz": self.sections.get("viz"),
+            "dispersion": self.sections.get("dispersion"),
+            "spacecraft": [{**s.model_dump(), "roe_m": [float(x) for x in r]} for s, r in zip(self.spacecraft, self.roe_m)],
+            "body": [b.model_dump() for b in self.bodies],
+        }
 
     @property
     def steps(self) -> int:
@@ -80,6 +138,7 @@ class Scenario:
             s.seed = int(seed)
             if self.sections.get("_generated"):
                 s.ids, s.roe_m = _generate(self.source, self.sections["dispersion"], s.seed, self)
+                s.spacecraft = _generated_specs(s.ids, s.roe_m)
         return s
 
 
@@ -133,18 +192,45 @@ def _roe6(src: str, where: str, value: Any) -> np.ndarray:
     return np.array([_num(src, f"{where}[{i}]", v) for i, v in enumerate(value)])
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> Scenario:
+    """Read a scenario (TOML, or the JSON a launcher writes for its children: {"source", "doc",
+    "sets"}), apply `--set` overrides, validate."""
+    import json
+
+    from deploy.overrides import OverrideError, apply_sets
+
     p = Path(path)
     src = p.name
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read scenario ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{src}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    applied: tuple[str, ...] = ()
+    if p.suffix == ".json":
+        try:
+            wrapped = json.loads(text)
+            doc, src, applied = wrapped["doc"], wrapped["source"], tuple(wrapped.get("sets", ()))
+        except (json.JSONDecodeError, KeyError, TypeError) as exc:
+            raise ScenarioError(f"{src}: not a resolved scenario document ({exc})") from None
+    else:
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ScenarioError(f"{src}: not valid TOML: {exc}") from None
     try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{src}: not valid TOML: {exc}") from None
-    return parse_scenario(doc, src)
+        doc = apply_sets(doc, list(sets))
+    except OverrideError as exc:
+        raise ScenarioError(f"{src}: {exc}") from None
+    sc = parse_scenario(doc, src)
+    sc.sets = applied + tuple(sets)
+    return sc
+
+
+def resolved_document(sc: Scenario) -> dict[str, Any]:
+    """What a launcher hands its children: the validated document after --set (JSON-ready)."""
+    return {"source": sc.source, "sets": list(sc.sets), "doc": sc.doc}
 
 
 def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
@@ -171,18 +257,17 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         u0_rad=math.radians(_num(src, "[orbit].u0_deg", o.get("u0_deg", 0.0))),
     )
     pl = _table(src, doc, "plant", {"fidelity", "drag"})
-    fidelity = _choice(src, "[plant].fidelity", pl.get("fidelity", "linear"), ("linear", "j2"))
-    drag = pl.get("drag")
-    if drag is not None and not isinstance(drag, dict):
-        raise _err(src, "[plant].drag", "must be a table (ballistic_coefficient_m2pkg, ...) or absent", drag)
-    cam = _table(src, doc, "camera", {"detection_range_m", "image_px", "focal_px", "frame_period_s"})
+    fidelity = _choice(src, "[plant].fidelity", pl.get("fidelity", "linear"), PROPAGATORS)
+    drag = _drag(src, pl.get("drag"))
+    cam = _table(src, doc, "camera", {"detection_range_m", "image_px", "focal_px"})
     camera = {
         "detection_range_m": _positive(src, "[camera].detection_range_m", cam.get("detection_range_m", 500.0)),
         "image_px": int(_positive(src, "[camera].image_px", cam.get("image_px", 1080))),
         "focal_px": _positive(src, "[camera].focal_px", cam.get("focal_px", 1000.0)),
     }
-    act = _table(src, doc, "actuator", {"max_accel_mps2"})
+    act = _table(src, doc, "actuator", {"max_accel_mps2", "limit"})
     max_accel = _positive(src, "[actuator].max_accel_mps2", act.get("max_accel_mps2", 1e-3))
+    limit = _choice(src, "[actuator].limit", act.get("limit", "per_axis"), ("per_axis", "norm"))
     ctl = _table(src, doc, "controller", {"name", "params", "decision_period_s"})
     from agent.controller import known_controllers
 
@@ -191,6 +276,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if not isinstance(params, dict):
         raise _err(src, "[controller].params", "must be a table", params)
     params = {"max_accel_mps2": max_accel, **params}
+    _check_params(src, "[controller.params]", controller, params)
     decision_period = _positive(src, "[controller].decision_period_s", ctl.get("decision_period_s", step))
     decision_steps = int(round(decision_period / step))
     if decision_steps < 1 or abs(decision_steps * step - decision_period) > 1e-9 * decision_period:
@@ -213,12 +299,15 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     timeout = _positive(src, "[time].lockstep_timeout_s", tm.get("lockstep_timeout_s", 5.0))
     dead_after = int(_positive(src, "[time].dead_after_missed", tm.get("dead_after_missed", 3)))
 
+    _beacon(src, doc)
+    _viz(src, doc)
     sc = Scenario(
         name=name, source=src, duration_s=duration, step_s=step, seed=seed, mode=mode, speed=speed,
         orbit=orbit, fidelity=fidelity, drag=drag, camera=camera, max_accel_mps2=max_accel,
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
         lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
+        actuator_limit=limit, doc=doc,
     )
     if "link" in doc:
         from bus.channel import LinkConfigError, parse_link_config
@@ -228,13 +317,119 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         except LinkConfigError as exc:
             raise ScenarioError(str(exc)) from None
     if "spacecraft" in doc:
-        sc.ids, sc.roe_m = _explicit(src, doc["spacecraft"])
+        sc.spacecraft = _explicit(src, doc["spacecraft"])
+        sc.ids = [s.id for s in sc.spacecraft]
+        sc.roe_m = _initial_roe(sc)
+        for s in sc.spacecraft:
+            if s.controller is not None:
+                name_ = _choice(src, f"[[spacecraft]] {s.id}.controller", s.controller, tuple(known_controllers()))
+                _check_params(src, f"[[spacecraft]] {s.id}.params", name_, {**params, **s.params})
     elif "dispersion" in doc:
         sc.sections["_generated"] = True
         sc.ids, sc.roe_m = _generate(src, doc["dispersion"], seed, sc)
+        sc.spacecraft = _generated_specs(sc.ids, sc.roe_m)
     else:
         raise ScenarioError(f"{src}: no spacecraft: give [[spacecraft]] tables (id, roe_m) or a [dispersion] table")
+    sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
     return sc
+
+
+def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
+    from plant.bodies import SpacecraftSpec
+
+    return [SpacecraftSpec(id=i, roe_m=[float(x) for x in r]) for i, r in zip(ids, roe_m)]
+
+
+def _initial_roe(sc: Scenario) -> np.ndarray:
+    """(N,6) ROE of every spacecraft: given, or mapped from a Cartesian LVLH state (exact inverse of
+    the linear map the `linear` and `j2` plants start from)."""
+    from plant.dynamics.roe_linear import lvlh_to_roe
+
+    rows = []
+    for s in sc.spacecraft:
+        if s.roe_m is not None:
+            rows.append(np.asarray(s.roe_m, float))
+        else:
+            rows.append(lvlh_to_roe(np.asarray([s.position_m], float), np.asarray([s.velocity_mps], float),
+                                    sc.orbit.u0_rad, sc.orbit.mean_motion_radps)[0])
+    return np.array(rows).reshape(-1, 6)
+
+
+def _check_params(src: str, where: str, controller: str, params: dict[str, Any]) -> None:
+    """Validate a controller's params with the check its registration provides (agent/controller.py)."""
+    from agent.controller import validate_params
+
+    try:
+        validate_params(controller, params)
+    except (ValueError, TypeError) as exc:
+        raise ScenarioError(f"{src}: {where} (controller {controller!r}): {exc}") from None
+
+
+def _drag(src: str, drag: Any) -> dict[str, Any] | None:
+    """[plant].drag: ballistic_coefficient_m2pkg (documented name; bc_m2pkg accepted), optional
+    reference coefficient and atmosphere; validated here, not at plant start."""
+    if drag is None:
+        return None
+    if not isinstance(drag, dict):
+        raise _err(src, "[plant].drag", "must be a table (ballistic_coefficient_m2pkg, ...) or absent", drag)
+    aliases = {"ballistic_coefficient_m2pkg": "bc_m2pkg", "reference_ballistic_coefficient_m2pkg": "bc_ref_m2pkg"}
+    known = {"bc_m2pkg", "bc_ref_m2pkg", "rho0_kgpm3", "h0_m", "scale_height_m", "rotating_atmosphere"} | set(aliases)
+    unknown = sorted(set(drag) - known)
+    if unknown:
+        raise _err(src, f"[plant].drag.{unknown[0]}", f"is not a known field; known: {sorted(known)}", drag[unknown[0]])
+    out: dict[str, Any] = {}
+    for k, v in drag.items():
+        name = aliases.get(k, k)
+        if name == "rotating_atmosphere":
+            if not isinstance(v, bool):
+                raise _err(src, f"[plant].drag.{k}", "must be true or false", v)
+            out[name] = v
+        elif name == "bc_m2pkg" and isinstance(v, list):
+            out[name] = [_num(src, f"[plant].drag.{k}[{i}]", x, lo=0.0) for i, x in enumerate(v)]
+        else:
+            out[name] = _num(src, f"[plant].drag.{k}", v, lo=0.0)
+    if "bc_m2pkg" not in out:
+        raise _err(src, "[plant].drag.ballistic_coefficient_m2pkg", "is required (C_D A / m, m^2/kg)", None)
+    return out
+
+
+def _beacon(src: str, doc: dict[str, Any]) -> None:
+    t = _table(src, doc, "beacon", {"enabled", "period_s", "include_estimates"})
+    if not t:
+        return
+    if not isinstance(t.get("enabled", True), bool):
+        raise _err(src, "[beacon].enabled", "must be true or false", t["enabled"])
+    if "period_s" not in t and t.get("enabled", True):
+        raise _err(src, "[beacon].period_s", "is required when [beacon] is enabled", None)
+    if "period_s" in t:
+        _positive(src, "[beacon].period_s", t["period_s"])
+    if not isinstance(t.get("include_estimates", False), bool):
+        raise _err(src, "[beacon].include_estimates", "must be true or false", t["include_estimates"])
+
+
+def _viz(src: str, doc: dict[str, Any]) -> None:
+    t = _table(src, doc, "viz", {"trail_s"})
+    if "trail_s" in t:
+        _positive(src, "[viz].trail_s", t["trail_s"])
+
+
+def _bodies(src: str, items: Any, ids: set[str]) -> list[Any]:
+    from pydantic import ValidationError
+
+    from plant.bodies import BodySpec, format_validation_error
+
+    if not isinstance(items, list):
+        raise _err(src, "[[body]]", "must be an array of tables", items)
+    out = []
+    for i, item in enumerate(items):
+        try:
+            b = BodySpec.model_validate(item)
+        except ValidationError as exc:
+            raise ScenarioError(format_validation_error(src, f"[[body]][{i}]", exc, BodySpec)) from None
+        if b.id in ids or b.id in {o.id for o in out}:
+            raise _err(src, f"[[body]][{i}].id", "is a duplicate of a spacecraft or body id", b.id)
+        out.append(b)
+    return out
 
 
 def check_name(src: str, name: Any) -> str:
@@ -244,31 +439,28 @@ def check_name(src: str, name: Any) -> str:
         raise _err(src, "[run].name", str(exc), name) from None
 
 
-def _explicit(src: str, items: Any) -> tuple[list[str], np.ndarray]:
+def _explicit(src: str, items: Any) -> list[Any]:
+    from pydantic import ValidationError
+
+    from plant.bodies import SpacecraftSpec, format_validation_error
+
     if not isinstance(items, list) or not items:
         raise _err(src, "[[spacecraft]]", "must be a non-empty array of tables", items)
-    ids: list[str] = []
-    roes = []
+    specs: list[Any] = []
     for i, item in enumerate(items):
         where = f"[[spacecraft]][{i}]"
         if not isinstance(item, dict):
             raise _err(src, where, "must be a table", item)
-        unknown = sorted(set(item) - {"id", "roe_m"})
-        if unknown:
-            raise _err(src, f"{where}.{unknown[0]}", "is not a known field; known: ['id', 'roe_m']", item[unknown[0]])
         if "id" not in item:
             raise _err(src, f"{where}.id", "is required", None)
         try:
-            sid = check_token(item["id"], "spacecraft id")
-        except ValueError as exc:
-            raise _err(src, f"{where}.id", str(exc), item["id"]) from None
-        if sid in ids:
-            raise _err(src, f"{where}.id", "is a duplicate", sid)
-        if sid.startswith(("plant", "recorder", "channel", "viz")):
-            raise _err(src, f"{where}.id", "must not start with a process name (plant, recorder, channel, viz)", sid)
-        ids.append(sid)
-        roes.append(_roe6(src, f"{where}.roe_m", item.get("roe_m")))
-    return ids, np.array(roes)
+            spec = SpacecraftSpec.model_validate(item)
+        except ValidationError as exc:
+            raise ScenarioError(format_validation_error(src, where, exc, SpacecraftSpec)) from None
+        if spec.id in {s.id for s in specs}:
+            raise _err(src, f"{where}.id", "is a duplicate", spec.id)
+        specs.append(spec)
+    return specs
 
 
 def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.ndarray]:
