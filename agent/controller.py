@@ -64,6 +64,7 @@ class Command:
     mode: str = "idle"
     decisions: list[Decision] = field(default_factory=list)
     transmissions: list[Transmission] = field(default_factory=list)
+    torque_nm: np.ndarray | None = None  # body-frame torque, where the scenario flies attitude
 
 
 class Controller(Protocol):
@@ -93,9 +94,26 @@ def register(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
     return deco
 
 
+def load_controllers() -> None:
+    """Import the built-in controllers and every mission package under agent/missions/ (each
+    registers its controllers by decorator when imported: adding a mission edits nothing here).
+    Lazy, because the missions import this module for `register`."""
+    import importlib
+    import pkgutil
+
+    from agent import controllers  # noqa: F401  (registers the built-in controllers)
+
+    try:
+        import agent.missions as missions
+    except ImportError:
+        return
+    for info in pkgutil.iter_modules(missions.__path__):
+        importlib.import_module(f"agent.missions.{info.name}")
+
+
 def validate_params(name: str, params: dict[str, Any]) -> None:
     """Check a controller's params with its registered validator (no-op when it has none)."""
-    from agent import controllers  # noqa: F401  (registers the built-in controllers)
+    load_controllers()
 
     check = _VALIDATORS.get(name)
     if check is not None:
@@ -103,7 +121,7 @@ def validate_params(name: str, params: dict[str, Any]) -> None:
 
 
 def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:
-    from agent import controllers  # noqa: F401  (registers the built-in controllers)
+    load_controllers()
 
     if name not in _REGISTRY:
         raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")
@@ -111,6 +129,6 @@ def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, A
 
 
 def known_controllers() -> list[str]:
-    from agent import controllers  # noqa: F401
+    load_controllers()
 
     return sorted(_REGISTRY)

@@ -15,18 +15,20 @@ import numpy as np
 from agent.controller import Command, Observation, OrbitInfo, make_controller
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header, vec
+from bus.codec import RejectedPacket, Rejections, arr, decode, header, measurements_to_dict, sense_type, vec
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.agent")
 
 
-def observation_from_rel(stim: pb.RelStimulus) -> Observation:
+def observation_from_rel(stim: pb.RelStimulus | pb.Measurements) -> Observation:
+    """RelStimulus, or Measurements (neighbours plus named arrays in `extra`), as an Observation."""
     ids = [nb.id for nb in stim.neighbours]
     pos = np.array([arr(nb.position_m) for nb in stim.neighbours]).reshape(-1, 3)
     vel = np.array([arr(nb.velocity_mps) for nb in stim.neighbours]).reshape(-1, 3)
+    extra = measurements_to_dict(stim) if isinstance(stim, pb.Measurements) else {}
     return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad,
-                       neighbour_ids=ids, rel_position_m=pos, rel_velocity_mps=vel)
+                       neighbour_ids=ids, rel_position_m=pos, rel_velocity_mps=vel, extra=extra)
 
 
 class AgentNode:
@@ -68,7 +70,7 @@ class AgentNode:
         try:
             if key != self._sense_key:
                 raise RejectedPacket(f"stimulus on {key!r} is not for {self.id}")
-            stim = decode(pb.RelStimulus if self.sense_kind == "rel" else pb.SceneStimulus, payload, run=self.run)
+            stim = decode(sense_type(self.sense_kind), payload, run=self.run)
         except RejectedPacket as exc:
             self.rejections.add(key, str(exc))
             return
@@ -125,8 +127,10 @@ class AgentNode:
                 self._fault("controller", step)
                 cmd = Command(accel_mps2=np.zeros(3), mode="fault")
             a = np.asarray(cmd.accel_mps2, dtype=float)
-            if a.shape != (3,) or not np.all(np.isfinite(a)):
-                log.error("%s: controller %s returned %r; commanding zero", self.id, self.controller.name, a)
+            tq = None if cmd.torque_nm is None else np.asarray(cmd.torque_nm, dtype=float)
+            if a.shape != (3,) or not np.all(np.isfinite(a)) or (tq is not None and (tq.shape != (3,) or not np.all(np.isfinite(tq)))):
+                log.error("%s: controller %s returned accel %r, torque %r; commanding zero", self.id,
+                          self.controller.name, a, tq)
                 cmd = Command(accel_mps2=np.zeros(3), mode="fault")
             self.command = cmd
         compute_s = time.perf_counter() - t0
@@ -139,6 +143,8 @@ class AgentNode:
             self._transmit(step, t, tx)
         act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=vec(self.command.accel_mps2),
                                  controller=self.controller.name, isl_tx_count=len(txs))
+        if self.command.torque_nm is not None:
+            act.torque_nm.CopyFrom(vec(self.command.torque_nm))
         self.bus.publish(self._act_key, act.SerializeToString())
         tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
                           controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),

@@ -34,6 +34,29 @@ TYPE_OF_KIND: dict[str, type[Message]] = {
 TYPE_OF_SENSE: dict[str, type[Message]] = {"rel": pb.RelStimulus, "scene": pb.SceneStimulus}
 
 
+def sense_type(kind: str) -> type[Message]:
+    """Message type of a sensing kind: `rel` and `scene` have their own; every other (mission)
+    kind carries `Measurements` (plant/sensing/)."""
+    return TYPE_OF_SENSE.get(kind, pb.Measurements)
+
+
+def measurements_to_dict(msg: "pb.Measurements") -> dict[str, np.ndarray]:
+    """Named arrays of a Measurements message: key `name`, or `name/subject` when it has a subject."""
+    out: dict[str, np.ndarray] = {}
+    for m in msg.items:
+        a = np.asarray(m.values, dtype=float)
+        if len(m.shape):
+            a = a.reshape(tuple(m.shape))
+        out[f"{m.name}/{m.subject}" if m.subject else m.name] = a
+    return out
+
+
+def add_measurement(msg: "pb.Measurements", name: str, values: Sequence[float] | np.ndarray, subject: str = "") -> None:
+    """Append one named array (any shape) to a Measurements message."""
+    a = np.asarray(values, dtype=float)
+    msg.items.add(name=name, subject=subject, values=a.ravel().tolist(), shape=list(a.shape) if a.ndim != 1 else [])
+
+
 class RejectedPacket(ValueError):
     """A received payload that must not be acted on."""
 

@@ -19,7 +19,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import TYPE_OF_KIND, TYPE_OF_SENSE
+from bus.codec import TYPE_OF_KIND, sense_type
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -33,7 +33,7 @@ def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     except ValueError:
         return None
     if kind == "sense":
-        return TYPE_OF_SENSE.get(sense or "")
+        return sense_type(sense or "")
     if kind == "tm_image":
         from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 

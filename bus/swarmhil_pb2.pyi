@@ -57,7 +57,7 @@ class Tick(_message.Message):
     def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., step_s: _Optional[float] = ..., u_rad: _Optional[float] = ..., alive: _Optional[_Iterable[str]] = ..., final: _Optional[bool] = ...) -> None: ...
 
 class BodyState(_message.Message):
-    __slots__ = ("id", "position_m", "velocity_mps", "delta_v_mps", "alive", "attitude", "angular_velocity_radps", "accel_cmd_mps2", "kind", "roe_m")
+    __slots__ = ("id", "position_m", "velocity_mps", "delta_v_mps", "alive", "attitude", "angular_velocity_radps", "accel_cmd_mps2", "kind", "roe_m", "torque_cmd_nm")
     ID_FIELD_NUMBER: _ClassVar[int]
     POSITION_M_FIELD_NUMBER: _ClassVar[int]
     VELOCITY_MPS_FIELD_NUMBER: _ClassVar[int]
@@ -68,6 +68,7 @@ class BodyState(_message.Message):
     ACCEL_CMD_MPS2_FIELD_NUMBER: _ClassVar[int]
     KIND_FIELD_NUMBER: _ClassVar[int]
     ROE_M_FIELD_NUMBER: _ClassVar[int]
+    TORQUE_CMD_NM_FIELD_NUMBER: _ClassVar[int]
     id: str
     position_m: Vector3
     velocity_mps: Vector3
@@ -78,7 +79,8 @@ class BodyState(_message.Message):
     accel_cmd_mps2: Vector3
     kind: str
     roe_m: _containers.RepeatedScalarFieldContainer[float]
-    def __init__(self, id: _Optional[str] = ..., position_m: _Optional[_Union[Vector3, _Mapping]] = ..., velocity_mps: _Optional[_Union[Vector3, _Mapping]] = ..., delta_v_mps: _Optional[float] = ..., alive: _Optional[bool] = ..., attitude: _Optional[_Union[Quaternion, _Mapping]] = ..., angular_velocity_radps: _Optional[_Union[Vector3, _Mapping]] = ..., accel_cmd_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., kind: _Optional[str] = ..., roe_m: _Optional[_Iterable[float]] = ...) -> None: ...
+    torque_cmd_nm: Vector3
+    def __init__(self, id: _Optional[str] = ..., position_m: _Optional[_Union[Vector3, _Mapping]] = ..., velocity_mps: _Optional[_Union[Vector3, _Mapping]] = ..., delta_v_mps: _Optional[float] = ..., alive: _Optional[bool] = ..., attitude: _Optional[_Union[Quaternion, _Mapping]] = ..., angular_velocity_radps: _Optional[_Union[Vector3, _Mapping]] = ..., accel_cmd_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., kind: _Optional[str] = ..., roe_m: _Optional[_Iterable[float]] = ..., torque_cmd_nm: _Optional[_Union[Vector3, _Mapping]] = ...) -> None: ...
 
 class Truth(_message.Message):
     __slots__ = ("header", "bodies", "u_rad", "semi_major_axis_m", "mean_motion_radps")
@@ -137,16 +139,42 @@ class SceneStimulus(_message.Message):
     def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., u_rad: _Optional[float] = ..., bodies: _Optional[_Iterable[_Union[ScenePose, _Mapping]]] = ..., pointing_error_rad: _Optional[_Union[Vector3, _Mapping]] = ...) -> None: ...
 
 class ActuatorCommand(_message.Message):
-    __slots__ = ("header", "accel_mps2", "controller", "isl_tx_count")
+    __slots__ = ("header", "accel_mps2", "controller", "isl_tx_count", "torque_nm")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     ACCEL_MPS2_FIELD_NUMBER: _ClassVar[int]
     CONTROLLER_FIELD_NUMBER: _ClassVar[int]
     ISL_TX_COUNT_FIELD_NUMBER: _ClassVar[int]
+    TORQUE_NM_FIELD_NUMBER: _ClassVar[int]
     header: Header
     accel_mps2: Vector3
     controller: str
     isl_tx_count: int
-    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., controller: _Optional[str] = ..., isl_tx_count: _Optional[int] = ...) -> None: ...
+    torque_nm: Vector3
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., controller: _Optional[str] = ..., isl_tx_count: _Optional[int] = ..., torque_nm: _Optional[_Union[Vector3, _Mapping]] = ...) -> None: ...
+
+class Measurement(_message.Message):
+    __slots__ = ("name", "subject", "values", "shape")
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    SUBJECT_FIELD_NUMBER: _ClassVar[int]
+    VALUES_FIELD_NUMBER: _ClassVar[int]
+    SHAPE_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    subject: str
+    values: _containers.RepeatedScalarFieldContainer[float]
+    shape: _containers.RepeatedScalarFieldContainer[int]
+    def __init__(self, name: _Optional[str] = ..., subject: _Optional[str] = ..., values: _Optional[_Iterable[float]] = ..., shape: _Optional[_Iterable[int]] = ...) -> None: ...
+
+class Measurements(_message.Message):
+    __slots__ = ("header", "u_rad", "neighbours", "items")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    U_RAD_FIELD_NUMBER: _ClassVar[int]
+    NEIGHBOURS_FIELD_NUMBER: _ClassVar[int]
+    ITEMS_FIELD_NUMBER: _ClassVar[int]
+    header: Header
+    u_rad: float
+    neighbours: _containers.RepeatedCompositeFieldContainer[RelativeState]
+    items: _containers.RepeatedCompositeFieldContainer[Measurement]
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., u_rad: _Optional[float] = ..., neighbours: _Optional[_Iterable[_Union[RelativeState, _Mapping]]] = ..., items: _Optional[_Iterable[_Union[Measurement, _Mapping]]] = ...) -> None: ...
 
 class NeighbourDecision(_message.Message):
     __slots__ = ("neighbour", "behaviour", "d_min_m", "roe_rel_m", "accel_mps2")

@@ -64,6 +64,7 @@ class Scenario:
     spacecraft: list[Any] = field(default_factory=list)     # plant.bodies.SpacecraftSpec, one per id
     bodies: list[Any] = field(default_factory=list)         # plant.bodies.BodySpec
     actuator_limit: str = "per_axis"
+    plant_options: dict[str, Any] = field(default_factory=dict)  # frame_origin, j2, atmospheric_drag, ...
     doc: dict[str, Any] = field(default_factory=dict)       # the document after --set, as validated
     sets: tuple[str, ...] = ()                              # the --set overrides applied
 
@@ -103,7 +104,7 @@ class Scenario:
                       "inclination_deg": math.degrees(self.orbit.inclination_rad),
                       "raan_deg": math.degrees(self.orbit.raan_rad), "u0_deg": math.degrees(self.orbit.u0_rad),
                       "mean_motion_radps": self.orbit.mean_motion_radps},
-            "plant": {"fidelity": self.fidelity, "drag": self.drag},
+            "plant": {"fidelity": self.fidelity, "drag": self.drag, **self.plant_options},
             "camera": dict(self.camera),
             "actuator": {"max_accel_mps2": self.max_accel_mps2, "limit": self.actuator_limit},
             "controller": {"name": self.controller, "params": self.controller_params,
@@ -237,7 +238,8 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:
         raise _err(src, f"[{unknown[0]}]", f"is not a known section; known: {sorted(SECTIONS)}", "…")
-    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description"})
+    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins"})
+    _import_plugins(src, run.get("plugins", []))
     name = check_name(src, run.get("name", Path(src).stem))
     duration = _positive(src, "[run].duration_s", run.get("duration_s", 600.0))
     step = _positive(src, "[run].step_s", run.get("step_s", 10.0))
@@ -256,9 +258,11 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         raan_rad=math.radians(_num(src, "[orbit].raan_deg", o.get("raan_deg", 0.0))),
         u0_rad=math.radians(_num(src, "[orbit].u0_deg", o.get("u0_deg", 0.0))),
     )
-    pl = _table(src, doc, "plant", {"fidelity", "drag"})
+    pl = _table(src, doc, "plant", {"fidelity", "drag", "frame_origin", "j2", "atmospheric_drag",
+                                    "max_integration_step_s"})
     fidelity = _choice(src, "[plant].fidelity", pl.get("fidelity", "linear"), PROPAGATORS)
     drag = _drag(src, pl.get("drag"))
+    plant_options = _plant_options(src, pl, fidelity)
     cam = _table(src, doc, "camera", {"detection_range_m", "image_px", "focal_px"})
     camera = {
         "detection_range_m": _positive(src, "[camera].detection_range_m", cam.get("detection_range_m", 500.0)),
@@ -281,13 +285,25 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     decision_steps = int(round(decision_period / step))
     if decision_steps < 1 or abs(decision_steps * step - decision_period) > 1e-9 * decision_period:
         raise _err(src, "[controller].decision_period_s", f"must be a whole number of steps of {step} s", decision_period)
-    sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad"})
+    sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad",
+                                        "params"})
+    from plant.sensing import known_sensing, validate_sensing_params
+
     sensing = {
-        "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), ("rel", "scene")),
+        "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), tuple(known_sensing())),
         "roe_noise_fraction": _num(src, "[sensing].roe_noise_fraction", sens.get("roe_noise_fraction", 0.0), 0.0, 10.0),
         "pointing_error_rad": _vec3(src, "[sensing].pointing_error_rad", sens.get("pointing_error_rad", [0.0, 0.0, 0.0])),
         "pointing_jitter_rad": _num(src, "[sensing].pointing_jitter_rad", sens.get("pointing_jitter_rad", 0.0), 0.0, 0.1),
     }
+    sparams = sens.get("params", {})
+    if not isinstance(sparams, dict):
+        raise _err(src, "[sensing.params]", "must be a table", sparams)
+    try:
+        validate_sensing_params(sensing["kind"], sparams)
+    except ValueError as exc:
+        raise ScenarioError(f"{src}: [sensing.params] (kind {sensing['kind']!r}): {_one_line(exc)}") from None
+    if sparams:
+        sensing["params"] = dict(sparams)
     if sensing["kind"] == "scene":
         from agent.perception import nav_config
 
@@ -307,7 +323,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
         lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
-        actuator_limit=limit, doc=doc,
+        actuator_limit=limit, doc=doc, plant_options=plant_options,
     )
     if "link" in doc:
         from bus.channel import LinkConfigError, parse_link_config
@@ -331,7 +347,47 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     else:
         raise ScenarioError(f"{src}: no spacecraft: give [[spacecraft]] tables (id, roe_m) or a [dispersion] table")
     sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
+    cartesian = fidelity in ("cw", "inertial")
+    if not cartesian and (sc.bodies or any(s.inertia_kgm2 is not None for s in sc.spacecraft)):
+        raise _err(src, "[plant].fidelity", "must be 'cw' or 'inertial' for [[body]] tables or attitude "
+                                            "(inertia_kgm2)", fidelity)
+    origin = plant_options.get("frame_origin", "reference")
+    if origin != "reference" and origin not in sc.ids + [b.id for b in sc.bodies if b.motion.kind == "propagated"]:
+        raise _err(src, "[plant].frame_origin", "must be 'reference', a spacecraft id or a propagated body id", origin)
     return sc
+
+
+def _import_plugins(src: str, plugins: Any) -> None:
+    """[run].plugins: modules every process imports before building anything (a mission or a test
+    outside the source tree registers its controllers, sensing kinds and propagators there)."""
+    import importlib
+
+    if not isinstance(plugins, list) or not all(isinstance(m, str) for m in plugins):
+        raise _err(src, "[run].plugins", "must be a list of module names", plugins)
+    for m in plugins:
+        try:
+            importlib.import_module(m)
+        except Exception as exc:  # noqa: BLE001 - any import failure is a configuration error here
+            raise _err(src, "[run].plugins", f"module {m!r} does not import ({type(exc).__name__}: {exc})", m) from None
+
+
+def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any]:
+    """[plant] options of the Cartesian propagators (plant/mission_world.py)."""
+    out: dict[str, Any] = {}
+    if "frame_origin" in pl:
+        if not isinstance(pl["frame_origin"], str):
+            raise _err(src, "[plant].frame_origin", "must be 'reference' or an id", pl["frame_origin"])
+        out["frame_origin"] = pl["frame_origin"]
+    for flag in ("j2", "atmospheric_drag"):
+        if flag in pl:
+            if not isinstance(pl[flag], bool):
+                raise _err(src, f"[plant].{flag}", "must be true or false", pl[flag])
+            out[flag] = pl[flag]
+    if "max_integration_step_s" in pl:
+        out["max_integration_step_s"] = _positive(src, "[plant].max_integration_step_s", pl["max_integration_step_s"])
+    if out and fidelity != "inertial" and set(out) - {"frame_origin"}:
+        raise _err(src, "[plant]", f"options {sorted(set(out) - {'frame_origin'})} need fidelity = 'inertial'", fidelity)
+    return out
 
 
 def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
@@ -355,6 +411,17 @@ def _initial_roe(sc: Scenario) -> np.ndarray:
     return np.array(rows).reshape(-1, 6)
 
 
+def _one_line(exc: Exception) -> str:
+    """A validation error on one line (pydantic's multi-line text folded)."""
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        try:
+            return "; ".join(f"{'.'.join(str(x) for x in e['loc'])}: {e['msg']} (got {e.get('input')!r})" for e in errors())
+        except Exception:  # noqa: BLE001 - fall back to the text
+            pass
+    return " ".join(str(exc).split())
+
+
 def _check_params(src: str, where: str, controller: str, params: dict[str, Any]) -> None:
     """Validate a controller's params with the check its registration provides (agent/controller.py)."""
     from agent.controller import validate_params
@@ -362,7 +429,7 @@ def _check_params(src: str, where: str, controller: str, params: dict[str, Any])
     try:
         validate_params(controller, params)
     except (ValueError, TypeError) as exc:
-        raise ScenarioError(f"{src}: {where} (controller {controller!r}): {exc}") from None
+        raise ScenarioError(f"{src}: {where} (controller {controller!r}): {_one_line(exc)}") from None
 
 
 def _drag(src: str, drag: Any) -> dict[str, Any] | None:

@@ -18,8 +18,9 @@ from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, decode, header
 from bus.keys import Keys
+from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
-from plant.sensors import CameraGeometry, visibility_matrix
+from plant.sensing import SensingContext, make_sensing
 from plant.world import World
 
 log = logging.getLogger("swarmhil.plant")
@@ -43,10 +44,13 @@ class PlantNode:
         self.run_id = run
         self.sc = scenario
         o = scenario.orbit
-        self.world = World(scenario.ids, scenario.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
-                           raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=scenario.fidelity, drag=scenario.drag,
-                           max_accel_mps2=scenario.max_accel_mps2)
-        self.cam = CameraGeometry(**scenario.camera)
+        if scenario.fidelity in ("linear", "j2"):  # paper 002's ROE plants (bit-identical since issue 2)
+            self.world: World | MissionWorld = World(
+                scenario.ids, scenario.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
+                raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=scenario.fidelity, drag=scenario.drag,
+                max_accel_mps2=scenario.max_accel_mps2)
+        else:
+            self.world = MissionWorld(scenario)
         self.step_s = scenario.step_s
         self.pacer: Pacer = Lockstep(scenario.lockstep_timeout_s) if scenario.mode == "lockstep" else RealTime(scenario.step_s, scenario.speed)
         self.box = CommandBox()
@@ -57,18 +61,13 @@ class PlantNode:
         self.progress = progress
         self.present: set[str] = set()      # processes whose liveliness token is up
         self.seen_alive: set[str] = set()   # agents that were up once
-        self.held = np.zeros((len(scenario.ids), 3))  # last command of each spacecraft (held on a miss)
+        self.held = np.zeros((len(scenario.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
         self._missed_in_row = np.zeros(len(scenario.ids), dtype=int)
         self._seq: dict[str, int] = {}
         self._step = 0
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
-        self._scene = None
-        if scenario.sensing["kind"] == "scene":
-            from plant.scene_stimulus import SceneStimulusBuilder
-
-            self._scene = SceneStimulusBuilder(scenario)
-        self._noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
+        self.sensor = make_sensing(scenario.sensing["kind"], scenario)
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
             bus.subscribe(self.keys.sync_all, self._on_barrier)
@@ -100,7 +99,7 @@ class PlantNode:
         except (RejectedPacket, ValueError) as exc:
             self.rejections.add(key, str(exc))
             return
-        if not self.box.put(int(cmd.header.step), sc, arr(cmd.accel_mps2)):
+        if not self.box.put(int(cmd.header.step), sc, np.concatenate([arr(cmd.accel_mps2), arr(cmd.torque_nm)])):
             self.stats.late_commands += 1
 
     def _on_barrier(self, key: str, payload: bytes) -> None:
@@ -171,29 +170,39 @@ class PlantNode:
             b.position_m.x, b.position_m.y, b.position_m.z = P[i]
             b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = V[i]
             b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z = A[i]
+        if isinstance(self.world, MissionWorld):
+            self._add_mission_truth(truth)
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is
         # at the time agents transmit in step k
         self.bus.publish(self.keys.truth, truth.SerializeToString())
         if final:
             return
-        vis = visibility_matrix(pos, self.cam, self.world.alive)
-        kind = self.sc.sensing["kind"]
+        ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
+                             alive=self.world.alive, world=self.world)
         for j, sid in enumerate(ids):
             if not alive[j]:
                 continue
             key = self._sense_keys[j]
-            if kind == "rel":
-                stim = pb.RelStimulus(header=self._hdr(key), u_rad=u)
-                for kk in np.flatnonzero(vis[j]).tolist():
-                    rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
-                    if self._noise is not None:
-                        rp, rv = self._noise.apply(j, kk, rp, rv, u, k)
-                    nb = stim.neighbours.add(id=ids[kk])
-                    nb.position_m.x, nb.position_m.y, nb.position_m.z = rp.tolist()
-                    nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = rv.tolist()
-            else:
-                stim = self._scene.stimulus(j, pos, u, self._hdr(key))
+            stim = self.sensor.stimulus(ctx, j, self._hdr(key))
             self.bus.publish(key, stim.SerializeToString())
+
+    def _add_mission_truth(self, truth: pb.Truth) -> None:
+        """Attitude of the spacecraft that fly it, and every non-agent body (kind, pose)."""
+        q, w = self.world.attitude_wxyz()
+        if q is not None:
+            tau = self.world.last_torque_nm
+            for i in self.world.att_index.tolist():
+                b = truth.bodies[i]
+                b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z = q[i].tolist()
+                b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w[i].tolist()
+                b.torque_cmd_nm.x, b.torque_cmd_nm.y, b.torque_cmd_nm.z = tau[i].tolist()
+        for bt in self.world.body_truth():
+            b = truth.bodies.add(id=bt.spec.id, kind=bt.spec.kind, alive=True)
+            b.position_m.x, b.position_m.y, b.position_m.z = bt.position_m.tolist()
+            b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = bt.velocity_mps.tolist()
+            b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z = bt.attitude_q.tolist()
+            w_ = bt.angular_velocity_radps
+            b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w_.tolist()
 
     def collect_and_advance(self) -> None:
         k = self._step
@@ -214,7 +223,10 @@ class PlantNode:
                 if self.pacer.name == "lockstep" and self._missed_in_row[i] >= self.sc.dead_after_missed:
                     self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
         self.held[~self.world.alive] = 0.0
-        self.world.step(self.held, self.step_s)
+        if isinstance(self.world, MissionWorld):
+            self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
+        else:
+            self.world.step(self.held[:, :3], self.step_s)
         self.pacer.after_step(k)
         self._step += 1
         self.stats.steps = self._step
@@ -257,19 +269,3 @@ class PlantNode:
             "rejected_packets": {"plant": self.rejections.total, "plant_by_key": dict(self.rejections.by_key)},
         }
 
-
-class _SensorNoise:
-    """Paper 002 section 5: Gaussian noise as a fraction of each ROE component of the pair (seeded)."""
-
-    def __init__(self, scenario: Any) -> None:
-        self.frac = float(scenario.sensing["roe_noise_fraction"])
-        self.n = scenario.orbit.mean_motion_radps
-        self.rng = np.random.default_rng([int(scenario.seed), 0x5E45])
-
-    def apply(self, j: int, k: int, rp: np.ndarray, rv: np.ndarray, u: float, step: int) -> tuple[np.ndarray, np.ndarray]:
-        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
-
-        roe = lvlh_to_roe(rp[None], rv[None], u, self.n)[0]
-        roe = roe * (1.0 + self.frac * self.rng.standard_normal(6))
-        p, v = roe_to_lvlh(roe[None], u, self.n)
-        return p[0], v[0]

@@ -1,0 +1,21 @@
+"""Sensing kinds: what the plant tells each agent about the world, one registered kind per sensor
+model (issue 11). A mission adds a kind by registering a class here, without editing the plant.
+
+    @register_sensing("my-kind", validate=MyParams.model_validate)
+    class MyKind:
+        message = pb.Measurements
+        def __init__(self, scenario): ...
+        def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements: ...
+
+The kind's message goes out on `sc/<id>/sense/<kind>`; `rel` and `scene` have their own messages
+(paper 002), every other kind sends `Measurements` (named arrays; bus/codec.py add_measurement),
+which the agent turns into `Observation.extra`. `[sensing.params]` is validated at scenario load
+by the kind's `validate`.
+"""
+from plant.sensing.registry import (  # noqa: F401
+    SensingContext,
+    known_sensing,
+    make_sensing,
+    register_sensing,
+    validate_sensing_params,
+)

@@ -1,0 +1,116 @@
+"""Built-in sensing kinds.
+
+- `rel` (paper 002, issue 2): ideal (or ROE-noised) relative LVLH states of the spacecraft the
+  observer's camera could see (plant/sensors.py visibility_matrix).
+- `scene` (paper 002, issue 4): camera-frame poses of nearby bodies (plant/scene_stimulus.py).
+- `relative` (issue 11): relative position and velocity of every spacecraft within a sensing ball
+  (`range_m`), optionally with the observer's own state in the scenario frame (a GNSS-like absolute
+  navigation differenced with the reference point), and white Gaussian noise (seeded).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from bus import swarmhil_pb2 as pb
+from bus.codec import add_measurement
+from plant.sensing.registry import SensingContext, register_sensing
+from plant.sensors import CameraGeometry, visibility_matrix
+
+
+class _SensorNoise:
+    """Paper 002 section 5: Gaussian noise as a fraction of each ROE component of the pair (seeded)."""
+
+    def __init__(self, scenario: Any) -> None:
+        self.frac = float(scenario.sensing["roe_noise_fraction"])
+        self.n = scenario.orbit.mean_motion_radps
+        self.rng = np.random.default_rng([int(scenario.seed), 0x5E45])
+
+    def apply(self, rp: np.ndarray, rv: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
+        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
+
+        roe = lvlh_to_roe(rp[None], rv[None], u, self.n)[0]
+        roe = roe * (1.0 + self.frac * self.rng.standard_normal(6))
+        p, v = roe_to_lvlh(roe[None], u, self.n)
+        return p[0], v[0]
+
+
+@register_sensing("rel")
+class RelKind:
+    message = pb.RelStimulus
+
+    def __init__(self, scenario: Any) -> None:
+        self.cam = CameraGeometry(**scenario.camera)
+        self.noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.RelStimulus:
+        vis = ctx.cached("visibility", lambda: visibility_matrix(ctx.position_m, self.cam, ctx.alive))
+        pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
+        stim = pb.RelStimulus(header=hdr, u_rad=u)
+        for kk in np.flatnonzero(vis[j]).tolist():
+            rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
+            if self.noise is not None:
+                rp, rv = self.noise.apply(rp, rv, u)
+            nb = stim.neighbours.add(id=ctx.ids[kk])
+            nb.position_m.x, nb.position_m.y, nb.position_m.z = rp.tolist()
+            nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = rv.tolist()
+        return stim
+
+
+@register_sensing("scene")
+class SceneKind:
+    message = pb.SceneStimulus
+
+    def __init__(self, scenario: Any) -> None:
+        from plant.scene_stimulus import SceneStimulusBuilder
+
+        self.builder = SceneStimulusBuilder(scenario)
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.SceneStimulus:
+        return self.builder.stimulus(j, ctx.position_m, ctx.u_rad, hdr)
+
+
+class RelativeParams(BaseModel):
+    """[sensing.params] of the `relative` kind."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    range_m: float = Field(1e9, gt=0)           # sensing ball radius
+    position_noise_m: float = Field(0.0, ge=0)  # 1-sigma per axis
+    velocity_noise_mps: float = Field(0.0, ge=0)
+    own_state: bool = False                     # also the observer's own state in the scenario frame
+    own_position_noise_m: float = Field(0.0, ge=0)
+    own_velocity_noise_mps: float = Field(0.0, ge=0)
+
+
+@register_sensing("relative", validate=RelativeParams.model_validate)
+class RelativeKind:
+    """Measurements: neighbours within range_m (relative LVLH states), `own_position_m` and
+    `own_velocity_mps` when own_state."""
+
+    message = pb.Measurements
+
+    def __init__(self, scenario: Any) -> None:
+        self.p = RelativeParams.model_validate(scenario.sensing.get("params", {}))
+        self.rng = np.random.default_rng([int(scenario.seed), 0x4E1A])
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+        p = self.p
+        pos, vel = ctx.position_m, ctx.velocity_mps
+        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
+        d = np.linalg.norm(pos - pos[j], axis=1)
+        for k in np.flatnonzero((d <= p.range_m) & ctx.alive).tolist():
+            if k == j:
+                continue
+            rp = pos[k] - pos[j] + (self.rng.normal(0.0, p.position_noise_m, 3) if p.position_noise_m else 0.0)
+            rv = vel[k] - vel[j] + (self.rng.normal(0.0, p.velocity_noise_mps, 3) if p.velocity_noise_mps else 0.0)
+            nb = msg.neighbours.add(id=ctx.ids[k])
+            nb.position_m.x, nb.position_m.y, nb.position_m.z = np.asarray(rp, float).tolist()
+            nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = np.asarray(rv, float).tolist()
+        if p.own_state:
+            op = pos[j] + (self.rng.normal(0.0, p.own_position_noise_m, 3) if p.own_position_noise_m else 0.0)
+            ov = vel[j] + (self.rng.normal(0.0, p.own_velocity_noise_mps, 3) if p.own_velocity_noise_mps else 0.0)
+            add_measurement(msg, "own_position_m", op)
+            add_measurement(msg, "own_velocity_mps", ov)
+        return msg

@@ -1,0 +1,96 @@
+"""The sensing-kind registry and the per-step context every kind reads (plant/sensing/__init__.py)."""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol
+
+import numpy as np
+from google.protobuf.message import Message
+
+from bus import swarmhil_pb2 as pb
+
+
+@dataclass
+class SensingContext:
+    """Truth at step k, shared by every observer of the step (computed once; `cache` for per-step
+    products such as a visibility matrix)."""
+
+    step: int
+    t_s: float
+    u_rad: float
+    ids: list[str]
+    position_m: np.ndarray       # (N,3) scenario frame
+    velocity_mps: np.ndarray     # (N,3)
+    alive: np.ndarray            # (N,) bool
+    world: Any                   # World or MissionWorld (bodies, attitude where flown)
+    cache: dict[str, Any] = field(default_factory=dict)
+
+    def cached(self, name: str, make: Callable[[], Any]) -> Any:
+        if name not in self.cache:
+            self.cache[name] = make()
+        return self.cache[name]
+
+
+class SensingKind(Protocol):
+    message: type[Message]
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> Message: ...
+
+
+_KINDS: dict[str, Callable[[Any], SensingKind]] = {}
+_VALIDATORS: dict[str, Callable[[dict[str, Any]], Any]] = {}
+# modules that register kinds on import (built-ins and the missions' plant-side sensors)
+_PROVIDERS = ["plant.sensing.builtin"]
+
+
+def register_sensing(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
+                     ) -> Callable[[Callable[[Any], SensingKind]], Callable[[Any], SensingKind]]:
+    def deco(factory: Callable[[Any], SensingKind]) -> Callable[[Any], SensingKind]:
+        _KINDS[name] = factory
+        if validate is not None:
+            _VALIDATORS[name] = validate
+        return factory
+
+    return deco
+
+
+def add_provider(module: str) -> None:
+    """Name a module that registers sensing kinds when imported (a mission's plant-side sensors)."""
+    if module not in _PROVIDERS:
+        _PROVIDERS.append(module)
+
+
+def _load() -> None:
+    """Import the providers, then every module of this package (a mission's plant-side sensor is a
+    new module in plant/sensing/, registered by decorator: nothing else is edited)."""
+    import pkgutil
+
+    import plant.sensing as pkg
+
+    for m in list(_PROVIDERS):
+        importlib.import_module(m)
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name not in ("registry",):
+            importlib.import_module(f"plant.sensing.{info.name}")
+
+
+def known_sensing() -> list[str]:
+    _load()
+    return sorted(_KINDS)
+
+
+def validate_sensing_params(kind: str, params: dict[str, Any]) -> None:
+    _load()
+    check = _VALIDATORS.get(kind)
+    if check is not None:
+        check(dict(params))
+    elif params:
+        raise ValueError(f"sensing kind {kind!r} takes no [sensing.params] (got {sorted(params)})")
+
+
+def make_sensing(kind: str, scenario: Any) -> SensingKind:
+    _load()
+    if kind not in _KINDS:
+        raise ValueError(f"unknown sensing kind {kind!r}; known: {sorted(_KINDS)}")
+    return _KINDS[kind](scenario)
