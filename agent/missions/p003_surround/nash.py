@@ -71,3 +71,28 @@ def xi_rate(x_err: np.ndarray, xi: np.ndarray, slots_m: np.ndarray, centres_m: n
 def ct_accel(grad_x: np.ndarray, g: GameParams) -> np.ndarray:
     """u_ci*/m_i = -(k_pos ∂V_i/∂q~_i + k_vel ∂V_i/∂q~'_i) (eq. 21 with the chosen ΔB_i), (..., 3)."""
     return -(g.k_pos_per_s2 * grad_x[..., :3] + g.k_vel_per_s * grad_x[..., 3:])
+
+
+def linear_ct_matrix(g: GameParams) -> np.ndarray:
+    """Per-axis linearisation of the CT loop with ξ far from every threat (ϑ = κ), state
+    (q~, q~', ξ_q, ξ_v): q~'' = -k_pos((κ+γ+ρ) q~ - ρ ξ_q) - k_vel((κ+γ+ρ) q~' - ρ ξ_v),
+    ξ' = η ρ (x~ - ξ) (eq. 20-21 with u_id cancelling the natural motion), (4, 4)."""
+    c, rho = g.kappa + g.gamma + g.r_weight, g.r_weight
+    return np.array([
+        [0.0, 1.0, 0.0, 0.0],
+        [-g.k_pos_per_s2 * c, -g.k_vel_per_s * c, g.k_pos_per_s2 * rho, g.k_vel_per_s * rho],
+        [g.eta * rho, 0.0, -g.eta * rho, 0.0],
+        [0.0, g.eta * rho, 0.0, -g.eta * rho],
+    ])
+
+
+def slow_mode_rate(g: GameParams) -> float:
+    """Slowest decay rate (1/s) of `linear_ct_matrix`: ≈ η ρ (κ+γ)/(κ+γ+ρ) <= η (κ+γ) when the CT
+    loop is fast (NOTES-003)."""
+    return float(-np.max(np.linalg.eigvals(linear_ct_matrix(g)).real))
+
+
+def slow_mode_rate_approx(g: GameParams) -> float:
+    """η ρ (κ+γ)/(κ+γ+ρ): the rate when x~ sits at its quasi-static equilibrium ρ ξ/(κ+γ+ρ)."""
+    k = g.kappa + g.gamma
+    return g.eta * g.r_weight * k / (k + g.r_weight)
