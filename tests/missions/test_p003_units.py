@@ -80,7 +80,7 @@ def _fd_grad(fun, x: np.ndarray, h: float = 1e-6) -> np.ndarray:
 def test_structure_threat_gradient_matches_finite_differences() -> None:
     centres, radii = sphere_arrays()
     p = np.array([22.0, 27.0, 3.0])  # 0.6 m outside the (20, 0, 0) sphere + r_i: barrier is steep
-    f = lambda x: structure_threat(x, centres, radii, G.safe_radius_m, G.h_cg, G.barrier_floor_m2)  # noqa: E731
+    f = lambda x: float(structure_threat(x, centres, radii, G.safe_radius_m, G.h_cg, G.barrier_floor_m2))  # noqa: E731
     grad = structure_threat_grad(p, centres, radii, G.safe_radius_m, G.h_cg, G.barrier_floor_m2)
     np.testing.assert_allclose(grad, _fd_grad(f, p), rtol=1e-5)
     assert np.dot(grad, p - np.array([20.0, 0, 0])) < 0  # the threat grows towards the sphere

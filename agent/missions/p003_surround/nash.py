@@ -28,8 +28,7 @@ def theta(xi: np.ndarray, slots_m: np.ndarray, centres_m: np.ndarray, radii_m: n
     pos = xi[:, :3] + slots_m
     r = np.full(len(pos), g.safe_radius_m)
     c_fc = pair_threats(pos, r, g.h_fc, g.barrier_floor_m2)
-    c_cg = np.array([structure_threat(p, centres_m, radii_m, g.safe_radius_m, g.h_cg, g.barrier_floor_m2)
-                     for p in pos])
+    c_cg = structure_threat(pos, centres_m, radii_m, g.safe_radius_m, g.h_cg, g.barrier_floor_m2)
     return g.kappa + g.alpha_fc * c_fc + g.alpha_cg * c_cg
 
 
@@ -62,9 +61,8 @@ def xi_rate(x_err: np.ndarray, xi: np.ndarray, slots_m: np.ndarray, centres_m: n
     pair = pair_threat_grads(pos, r, g.h_fc, g.barrier_floor_m2)
     grad = -g.r_weight * (x_err - xi)
     grad[:, :3] += g.alpha_fc * np.einsum("ij,ijk->ik", w[:, None] + w[None, :], pair)
-    for i, p in enumerate(pos):
-        grad[i, :3] += g.alpha_cg * w[i] * structure_threat_grad(
-            p, centres_m, radii_m, g.safe_radius_m, g.h_cg, g.barrier_floor_m2)
+    grad[:, :3] += g.alpha_cg * w[:, None] * structure_threat_grad(
+        pos, centres_m, radii_m, g.safe_radius_m, g.h_cg, g.barrier_floor_m2)
     return -g.eta * grad
 
 

@@ -27,15 +27,17 @@ def barrier_grad(d: np.ndarray, radius_m: np.ndarray, h: float, floor_m2: float)
 
 
 def structure_threat(p_m: np.ndarray, centres_m: np.ndarray, radii_m: np.ndarray, r_i_m: float,
-                     h: float, floor_m2: float) -> float:
-    """c_Cg,i = Σ_g 1/(|q_Li - q_Cg|^2 - (r_i + r_g)^2)^h (eq. 8)."""
-    return float(np.sum(barrier(p_m[None, :] - centres_m, r_i_m + radii_m, h, floor_m2)))
+                     h: float, floor_m2: float) -> np.ndarray:
+    """c_Cg,i = Σ_g 1/(|q_Li - q_Cg|^2 - (r_i + r_g)^2)^h (eq. 8); p (..., 3) -> (...)."""
+    d = np.asarray(p_m)[..., None, :] - centres_m
+    return np.sum(barrier(d, r_i_m + radii_m, h, floor_m2), axis=-1)
 
 
 def structure_threat_grad(p_m: np.ndarray, centres_m: np.ndarray, radii_m: np.ndarray, r_i_m: float,
                           h: float, floor_m2: float) -> np.ndarray:
-    """∂c_Cg,i/∂q_Li, (3,)."""
-    return np.sum(barrier_grad(p_m[None, :] - centres_m, r_i_m + radii_m, h, floor_m2), axis=0)
+    """∂c_Cg,i/∂q_Li; p (..., 3) -> (..., 3)."""
+    d = np.asarray(p_m)[..., None, :] - centres_m
+    return np.sum(barrier_grad(d, r_i_m + radii_m, h, floor_m2), axis=-2)
 
 
 def pair_threats(p_m: np.ndarray, r_m: np.ndarray, h: float, floor_m2: float) -> np.ndarray:
