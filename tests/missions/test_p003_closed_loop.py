@@ -9,7 +9,8 @@ Fig. 5 is missing): u_Ts a piecewise-constant force of `escape_n` per axis, dire
 LVLH, filtered by u_Ts = u_T'' + 1.8 u_T' + u_T (§5). Commands are applied in the leader's LVLH
 (the servicers' own LVLH frames differ from it by < 1e-4 rad at 500 m).
 
-Run `python tests/missions/test_p003_closed_loop.py` to print the figures quoted in docs/paper003.md.
+Run `python tests/missions/test_p003_closed_loop.py VARIANT` (literal, literal-ct-sat, fast-ct,
+fast-ct-ct-sat) or `... tt` (leader-only runs) to print the figures quoted in docs/paper003.md.
 """
 from __future__ import annotations
 
@@ -181,7 +182,7 @@ def run_closed_loop(duration_s: float = 300.0, dt_s: float = 0.1, altitude_m: fl
     arr = {k: np.asarray(v, dtype=float) for k, v in rec.items()}
     return Run(arr["t"], arr["tt"], arr["fw"], arr["e1"], arr["ul"], arr["q"].reshape(kk, nsat, 3),
                arr["v"].reshape(kk, nsat, 3), slots, arr["us"].reshape(kk - 1, nsat),
-               arr["sat"].reshape(kk - 1, nsat).astype(bool), arr["pair"], arr["clr"].reshape(-1, nsat), dt_s)
+               arr["sat"].reshape(kk - 1, nsat).astype(bool), arr["pair"], arr["clr"].reshape(len(rec["clr"]), nsat), dt_s)
 
 
 def table4(run: Run) -> dict[str, float]:
@@ -287,10 +288,30 @@ def test_tt_bias_grows_with_the_escape_force() -> None:
     assert err[2] > 10.0
 
 
+def tt_report() -> None:
+    """Leader-only runs: Table 3 groups, escape-force sweep, GEO instead of LEO."""
+    def line(label: str, run: Run) -> None:
+        err = np.abs(run.tt_err_m)
+        below = np.nonzero(err.max(axis=1) < 10.0)[0]
+        print(f"{label:28s} |q~_TL|max(300 s) = {err[-1].max():6.2f} m  funnel {run.funnel_m[-1]:.2f} m  "
+              f"max |q~|/funnel = {(err[1:].max(axis=1) / run.funnel_m[1:]).max():.3f}  "
+              f"first < 10 m at {run.t_s[below[0]] if below.size else float('nan'):.1f} s  "
+              f"peak |u_L| = {run.leader_thrust_n.max():.1f} N")
+    for g, (q0, v0) in TABLE3_GROUPS.items():
+        line(f"Table 3 group {g}", run_closed_loop(q_tl0_m=q0, v_tl0_mps=v0, with_servicers=False))
+    for f in (0.0, 1.0, 3.0, 10.0):
+        line(f"LEO escape {f:g} N/axis", run_closed_loop(escape_n=f, with_servicers=False))
+    for f in (0.0, 3.0):
+        line(f"GEO escape {f:g} N/axis", run_closed_loop(escape_n=f, altitude_m=35786e3, with_servicers=False))
+
+
 if __name__ == "__main__":
     import time
     t0 = time.time()
     variant = sys.argv[1] if len(sys.argv) > 1 else "literal"
+    if variant == "tt":
+        tt_report()
+        sys.exit(0)
     kwargs = {"literal": {}, "fast-ct": {"game": dict(VARIANT_FAST_CT)},
               "fast-ct-ct-sat": {"game": {**VARIANT_FAST_CT, "saturate": "ct"}},
               "literal-ct-sat": {"game": {"saturate": "ct"}}}[variant]
