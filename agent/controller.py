@@ -98,17 +98,10 @@ def load_controllers() -> None:
     """Import the built-in controllers and every mission package under agent/missions/ (each
     registers its controllers by decorator when imported: adding a mission edits nothing here).
     Lazy, because the missions import this module for `register`."""
-    import importlib
-    import pkgutil
-
     from agent import controllers  # noqa: F401  (registers the built-in controllers)
+    from agent.missions import load_missions
 
-    try:
-        import agent.missions as missions
-    except ImportError:
-        return
-    for info in pkgutil.iter_modules(missions.__path__):
-        importlib.import_module(f"agent.missions.{info.name}")
+    load_missions()
 
 
 def validate_params(name: str, params: dict[str, Any]) -> None:

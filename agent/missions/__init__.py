@@ -1,2 +1,17 @@
-"""One package per paper's flight software (one room each). Every package here is imported by
-agent.controller.load_controllers(), so its controllers register themselves by decorator."""
+"""Mission rooms: one subpackage per paper, each registering its own controller(s).
+
+`load_missions()` imports every subpackage so their `agent.controller.register` decorators run;
+`agent.controller.load_controllers()` calls it, so a new paper is a new room and no central file is edited.
+"""
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+
+def load_missions() -> list[str]:
+    """Import every mission subpackage (registering its controllers); return their names."""
+    names = [m.name for m in pkgutil.iter_modules(__path__) if m.ispkg]
+    for name in names:
+        importlib.import_module(f"{__name__}.{name}")
+    return names

@@ -1,0 +1,155 @@
+"""The two flight-software controllers of paper 003, registered as "p003-leader" and
+"p003-servicer" (agent.controller registry).
+
+Leader (LSat): measures q_TL, q'_TL (sensing.TARGET_REL_KEY), runs the funnel TT controller
+(eq. 15-17), thrusts -u_L (<= 180 N) and broadcasts a `p003.tt` packet each step.
+Servicer (SSat i): measures q_Li, q'_Li (sensing.LEADER_REL_KEY), receives the leader's `p003.tt`
+and the other servicers' `p003.ct`, and thrusts u_i = u_Li + u_ci* + u_id (eq. 6): the synchronous
+term m_i a_L, the Nash CT control (eq. 21) and the cancellation of the natural relative motion,
+limited to 20 N; it keeps its block ξ_i of the immersion variable (eq. 20) and broadcasts it.
+All vectors in the leader's LVLH (x radial, y along-track, z orbit normal).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agent.controller import Command, Observation, OrbitInfo, Transmission, register
+from agent.missions.p003_surround import nash, packets, sensing
+from agent.missions.p003_surround.funnel import clip_norm, leader_accel, tt_control
+from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict, q_des
+from agent.missions.p003_surround.relative_dynamics import natural_rel_accel
+from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays
+
+XI0_PAPER: np.ndarray = np.array([
+    [5.0, 0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0, 0], [0, 4.0, 0, 0, 0, 0],
+    [0, 1.0, 0, 0, 0, 0], [0, 0, 5.0, 0, 0, 0], [0, 0, 2.0, 0, 0, 0],
+])
+"""ξ(0) of §5 (m and m/s; printed without signs, taken positive)."""
+
+
+@dataclass
+class LeaderTelemetry:
+    u_l_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    e1: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    e2: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+class LeaderController:
+    """Funnel target tracking on the leader (eq. 15-17)."""
+
+    name = "p003-leader"
+
+    def __init__(self, p: FunnelParams) -> None:
+        self.p = p
+        self.telemetry = LeaderTelemetry()
+
+    def step(self, obs: Observation) -> Command:
+        target = sensing.read(obs.extra, sensing.TARGET_REL_KEY)
+        u_l, e1, e2 = tt_control(target.position_m, target.velocity_mps, obs.t_s, self.p)
+        accel = leader_accel(u_l, self.p)
+        self.telemetry = LeaderTelemetry(u_l, e1, e2)
+        pkt = packets.TTPacket(obs.step, accel, target.position_m, target.velocity_mps)
+        return Command(accel_mps2=accel, mode="track",
+                       transmissions=[Transmission(packets.TT_TYPE, packets.encode_tt(pkt))])
+
+
+@dataclass
+class ServicerTelemetry:
+    u_sync_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    u_ct_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    u_id_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    u_applied_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    saturated: bool = False
+
+
+class ServicerController:
+    """Nash CT control of servicer `index` (eq. 6, 18-21)."""
+
+    name = "p003-servicer"
+
+    def __init__(self, index: int, orbit: OrbitInfo, f: FunnelParams, g: GameParams,
+                 slot_offsets_m: np.ndarray = SLOT_OFFSETS_M, xi0: np.ndarray = XI0_PAPER) -> None:
+        self.index = index
+        self.orbit = orbit
+        self.g = g
+        self.slots_m = slots_in_leader_frame(q_des(f), slot_offsets_m)
+        if not 0 <= index < len(self.slots_m):
+            raise ValueError(f"servicer index {index} outside 0..{len(self.slots_m) - 1}")
+        self.d_cg_m, self.r_g_m = sphere_arrays()
+        self.xi = np.array(xi0, dtype=float)  # own row is state; other rows: last received
+        self.x_err = np.zeros_like(self.xi)
+        self.tt: packets.TTPacket | None = None
+        self.tt_sent_t = 0.0
+        self.t_prev: float | None = None
+        self.telemetry = ServicerTelemetry()
+
+    def _receive(self, obs: Observation) -> None:
+        for pkt in obs.isl_rx:
+            if pkt.type == packets.TT_TYPE:
+                self.tt, self.tt_sent_t = packets.decode_tt(pkt.payload), float(pkt.sent_t)
+            elif pkt.type == packets.CT_TYPE:
+                ct = packets.decode_ct(pkt.payload)
+                if ct.index != self.index and 0 <= ct.index < len(self.xi):
+                    self.x_err[ct.index], self.xi[ct.index] = ct.x_err, ct.xi
+
+    def _sphere_centres(self, t_s: float) -> np.ndarray:
+        """q_Cg = q_TL + d_Cg, q_TL from the leader's packet carried forward to t (§5)."""
+        if self.tt is None:  # structure not yet reported: no structure threat
+            return np.full_like(self.d_cg_m, 1e12)
+        q_tl = self.tt.q_tl_m + self.tt.v_tl_mps * (t_s - self.tt_sent_t)
+        return q_tl[None, :] + self.d_cg_m
+
+    def step(self, obs: Observation) -> Command:
+        self._receive(obs)
+        me = sensing.read(obs.extra, sensing.LEADER_REL_KEY)
+        i, g, m = self.index, self.g, self.g.mass_kg
+        self.x_err[i] = np.concatenate([me.position_m - self.slots_m[i], me.velocity_mps])
+        centres = self._sphere_centres(obs.t_s)
+        grad = nash.value_grad_x(self.x_err, self.xi, self.slots_m, centres, self.r_g_m, g)[i]
+        u_ct = m * nash.ct_accel(grad, g)
+        u_id = (-m * natural_rel_accel(me.position_m, me.velocity_mps, self.orbit.semi_major_axis_m,
+                                       self.orbit.mean_motion_radps) if g.cancel_natural else np.zeros(3))
+        u_sync = m * (self.tt.leader_accel_mps2 if self.tt is not None else np.zeros(3))
+        if g.saturate == "sum":
+            u = clip_norm(u_sync + u_ct + u_id, g.max_thrust_n)
+        else:
+            u = u_sync + clip_norm(u_ct + u_id, g.max_thrust_n)
+        saturated = not np.allclose(u, u_sync + u_ct + u_id)
+        self.telemetry = ServicerTelemetry(u_sync, u_ct, u_id, u, saturated)
+        self._update_xi(obs.t_s, centres)
+        pkt = packets.CTPacket(i, self.x_err[i], self.xi[i])
+        return Command(accel_mps2=u / m, mode="surround",
+                       transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))])
+
+    def _update_xi(self, t_s: float, centres: np.ndarray) -> None:
+        """Explicit Euler step of eq. 20 for the own block ξ_i, position rate capped (guard)."""
+        dt = 0.0 if self.t_prev is None else t_s - self.t_prev
+        self.t_prev = t_s
+        rate = nash.xi_rate(self.x_err, self.xi, self.slots_m, centres, self.r_g_m, self.g)[self.index]
+        rate[:3] = clip_norm(rate[:3], self.g.xi_rate_cap_mps)
+        self.xi[self.index] = self.xi[self.index] + dt * rate
+
+
+def servicer_index(sc_id: str, params: dict[str, Any]) -> int:
+    """`params["index"]` if given, else the trailing digits of the id minus one ("ssat3" -> 2)."""
+    if "index" in params:
+        return int(params["index"])
+    digits = "".join(ch for ch in sc_id if ch.isdigit())
+    if not digits:
+        raise ValueError(f"cannot tell the servicer index of {sc_id!r}: give params['index']")
+    return int(digits) - 1
+
+
+@register("p003-leader")
+def make_leader(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LeaderController:
+    return LeaderController(from_dict(FunnelParams, params.get("funnel")))
+
+
+@register("p003-servicer")
+def make_servicer(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> ServicerController:
+    return ServicerController(servicer_index(sc_id, params), orbit,
+                              from_dict(FunnelParams, params.get("funnel")),
+                              from_dict(GameParams, params.get("game")))

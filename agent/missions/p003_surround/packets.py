@@ -1,0 +1,65 @@
+"""Inter-satellite-link payloads of paper 003, compact little-endian binary.
+
+- `p003.tt` (leader -> all, 41 B): version u8, step u32, the leader's applied acceleration
+  a_L (3 x f32, m/s^2, leader LVLH: what the servicers' synchronous term u_Li follows, eq. 6),
+  q_TL (3 x f32, m) and q'_TL (3 x f32, m/s), the measured target state the servicers place the
+  ACSB spheres with (q_Cg = q_TL + d_Cg, §5).
+- `p003.ct` (servicer -> all, 50 B): version u8, servicer index u8, its CT error x~_i and its block
+  ξ_i of the immersion variable (6 + 6 x f32), which the others' ξ update (eq. 20) and threats need.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+VERSION = 1
+TT_TYPE = "p003.tt"
+CT_TYPE = "p003.ct"
+_TT = struct.Struct("<BI9f")
+_CT = struct.Struct("<BB12f")
+
+
+@dataclass(frozen=True)
+class TTPacket:
+    step: int
+    leader_accel_mps2: np.ndarray
+    q_tl_m: np.ndarray
+    v_tl_mps: np.ndarray
+
+
+@dataclass(frozen=True)
+class CTPacket:
+    index: int
+    x_err: np.ndarray
+    xi: np.ndarray
+
+
+def encode_tt(p: TTPacket) -> bytes:
+    return _TT.pack(VERSION, p.step, *np.asarray(p.leader_accel_mps2, float), *np.asarray(p.q_tl_m, float),
+                    *np.asarray(p.v_tl_mps, float))
+
+
+def decode_tt(payload: bytes) -> TTPacket:
+    if len(payload) != _TT.size:
+        raise ValueError(f"{TT_TYPE} payload must be {_TT.size} bytes, got {len(payload)}")
+    version, step, *vals = _TT.unpack(payload)
+    if version != VERSION:
+        raise ValueError(f"{TT_TYPE} version {version}, expected {VERSION}")
+    v = np.array(vals, dtype=float)
+    return TTPacket(step, v[0:3], v[3:6], v[6:9])
+
+
+def encode_ct(p: CTPacket) -> bytes:
+    return _CT.pack(VERSION, p.index, *np.asarray(p.x_err, float), *np.asarray(p.xi, float))
+
+
+def decode_ct(payload: bytes) -> CTPacket:
+    if len(payload) != _CT.size:
+        raise ValueError(f"{CT_TYPE} payload must be {_CT.size} bytes, got {len(payload)}")
+    version, index, *vals = _CT.unpack(payload)
+    if version != VERSION:
+        raise ValueError(f"{CT_TYPE} version {version}, expected {VERSION}")
+    v = np.array(vals, dtype=float)
+    return CTPacket(index, v[:6], v[6:])

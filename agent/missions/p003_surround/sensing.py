@@ -1,0 +1,48 @@
+"""What each craft measures, as typed `obs.extra` entries (relative sensing only, §2).
+
+- leader: `obs.extra["p003.target_rel"]` = the target's position and velocity relative to the
+  leader, q_TL = r_T - r_L and q'_TL, in the leader's LVLH (Assumption 1);
+- servicer i: `obs.extra["p003.leader_rel"]` = its own position and velocity relative to the
+  leader, q_Li = r_i - r_L and q'_Li, in the leader's LVLH.
+Each value is a dict {"position_m": [3 floats], "velocity_mps": [3 floats]} (a plant may also
+hand the dataclass itself).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+TARGET_REL_KEY = "p003.target_rel"
+LEADER_REL_KEY = "p003.leader_rel"
+
+
+@dataclass(frozen=True)
+class RelativeState:
+    """A relative position (m) and velocity (m/s) in the leader's LVLH."""
+
+    position_m: np.ndarray
+    velocity_mps: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name in ("position_m", "velocity_mps"):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} must be 3 finite floats, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, arr)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"position_m": self.position_m.tolist(), "velocity_mps": self.velocity_mps.tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "RelativeState":
+        return cls(np.asarray(d["position_m"], dtype=float), np.asarray(d["velocity_mps"], dtype=float))
+
+
+def read(extra: dict[str, Any], key: str) -> RelativeState:
+    """The relative state under `key` in obs.extra; KeyError naming the key if it is missing."""
+    if key not in extra:
+        raise KeyError(f"obs.extra has no {key!r} (keys: {sorted(extra)})")
+    value = extra[key]
+    return value if isinstance(value, RelativeState) else RelativeState.from_dict(value)
