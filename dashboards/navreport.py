@@ -527,6 +527,11 @@ def _camera(run_dir: Path, summary: dict[str, Any]):
     cam = summary.get("metrics", {}).get("camera")
     if cam:
         return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
+    from dashboards.run_config import camera_from_config, run_config
+
+    recorded = camera_from_config(run_config(run_dir))
+    if recorded is not None:  # the configuration the recording carries (older recordings: below)
+        return recorded
     src = summary.get("scenario_file")
     here = Path(__file__).resolve().parent.parent / "deploy" / "scenarios"
     for cand in (run_dir / "scenario.toml", here / str(src)):

@@ -19,6 +19,7 @@ from mcap.reader import make_reader
 from bus import swarmhil_pb2 as pb
 from bus.keys import run_of
 from dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
+from dashboards.run_config import config_from_mcap
 from dashboards.viz_node import WebViewer, disable_analytics, free_port, open_recording
 
 UNDECODABLE = pb.UndecodableSample.DESCRIPTOR.full_name
@@ -29,11 +30,21 @@ class ReplayError(RuntimeError):
 
 
 def _settings(mcap_path: Path) -> tuple[CameraRule, int | None, float | None]:
-    """Camera rule, trail steps and step length recorded next to the MCAP file, if any."""
+    """Camera rule, trail steps and step length: from a live bridge's summary.json next to the MCAP
+    file, else from the configuration the recording itself carries (dashboards/run_config.py)."""
     try:
         s = json.loads((mcap_path.parent / "summary.json").read_text())
     except (OSError, ValueError):
-        return CameraRule(), None, None
+        cfg = config_from_mcap(mcap_path)
+        if cfg is None:
+            return CameraRule(), None, None
+        c = cfg["camera"]
+        rule = CameraRule(float(c["detection_range_m"]), (c["image_px"] / 2.0) / c["focal_px"])
+        viz = cfg.get("viz") or {}
+        trail = None
+        if viz.get("trail_s"):
+            trail = max(1, int(round(viz["trail_s"] / cfg["run"]["step_s"])))
+        return rule, trail, float(cfg["run"]["step_s"])
     viz = s.get("viz") or {}
     cam = viz.get("camera") or {}
     rule = CameraRule(float(cam.get("detection_range_m", 500.0)), float(cam.get("tan_half_fov", 0.54)))

@@ -16,6 +16,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dashboards.metrics import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN, SwarmMetrics, compute_metrics, relative_to_com
+from dashboards.run_config import camera_from_config, run_config
 from dashboards.truth_io import TruthArrays, read_truth
 from plant.sensors import CameraGeometry
 
@@ -352,11 +353,16 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
 
 
 def _camera_for(run_dir: Path, summary: dict[str, Any]) -> CameraGeometry:
-    """The camera of a run: from earlier metrics, the sweep's scenario_doc.json, the scenario file
-    of the same name in deploy/scenarios, or else the paper's (500 m, 1080 px, f = 1000 px)."""
+    """The camera of a run: from earlier metrics, the configuration the recording carries
+    (dashboards/run_config.py), and for recordings older than that the sweep's scenario_doc.json,
+    the scenario file of the same name in deploy/scenarios, or else the paper's (500 m, 1080 px,
+    f = 1000 px)."""
     cam = summary.get("metrics", {}).get("camera")
     if cam:
         return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
+    recorded = camera_from_config(run_config(run_dir))
+    if recorded is not None:
+        return recorded
     doc_path = run_dir / "scenario_doc.json"
     if doc_path.is_file():
         c = json.loads(doc_path.read_text()).get("camera", {})
