@@ -51,7 +51,7 @@ class Decision:
 
 @dataclass
 class Transmission:
-    """An inter-satellite-link packet to send (through the channel, bus/channel_node.py)."""
+    """An inter-satellite-link packet to send (through the channel, link/node.py)."""
 
     type: str
     payload: bytes

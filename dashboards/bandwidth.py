@@ -7,7 +7,7 @@ offered to their radios), every `isl/rx/<id>` sample (what the channel delivered
 truth (positions at the time of sending, for an independent range check).
 
 Two independent accountings are compared and must agree exactly: bytes and messages counted in
-the recording (tx samples the channel accepts by the rules of bus/channel.py `check_tx`, and rx
+the recording (tx samples the channel accepts by the rules of link/model.py `check_tx`, and rx
 samples) against the channel's counters (the last `LinkStats` of the recording and
 `summary.json["channel"]`). Bytes with overhead = payload + the configured per-packet overhead.
 
@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from bus.channel import COUNTER_FIELDS, DROP_CAUSES, TX_ROW, check_tx, line_of_sight_clear, reason_class
+from link.model import COUNTER_FIELDS, DROP_CAUSES, TX_ROW, check_tx, line_of_sight_clear, reason_class
 
 _CSS = ("body{font-family:sans-serif;margin:1.5em;max-width:1400px}table{border-collapse:collapse;margin:.5em 0 1.2em}"
         "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right;font-size:13px}th{background:#f3f3f3}"

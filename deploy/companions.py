@@ -18,7 +18,7 @@ from types import ModuleType
 from typing import Any
 
 COMPANIONS: dict[str, str] = {
-    "channel": "bus.channel_node",
+    "channel": "link.node",
     "viz": "dashboards.viz_node",
 }
 

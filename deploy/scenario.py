@@ -35,7 +35,9 @@ class OrbitCfg:
 
     @property
     def mean_motion_radps(self) -> float:
-        return math.sqrt(3.986004418e14 / self.semi_major_axis_m**3)
+        from plant.dynamics.constants import MU_EARTH_M3PS2
+
+        return math.sqrt(MU_EARTH_M3PS2 / self.semi_major_axis_m**3)
 
 
 @dataclass
@@ -90,7 +92,7 @@ class Scenario:
             ver = "unknown"
         link = None
         if "link" in self.sections:
-            from bus.channel import link_enabled, parse_link_config
+            from link.model import link_enabled, parse_link_config
 
             if link_enabled(self.sections["link"]):
                 link = parse_link_config(self.sections["link"], self.source, self.seed).to_dict()
@@ -326,7 +328,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         actuator_limit=limit, doc=doc, plant_options=plant_options,
     )
     if "link" in doc:
-        from bus.channel import LinkConfigError, parse_link_config
+        from link.model import LinkConfigError, parse_link_config
 
         try:
             parse_link_config(doc["link"], src, seed)

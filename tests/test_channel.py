@@ -1,4 +1,4 @@
-"""The link model of bus/channel.py against hand-computed geometry, brute force and queueing bounds."""
+"""The link model of link/model.py against hand-computed geometry, brute force and queueing bounds."""
 from __future__ import annotations
 
 import math
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from bus.channel import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
+from link.model import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
                          line_of_sight_clear, loss_draw, parse_link_config)
 
 A_M = 6878137.0  # reference orbit radius (500 km altitude)

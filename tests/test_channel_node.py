@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bus import swarmhil_pb2 as pb
-from bus import channel_node
+from link import node as channel_node
 from bus.codec import header, vec
 from bus.keys import Keys
 from bus.memory import MemoryBus

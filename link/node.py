@@ -1,6 +1,6 @@
 """The link channel companion (issue 5): the only path from one agent's transmitter to another's receiver.
 
-Thin I/O around the pure model of bus/channel.py. Subscribes to the clock, the truth (positions
+Thin I/O around the pure model of link/model.py. Subscribes to the clock, the truth (positions
 at the time of sending), every agent's `isl/tx/<id>` and `sc/<id>/act`; delivers `IslPacket`s on
 `isl/rx/<dst>`, publishes `LinkStats` on `link/stats` every `stats_period_s` of simulation time,
 and, as a lockstep participant, a barrier `Tick` on `sync/channel` with header.step = k once step
@@ -44,7 +44,7 @@ from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.channel import LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
+from link.model import LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
 from bus.codec import RejectedPacket, Rejections, arr, decode, header
 from bus.keys import Keys
 

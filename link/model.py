@@ -1,6 +1,6 @@
 """Inter-satellite link model (issue 5): pure functions and small classes, no I/O.
 
-What a packet goes through, in this order (bus/channel_node.py does the I/O around it):
+What a packet goes through, in this order (link/node.py does the I/O around it):
 
 1. validation (`check_tx`): the key's id is a known spacecraft and equals the packet's `src`, the
    destination is empty (broadcast) or another known spacecraft, the payload fits;
@@ -28,7 +28,7 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 
-R_EARTH_M = 6378137.0  # WGS-84 equatorial radius (shared fact; plant/dynamics/constants.py has the same)
+from plant.dynamics.constants import R_EARTH_M  # noqa: E402  (the one definition of the shared constants)
 TX_ROW = "*"  # LinkCounter.dst of a transmitter's own row (what it offered to its radio, queue drops)
 COUNTER_FIELDS = ("messages", "payload_bytes", "wire_bytes", "dropped_range", "dropped_occulted",
                   "dropped_lost", "dropped_queue")
