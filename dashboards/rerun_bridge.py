@@ -24,7 +24,7 @@ the reference orbit (x radial, y along-track, z cross-track):
                                   computed from truth (range <= 500 m, square FOV tan 0.54 about +y)
     world/links                   LineStrips3D, src -> dst of the ISL deliveries stamped with that step
                                   (an empty batch on steps without any, so they are short-lived)
-    world/targets/<id>            Points3D, bodies of kind "target"
+    world/targets/<id>            Points3D, bodies that are not spacecraft (target, debris, ...)
     world/estimates               Points3D, where each agent believes its neighbours are (its true
                                   position + estimated relative position: Telemetry.tracks, else the
                                   decisions' relative ROE through the linear ROE map), coloured by
@@ -191,8 +191,8 @@ class TruthFrame:
 
 
 def truth_frame(msg: pb.Truth) -> TruthFrame:
-    sc = [b for b in msg.bodies if b.kind != "target"]
-    tg = [b for b in msg.bodies if b.kind == "target"]
+    sc = [b for b in msg.bodies if b.kind in ("", "spacecraft")]
+    tg = [b for b in msg.bodies if b.kind not in ("", "spacecraft")]  # targets, debris, ...: world/targets/<id>
 
     def xyz(bodies: list[pb.BodyState]) -> np.ndarray:
         return np.array([(b.position_m.x, b.position_m.y, b.position_m.z) for b in bodies], float).reshape(-1, 3)
