@@ -136,6 +136,7 @@ class MissionWorld:
             self._origin_row = 0 if origin == "reference" else 1 + row_ids.index(origin)
         else:
             raise ValueError(f"MissionWorld flies the cw and inertial propagators, not {sc.fidelity!r}")
+        self._origin_thrust_eci: np.ndarray | None = None  # inertial: the origin row's last thrust + manoeuvre
         att = [i for i, s in enumerate(self.specs) if s.inertia_kgm2 is not None]
         self.att_index = np.asarray(att, dtype=int)
         self.attitude: AttitudePropagator | None = None
@@ -163,7 +164,8 @@ class MissionWorld:
     def _rows_lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         if self._origin_row is None:
             return self.propagator.state()
-        p, v = self.propagator.relative_lvlh(self._origin_row)  # type: ignore[attr-defined]
+        # the origin's thrust over the step that just ended turns its LVLH too (out of plane: about x)
+        p, v = self.propagator.relative_lvlh(self._origin_row, self._origin_thrust_eci)  # type: ignore[attr-defined]
         return p[self._offset:], v[self._offset:]
 
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
@@ -225,6 +227,7 @@ class MissionWorld:
             o = self._origin_row
             acc_eci = lvlh_vector_to_eci(np.broadcast_to(r[o], acc.shape), np.broadcast_to(v[o], acc.shape), acc)
             acc = np.vstack([np.zeros((1, 3)), acc_eci])
+            self._origin_thrust_eci = acc[o].copy()
         self.propagator.step(acc, dt_s)
         if self.attitude is not None:
             tau = np.zeros((len(self.att_index), 3)) if torque_nm is None else np.asarray(torque_nm, float)[self.att_index]

@@ -162,12 +162,17 @@ class InertialPropagator:
         """ECI positions (N, 3) [m] and velocities (N, 3) [m/s]."""
         return self._y[:, :3].copy(), self._y[:, 3:].copy()
 
-    def relative_lvlh(self, chief_index: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def relative_lvlh(self, chief_index: int | None = None,
+                      chief_thrust_eci_mps2: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Every craft relative to the chief (default: `reference_index`), in the chief's rotating LVLH
-        (positions (N, 3) [m], velocities (N, 3) [m/s]; the chief's own row is zero)."""
+        (positions (N, 3) [m], velocities (N, 3) [m/s]; the chief's own row is zero).
+        `chief_thrust_eci_mps2`: the chief's thrust (ECI) now, added to its natural acceleration in the
+        frame rate (a chief thrusting out of plane turns its LVLH about the radial axis)."""
         c = self.reference_index if chief_index is None else int(chief_index)
         if not 0 <= c < self.n_craft:
             raise ValueError(f"chief_index must be in [0, {self.n_craft}), got {chief_index}")
         r_c, v_c = self._y[c, :3], self._y[c, 3:]
         a_c = self.natural_accel(self._y[c : c + 1, :3], self._y[c : c + 1, 3:], slice(c, c + 1))[0]
+        if chief_thrust_eci_mps2 is not None:
+            a_c = a_c + np.asarray(chief_thrust_eci_mps2, dtype=float)
         return eci_to_lvlh(r_c, v_c, self._y[:, :3], self._y[:, 3:], a_c)

@@ -100,7 +100,10 @@ def _rhs(_t: float, y: np.ndarray, acc_eci: np.ndarray, u_ts_eci: np.ndarray) ->
 
 def run_closed_loop(duration_s: float = 300.0, dt_s: float = 0.1, altitude_m: float = 500e3,
                     escape_n: float = 3.0, q_tl0_m=(900.0, 500.0, 500.0), v_tl0_mps=(5.0, 5.0, 5.0),
-                    funnel: dict | None = None, game: dict | None = None, with_servicers: bool = True) -> Run:
+                    funnel: dict | None = None, game: dict | None = None, with_servicers: bool = True,
+                    frame_rate_with_thrust: bool = True) -> Run:
+    """`frame_rate_with_thrust`: the leader's LVLH rate includes its own thrust (True, exact) or only
+    gravity (False, as plant/mission_world.py's truth and sensing: test_p003_stack.py compares)."""
     a_m = R_EARTH_M + altitude_m
     n = float(np.sqrt(MU_EARTH / a_m**3))
     orbit = OrbitInfo(semi_major_axis_m=a_m, mean_motion_radps=n)
@@ -130,7 +133,7 @@ def run_closed_loop(duration_s: float = 300.0, dt_s: float = 0.1, altitude_m: fl
         t = k * dt_s
         rv = y[: 6 * nb].reshape(nb, 6)
         r_l, v_l = rv[0, :3], rv[0, 3:]
-        a_l_eci = acc_leader_prev @ lvlh_basis(r_l, v_l)
+        a_l_eci = acc_leader_prev @ lvlh_basis(r_l, v_l) if frame_rate_with_thrust else np.zeros(3)
         q, qd = eci_to_lvlh(r_l, v_l, rv[1:, :3], rv[1:, 3:], a_ref_mps2=a_l_eci - MU_EARTH * r_l / np.linalg.norm(r_l) ** 3)
         q_tl, v_tl, q_s, v_s = q[0], qd[0], q[1:], qd[1:]
         # record truth

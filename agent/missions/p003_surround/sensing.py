@@ -4,8 +4,10 @@
   leader, q_TL = r_T - r_L and q'_TL, in the leader's LVLH (Assumption 1);
 - servicer i: `obs.extra["p003.leader_rel"]` = its own position and velocity relative to the
   leader, q_Li = r_i - r_L and q'_Li, in the leader's LVLH.
-Each value is a dict {"position_m": [3 floats], "velocity_mps": [3 floats]} (a plant may also
-hand the dataclass itself).
+On the stack (plant/sensing/p003.py, sensing kind `p003-relative`) each arrives as two named
+arrays, `obs.extra["<key>.position_m/<subject>"]` and `obs.extra["<key>.velocity_mps/<subject>"]`
+(subject: the target's or the leader's id, whichever it is); an in-process loop may instead hand
+one dict {"position_m": [3 floats], "velocity_mps": [3 floats]} (or the dataclass) under `<key>`.
 """
 from __future__ import annotations
 
@@ -40,9 +42,23 @@ class RelativeState:
         return cls(np.asarray(d["position_m"], dtype=float), np.asarray(d["velocity_mps"], dtype=float))
 
 
+def _named(extra: dict[str, Any], name: str) -> Any:
+    """The array named `name` or `name/<subject>` (exactly one), else None."""
+    if name in extra:
+        return extra[name]
+    hits = [k for k in extra if k.startswith(name + "/")]
+    if len(hits) > 1:
+        raise KeyError(f"obs.extra has several {name!r} measurements: {sorted(hits)}")
+    return extra[hits[0]] if hits else None
+
+
 def read(extra: dict[str, Any], key: str) -> RelativeState:
-    """The relative state under `key` in obs.extra; KeyError naming the key if it is missing."""
-    if key not in extra:
+    """The relative state under `key` in obs.extra (one dict or dataclass, or the two named arrays
+    `key.position_m[/subject]`, `key.velocity_mps[/subject]`); KeyError naming the key if missing."""
+    if key in extra:
+        value = extra[key]
+        return value if isinstance(value, RelativeState) else RelativeState.from_dict(value)
+    pos, vel = _named(extra, f"{key}.position_m"), _named(extra, f"{key}.velocity_mps")
+    if pos is None or vel is None:
         raise KeyError(f"obs.extra has no {key!r} (keys: {sorted(extra)})")
-    value = extra[key]
-    return value if isinstance(value, RelativeState) else RelativeState.from_dict(value)
+    return RelativeState(np.asarray(pos, dtype=float), np.asarray(vel, dtype=float))
