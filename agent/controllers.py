@@ -63,3 +63,6 @@ def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
     from agent.behaviour.sabatini import make_sabatini
 
     return make_sabatini(sc_id, orbit, params)
+
+
+import agent.missions.p004_lbdnn  # noqa: E402,F401  (paper 004's room registers "p004-lbdnn")

@@ -1,0 +1,1 @@
+"""Flight-software rooms, one per paper: each package registers its own controller on import."""
