@@ -12,10 +12,12 @@ radial / in-track / cross-track frame (seeded), servicers at the defunct craft's
 noise of std sqrt(0.5) m on every component of d_ij and y_i. Choices (docs/paper004.md):
 measurements and control at 10 Hz (zero-order hold), the ring graph, b_i = 1 for all.
 
-`python tests/missions/test_p004_closed_loop.py` prints the figures quoted in docs/paper004.md.
+`PYTHONPATH=. python tests/missions/test_p004_closed_loop.py [NAME...]` prints the figures
+quoted in docs/paper004.md (every case, or those whose name contains one of NAME).
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -101,6 +103,7 @@ class Run:
     zeta_tilde_norm: np.ndarray  # (K, 6) ||eta_dot_i - zeta_hat_i||, m/s (Fig. 3's quantity)
     u_norm: np.ndarray  # (K, 6) ||u_i||, m/s^2
     theta_norm: np.ndarray  # (K, 6) ||theta_hat_i||
+    phi_norm: np.ndarray  # (K, 6) ||Phi_i(kappa_i, theta_hat_i)||, m/s^2
     lyap: np.ndarray  # (K,) V without the theta_tilde block: 1/2 ||(e, r, eta~, r~, rho)||^2
     lambda_min_h: float
     delta_v_mps: np.ndarray  # (6,) sum ||u|| dt
@@ -161,7 +164,8 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
         r_tilde = zeta_tilde + g.k3 * eta_tilde + rho
         lyap = 0.5 * sum(float(np.sum(v**2)) for v in (e, r, eta_tilde, r_tilde, rho))
         rows.append((t, np.linalg.norm(e, axis=1), np.linalg.norm(zeta_tilde, axis=1),
-                     np.linalg.norm(u, axis=1), np.array([np.linalg.norm(q.theta_hat) for q in st]), lyap))
+                     np.linalg.norm(u, axis=1), np.array([np.linalg.norm(q.theta_hat) for q in st]),
+                     np.array([np.linalg.norm(q.phi) for q in st]), lyap))
         if k == n_steps:
             break
         dv += np.linalg.norm(u, axis=1) * dt
@@ -174,7 +178,8 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
     wall = time.perf_counter() - wall0
     return Run(t=np.array([r[0] for r in rows]), e_norm=np.array([r[1] for r in rows]),
                zeta_tilde_norm=np.array([r[2] for r in rows]), u_norm=np.array([r[3] for r in rows]),
-               theta_norm=np.array([r[4] for r in rows]), lyap=np.array([r[5] for r in rows]),
+               theta_norm=np.array([r[4] for r in rows]), phi_norm=np.array([r[5] for r in rows]),
+               lyap=np.array([r[6] for r in rows]),
                lambda_min_h=mission.lambda_min_h(), delta_v_mps=dv, wall_s=wall, packet_bytes=packet_bytes)
 
 
@@ -201,8 +206,10 @@ def summary(run: Run) -> dict[str, float]:
         "u_mean_after_200s_mps2": float(run.u_norm[after200].mean()),
         "delta_v_max_mps": float(run.delta_v_mps.max()),
         "theta_norm_max": float(run.theta_norm.max()),
+        "phi_mean_after_200s_mps2": float(run.phi_norm[after200].mean()),
         "V0": float(run.lyap[0]),
         "V_end": float(run.lyap[-1]),
+        "V_decay_rate_0_40s_per_s": float(np.log(run.lyap[0] / run.lyap[run.t <= 40.0][-1]) / 40.0),
         "packet_bytes": float(run.packet_bytes),
         "wall_s": run.wall_s,
     }
@@ -251,8 +258,38 @@ def test_lyapunov_function_decays_to_a_neighbourhood(paper_run: Run) -> None:
     assert all(b <= a for a, b in zip(windows, windows[1:]))
 
 
+VARIANTS: dict[str, dict] = {
+    # name: keyword arguments of simulate() (controller params, measurement period dt in s, noise)
+    "no network (Phi = 0)": {"params": {"use_network": False}},
+    "path graph": {"params": {"graph": "path"}},
+    "b_i = 1 for s4 only": {"params": {"b": {s: int(s == "s4") for s in SERVICERS}}},
+    "b_i = 1 for s4 only, no network": {"params": {"b": {s: int(s == "s4") for s in SERVICERS},
+                                                   "use_network": False}},
+    "5 Hz": {"dt": 0.2},
+    "20 Hz": {"dt": 0.05},
+    "noise-free measurements": {"noise": False},
+    "thrust limit 10 m/s^2 per axis": {"params": {"max_accel_mps2": 10.0}},
+    "thrust limit 1 m/s^2 per axis": {"params": {"max_accel_mps2": 1.0}},
+}
+
+
+@pytest.mark.system
+@pytest.mark.parametrize("name", list(VARIANTS))
+def test_variants_stay_bounded(name: str) -> None:
+    """The ablation and the variants of docs/paper004.md: bounded, and (where lambda_min(H)
+    and the thrust allow within 360 s) converged."""
+    run = simulate(**VARIANTS[name])
+    s = summary(run)
+    print(name, {k: round(v, 4) for k, v in s.items()})
+    assert np.all(np.isfinite(run.e_norm)) and np.all(np.isfinite(run.u_norm))
+    assert run.e_norm[-1].max() < run.e_norm[0].max()
+
+
 if __name__ == "__main__":
-    for name, p in [("paper (ring, b=1, network)", {}), ("no network (Phi = 0)", {"use_network": False}),
-                    ("path graph", {"graph": "path"})]:
-        run = simulate(params=p)
-        print(name, {k: round(v, 4) for k, v in summary(run).items()})
+    cases = {"paper (ring, b_i = 1, network, 10 Hz)": {}, **VARIANTS}
+    wanted = sys.argv[1:]
+    for name, kwargs in cases.items():
+        if wanted and not any(w in name for w in wanted):
+            continue
+        run = simulate(**kwargs)
+        print(name, {k: round(v, 4) for k, v in summary(run).items()}, flush=True)

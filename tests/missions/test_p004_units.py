@@ -51,7 +51,7 @@ def test_jacobian_matches_central_differences(scale: float) -> None:
     rng = np.random.default_rng(int(10 * scale))
     theta = scale * rng.normal(size=103) / 2.0
     kappa = scale * rng.normal(size=6)
-    jac = lbdnn.jacobian(lbdnn.forward(kappa, theta), theta)
+    jac = lbdnn.jacobian(lbdnn.forward(kappa, theta))
     h = 1e-6
     fd = np.empty((3, 103))
     for i in range(103):
@@ -66,7 +66,7 @@ def test_jacobian_with_kaiming_weights_and_large_inputs() -> None:
     """Kaiming weights (§6) and inputs of several units: a partly saturated network, still exact."""
     theta = lbdnn.kaiming_init(np.random.default_rng(4))
     kappa = np.array([3000.0, -1500.0, 800.0, 0.2, -0.1, 0.05]) / 1000.0 * 1.7
-    jac = lbdnn.jacobian(lbdnn.forward(kappa, theta), theta)
+    jac = lbdnn.jacobian(lbdnn.forward(kappa, theta))
     h = 1e-6
     fd = np.array([(lbdnn.evaluate(kappa, theta + h * np.eye(103)[i])
                     - lbdnn.evaluate(kappa, theta - h * np.eye(103)[i])) / (2 * h) for i in range(103)]).T
@@ -105,7 +105,7 @@ def test_observer_converges_on_a_linear_six_agent_network() -> None:
     u_j shared, eta_hat -> eta and zeta_hat -> eta_dot (eqs. 25, 26) on the paper's graph."""
     mission = MissionConfig()
     g, h = mission.gains, mission.interaction_matrix()
-    n, dt = 6, 1e-3
+    n, dt = 6, 2e-3
     rng = np.random.default_rng(3)
     e, e_dot = rng.normal(0, 50, (n, 3)), rng.normal(0, 2, (n, 3))
     cfgs = [mission.servicer(s) for s in mission.servicers]
@@ -113,7 +113,7 @@ def test_observer_converges_on_a_linear_six_agent_network() -> None:
     eta = (h @ e.ravel()).reshape(n, 3)
     eta_hat, zeta_hat = np.zeros((n, 3)), np.zeros((n, 3))
     nu = np.array([rho_filter.nu_initial(eta[i], g) for i in range(n)])
-    for step in range(int(30.0 / dt)):
+    for step in range(int(25.0 / dt)):
         t = step * dt
         u = np.array([[np.sin(0.3 * t + i), np.cos(0.2 * t * (i + 1)), 0.1 * i] for i in range(n)])
         eta = (h @ e.ravel()).reshape(n, 3)
@@ -128,7 +128,7 @@ def test_observer_converges_on_a_linear_six_agent_network() -> None:
         e, e_dot = e + dt * e_dot, e_dot - dt * u
     eta = (h @ e.ravel()).reshape(n, 3)
     eta_dot = (h @ e_dot.ravel()).reshape(n, 3)
-    # error dynamics decay like exp(-0.65 t): 30 s leaves ~3e-9 of the initial kilometre errors
+    # error dynamics decay like exp(-0.65 t): 25 s leaves ~1e-7 of the initial errors (~1 km)
     assert np.max(np.abs(eta - eta_hat)) < 1e-3
     assert np.max(np.abs(eta_dot - zeta_hat)) < 1e-3
 

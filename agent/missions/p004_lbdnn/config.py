@@ -63,6 +63,7 @@ class ServicerConfig:
     use_network: bool = True  # False: Phi == 0 and no adaptation (the ablation of NOTES-004)
     weight_seed: int = 0  # seed of the Kaiming initial weights
     rk4_substeps: int = 1  # internal integration steps per control step
+    max_accel_mps2: float | None = None  # per-axis thrust limit (None: the paper's case, none)
 
     def __post_init__(self) -> None:
         c = np.atleast_2d(np.asarray(self.c_matrix, dtype=float))
@@ -77,6 +78,8 @@ class ServicerConfig:
             raise ValueError(f"{self.sc_id}: theta_bar and proj_epsilon must be > 0")
         if self.rk4_substeps < 1:
             raise ValueError(f"{self.sc_id}: rk4_substeps must be >= 1, got {self.rk4_substeps}")
+        if self.max_accel_mps2 is not None and not self.max_accel_mps2 > 0.0:
+            raise ValueError(f"{self.sc_id}: max_accel_mps2 must be > 0 or None, got {self.max_accel_mps2}")
 
     @property
     def n_params(self) -> int:
@@ -103,6 +106,7 @@ class MissionConfig:
     use_network: bool = True
     seed: int = 0
     rk4_substeps: int = 1
+    max_accel_mps2: float | None = None
 
     def __post_init__(self) -> None:
         ids = set(self.servicers)
@@ -126,7 +130,7 @@ class MissionConfig:
             b=int(self.b[sc_id]), gains=self.gains, theta_bar=self.theta_bar,
             proj_epsilon=self.proj_epsilon, use_network=self.use_network,
             weight_seed=self.seed * 1000 + self.servicers.index(sc_id),
-            rk4_substeps=self.rk4_substeps)
+            rk4_substeps=self.rk4_substeps, max_accel_mps2=self.max_accel_mps2)
 
     def laplacian(self) -> np.ndarray:
         """L = D - A of the undirected graph (paper 004 §2.1)."""
@@ -161,10 +165,10 @@ def mission_from_params(params: dict[str, Any]) -> MissionConfig:
 
     Keys: servicers (list), edges (list of [a, b]), graph ("ring" | "path", instead of edges),
     b ({id: 0/1}), C ({id: rows}), gains ({k1..k6, gamma}), theta_bar, proj_epsilon,
-    use_network, seed, rk4_substeps.
+    use_network, seed, rk4_substeps, max_accel_mps2 (a stated variant: the paper has no limit).
     """
     known = {"servicers", "edges", "graph", "b", "C", "gains", "theta_bar", "proj_epsilon",
-             "use_network", "seed", "rk4_substeps"}
+             "use_network", "seed", "rk4_substeps", "max_accel_mps2"}
     unknown = set(params) - known
     if unknown:
         raise ValueError(f"unknown p004-lbdnn parameters {sorted(unknown)}; known: {sorted(known)}")
@@ -186,7 +190,7 @@ def mission_from_params(params: dict[str, Any]) -> MissionConfig:
     if "gains" in params:
         kw["gains"] = replace(cfg.gains, **{k: float(v) for k, v in params["gains"].items()})
     for key, cast in (("theta_bar", float), ("proj_epsilon", float), ("use_network", bool),
-                      ("seed", int), ("rk4_substeps", int)):
+                      ("seed", int), ("rk4_substeps", int), ("max_accel_mps2", float)):
         if key in params:
             kw[key] = cast(params[key])
     return replace(cfg, **kw)

@@ -11,7 +11,9 @@ Discrete-time implementation of the continuous laws (eqs. 25-28), one call per m
    and u_i(k) by eq. 27; u_i(k) and theta_hat_i(t_k) are broadcast (packet.py).
 
 The observer starts at eta_hat = zeta_hat = 0 (eq. 26) and nu = (k3 + k4) eta_0 (rho(0) = 0).
-Frame: inertial axes for measurements and command (sensing.py).
+Frame: inertial axes for measurements and command (sensing.py). With `max_accel_mps2` set (a
+stated variant; the paper has no limit) u_i is clipped per axis before it is used or broadcast,
+so the observers integrate the acceleration that was applied.
 """
 from __future__ import annotations
 
@@ -122,7 +124,7 @@ class LbdnnServicer:
         if self.cfg.use_network:
             kappa = np.concatenate([eta, zeta_hat])
             fwd = lbdnn.forward(kappa, theta)
-            jac = lbdnn.jacobian(fwd, theta)
+            jac = lbdnn.jacobian(fwd)
             direction = adaptation.adaptation_direction(jac, zeta_hat, eta, theta, theta_nb, self.g)
             dx[9:] = adaptation.projection(direction, theta, self.cfg.theta_bar, self.cfg.proj_epsilon)
         else:
@@ -161,6 +163,9 @@ class LbdnnServicer:
         phi = (lbdnn.evaluate(np.concatenate([eta, self.zeta_hat]), self.theta)
                if self.cfg.use_network else np.zeros(3))
         u = control(phi, eta, self.zeta_hat, eta_tilde, rho_i, self.g)
+        if self.cfg.max_accel_mps2 is not None:
+            # the thrust-limited variant: the applied (clipped) u is what the observers must see
+            u = np.clip(u, -self.cfg.max_accel_mps2, self.cfg.max_accel_mps2)
         self._t_prev, self._eta_prev, self._u_prev = float(obs.t_s), eta, u
         self.state = InternalState(float(obs.t_s), eta, self.eta_hat.copy(), self.zeta_hat.copy(),
                                    rho_i, self.theta.copy(), phi, u)

@@ -27,6 +27,7 @@ class Forward:
     output: np.ndarray  # Phi(kappa, theta), (L_{k+1},)
     pre: list[np.ndarray]  # varphi_j, j = 0..k (pre-activation of layer j+1)
     inputs: list[np.ndarray]  # varrho_j^T: kappa_a for j = 0, phi_j(varphi_{j-1}) for j >= 1
+    mats: list[np.ndarray]  # V_1 ... V_{k+1} the pass used
 
 
 def n_params(sizes: tuple[int, ...] = LAYER_SIZES) -> int:
@@ -84,7 +85,7 @@ def forward(kappa: np.ndarray, theta: np.ndarray, sizes: tuple[int, ...] = LAYER
         if j < len(mats) - 1:
             x = np.empty(phi_j.size + 1)
             x[:-1], x[-1] = swish(phi_j), 1.0  # phi_{j+1}(varphi_j) with the bias 1 appended
-    return Forward(output=np.tanh(pre[-1]), pre=pre, inputs=inputs)
+    return Forward(output=np.tanh(pre[-1]), pre=pre, inputs=inputs, mats=mats)
 
 
 def evaluate(kappa: np.ndarray, theta: np.ndarray, sizes: tuple[int, ...] = LAYER_SIZES) -> np.ndarray:
@@ -92,13 +93,14 @@ def evaluate(kappa: np.ndarray, theta: np.ndarray, sizes: tuple[int, ...] = LAYE
     return forward(kappa, theta, sizes).output
 
 
-def jacobian(fwd: Forward, theta: np.ndarray, sizes: tuple[int, ...] = LAYER_SIZES) -> np.ndarray:
-    """grad_theta Phi, (L_{k+1}, p), paper 004 eq. 3 times diag(1 - Phi^2) for the tanh output.
+def jacobian(fwd: Forward, sizes: tuple[int, ...] = LAYER_SIZES) -> np.ndarray:
+    """grad_theta Phi at the weights of the forward pass `fwd`, (L_{k+1}, p): paper 004 eq. 3
+    times diag(1 - Phi^2) for the tanh output.
 
     Block j is (prod_{l=k}^{j+1} V_{l+1}^T dphi_l/dvarphi_{l-1}) (I_{L_{j+1}} kron varrho_j),
     built backwards from the output layer.
     """
-    mats = unpack(theta, sizes)
+    mats = fwd.mats
     k = len(mats) - 1
     n_out = sizes[-1]
     back = np.diag(1.0 - fwd.output**2)  # d Phi / d varphi_k
