@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -40,6 +40,7 @@ RHO0, H0, HSCALE = 2.418e-11, 300e3, 53.628e3  # Vallado table 8-4, 300-350 km b
 MASS_KG = np.array([10000.0, 640.1074, 1087.4786, 25.1687, 470.9405, 241.4649, 161.1994])
 AREA_M2 = np.array([1000.0, 10.1267, 17.9324, 20.4416, 27.4020, 21.5405, 34.5757])
 NOISE_STD_M = np.sqrt(0.5)
+DIVERGED_M = 1e6  # a servicer 1000 km from the defunct craft: the loop has gone unstable
 
 
 def accel_natural(r: np.ndarray, v: np.ndarray, area_over_mass: np.ndarray) -> np.ndarray:
@@ -109,7 +110,7 @@ class Run:
     delta_v_mps: np.ndarray  # (6,) sum ||u|| dt
     wall_s: float
     packet_bytes: int = 0
-    extra: dict = field(default_factory=dict)
+    diverged_at_s: float | None = None  # first time max ||e_i|| passed DIVERGED_M (run stopped)
 
 
 def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: bool = True,
@@ -129,6 +130,7 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
     dv = np.zeros(6)
     wall0 = time.perf_counter()
     packet_bytes = 0
+    diverged_at = None
     for k in range(n_steps + 1):
         t = k * dt
         s = x.reshape(7, 6)
@@ -168,6 +170,9 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
                      np.array([np.linalg.norm(q.phi) for q in st]), lyap))
         if k == n_steps:
             break
+        if np.max(np.linalg.norm(e, axis=1)) > DIVERGED_M:
+            diverged_at = t
+            break
         dv += np.linalg.norm(u, axis=1) * dt
         t_next = (k + 1) * dt
         sol = solve_ivp(rhs, (t, t_next), x, method="DOP853", rtol=1e-11, atol=1e-7,
@@ -180,7 +185,8 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
                zeta_tilde_norm=np.array([r[2] for r in rows]), u_norm=np.array([r[3] for r in rows]),
                theta_norm=np.array([r[4] for r in rows]), phi_norm=np.array([r[5] for r in rows]),
                lyap=np.array([r[6] for r in rows]),
-               lambda_min_h=mission.lambda_min_h(), delta_v_mps=dv, wall_s=wall, packet_bytes=packet_bytes)
+               lambda_min_h=mission.lambda_min_h(), delta_v_mps=dv, wall_s=wall, packet_bytes=packet_bytes,
+               diverged_at_s=diverged_at)
 
 
 def first_time_below(t: np.ndarray, y: np.ndarray, level: float) -> float:
@@ -192,6 +198,9 @@ def first_time_below(t: np.ndarray, y: np.ndarray, level: float) -> float:
 
 
 def summary(run: Run) -> dict[str, float]:
+    if run.diverged_at_s is not None:
+        return {"lambda_min_H": run.lambda_min_h, "diverged_at_s": run.diverged_at_s,
+                "e_max_m": float(run.e_norm.max()), "wall_s": run.wall_s}
     after200 = run.t >= 200.0
     after150 = run.t >= 150.0
     return {
@@ -218,33 +227,56 @@ def summary(run: Run) -> dict[str, float]:
 # ---------------------------------------------------------------------------------------------
 
 def test_reference_plant_keeps_the_paper_orbit() -> None:
-    """The test's own plant: with no control the offsets stay near their start for 60 s
-    (same velocity), and the defunct craft's energy drifts only by drag."""
+    """The test's own plant: with no control the offsets stay near their start for 30 s (same
+    velocity), and the 0.1 s single DOP853 steps of the loop agree with one tight integration."""
     x0 = initial_state(4)
-    sol = solve_ivp(rhs, (0.0, 60.0), x0, method="DOP853", rtol=1e-11, atol=1e-7, args=(np.zeros((6, 3)),))
+    u0 = np.zeros((6, 3))
+    sol = solve_ivp(rhs, (0.0, 30.0), x0, method="DOP853", rtol=1e-13, atol=1e-9, args=(u0,))
     s0, s1 = x0.reshape(7, 6), sol.y[:, -1].reshape(7, 6)
+    x = x0
+    for k in range(300):
+        t, t_next = k * 0.1, (k + 1) * 0.1
+        x = solve_ivp(rhs, (t, t_next), x, method="DOP853", rtol=1e-11, atol=1e-7,
+                      first_step=t_next - t, args=(u0,)).y[:, -1]
+    chained = x.reshape(7, 6)
+    assert np.max(np.abs(chained[1:, :3] - s1[1:, :3])) < 1e-3  # offsets to the millimetre
+    assert np.max(np.abs(chained[0, :3] - s1[0, :3])) < 1e-2
     assert np.linalg.norm(s0[0, :3]) == pytest.approx(R_E + 300e3)
     drift = np.linalg.norm(s1[1:, :3] - s0[1:, :3], axis=1)
-    assert np.all(drift < 60.0)  # ~ n^2 sigma t^2 / 2 < 0.5 * 1.3e-6 * 5000 * 3600 = 12 m, plus J2
+    assert np.all(drift < 20.0)  # gravity gradient: n^2 sigma t^2 < 1.3e-6 * 5000 * 900 = 6 m
     assert np.all(np.linalg.norm(s0[1:, :3], axis=1) >= 2500.0)
 
 
 @pytest.fixture(scope="module")
 def paper_run() -> Run:
-    return simulate(duration_s=360.0, dt=0.1, seed=4)
+    """The paper's case for 250 s (the claims are about 150 s and 200 s; the full 360 s run is
+    the system test below, kept out of the default set for time: ~45 s on a loaded machine)."""
+    return simulate(duration_s=250.0, dt=0.1, seed=4)
+
+
+def assert_paper_outcome(run: Run) -> None:
+    """§6: tracking errors converge to a few metres by 200 s, neighbourhood-velocity errors of a
+    few m/s by 150 s, all bounded; weights inside the projection's ball."""
+    s = summary(run)
+    print({k: round(v, 4) for k, v in s.items()})
+    assert run.e_norm[0].min() > 2000.0
+    assert s["e_max_after_200s_m"] < 15.0
+    assert s["e_mean_after_200s_m"] < 6.0
+    assert s["t_e_below_10m_s"] < 200.0
+    assert s["zeta_tilde_max_after_150s_mps"] < 15.0
+    assert np.all(np.isfinite(run.u_norm)) and s["u_peak_mps2"] < 1e4
+    assert s["theta_norm_max"] <= 31.0 + 1e-9  # theta_bar + epsilon of the projection
 
 
 def test_paper_case_converges_and_stays_bounded(paper_run: Run) -> None:
-    """§6's claim: every servicer's tracking error converges to a few metres and stays there."""
-    s = summary(paper_run)
-    print({k: round(v, 4) for k, v in s.items()})
-    assert paper_run.e_norm[0].min() > 2000.0
-    assert s["e_max_after_200s_m"] < 15.0
-    assert s["e_mean_after_200s_m"] < 6.0
-    assert s["t_e_below_10m_s"] < 250.0
-    assert s["zeta_tilde_max_after_150s_mps"] < 10.0
-    assert np.all(np.isfinite(paper_run.u_norm)) and s["u_peak_mps2"] < 1e3
-    assert s["theta_norm_max"] <= 31.0 + 1e-9  # theta_bar + epsilon of the projection
+    assert_paper_outcome(paper_run)
+
+
+@pytest.mark.system
+def test_paper_case_full_360s() -> None:
+    run = simulate(duration_s=360.0, dt=0.1, seed=4)
+    assert_paper_outcome(run)
+    assert run.lyap[-1] < 1e-5 * run.lyap[0]
 
 
 def test_lyapunov_function_decays_to_a_neighbourhood(paper_run: Run) -> None:
@@ -258,35 +290,41 @@ def test_lyapunov_function_decays_to_a_neighbourhood(paper_run: Run) -> None:
     assert all(b <= a for a, b in zip(windows, windows[1:]))
 
 
-VARIANTS: dict[str, dict] = {
-    # name: keyword arguments of simulate() (controller params, measurement period dt in s, noise)
-    "no network (Phi = 0)": {"params": {"use_network": False}},
-    "path graph": {"params": {"graph": "path"}},
-    "b_i = 1 for s4 only": {"params": {"b": {s: int(s == "s4") for s in SERVICERS}}},
-    "b_i = 1 for s4 only, no network": {"params": {"b": {s: int(s == "s4") for s in SERVICERS},
-                                                   "use_network": False}},
-    "5 Hz": {"dt": 0.2},
-    "20 Hz": {"dt": 0.05},
-    "noise-free measurements": {"noise": False},
-    "thrust limit 10 m/s^2 per axis": {"params": {"max_accel_mps2": 10.0}},
-    "thrust limit 1 m/s^2 per axis": {"params": {"max_accel_mps2": 1.0}},
+VARIANTS: dict[str, tuple[dict, str]] = {
+    # name: (keyword arguments of simulate(), expected outcome: converges | bounded | diverges)
+    "no network (Phi = 0)": ({"params": {"use_network": False}}, "converges"),
+    "path graph": ({"params": {"graph": "path"}}, "converges"),
+    "b_i = 1 for s4 only": ({"params": {"b": {s: int(s == "s4") for s in SERVICERS}}}, "bounded"),
+    "b_i = 1 for s4 only, no network": ({"params": {"b": {s: int(s == "s4") for s in SERVICERS},
+                                                    "use_network": False}}, "bounded"),
+    "5 Hz": ({"dt": 0.2}, "diverges"),  # dt > 2 / (k2 lambda_max(H)) = 0.18 s
+    "20 Hz": ({"dt": 0.05}, "converges"),
+    "noise-free measurements": ({"noise": False}, "converges"),
+    "thrust limit 10 m/s^2 per axis": ({"params": {"max_accel_mps2": 10.0}}, "bounded"),
+    "thrust limit 1 m/s^2 per axis": ({"params": {"max_accel_mps2": 1.0}}, "bounded"),
 }
 
 
 @pytest.mark.system
 @pytest.mark.parametrize("name", list(VARIANTS))
-def test_variants_stay_bounded(name: str) -> None:
-    """The ablation and the variants of docs/paper004.md: bounded, and (where lambda_min(H)
-    and the thrust allow within 360 s) converged."""
-    run = simulate(**VARIANTS[name])
+def test_variants(name: str) -> None:
+    """The ablation and the variants of docs/paper004.md, each with the outcome measured there."""
+    kwargs, expected = VARIANTS[name]
+    run = simulate(**kwargs)
     s = summary(run)
     print(name, {k: round(v, 4) for k, v in s.items()})
+    if expected == "diverges":
+        assert run.diverged_at_s is not None
+        return
+    assert run.diverged_at_s is None
     assert np.all(np.isfinite(run.e_norm)) and np.all(np.isfinite(run.u_norm))
     assert run.e_norm[-1].max() < run.e_norm[0].max()
+    if expected == "converges":
+        assert s["e_max_after_200s_m"] < 15.0
 
 
 if __name__ == "__main__":
-    cases = {"paper (ring, b_i = 1, network, 10 Hz)": {}, **VARIANTS}
+    cases = {"paper (ring, b_i = 1, network, 10 Hz)": {}, **{k: v[0] for k, v in VARIANTS.items()}}
     wanted = sys.argv[1:]
     for name, kwargs in cases.items():
         if wanted and not any(w in name for w in wanted):
