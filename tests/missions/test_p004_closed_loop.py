@@ -280,14 +280,16 @@ def test_paper_case_full_360s() -> None:
 
 
 def test_lyapunov_function_decays_to_a_neighbourhood(paper_run: Run) -> None:
-    """Theorem 1 shape (eq. 58): V falls by orders of magnitude, then stays ultimately bounded."""
+    """Theorem 1's shape (eq. 58), V(t) <= V(0) exp(-c t) + b: V falls by orders of magnitude
+    at a rate c, then stays in a noise-sized neighbourhood b (measured here: b from t >= 100 s)."""
     v, t = paper_run.lyap, paper_run.t
-    assert v[-1] < 1e-4 * v[0]
-    tail = v[t >= 200.0]
-    assert tail.max() < 1e-3 * v[0]
-    # decreasing envelope: the maximum over each successive 40 s window does not grow before 200 s
-    windows = [v[(t >= a) & (t < a + 40.0)].max() for a in np.arange(40.0, 200.0, 40.0)]
-    assert all(b <= a for a, b in zip(windows, windows[1:]))
+    floor = v[t >= 100.0].max()
+    assert v[-1] < 1e-4 * v[0] and floor < 1e-5 * v[0]
+    c = 0.25  # per second; measured 0.36 over the first 40 s (docs/paper004.md)
+    assert np.all(v <= v[0] * np.exp(-c * t) + 2.0 * floor)
+    # the transient itself: each 10 s window's maximum below the previous one until 40 s
+    windows = [v[(t >= a) & (t < a + 10.0)].max() for a in (0.0, 10.0, 20.0, 30.0)]
+    assert all(b < a for a, b in zip(windows, windows[1:]))
 
 
 VARIANTS: dict[str, tuple[dict, str]] = {
@@ -300,7 +302,7 @@ VARIANTS: dict[str, tuple[dict, str]] = {
     "5 Hz": ({"dt": 0.2}, "diverges"),  # dt > 2 / (k2 lambda_max(H)) = 0.18 s
     "20 Hz": ({"dt": 0.05}, "converges"),
     "noise-free measurements": ({"noise": False}, "converges"),
-    "thrust limit 10 m/s^2 per axis": ({"params": {"max_accel_mps2": 10.0}}, "bounded"),
+    "thrust limit 10 m/s^2 per axis": ({"params": {"max_accel_mps2": 10.0}}, "converges"),
     "thrust limit 1 m/s^2 per axis": ({"params": {"max_accel_mps2": 1.0}}, "bounded"),
 }
 
