@@ -155,7 +155,8 @@ def test_adaptation_direction_and_projection() -> None:
     zeta, eta = rng.normal(size=3), rng.normal(size=3)
     nbs = rng.normal(size=(2, 103))
     d = adaptation.adaptation_direction(jac, zeta, eta, theta, nbs, g)
-    expected = g.gamma * (jac.T @ (zeta + g.k1 * eta) - g.k6 * (theta - ((nbs[0] - theta) + (nbs[1] - theta))))
+    consensus = theta - ((nbs[0] - theta) + (nbs[1] - theta))  # as printed in eq. 28
+    expected = g.gamma * (jac.T @ (zeta + g.k1 * eta) - g.k6 * consensus)
     np.testing.assert_allclose(d, expected, atol=1e-14)
     bar, eps = 5.0, 1.0
     inside = theta / np.linalg.norm(theta) * 4.0

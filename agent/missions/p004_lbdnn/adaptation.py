@@ -14,7 +14,8 @@ from agent.missions.p004_lbdnn.config import Gains
 
 def adaptation_direction(jac: np.ndarray, zeta_hat: np.ndarray, eta: np.ndarray, theta_i: np.ndarray,
                          theta_neighbours: np.ndarray, g: Gains) -> np.ndarray:
-    """Theta_i = Gamma (grad Phi^T (zeta_hat + k1 eta) - k6 ((1 + |N_i|) theta_i - sum_j theta_j)) (eq. 28)."""
+    """Theta_i of eq. 28 (transposed Jacobian):
+    Gamma (grad Phi^T (zeta_hat + k1 eta) - k6 ((1 + |N_i|) theta_i - sum_j theta_j))."""
     theta_neighbours = np.asarray(theta_neighbours, dtype=float).reshape(-1, theta_i.size)
     consensus = (1 + theta_neighbours.shape[0]) * theta_i - theta_neighbours.sum(axis=0)
     return g.gamma * (jac.T @ (zeta_hat + g.k1 * eta) - g.k6 * consensus)
