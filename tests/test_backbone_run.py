@@ -65,6 +65,10 @@ def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
                   "delta_v_total_mps", "delta_v_mps", "dead_agents", "rejected_packets"):
         assert field in s, field
     assert s["delta_v_total_mps"] == 0.0 and s["rejected_packets"] == 0 and s["agents"] == 20
+    # shut down on the recorder's acknowledgements (plant's run_end recorded, then everything), not on sleeps
+    assert s["recorder_confirmed"] is True
+    events = [m.kind for t, _l, _p, m in msgs if t == "swarm/d20/event"]
+    assert events[0] == "run_start" and events[-1] == "run_end"
 
 
 def test_lockstep_is_deterministic_and_matches_in_process(tmp_path: Path) -> None:
