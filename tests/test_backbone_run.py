@@ -191,7 +191,7 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     acts = Counter(t for t, *_ in msgs if t.endswith("/act"))
     assert all(acts[f"swarm/kill/sc/{sid}/act"] >= 99 for sid in ("sc01", "sc03")), acts
     sc02_steps = [m.header.step for t, _l, _p, m in msgs if t == "swarm/kill/sc/sc02/act"]
-    assert max(sc02_steps) <= after + 1 and len(sc02_steps) >= before - 1, (before, after, max(sc02_steps))
+    assert sc02_steps and max(sc02_steps) <= after + 1, (before, after, sc02_steps[-3:])
 
 
 def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -> None:
