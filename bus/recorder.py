@@ -5,9 +5,16 @@ protobuf FileDescriptorSet of the key's message type (registered once per type),
 encoding `protobuf`, zstd chunks. A payload that does not parse as its key's type is kept too,
 wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
 A killed recorder loses at most its open chunk (`chunk_size`); `swarmhil mcap repair` salvages it.
+
+Flush handshake (the launcher's shutdown, issue 10): a payload on `flush_key(run)` (outside the
+recorded swarm/<run>/** namespace) is answered on `ack_key(run)` with JSON {"nonce", "messages",
+"by_topic", "run_end"}: what the recorder has written so far, and whether the plant's `run_end`
+event is among it. The request goes through the same dispatcher queue as the recorded samples,
+so the answer covers every sample the recorder received before the request.
 """
 from __future__ import annotations
 
+import json
 import logging
 import time
 from pathlib import Path
@@ -129,24 +136,50 @@ class McapRecorder:
         self._f.close()
 
 
+def flush_key(run: str) -> str:
+    return f"swarmctl/{run}/recorder/flush"
+
+
+def ack_key(run: str) -> str:
+    return f"swarmctl/{run}/recorder/ack"
+
+
 class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
                  document: dict[str, Any] | None = None) -> None:
         self.bus = bus
+        self.run = run
         self.keys = Keys(run)
         self.rec = McapRecorder(path, run)
         if config is not None:
             self.rec.describe_run(config, document)
-        self._sub = bus.subscribe(self.keys.all, self.rec.write)
+        self.run_end = False
+        self._sub = bus.subscribe(self.keys.all, self._on_sample)
+        self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))
 
+    def _on_sample(self, key: str, payload: bytes) -> None:
+        self.rec.write(key, payload)
+        if key == self.keys.event and not self.run_end:
+            try:
+                ev = pb.Event.FromString(payload)
+            except (DecodeError, RuntimeWarning, ValueError):
+                return
+            self.run_end = ev.kind == "run_end" and ev.header.source == "plant"
+
+    def _on_flush(self, _key: str, payload: bytes) -> None:
+        ack = {"nonce": payload.decode(errors="replace"), "messages": self.rec.count,
+               "by_topic": dict(self.rec.by_topic), "run_end": self.run_end}
+        self.bus.publish(ack_key(self.run), json.dumps(ack).encode())
+
     def close(self) -> dict[str, int]:
-        try:
-            self._sub.undeclare()
-        except Exception:
-            pass
+        for sub in (self._sub, self._flush_sub):
+            try:
+                sub.undeclare()
+            except Exception:
+                pass
         flush = getattr(self.bus, "flush", None)
         if flush:
             flush()

@@ -23,7 +23,10 @@ LOOPBACK = "127.0.0.1"
 
 
 def free_loopback_port() -> int:
-    """A TCP port free on 127.0.0.1 now (the OS picks it, so two runs can coexist)."""
+    """A TCP port free on 127.0.0.1 now (the OS picks it, so two runs can coexist).
+
+    Free *now*: the socket is closed before the caller binds it, so another process can take the
+    port in between. A listener should bind through `open_loopback_router`, which retries."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind((LOOPBACK, 0))
         return int(s.getsockname()[1])
@@ -52,6 +55,31 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
 def open_router(listen: str) -> zenoh.Session:
     """A Python session in router mode: the run's router (no zenohd binary needed)."""
     return zenoh.open(zenoh_config("router", [listen], []))
+
+
+def _address_in_use(exc: BaseException) -> bool:
+    text = str(exc)
+    return "Address already in use" in text or "os error 98" in text or "AddrInUse" in text
+
+
+def open_loopback_router(attempts: int = 8, port_source=None) -> tuple[zenoh.Session, str]:
+    """A router listening on a free 127.0.0.1 port: (session, endpoint).
+
+    The port comes from `free_loopback_port` (or `port_source`, for tests) and is closed before
+    Zenoh binds it, so another process may take it in between; when zenoh.open fails with
+    "address already in use" a new port is drawn, up to `attempts` times. Any other error, or
+    the last collision, is raised."""
+    pick = port_source or free_loopback_port
+    for attempt in range(1, attempts + 1):
+        ep = endpoint(pick())
+        try:
+            return open_router(ep), ep
+        except zenoh.ZError as exc:
+            if not _address_in_use(exc) or attempt == attempts:
+                raise
+            log.warning("router port %s was taken before Zenoh bound it (attempt %d of %d); trying another",
+                        ep, attempt, attempts)
+    raise AssertionError("unreachable")
 
 
 def open_client(connect: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
