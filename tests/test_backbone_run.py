@@ -35,7 +35,7 @@ def _raw_truth(path: Path) -> list[bytes]:
     from mcap.reader import make_reader
 
     with open(path, "rb") as f:
-        return [m.data for _s, ch, m in make_reader(f).iter_messages(topics=None) if ch.topic.endswith("/truth")]
+        return [m.data for _s, ch, m in make_reader(f).iter_messages(topics=None) if ch.topic == "truth"]
 
 
 def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
@@ -50,16 +50,18 @@ def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
     msgs = read_mcap(out / "run.mcap")
     steps = res.summary["steps"]
     assert steps == 20
-    truth = [m for t, _l, _p, m in msgs if t == "swarm/d20/truth"]
+    truth = [m for t, _l, _p, m in msgs if t == "truth"]
     assert [m.header.step for m in truth] == list(range(steps + 1))
     assert all(len(m.bodies) == 20 for m in truth)
     acts = Counter(t for t, *_ in msgs if t.endswith("/act"))
-    assert set(acts) == {f"swarm/d20/sc/sc{i:02d}/act" for i in range(1, 21)}
+    assert set(acts) == {f"sc/sc{i:02d}/act" for i in range(1, 21)}
     assert set(acts.values()) == {steps}
-    for topic, _log, pub, m in msgs:
-        assert topic.startswith("swarm/d20/")
+    epoch = 946728000 * 10**9  # the default [run].epoch_utc 2000-01-01T12:00:00Z
+    for topic, log_time, pub, m in msgs:
+        assert not topic.startswith("swarm/")  # the MCAP topic is the key without swarm/<run>/
         if hasattr(m, "header") and m.header.run:
-            assert pub == round(m.header.t * 1e9)
+            assert log_time == epoch + round(m.header.t * 1e9)  # simulated timeline
+        assert pub > epoch  # reception wall time
     s = json.loads((out / "summary.json").read_text())
     for field in ("run", "scenario", "mode", "agents", "steps", "step_s", "duration_s", "wall_s", "reference_orbit",
                   "delta_v_total_mps", "delta_v_mps", "dead_agents", "rejected_packets"):
@@ -124,10 +126,10 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     assert list(s["dead_agents"]) == ["sc02"]
     assert s["steps"] == 100
     msgs = read_mcap(out / "run.mcap")
-    events = [m for t, _l, _p, m in msgs if t == "swarm/kill/event" and m.kind == "agent_dead"]
+    events = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "agent_dead"]
     assert [e.subject for e in events] == ["sc02"]
     died = events[0].header.step
-    truth = [m for t, _l, _p, m in msgs if t == "swarm/kill/truth"]
+    truth = [m for t, _l, _p, m in msgs if t == "truth"]
     sc02 = [next(b for b in m.bodies if b.id == "sc02") for m in truth]
     assert all(not b.alive for b in sc02[died + 1:]) and all(b.alive for b in sc02[: died - 1])
     assert all(b.accel_cmd_mps2.x == b.accel_cmd_mps2.y == b.accel_cmd_mps2.z == 0 for b in sc02[died + 2:])
@@ -135,7 +137,7 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     assert dv[-1] == dv[died + 1]  # it coasts
     # every other agent kept commanding to the end
     acts = Counter(t for t, *_ in msgs if t.endswith("/act"))
-    assert acts["swarm/kill/sc/sc01/act"] >= 99 and acts["swarm/kill/sc/sc02/act"] < 30
+    assert acts["sc/sc01/act"] >= 99 and acts["sc/sc02/act"] < 30
 
 
 def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -> None:
@@ -168,7 +170,7 @@ def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -
     assert summ["rejected_packets"] + summ["late_commands"] >= sent
     assert summ["rejected_packets"] >= 5
     msgs = read_mcap(out / "run.mcap")  # the standard reader decodes every message, garbage included
-    assert sum(1 for t, *_ in msgs if t.endswith("/sc/sc99/act")) == 1
+    assert sum(1 for t, *_ in msgs if t == "sc/sc99/act") == 1
 
 
 def test_mcap_repair_salvages_killed_recorder(tmp_path: Path) -> None:
@@ -219,8 +221,8 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     assert s["dead_agents"] == {}
     assert s["missed_deadlines"].get("sc03", 0) >= 5
     msgs = read_mcap(out / "run.mcap")
-    missed = [m.header.step for t, _l, _p, m in msgs if t == "swarm/rt/event" and m.kind == "deadline_missed" and m.subject == "sc03"]
-    truth = {m.header.step: next(b for b in m.bodies if b.id == "sc03") for t, _l, _p, m in msgs if t == "swarm/rt/truth"}
+    missed = [m.header.step for t, _l, _p, m in msgs if t == "event" and m.kind == "deadline_missed" and m.subject == "sc03"]
+    truth = {m.header.step: next(b for b in m.bodies if b.id == "sc03") for t, _l, _p, m in msgs if t == "truth"}
     held = [k for k in missed if k + 1 in truth]
     assert held
     for k in held:  # the command applied over a missed step k (in truth k+1) equals the one over step k-1
@@ -247,4 +249,4 @@ def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
     msgs = read_mcap(out / "run.mcap")  # finished properly: the indexed reader opens it
-    assert sum(1 for t, *_ in msgs if t == "swarm/cc/truth") >= 5
+    assert sum(1 for t, *_ in msgs if t == "truth") >= 5
