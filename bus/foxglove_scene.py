@@ -13,6 +13,7 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
   an ellipsoid, or a list of spheres in the body frame; a small orange sphere without a shape),
   and its id as a text label; plus one entity `links` in `lvlh` with a line per ISL delivery
   seen since the previous truth (sender -> receiver).
+- Log: every `swarmhil.v1.Event` also as a `foxglove.Log` (topic `foxglove/log`) for the Log panel.
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.Point3_pb2 import Point3
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
@@ -36,6 +38,8 @@ from google.protobuf.timestamp_pb2 import Timestamp
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
 SCENE_TOPIC = "foxglove/scene"
+LOG_TOPIC = "foxglove/log"
+_WARN_EVENTS = ("agent_dead", "deadline_missed", "rejected_packet", "late_command")
 SPACECRAFT_DIAMETER_M = 4.0  # display size (the truth has no spacecraft geometry)
 BODY_DIAMETER_M = 6.0        # a body without a shape
 
@@ -126,3 +130,10 @@ class FoxgloveScene:
             self._links.clear()
         scene.entities.append(links)
         return tf.SerializeToString(), scene.SerializeToString()
+
+
+def event_log(event: Any, t_ns: int) -> bytes:
+    """A swarmhil.v1.Event as foxglove.Log (faults as WARNING, the rest INFO)."""
+    level = Log.WARNING if event.kind in _WARN_EVENTS else Log.INFO
+    text = f"{event.kind} {event.subject}".strip() + (f": {event.detail}" if event.detail else "")
+    return Log(timestamp=_timestamp(t_ns), level=level, message=text, name=event.header.source).SerializeToString()

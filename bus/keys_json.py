@@ -36,6 +36,7 @@ ENTRIES: list[tuple[str, str, str]] = [
 RECORDING_ONLY: list[tuple[str, str]] = [
     ("foxglove/tf", "foxglove.FrameTransforms"),
     ("foxglove/scene", "foxglove.SceneUpdate"),
+    ("foxglove/log", "foxglove.Log"),
 ]
 
 

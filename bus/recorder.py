@@ -5,8 +5,8 @@ scenario epoch (`[run].epoch_utc`) + the sample's simulation time (header.t; a s
 keeps the last), publish_time = the recorder's reception wall time (ns since 1970), schema = the
 protobuf FileDescriptorSet of the key's message type (registered once per type), message
 encoding `protobuf`, zstd chunks. With every truth it also writes Foxglove's own
-`foxglove.FrameTransforms` (`foxglove/tf`) and `foxglove.SceneUpdate` (`foxglove/scene`),
-bus/foxglove_scene.py. A payload that does not parse as its key's type is kept too,
+`foxglove.FrameTransforms` (`foxglove/tf`) and `foxglove.SceneUpdate` (`foxglove/scene`), and
+with every event a `foxglove.Log` (`foxglove/log`): bus/foxglove_scene.py. A payload that does not parse as its key's type is kept too,
 wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
 A killed recorder loses at most its open chunk (`chunk_size`); `swarmhil mcap repair` salvages it.
 """
@@ -20,13 +20,14 @@ from typing import Any, BinaryIO
 from google.protobuf.message import DecodeError, Message
 from mcap.writer import CompressionType, Writer
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import message_type_of_topic
-from bus.foxglove_scene import SCENE_TOPIC, TF_TOPIC, FoxgloveScene
+from bus.foxglove_scene import LOG_TOPIC, SCENE_TOPIC, TF_TOPIC, FoxgloveScene, event_log
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -131,6 +132,8 @@ class McapRecorder:
                 tf, scene = self._scene.from_truth(msg, self.epoch_ns + max(t_ns, 0))
                 self._add(TF_TOPIC, FrameTransforms, tf, t_ns, wall_ns)
                 self._add(SCENE_TOPIC, SceneUpdate, scene, t_ns, wall_ns)
+            elif cls is pb.Event:
+                self._add(LOG_TOPIC, Log, event_log(msg, self.epoch_ns + max(t_ns, 0)), t_ns, wall_ns)
             elif cls is pb.IslPacket and topic.startswith("isl/rx/"):
                 self._scene.saw_delivery(msg.src, topic[len("isl/rx/"):])
 
