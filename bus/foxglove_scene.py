@@ -88,6 +88,26 @@ class FoxgloveScene:
             if isinstance(b, dict) and "id" in b:
                 self.shapes[str(b["id"])] = b.get("shape")
         self._links: set[tuple[str, str]] = set()
+        self._templates: dict[tuple[str, str, bool], SceneEntity] = {}
+
+    def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
+        """The entity of a body without its timestamp (built once per body and state)."""
+        key = (body_id, kind, alive)
+        ent = self._templates.get(key)
+        if ent is None:
+            ent = SceneEntity(frame_id=body_id, id=body_id, frame_locked=True)
+            if kind in ("", "spacecraft"):
+                d = SPACECRAFT_DIAMETER_M
+                ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
+                                                   color=_BLUE if alive else _GREY))
+            else:
+                ent.spheres.extend(_shape_primitives(self.shapes.get(body_id)))
+            ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
+                                           billboard=True, font_size=12.0, scale_invariant=True, color=_WHITE,
+                                           text=body_id))
+            ent.metadata.add(key="kind", value=kind or "spacecraft")
+            self._templates[key] = ent
+        return ent
 
     def saw_delivery(self, src: str, dst: str) -> None:
         """An ISL delivery src -> dst (drawn with the next truth)."""
@@ -104,20 +124,10 @@ class FoxgloveScene:
             pos[b.id] = p
             tf.transforms.append(FrameTransform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id,
                                                 translation=p, rotation=_rotation(b)))
-            ent = SceneEntity(timestamp=stamp, frame_id=b.id, id=b.id, frame_locked=True)
-            spacecraft = b.kind in ("", "spacecraft")
-            if spacecraft:
-                d = SPACECRAFT_DIAMETER_M
-                ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
-                                                   color=_BLUE if b.alive else _GREY))
-            else:
-                ent.spheres.extend(_shape_primitives(self.shapes.get(b.id)))
-            ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
-                                           billboard=True, font_size=12.0, scale_invariant=True, color=_WHITE,
-                                           text=b.id))
-            ent.metadata.add(key="kind", value=b.kind or "spacecraft")
-            scene.entities.append(ent)
-        links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+            ent = scene.entities.add()
+            ent.CopyFrom(self._template(b.id, b.kind, b.alive))
+            ent.timestamp.CopyFrom(stamp)
+        links = scene.entities.add(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
             line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
                                  scale_invariant=True, color=_GREEN)
@@ -128,7 +138,6 @@ class FoxgloveScene:
             if line.points:
                 links.lines.append(line)
             self._links.clear()
-        scene.entities.append(links)
         return tf.SerializeToString(), scene.SerializeToString()
 
 

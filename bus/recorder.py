@@ -63,6 +63,7 @@ class McapRecorder:
         self.run = run
         self.epoch_ns = epoch_ns(epoch_utc)
         self._scene = FoxgloveScene(config) if foxglove else None
+        self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._f: BinaryIO = open(self.path, "wb")
         self._w = Writer(self._f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._w.start(profile="", library="swarmhil")
@@ -104,7 +105,10 @@ class McapRecorder:
         if self._closed:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
-        cls = message_type_for_key(self.keys, key)
+        known = self._key_info.get(key)
+        if known is None:  # a run has few distinct keys: parse each once
+            known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
+        cls, topic = known
         reason = "" if cls is not None else "key outside the swarmhil contract"
         t_ns = self._last_t_ns
         msg = None
@@ -125,7 +129,6 @@ class McapRecorder:
             cls, payload, msg = pb.UndecodableSample, wrapped.SerializeToString(), None
         else:
             self._last_t_ns = max(self._last_t_ns, t_ns)
-        topic = self.keys.topic(key)
         self._add(topic, cls, payload, t_ns, wall_ns)
         if self._scene is not None and msg is not None:
             if cls is pb.Truth:
