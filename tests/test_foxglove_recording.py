@@ -153,3 +153,38 @@ def test_shipped_layout_references_only_topics_that_exist(surround: Path) -> Non
     assert used <= {t for t, *_ in msgs}
     frames = {x.child_frame_id for t, _s, _l, _p, d in msgs if t == "foxglove/tf" for x in d.transforms} | {"lvlh"}
     assert layout["configById"]["3D!swarm"]["followTf"] in frames
+
+
+def _as_old_recording(src: Path, dst: Path, run: str) -> None:
+    """The same messages with the pre-contract topics `swarm/<run>/...` and no metadata."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    with open(src, "rb") as fin, open(dst, "wb") as fout:
+        reader = make_reader(fin)
+        w = Writer(fout, compression=CompressionType.ZSTD)
+        w.start(profile="", library="old")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for schema, ch, m in reader.iter_messages(log_time_order=False):
+            if ch.topic.startswith("foxglove/"):
+                continue
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+            if ch.id not in channels:
+                channels[ch.id] = w.register_channel(f"swarm/{run}/{ch.topic}", ch.message_encoding, schemas[schema.id])
+            w.add_message(channels[ch.id], m.publish_time, m.data, m.log_time, m.sequence)
+        w.finish()
+
+
+def test_readers_accept_old_prefixed_topics(surround: Path, tmp_path: Path) -> None:
+    from dashboards.replay import run_id_of
+    from dashboards.truth_io import read_truth
+
+    old = tmp_path / "old" / "run.mcap"
+    old.parent.mkdir()
+    _as_old_recording(surround, old, "fox-surround")
+    a, b = read_truth(surround), read_truth(old)
+    assert a.run == b.run == "fox-surround"
+    assert a.ids == b.ids and (a.position_m == b.position_m).all() and (a.t_s == b.t_s).all()
+    assert run_id_of(surround) == run_id_of(old) == "fox-surround"
