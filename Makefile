@@ -37,6 +37,7 @@ bench: setup
 # Regenerate the committed protobuf code from bus/swarmhil.proto.
 proto: setup
 	$(PY) -m grpc_tools.protoc -I bus --python_out=bus --pyi_out=bus bus/swarmhil.proto
+	$(PY) -m bus.keys_json
 
 clean:
 	rm -rf runs .pytest_cache

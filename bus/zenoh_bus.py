@@ -16,6 +16,7 @@ from typing import Any
 import zenoh
 
 from bus.base import LivelinessCallback, SampleCallback
+from bus.codec import encoding_of_key
 
 log = logging.getLogger("swarmhil.zenoh")
 
@@ -126,7 +127,9 @@ class ZenohBus:
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
         if pub is None:
-            pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+            enc = encoding_of_key(key)  # typed live traffic: application/protobuf;<message type>
+            pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,
+                                                 encoding=zenoh.Encoding(enc) if enc else None)
             self._publishers[key] = pub
         pub.put(payload)
 

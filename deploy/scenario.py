@@ -69,6 +69,7 @@ class Scenario:
     plant_options: dict[str, Any] = field(default_factory=dict)  # frame_origin, j2, atmospheric_drag, ...
     doc: dict[str, Any] = field(default_factory=dict)       # the document after --set, as validated
     sets: tuple[str, ...] = ()                              # the --set overrides applied
+    epoch_utc: str = "2000-01-01T12:00:00Z"                 # t = 0 of the run (MCAP log_time = epoch + t)
 
     def spec(self, sc_id: str) -> Any:
         """The SpacecraftSpec of one spacecraft (generated ones get defaults)."""
@@ -101,7 +102,7 @@ class Scenario:
             "scenario_file": self.source,
             "sets": list(self.sets),
             "run": {"name": self.name, "duration_s": self.duration_s, "step_s": self.step_s, "seed": self.seed,
-                    "mode": self.mode, "speed": self.speed, "steps": self.steps},
+                    "mode": self.mode, "speed": self.speed, "steps": self.steps, "epoch_utc": self.epoch_utc},
             "orbit": {"semi_major_axis_m": self.orbit.semi_major_axis_m,
                       "inclination_deg": math.degrees(self.orbit.inclination_rad),
                       "raan_deg": math.degrees(self.orbit.raan_rad), "u0_deg": math.degrees(self.orbit.u0_rad),
@@ -143,6 +144,26 @@ class Scenario:
                 s.ids, s.roe_m = _generate(self.source, self.sections["dispersion"], s.seed, self)
                 s.spacecraft = _generated_specs(s.ids, s.roe_m)
         return s
+
+
+DEFAULT_EPOCH_UTC = "2000-01-01T12:00:00Z"
+
+
+def _epoch(src: str, value: Any) -> str:
+    """[run].epoch_utc: an ISO 8601 date-time (UTC if it names no offset), normalised to `...Z`."""
+    from datetime import datetime, timezone
+
+    if isinstance(value, str):
+        try:
+            dt = datetime.fromisoformat(value)
+        except ValueError:
+            raise _err(src, "[run].epoch_utc", "must be an ISO 8601 date-time, e.g. 2000-01-01T12:00:00Z", value) from None
+    else:
+        raise _err(src, "[run].epoch_utc", "must be an ISO 8601 date-time as a quoted string", value)
+    dt = dt.replace(tzinfo=timezone.utc) if dt.tzinfo is None else dt.astimezone(timezone.utc)
+    if dt.year < 1970:
+        raise _err(src, "[run].epoch_utc", "must not be before 1970 (MCAP times are unsigned ns since 1970)", value)
+    return dt.strftime("%Y-%m-%dT%H:%M:%S") + (f".{dt.microsecond:06d}" if dt.microsecond else "") + "Z"
 
 
 def _err(src: str, where: str, msg: str, got: Any) -> ScenarioError:
@@ -240,7 +261,8 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:
         raise _err(src, f"[{unknown[0]}]", f"is not a known section; known: {sorted(SECTIONS)}", "…")
-    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins"})
+    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins",
+                                   "epoch_utc"})
     _import_plugins(src, run.get("plugins", []))
     name = check_name(src, run.get("name", Path(src).stem))
     duration = _positive(src, "[run].duration_s", run.get("duration_s", 600.0))
@@ -252,6 +274,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         raise _err(src, "[run].seed", "must be a non-negative integer", seed)
     mode = _choice(src, "[run].mode", run.get("mode", "lockstep"), ("lockstep", "realtime"))
     speed = _positive(src, "[run].speed", run.get("speed", 1.0))
+    epoch_utc = _epoch(src, run.get("epoch_utc", DEFAULT_EPOCH_UTC))
 
     o = _table(src, doc, "orbit", {"semi_major_axis_m", "inclination_deg", "raan_deg", "u0_deg"})
     orbit = OrbitCfg(
@@ -325,7 +348,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
         lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
-        actuator_limit=limit, doc=doc, plant_options=plant_options,
+        actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
         from link.model import LinkConfigError, parse_link_config

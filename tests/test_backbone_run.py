@@ -35,7 +35,7 @@ def _raw_truth(path: Path) -> list[bytes]:
     from mcap.reader import make_reader
 
     with open(path, "rb") as f:
-        return [m.data for _s, ch, m in make_reader(f).iter_messages(topics=None) if ch.topic.endswith("/truth")]
+        return [m.data for _s, ch, m in make_reader(f).iter_messages(topics=None) if ch.topic == "truth"]
 
 
 def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
@@ -50,16 +50,18 @@ def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
     msgs = read_mcap(out / "run.mcap")
     steps = res.summary["steps"]
     assert steps == 20
-    truth = [m for t, _l, _p, m in msgs if t == "swarm/d20/truth"]
+    truth = [m for t, _l, _p, m in msgs if t == "truth"]
     assert [m.header.step for m in truth] == list(range(steps + 1))
     assert all(len(m.bodies) == 20 for m in truth)
     acts = Counter(t for t, *_ in msgs if t.endswith("/act"))
-    assert set(acts) == {f"swarm/d20/sc/sc{i:02d}/act" for i in range(1, 21)}
+    assert set(acts) == {f"sc/sc{i:02d}/act" for i in range(1, 21)}
     assert set(acts.values()) == {steps}
-    for topic, _log, pub, m in msgs:
-        assert topic.startswith("swarm/d20/")
+    epoch = 946728000 * 10**9  # the default [run].epoch_utc 2000-01-01T12:00:00Z
+    for topic, log_time, pub, m in msgs:
+        assert not topic.startswith("swarm/")  # the MCAP topic is the key without swarm/<run>/
         if hasattr(m, "header") and m.header.run:
-            assert pub == round(m.header.t * 1e9)
+            assert log_time == epoch + round(m.header.t * 1e9)  # simulated timeline
+        assert pub > epoch  # reception wall time
     s = json.loads((out / "summary.json").read_text())
     for field in ("run", "scenario", "mode", "agents", "steps", "step_s", "duration_s", "wall_s", "reference_orbit",
                   "delta_v_total_mps", "delta_v_mps", "dead_agents", "rejected_packets"):
@@ -177,11 +179,11 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     assert list(s["dead_agents"]) == ["sc02"]
     assert s["steps"] == 100
     msgs = read_mcap(out / "run.mcap")
-    events = [m for t, _l, _p, m in msgs if t == "swarm/kill/event" and m.kind == "agent_dead"]
+    events = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "agent_dead"]
     assert [e.subject for e in events] == ["sc02"]
     died = events[0].header.step
     assert before <= died < 100, (before, died)  # declared dead after the kill, before the run ended
-    truth = [m for t, _l, _p, m in msgs if t == "swarm/kill/truth"]
+    truth = [m for t, _l, _p, m in msgs if t == "truth"]
     sc02 = [next(b for b in m.bodies if b.id == "sc02") for m in truth]
     assert all(not b.alive for b in sc02[died + 1:]) and all(b.alive for b in sc02[: died - 1])
     assert all(b.accel_cmd_mps2.x == b.accel_cmd_mps2.y == b.accel_cmd_mps2.z == 0 for b in sc02[died + 2:])
@@ -189,8 +191,8 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     assert dv[-1] == dv[died + 1]  # it coasts
     # every other agent kept commanding to the end; sc02 sent nothing after the tick seen after its kill
     acts = Counter(t for t, *_ in msgs if t.endswith("/act"))
-    assert all(acts[f"swarm/kill/sc/{sid}/act"] >= 99 for sid in ("sc01", "sc03")), acts
-    sc02_steps = [m.header.step for t, _l, _p, m in msgs if t == "swarm/kill/sc/sc02/act"]
+    assert all(acts[f"sc/{sid}/act"] >= 99 for sid in ("sc01", "sc03")), acts
+    sc02_steps = [m.header.step for t, _l, _p, m in msgs if t == "sc/sc02/act"]
     assert sc02_steps and max(sc02_steps) <= after + 1, (before, after, sc02_steps[-3:])
 
 
@@ -231,7 +233,7 @@ def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -
     summ = res.summary
     assert summ["steps"] == 100 and summ["dead_agents"] == {}
     msgs = read_mcap(out / "run.mcap")  # the standard reader decodes every message, garbage included
-    assert sum(1 for t, *_ in msgs if t.endswith("/sc/sc99/act")) == 1
+    assert sum(1 for t, *_ in msgs if t == "sc/sc99/act") == 1
     # nothing injected reached the truth: the acceleration applied to every spacecraft over every step
     # is its own agent's command for that step (limited per axis), or on a missed real-time deadline
     # the previous one held. "Its own": recorded on its key, header.source its id, this run, finite.
@@ -239,13 +241,13 @@ def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -
     own: dict[tuple[str, int], list[tuple[float, float, float]]] = {}
     for t, _l, _p, m in msgs:
         parts = t.split("/")
-        if len(parts) == 5 and parts[2] == "sc" and parts[4] == "act" and hasattr(m, "accel_mps2"):
+        if len(parts) == 3 and parts[0] == "sc" and parts[2] == "act" and hasattr(m, "accel_mps2"):
             a = (m.accel_mps2.x, m.accel_mps2.y, m.accel_mps2.z)
-            if m.header.source == parts[3] and m.header.run == "bad" and np.all(np.isfinite(a)):
-                own.setdefault((parts[3], int(m.header.step)), []).append(a)
+            if m.header.source == parts[1] and m.header.run == "bad" and np.all(np.isfinite(a)):
+                own.setdefault((parts[1], int(m.header.step)), []).append(a)
     missed = {(m.subject, int(m.header.step)) for t, _l, _p, m in msgs
-              if t == "swarm/bad/event" and m.kind == "deadline_missed"}
-    truth = {int(m.header.step): {b.id: b for b in m.bodies} for t, _l, _p, m in msgs if t == "swarm/bad/truth"}
+              if t == "event" and m.kind == "deadline_missed"}
+    truth = {int(m.header.step): {b.id: b for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
     assert sorted(truth) == list(range(101)) and sorted(truth[0]) == ids
     amax = load_scenario(SCENARIOS / "demo.toml").max_accel_mps2
     applied_own = 0
@@ -368,4 +370,4 @@ def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
     msgs = read_mcap(out / "run.mcap")  # finished properly: the indexed reader opens it
-    assert sum(1 for t, *_ in msgs if t == "swarm/cc/truth") >= 5
+    assert sum(1 for t, *_ in msgs if t == "truth") >= 5

@@ -65,7 +65,7 @@ def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
     # a 20 bit/s radio cannot send a 16 B + beacon every 10 s: the queue drops, and the counters say so
     assert tot["dropped_queue"][2] > 0 and tot["dropped_range"][2] > 0 and tot["dropped_lost"][2] > 0
     # the link matrix and the time series account for every delivered byte of the recording
-    rx = [m for t, _l, _p, m in read_mcap(run / "run.mcap") if "/isl/rx/" in t]
+    rx = [m for t, _l, _p, m in read_mcap(run / "run.mcap") if t.startswith("isl/rx/")]
     wire = sum(len(m.payload) + 16 for m in rx)
     assert link_matrix(lt).sum() == wire == tot["rx_wire_bytes"][1]
     s = per_agent_series(lt, 30.0)

@@ -44,12 +44,12 @@ def runs(tmp_path_factory) -> dict[str, Path]:
 def _messages(run_dir: Path, run: str):
     truth, tms, scenes = {}, [], {}
     for topic, _lt, _pt, m in read_mcap(run_dir / "run.mcap"):
-        if topic == f"swarm/{run}/truth":
+        if topic == "truth":
             truth[int(m.header.step)] = m
-        elif topic.endswith("/tm") and topic.startswith(f"swarm/{run}/sc/"):
-            tms.append((topic.split("/")[3], m))
-        elif topic.endswith("/sense/scene"):
-            scenes[(topic.split("/")[3], int(m.header.step))] = {b.id for b in m.bodies}
+        elif topic.endswith("/tm") and topic.startswith("sc/"):
+            tms.append((topic.split("/")[1], m))
+        elif topic.startswith("sc/") and topic.endswith("/sense/scene"):
+            scenes[(topic.split("/")[1], int(m.header.step))] = {b.id for b in m.bodies}
     return truth, tms, scenes
 
 

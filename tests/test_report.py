@@ -58,7 +58,7 @@ def test_read_truth_matches_an_independent_decode(tiny_run):
     from dashboards.truth_io import read_truth
 
     tr = read_truth(tiny_run / "run.mcap")
-    msgs = [m for topic, _lt, _pt, m in read_mcap(tiny_run / "run.mcap") if topic == "swarm/tiny-run/truth"]
+    msgs = [m for topic, _lt, _pt, m in read_mcap(tiny_run / "run.mcap") if topic == "truth"]
     assert tr.run == "tiny-run" and tr.ids == ["a", "b", "c", "d"]
     assert tr.n_steps == len(msgs) == 61
     last = max(msgs, key=lambda m: m.header.step)

@@ -16,7 +16,7 @@ from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
 
 
 def _truth_arrays(path: Path, run: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    truth = [m for t, _l, _p, m in read_mcap(path) if t == f"swarm/{run}/truth"]
+    truth = [m for t, _l, _p, m in read_mcap(path) if t == "truth"]
     t = np.array([m.header.t for m in truth])
     pos = np.array([[[b.position_m.x, b.position_m.y, b.position_m.z] for b in m.bodies] for m in truth])
     roe = np.array([[list(b.roe_m) for b in m.bodies] for m in truth])

@@ -30,7 +30,7 @@ def mcap_truth(path: Path) -> dict[int, tuple[list[str], np.ndarray]]:
     out = {}
     with open(path, "rb") as f:
         for _s, ch, _m, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
-            if ch.topic.endswith("/truth"):
+            if ch.topic == "truth":
                 sc = [b for b in msg.bodies if b.kind != "target"]
                 out[msg.header.step] = ([b.id for b in sc],
                                         np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in sc]))
