@@ -69,7 +69,7 @@ def test_drift20_multiprocess_recording(tmp_path: Path) -> None:
     assert s["delta_v_total_mps"] == 0.0 and s["rejected_packets"] == 0 and s["agents"] == 20
     # shut down on the recorder's acknowledgements (plant's run_end recorded, then everything), not on sleeps
     assert s["recorder_confirmed"] is True
-    events = [m.kind for t, _l, _p, m in msgs if t == "swarm/d20/event"]
+    events = [m.kind for t, _l, _p, m in msgs if t == "event"]
     assert events[0] == "run_start" and events[-1] == "run_end"
 
 
@@ -340,8 +340,8 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     # most the one in flight when it stopped and the one it wakes into can still be met
     assert s["missed_deadlines"].get("sc01", 0) >= frozen_steps - 2, (frozen_steps, s["missed_deadlines"])
     msgs = read_mcap(out / "run.mcap")
-    missed = [m.header.step for t, _l, _p, m in msgs if t == "swarm/rt/event" and m.kind == "deadline_missed" and m.subject == "sc01"]
-    truth = {m.header.step: next(b for b in m.bodies if b.id == "sc01") for t, _l, _p, m in msgs if t == "swarm/rt/truth"}
+    missed = [m.header.step for t, _l, _p, m in msgs if t == "event" and m.kind == "deadline_missed" and m.subject == "sc01"]
+    truth = {m.header.step: next(b for b in m.bodies if b.id == "sc01") for t, _l, _p, m in msgs if t == "truth"}
     held = [k for k in missed if k + 1 in truth]
     # sc01, not sc03: in this scenario sc03 sees no neighbour and commands exactly zero, so a hold
     # could not be told from a command dropped to zero; sc01 commands ~-2.4e-6 m/s^2 along-track

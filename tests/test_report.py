@@ -155,7 +155,7 @@ def test_sweep_command_runs_cases_in_parallel(tmp_path):
         np.testing.assert_array_equal(series["t_s"], tr.t_s)
         assert series["t_s"].tolist() == [10.0 * k for k in range(21)]
         dv_truth = [sum(b.delta_v_mps for b in m.bodies) for t, _l, _p, m in read_mcap(Path(c["dir"]) / "run.mcap")
-                    if t.endswith("/truth")]
+                    if t == "truth"]
         np.testing.assert_allclose(series["delta_v_total_mps"], dv_truth, rtol=1e-12, atol=0)
         assert series["delta_v_total_mps"][-1] == pytest.approx(c["delta_v_total_mps"], rel=1e-12)
         # d is 2 km ahead of everyone (detection range 500 m): two weak components, a, b, c together
