@@ -63,3 +63,9 @@ def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
     from agent.behaviour.sabatini import make_sabatini
 
     return make_sabatini(sc_id, orbit, params)
+
+
+# the paper rooms under agent/missions/ register their own controllers
+from agent.missions import load_all as _load_missions  # noqa: E402
+
+_load_missions()
