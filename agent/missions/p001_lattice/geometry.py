@@ -102,3 +102,35 @@ def _circular_mean_mod60(angles_deg: np.ndarray) -> float:
     """Mean of angles taken modulo 60 deg (a hexagon's phase), in [0, 60)."""
     z = np.exp(1j * np.deg2rad(np.asarray(angles_deg) * 6.0))
     return float(np.degrees(np.angle(z.mean())) / 6.0 % 60.0)
+
+
+def structure_name(pos_m: np.ndarray, side_m: float, bond_factor: float = 1.3) -> str:
+    """A short name for what formed (NOTES-001 trap 1): bonds are pairs closer than bond_factor * l.
+
+    "6-ring", "5-ring+1" (a ring of five with a dangling agent), "chain", "branched tree",
+    "fragments" (not connected), "multi-ring"; prefixed "3-D " when not planar within 0.5 m.
+    """
+    pos = np.asarray(pos_m, dtype=float)
+    n = pos.shape[0]
+    d = _distances(pos)
+    adj = d < bond_factor * side_m
+    edges = int(adj.sum()) // 2
+    centre = pos.mean(axis=0)
+    thickness = float(np.max(np.abs((pos - centre) @ np.linalg.svd(pos - centre)[2][-1]))) if n >= 3 else 0.0
+    prefix = "3-D " if thickness > 0.5 else ""
+    if not _one_cycle(adj):
+        return prefix + "fragments"
+    cycles = edges - n + 1
+    if cycles == 0:
+        return prefix + ("chain" if adj.sum(axis=1).max() <= 2 else "branched tree")
+    if cycles > 1:
+        return prefix + "multi-ring"
+    alive = np.ones(n, dtype=bool)
+    while True:  # prune leaves: what is left is the ring
+        deg = (adj & alive[None, :] & alive[:, None]).sum(axis=1)
+        leaves = alive & (deg <= 1)
+        if not leaves.any():
+            break
+        alive &= ~leaves
+    ring = int(alive.sum())
+    return prefix + (f"{ring}-ring" if ring == n else f"{ring}-ring+{n - ring}")
