@@ -178,12 +178,17 @@ def test_paper_reading_octahedral_release_is_trapped_in_a_branched_tree() -> Non
 READINGS = {
     "paper": {},  # Table 3 as printed; dock well alpha_ph = alpha_f, k_ph = k_f at the 30-degree vertex
     "centred": {"free_in_shaping": True, "k_phase_m2": 25.0},  # g_free kept in the ball, 5 m dock well
+    "literal": {"cutoff_reading": "literal"},  # R(1), R(2) as printed (angstrom values)
+    "ae": {"tb_unit": "a_e"},  # eq. 14 read in units of a_e
 }
 # measured with 1 s steps (docs/paper001.md): release -> structure at 32,000 s
 MEASURED = {
     "paper": {"oct": "branched tree", 0: "5-ring+1", 1: "6-ring", 2: "6-ring", 3: "6-ring", 4: "6-ring",
-              5: "3-D 3-ring+3"},
-    "centred": {"oct": "branched tree", 0: "3-D 3-ring+3", 1: "4-ring+2", 2: "6-ring", 3: "5-ring+1", 4: "6-ring"},
+              5: "3-D 3-ring+3", 6: "6-ring", 7: "6-ring"},
+    "centred": {"oct": "branched tree", 0: "3-D 3-ring+3", 1: "4-ring+2", 2: "6-ring", 3: "5-ring+1", 4: "6-ring",
+                5: "branched tree", 6: "5-ring+1"},
+    "literal": {"oct": "3-D fragments", 1: "3-D 6-ring", 2: "6-ring", 3: "3-D chain"},
+    "ae": {"oct": "multi-ring", 1: "3-D multi-ring", 2: "3-D multi-ring", 3: "multi-ring"},
 }
 
 
@@ -195,7 +200,7 @@ def test_release_to_structure_at_1s_steps(reading: str, seed) -> None:
                    params=READINGS[reading], record_every=10)
     s = check_timeline_and_limits(run)
     assert s["structure"] == MEASURED[reading][seed]
-    if s["structure"] == "6-ring":
+    if s["structure"] == "6-ring" and reading in ("paper", "centred"):
         hx = check_hexagon(run.pos_m[-1], SIDE_M)
         assert hx.is_hexagon and hx.thickness_m < 0.05 and s["t_form_s"] < 25000.0
         centre = DOCK_M if reading == "paper" else np.zeros(3)
@@ -210,12 +215,13 @@ if __name__ == "__main__":  # python tests/missions/test_p001_closed_loop.py [se
 
     arg = sys.argv[1] if len(sys.argv) > 1 else "oct"
     dur = float(sys.argv[2]) if len(sys.argv) > 2 else 40000.0
-    kw = {}
+    kw: dict = {}
     for a in sys.argv[3:]:
         k, v = a.split("=")
-        kw[k] = v if not v.replace(".", "").replace("e", "").replace("-", "").isdigit() else float(v)
-        if v in ("True", "False"):
-            kw[k] = v == "True"
+        try:
+            kw[k] = float(v)
+        except ValueError:
+            kw[k] = {"True": True, "False": False}.get(v, v)
     t0 = time.time()
     r = simulate(sphere_directions(None if arg == "oct" else int(arg)), dur, params=kw, record_every=10)
     print(f"wall {time.time() - t0:.1f}s")

@@ -161,6 +161,9 @@ def test_wells_layers_and_saturation() -> None:
     assert next_layer(Layer.NEAR, 14.0, 100.0, 100.0, 15.0, 19012.5) == Layer.SHAPING
     with pytest.raises(ValueError, match="unknown p001-lattice parameters"):
         LatticeParams.from_dict({"cutof_reading": "literal"})
+    with pytest.raises(ValueError, match="true or false"):
+        LatticeParams.from_dict({"free_in_shaping": "False"})
+    assert LatticeParams.from_dict({"free_in_shaping": True, "k_phase_m2": 25}).k_phase_m2 == 25.0
     with pytest.raises(ValueError, match="tb_unit"):
         LatticeParams.from_dict({"tb_unit": "N"})
 

@@ -74,7 +74,14 @@ class LatticeParams:
         unknown = sorted(set(params) - set(known))
         if unknown:
             raise ValueError(f"unknown p001-lattice parameters {unknown}; known: {sorted(known)}")
-        return cls(**{k: type(getattr(cls(), k))(v) for k, v in params.items()})
+        defaults = cls()
+        values = {}
+        for k, v in params.items():
+            kind = type(getattr(defaults, k))
+            if kind is bool and not isinstance(v, bool):
+                raise ValueError(f"p001-lattice parameter {k} must be true or false, got {v!r}")
+            values[k] = kind(v)
+        return cls(**values)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
