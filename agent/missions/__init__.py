@@ -6,6 +6,7 @@ module is imported; `load_all()` imports every room's `controller` so `make_cont
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import pkgutil
 
 

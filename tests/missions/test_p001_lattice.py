@@ -192,3 +192,15 @@ def test_controller_is_registered_and_speaks_si() -> None:
         assert far == pytest.approx(TB_GAIN * scale * f)
     r = OwnState.from_extra(OwnState(np.array([1.0, 2, 3]), np.array([4.0, 5, 6])).to_extra())
     assert r.position_m.tolist() == [1, 2, 3] and r.velocity_mps.tolist() == [4, 5, 6]
+
+
+def test_the_room_never_imports_plant_or_bus() -> None:
+    import ast
+    from pathlib import Path
+
+    room = Path(__file__).resolve().parents[2] / "agent" / "missions" / "p001_lattice"
+    for path in room.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not any(n.split(".")[0] in ("plant", "bus") for n in names), (path.name, names)
