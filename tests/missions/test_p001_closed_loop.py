@@ -184,9 +184,9 @@ READINGS = {
 # measured with 1 s steps (docs/paper001.md): release -> structure at 32,000 s
 MEASURED = {
     "paper": {"oct": "branched tree", 0: "5-ring+1", 1: "6-ring", 2: "6-ring", 3: "6-ring", 4: "6-ring",
-              5: "3-D 3-ring+3", 6: "6-ring", 7: "6-ring"},
+              5: "3-D 3-ring+3", 6: "6-ring", 7: "6-ring", 8: "3-D 3-ring+3", 9: "branched tree"},
     "centred": {"oct": "branched tree", 0: "3-D 3-ring+3", 1: "4-ring+2", 2: "6-ring", 3: "5-ring+1", 4: "6-ring",
-                5: "branched tree", 6: "5-ring+1"},
+                5: "branched tree", 6: "5-ring+1", 7: "5-ring+1", 8: "3-D multi-ring", 9: "branched tree"},
     "literal": {"oct": "3-D fragments", 1: "3-D 6-ring", 2: "6-ring", 3: "3-D chain"},
     "ae": {"oct": "multi-ring", 1: "3-D multi-ring", 2: "3-D multi-ring", 3: "multi-ring"},
 }
