@@ -64,7 +64,12 @@ class LatticeController:
         return Command(accel_mps2=saturate(u, p.max_accel_mps2), mode=self.layer.name.lower())
 
 
-@register("p001-lattice")
+def _check(params: dict[str, Any]) -> None:
+    """Scenario-load check of [controller.params] (unknown keys and bad values are errors)."""
+    LatticeParams.from_dict({"mean_motion_radps": 7.2921e-5, **params})
+
+
+@register("p001-lattice", validate=_check)
 def _p001_lattice(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LatticeController:
     merged = {"mean_motion_radps": orbit.mean_motion_radps, **params}
     return LatticeController(LatticeParams.from_dict(merged))
