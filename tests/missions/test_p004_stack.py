@@ -239,10 +239,15 @@ def assert_stack_run(mp: dict, ip: dict, duration_s: float, loop, loop_tol_m: fl
     # 2. the recorded accel_cmd_mps2 is the agents' ECI command rotated into the scenario frame
     assert np.allclose(np.linalg.norm(mp["accel"][1:], axis=2), m["u_norm"][:steps], rtol=1e-12, atol=1e-9)
     # 3. as the in-process loop predicts (same noise draws; solve_ivp on offsets vs the plant's
-    #    fixed-step DOP853 on absolute ECI states)
+    #    fixed-step DOP853 on absolute ECI states). Step by step to 1e-6 m up to 16 s, through the
+    #    km/s^2 transient; from ~17 s the loop itself amplifies a 1e-9 m change of its initial state
+    #    to 1e-5 m (and to metres by 360 s): after that the two agree as statistics, not pointwise.
     assert loop.diverged_at_s is None and loop.e_norm.shape == m["e_norm"].shape
+    early = m["t"] <= EXACT_UNTIL_S
+    m["loop_diff_to_16s_m"] = float(np.abs(m["e_norm"][early] - loop.e_norm[early]).max())
+    m["loop_u_diff_to_16s_mps2"] = float(np.abs(m["u_norm"] - loop.u_norm[:-1])[early[:-1]].max())
     m["loop_max_diff_m"] = float(np.abs(m["e_norm"] - loop.e_norm).max())
-    m["loop_u_max_rel_diff"] = float((np.abs(m["u_norm"] - loop.u_norm[:-1]) / np.maximum(loop.u_norm[:-1], 1.0)).max())
+    assert m["loop_diff_to_16s_m"] < 1e-6 and m["loop_u_diff_to_16s_mps2"] < 1e-6   # commands up to 3.5e3
     assert m["loop_max_diff_m"] < loop_tol_m
     # 4. the errors shrink as in the loop: from 2.5-5 km to the loop's level
     t, e = m["t"], m["e_norm"]
@@ -261,6 +266,7 @@ def assert_stack_run(mp: dict, ip: dict, duration_s: float, loop, loop_tol_m: fl
 
 
 SHORT_S = 30.0
+EXACT_UNTIL_S = 16.0
 
 
 def test_servicing6_flies_multi_process_over_zenoh(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -268,7 +274,7 @@ def test_servicing6_flies_multi_process_over_zenoh(tmp_path: Path, monkeypatch: 
     mp = swarmhil_run(tmp_path / "mp", "--duration", str(SHORT_S))
     ip = swarmhil_run(tmp_path / "ip", "--duration", str(SHORT_S), "--in-process")
     loop = loop_prediction(SHORT_S, monkeypatch)
-    m = assert_stack_run(mp, ip, SHORT_S, loop, loop_tol_m=0.05)
+    m = assert_stack_run(mp, ip, SHORT_S, loop, loop_tol_m=0.2)
     print({k: v for k, v in m.items() if not isinstance(v, np.ndarray)})
     assert m["e_end_max_m"] < 500.0     # 30 s: from 2.6-4.9 km to a few hundred metres at most
 
@@ -279,10 +285,16 @@ def test_servicing6_full_length_meets_the_papers_end_state(tmp_path: Path, monke
     mp = swarmhil_run(tmp_path / "mp")
     ip = swarmhil_run(tmp_path / "ip", "--in-process")
     loop = loop_prediction(360.0, monkeypatch)
-    m = assert_stack_run(mp, ip, 360.0, loop, loop_tol_m=0.5)
+    m = assert_stack_run(mp, ip, 360.0, loop, loop_tol_m=5.0)
     print({k: v for k, v in m.items() if not isinstance(v, np.ndarray)})
     assert m["t_e_below_10m_s"] < 200.0                       # paper: ≈ 5 m after ≈ 200 s
     assert m["e_max_after_200s_m"] < 15.0 and m["e_mean_after_200s_m"] < 6.0
+    # the loop's statistics (docs/paper004.md): same convergence time, steady error, effort
+    lt = loop.t >= 200.0
+    assert abs(m["t_e_below_10m_s"] - max(first_time_below(loop.t, loop.e_norm[:, i], 10.0) for i in range(6))) < 2.0
+    assert abs(m["e_mean_after_200s_m"] / loop.e_norm[lt].mean() - 1.0) < 0.25
+    assert m["u_peak_mps2"] == pytest.approx(loop.u_norm.max(), rel=1e-9)
+    assert m["delta_v_max_mps"] == pytest.approx(loop.delta_v_mps.max(), rel=0.01)
 
 
 def report(run_dir: Path) -> None:
