@@ -150,7 +150,7 @@ def load_run(run_dir: Path) -> dict:
     summary = json.loads((Path(run_dir) / "summary.json").read_text())
     truths, acts = {}, {}
     for topic, _lt, _pt, msg in read_mcap(Path(run_dir) / "run.mcap"):
-        if topic.endswith("/truth"):
+        if topic == "truth" or topic.endswith("/truth"):   # the MCAP contract: "truth" (old: swarm/<run>/truth)
             truths[int(msg.header.step)] = msg
         elif topic.endswith("/act"):
             acts.setdefault(msg.header.source, {})[int(msg.header.step)] = [msg.accel_mps2.x, msg.accel_mps2.y, msg.accel_mps2.z]
