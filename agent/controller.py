@@ -60,10 +60,17 @@ class Transmission:
 
 @dataclass
 class Command:
+    """What a controller commands for the next step.
+
+    `accel_mps2` is the LVLH acceleration; `torque_nm` the body-frame control torque, for
+    controllers that fly attitude too (None: no attitude command, the plant holds none).
+    """
+
     accel_mps2: np.ndarray
     mode: str = "idle"
     decisions: list[Decision] = field(default_factory=list)
     transmissions: list[Transmission] = field(default_factory=list)
+    torque_nm: np.ndarray | None = None
 
 
 class Controller(Protocol):

@@ -63,3 +63,8 @@ def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
     from agent.behaviour.sabatini import make_sabatini
 
     return make_sabatini(sc_id, orbit, params)
+
+
+from agent.missions import load_missions  # noqa: E402  (mission rooms register their controllers)
+
+load_missions()
