@@ -26,7 +26,9 @@ class GncSettings:
     max_outer: int = 100
     sphere_prior_m: float = 0.02
     min_points: int = 12
-    sphere_bound_fraction: float = 0.35  # stage-1 bound, as a fraction of the point spread
+    restarts: int = 3
+    inner_nfev: int = 30           # solver evaluations per GNC step (warm-started)
+    start_bound_m: float = 0.8    # bound of the start stage (sphere GNC, points used from a start)
 
 
 @dataclass(frozen=True)
@@ -38,9 +40,19 @@ class FitResult:
     rms_inlier_m: float
 
 
+def rotvec_matrix(phi: np.ndarray) -> np.ndarray:
+    """Rodrigues: the rotation matrix of rotation vector φ."""
+    angle = float(np.sqrt(phi @ phi))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = phi / angle
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+
+
 def _unpack(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     c = theta[:3]
-    rot = Rotation.from_rotvec(theta[3:6]).as_matrix()
+    rot = rotvec_matrix(theta[3:6])
     axes = np.exp(theta[6:9])
     return c, rot, axes
 
@@ -56,8 +68,9 @@ def radial_residuals(points_m: np.ndarray, centre_m: np.ndarray, shape: np.ndarr
 def _residuals(theta: np.ndarray, pts: np.ndarray, sqrt_w: np.ndarray, prior: float) -> np.ndarray:
     c, rot, axes = _unpack(theta)
     local = (pts - c) @ rot
-    rho = np.linalg.norm(local, axis=1)
-    q = np.sum((local / axes) ** 2, axis=1)
+    rho = np.sqrt(np.einsum("ij,ij->i", local, local))
+    scaled = local / axes
+    q = np.einsum("ij,ij->i", scaled, scaled)
     r = rho * (1.0 - 1.0 / np.sqrt(np.maximum(q, 1e-12)))
     s = theta[6:9]
     return np.concatenate((sqrt_w * r, prior * (s - s.mean())))
@@ -75,10 +88,10 @@ def sphere_fit(points_m: np.ndarray, weights: np.ndarray | None = None) -> tuple
 
 
 def weighted_ellipsoid_fit(points_m: np.ndarray, weights: np.ndarray, theta0: np.ndarray,
-                           sphere_prior_m: float) -> np.ndarray:
+                           sphere_prior_m: float, max_nfev: int = 200) -> np.ndarray:
     """The non-minimal solver: weighted nonlinear least squares from `theta0`."""
     sol = least_squares(_residuals, theta0, args=(points_m, np.sqrt(weights), sphere_prior_m),
-                        method="lm", xtol=1e-6, ftol=1e-8, max_nfev=400)
+                        method="trf", max_nfev=max_nfev)
     return sol.x
 
 
@@ -144,18 +157,22 @@ def quadric_to_ellipsoid(qd: np.ndarray) -> Ellipsoid | None:
 
 
 def gnc_tls(residual_fn, solve_fn, model, n_points: int, noise_bound_m: float,
-            mu_factor: float, max_outer: int):
+            mu_factor: float, max_outer: int, active: np.ndarray | None = None,
+            r2max: float | None = None):
     """Yang et al. 2020 Algorithm 1 with TLS weights, over any weighted non-minimal solver.
 
     residual_fn(model) -> (K,) residuals in metres; solve_fn(weights, model) -> model.
-    Returns (model, weights, outer iterations).
+    `active` (bool mask) restricts the largest residual that sets μ0 = c̄²/(2 r²_max − c̄²) to the
+    points of a previous stage. Returns (model, binary inlier weights, outer iterations).
     """
     c2 = noise_bound_m ** 2
     r2 = residual_fn(model) ** 2
-    w = np.ones(n_points)
-    if r2.max() <= c2:
-        return model, w, 0
-    mu = c2 / (2.0 * float(r2.max()) - c2)
+    r2_max = float(r2[active].max()) if active is not None and active.any() else float(r2.max())
+    if r2max is not None:
+        r2_max = r2max
+    if r2_max <= c2:
+        return model, (r2 <= c2).astype(float), 0
+    mu = c2 / (2.0 * r2_max - c2)
     it = 0
     for it in range(1, max_outer + 1):
         # IRLS floor: residuals below c̄/3 (the noise) weigh as c̄/3, or the few points that happen
@@ -171,42 +188,97 @@ def gnc_tls(residual_fn, solve_fn, model, n_points: int, noise_bound_m: float,
     return model, (r2 <= c2).astype(float), it
 
 
+def _sphere_stage(pts: np.ndarray, bound_m: float, s: GncSettings) -> tuple[np.ndarray, np.ndarray]:
+    """GNC-TLS over the linear sphere fit: (centre, radius) packed as 4 numbers, inlier mask."""
+    sphere = np.append(*sphere_fit(pts))
+    sphere, w, _ = gnc_tls(lambda m: np.linalg.norm(pts - m[:3], axis=1) - m[3],
+                           lambda w, m: np.append(*sphere_fit(pts, w)),
+                           sphere, len(pts), bound_m, s.mu_factor, s.max_outer)
+    return sphere, w > 0.5
+
+
+def _two_cap_start(s1: np.ndarray, s2: np.ndarray) -> Ellipsoid:
+    """An elongated start spanning two spheres (the two ends a TLS sphere locks onto)."""
+    axis = s2[:3] - s1[:3]
+    half = 0.5 * float(np.linalg.norm(axis))
+    e1 = axis / max(2.0 * half, 1e-9)
+    e2 = np.cross(e1, [1.0, 0.0, 0.0] if abs(e1[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e2 /= np.linalg.norm(e2)
+    rot = np.stack([e1, e2, np.cross(e1, e2)], axis=1)
+    r = 0.5 * (s1[3] + s2[3])
+    return Ellipsoid(0.5 * (s1[:3] + s2[:3]), rot, np.array([half + r, r, r]))
+
+
+def moment_start(points_m: np.ndarray) -> Ellipsoid:
+    """Ellipsoid with the points' mean and covariance (surface points: E[x_k²] ≈ a_k²/3)."""
+    c = points_m.mean(axis=0)
+    eig, vec = np.linalg.eigh(np.cov((points_m - c).T))
+    return Ellipsoid(c, vec, np.sqrt(3.0 * np.maximum(eig, 1e-4)))
+
+
 def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
                 initial: Ellipsoid | None = None) -> FitResult:
-    """Fit an ellipsoid to points with outliers by GNC-TLS, in two graduated stages.
+    """Fit an ellipsoid to points with outliers by GNC-TLS from a few starts; keep the lowest
+    TLS cost Σ min(r², c̄²).
 
-    1. GNC-TLS over the linear sphere fit (4 unknowns, well posed even on one patch) with a
-       loose bound, to drop the gross outliers; 2. GNC-TLS over the ellipsoid-only nonlinear
-       solver (radial residual), started from that sphere or from `initial`.
+    Starts: `initial` (the previous estimate) if given; else a GNC-TLS sphere (linear, globally
+    solved, bound `start_bound_m`); the moments of that sphere's inliers (a slender target lies
+    along a large TLS sphere); and, when the points left out by it hold another sphere,
+    an elongated start spanning both (a TLS sphere locks onto one end of an elongated target).
+    From each start: the ellipsoid-only nonlinear solver on the points within `start_bound_m`,
+    then GNC-TLS over it with μ0 set by the largest residual among those points.
     (A general quadric as the non-minimal solver fits outlier-laden data with hyperboloids.)
     """
     pts = np.asarray(points_m, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < settings.min_points:
         raise ValueError(f"need at least {settings.min_points} points (K, 3), got shape {pts.shape}")
     k = len(pts)
-    if initial is None:
-        c0, rho0 = sphere_fit(pts)
-        sphere = np.concatenate((c0, [rho0]))
-        spread = float(np.max(np.linalg.norm(pts - np.median(pts, axis=0), axis=1)))
-        sphere, w, _ = gnc_tls(
-            lambda m: np.linalg.norm(pts - m[:3], axis=1) - m[3],
-            lambda w, m: np.append(*sphere_fit(pts, w)),
-            sphere, k, max(settings.sphere_bound_fraction * spread, settings.noise_bound_m),
-            settings.mu_factor, settings.max_outer)
-        theta0 = np.concatenate((sphere[:3], np.zeros(3), np.full(3, np.log(sphere[3]))))
-    else:
-        theta0 = theta_from(initial)
+    c2 = settings.noise_bound_m ** 2
 
     def residual(theta: np.ndarray) -> np.ndarray:
         c, rot, axes = _unpack(theta)
         return radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T)
 
-    theta, w, it = gnc_tls(residual,
-                           lambda w, th: weighted_ellipsoid_fit(pts, w, th, settings.sphere_prior_m),
-                           theta0, k, settings.noise_bound_m, settings.mu_factor, settings.max_outer)
-    theta = weighted_ellipsoid_fit(pts, w, theta, settings.sphere_prior_m)  # polish on the inliers
+    def solve(w: np.ndarray, theta: np.ndarray, max_nfev: int = settings.inner_nfev) -> np.ndarray:
+        return weighted_ellipsoid_fit(pts, w, theta, settings.sphere_prior_m, max_nfev)
+
+    starts: list[Ellipsoid] = []
+    if initial is not None:
+        starts.append(initial)
+    else:
+        s1, in1 = _sphere_stage(pts, settings.start_bound_m, settings)
+        starts.append(Ellipsoid(s1[:3], np.eye(3), np.full(3, s1[3])))
+        starts.append(moment_start(pts[in1]))
+        rest = pts[~in1]
+        if len(rest) >= settings.min_points:
+            s2, in2 = _sphere_stage(rest, settings.start_bound_m, settings)
+            if in2.sum() >= settings.min_points:
+                starts.append(_two_cap_start(s1, s2))
+    best: tuple[float, np.ndarray, int] | None = None
+
+    def run(start: Ellipsoid) -> tuple[float, np.ndarray, int] | None:
+        theta0 = theta_from(start)
+        active = np.abs(residual(theta0)) <= settings.start_bound_m
+        if active.sum() < settings.min_points:
+            return None
+        theta0 = solve(active.astype(float), theta0)
+        theta, w, it = gnc_tls(residual, solve, theta0, k, settings.noise_bound_m, settings.mu_factor,
+                               settings.max_outer, active)
+        theta = solve(w, theta, 200) if w.sum() >= settings.min_points else theta  # polish on the inliers
+        return float(np.sum(np.minimum(residual(theta) ** 2, c2))), theta, it
+
+    for start in starts:
+        for _ in range(settings.restarts + 1):  # restart from the result while the TLS cost drops
+            got = run(start)
+            if got is None or (best is not None and got[0] >= best[0]):
+                break
+            best = got
+            start = Ellipsoid(*_unpack(got[1]))
+    if best is None:
+        raise ValueError(f"no start kept {settings.min_points} points within {settings.start_bound_m} m")
+    _, theta, it = best
     c, rot, axes = _unpack(theta)
     r2 = residual(theta) ** 2
-    inl = r2 <= settings.noise_bound_m ** 2
+    inl = r2 <= c2
     rms = float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf")
     return FitResult(Ellipsoid(c, rot, axes), inl, inl.astype(float), it, rms)
