@@ -1,6 +1,6 @@
 """What an agent broadcasts, as bytes (paper 000 §3.2.1 "state", §3.2.2 estimates, eq. 30).
 
-`state` packet (little-endian, 112 bytes): version u8, mode u8, flags u8 (bit 0: carries a target
+`state` packet (little-endian, 84 bytes): version u8, mode u8, flags u8 (bit 0: carries a target
 estimate), pad u8, then float32: t_s, position_m[3], velocity_mps[3] (own, CW frame), est_t_s,
 centre_m[3], target_velocity_mps[3], shape matrix upper triangle M00 M01 M02 M11 M12 M22 (m⁻²).
 `landmarks` packet: version u8, count u8, pad u16, float32 t_s, then count × int16[3] LVLH
