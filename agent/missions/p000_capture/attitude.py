@@ -32,7 +32,7 @@ def pointing_torque(q: np.ndarray, omega_body_radps: np.ndarray, q_d: np.ndarray
     """
     w = np.asarray(omega_body_radps, dtype=float)
     q_e = error_quaternion(q, q_d)
-    tau = np.cross(w, inertia_kgm2 @ w) - k_q @ q_e[1:] - k_w @ w
+    tau = quat.cross3(w, inertia_kgm2 @ w) - k_q @ q_e[1:] - k_w @ w
     return saturate_norm(tau, torque_max_nm)
 
 
@@ -40,7 +40,7 @@ def rate_damping_torque(omega_body_radps: np.ndarray, inertia_kgm2: np.ndarray,
                         k_w: np.ndarray, torque_max_nm: float) -> np.ndarray:
     """Search-mode hold: τ = ω×Jω − K_ω ω (NOTES-000: pointing starts in chase, §2.4)."""
     w = np.asarray(omega_body_radps, dtype=float)
-    return saturate_norm(np.cross(w, inertia_kgm2 @ w) - k_w @ w, torque_max_nm)
+    return saturate_norm(quat.cross3(w, inertia_kgm2 @ w) - k_w @ w, torque_max_nm)
 
 
 def pointing_error_rad(q: np.ndarray, position_m: np.ndarray, target_m: np.ndarray) -> float:

@@ -21,7 +21,7 @@ from .attitude import desired_attitude, pointing_torque, rate_damping_torque
 from .chase import chase_force
 from .ellipsoid import Ellipsoid, closest_point, signed_distance
 from .estimate import TargetEstimate, alpha_beta, consensus
-from .gnc_tls import GncSettings, gnc_tls_fit
+from .gnc_tls import GncSettings, gnc_tls_fit, track_fit
 from .limits import saturate_norm
 from .modes import bounce_force, next_mode, random_force
 from .params import CaptureParams
@@ -75,8 +75,18 @@ class CaptureController:
         pts = np.concatenate([p + vel * (t - tp) for tp, p in self.pool]) if self.pool else np.zeros((0, 3))
         if len(pts) < self.p.fit_min_points:
             return
+        if len(pts) > self.p.fit_max_points:
+            pts = pts[self.rng.permutation(len(pts))[: self.p.fit_max_points]]
+        fit = None
+        if self.own is not None:  # track from the own estimate while it explains most points
+            try:
+                fit = track_fit(pts, self.own.ellipsoid(t), self.gnc)
+                if fit.inliers.mean() < self.p.track_min_inlier_fraction:
+                    fit = None
+            except ValueError:
+                fit = None
         try:
-            fit = gnc_tls_fit(pts, self.gnc)
+            fit = fit or gnc_tls_fit(pts, self.gnc)
         except ValueError:
             return
         ell = fit.ellipsoid

@@ -50,13 +50,16 @@ def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 80) -> np
     tiny = 1e-12 * scale
     cands: list[np.ndarray] = []
 
-    def f(t: float) -> float:
-        return float(np.sum((a * y / (a2 + t)) ** 2)) - 1.0
+    ay = [float(a[k] * y[k]) for k in range(3)]
+    aa = [float(a2[k]) for k in range(3)]
+
+    def f(t: float) -> float:  # python floats: bisection calls this ~50 times
+        return ((ay[0] / (aa[0] + t)) ** 2 + (ay[1] / (aa[1] + t)) ** 2 + (ay[2] / (aa[2] + t)) ** 2) - 1.0
 
     lo = -float(np.min(a2))
     lo_eps = lo + 1e-15 * max(1.0, abs(lo))
     if f(lo_eps) > 0.0:
-        hi = max(0.0, float(np.linalg.norm(a * y)))  # f(hi) <= 0
+        hi = max(0.0, float(np.sqrt(sum(v * v for v in ay))))  # f(hi) <= 0
         while f(hi) > 0.0:
             hi = 2.0 * hi + 1.0
         lo_b = lo_eps
@@ -66,6 +69,8 @@ def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 80) -> np
                 lo_b = mid
             else:
                 hi = mid
+            if hi - lo_b <= 1e-13 * max(1.0, abs(hi)):
+                break
         t = 0.5 * (lo_b + hi)
         cands.append(a2 * y / (a2 + t))
     for k in range(3):

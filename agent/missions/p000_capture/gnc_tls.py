@@ -282,3 +282,23 @@ def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
     inl = r2 <= c2
     rms = float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf")
     return FitResult(Ellipsoid(c, rot, axes), inl, inl.astype(float), it, rms)
+
+
+def track_fit(points_m: np.ndarray, previous: Ellipsoid, settings: GncSettings = GncSettings()) -> FitResult:
+    """Cheap update from the previous estimate: TLS with the bound shrunk in two steps
+    (`start_bound_m`, then c̄) instead of the full GNC schedule. Used while the previous estimate
+    still explains most points; `gnc_tls_fit` is the acquisition (cold start, lost track)."""
+    pts = np.asarray(points_m, dtype=float)
+    theta = theta_from(previous)
+    for bound in (settings.start_bound_m, 3.0 * settings.noise_bound_m, settings.noise_bound_m):
+        c, rot, axes = _unpack(theta)
+        r = radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T)
+        w = (np.abs(r) <= bound).astype(float)
+        if w.sum() < settings.min_points:
+            raise ValueError(f"track lost: {int(w.sum())} points within {bound} m of the previous estimate")
+        theta = weighted_ellipsoid_fit(pts, w, theta, settings.sphere_prior_m, settings.inner_nfev)
+    c, rot, axes = _unpack(theta)
+    r2 = radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T) ** 2
+    inl = r2 <= settings.noise_bound_m ** 2
+    return FitResult(Ellipsoid(c, rot, axes), inl, inl.astype(float), 0,
+                     float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf"))

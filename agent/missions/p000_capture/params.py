@@ -38,6 +38,8 @@ class CaptureParams:
     perception_period_s: float = 1.0
     detect_min_returns: int = 8
     fit_min_points: int = 30
+    fit_max_points: int = 200
+    track_min_inlier_fraction: float = 0.6
     estimate_max_age_s: float = 5.0
     landmarks_per_packet: int = 40
     dock_settle_fits: int = 5

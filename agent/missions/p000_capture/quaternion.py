@@ -10,11 +10,16 @@ import numpy as np
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for two 3-vectors (np.cross costs ~10x more on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product p ⊗ q."""
     p0, pv = p[0], p[1:]
     q0, qv = q[0], q[1:]
-    return np.concatenate(([p0 * q0 - pv @ qv], p0 * qv + q0 * pv + np.cross(pv, qv)))
+    return np.concatenate(([p0 * q0 - pv @ qv], p0 * qv + q0 * pv + cross3(pv, qv)))
 
 
 def conjugate(q: np.ndarray) -> np.ndarray:
