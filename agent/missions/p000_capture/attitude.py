@@ -37,10 +37,13 @@ def pointing_torque(q: np.ndarray, omega_body_radps: np.ndarray, q_d: np.ndarray
 
 
 def rate_damping_torque(omega_body_radps: np.ndarray, inertia_kgm2: np.ndarray,
-                        k_w: np.ndarray, torque_max_nm: float) -> np.ndarray:
-    """Search-mode hold: τ = ω×Jω − K_ω ω (NOTES-000: pointing starts in chase, §2.4)."""
+                        k_w: np.ndarray, torque_max_nm: float,
+                        omega_ref_body_radps: np.ndarray | None = None) -> np.ndarray:
+    """Search-mode rate control: τ = ω×Jω − K_ω (ω − ω_ref), ω_ref = 0 (hold, NOTES-000: pointing
+    starts in chase, §2.4) or a slow scan rate about body z that sweeps the sensor cone round."""
     w = np.asarray(omega_body_radps, dtype=float)
-    return saturate_norm(quat.cross3(w, inertia_kgm2 @ w) - k_w @ w, torque_max_nm)
+    err = w if omega_ref_body_radps is None else w - omega_ref_body_radps
+    return saturate_norm(quat.cross3(w, inertia_kgm2 @ w) - k_w @ err, torque_max_nm)
 
 
 def pointing_error_rad(q: np.ndarray, position_m: np.ndarray, target_m: np.ndarray) -> float:

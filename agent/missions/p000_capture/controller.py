@@ -1,6 +1,7 @@
 """The capture agent's flight software: one `step(obs) -> Command` (paper 000 §2–3).
 
-Search (eq. 23): bounce + random walk + APF (+ buffer off the sensed surface), attitude held.
+Search (eq. 23): bounce + random walk + APF (+ buffer off the sensed surface); attitude held or
+(default) spun slowly about body z so the sensor cone sweeps a band of the sky.
 Chase/dock (eq. 24): trigger-held chase PD (eq. 26) toward the buffer slot (eq. 14) + APF +
 buffer off the estimated surface, pointing PD at the estimated centroid (eq. 15–18).
 Perception at `perception_period_s`: GNC-TLS fit of own and neighbours' pooled returns.
@@ -164,7 +165,8 @@ class CaptureController:
                 d = float(np.linalg.norm(s.surface_rel_m))
                 force = force + buffer_force(d, -s.surface_rel_m / max(d, 1e-9), v, p.k_r_target,
                                              p.r_buffer_m, p.buffer_damping_nspm)
-            torque = rate_damping_torque(s.omega_body_radps, p.inertia, p.k_w * np.eye(3), p.torque_max_nm)
+            scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
+            torque = rate_damping_torque(s.omega_body_radps, p.inertia, p.k_w * np.eye(3), p.torque_max_nm, scan)
         else:
             forced = entered or not had_estimate
             if self._broadcast_due(t, r, v, forced, dt_s):

@@ -31,6 +31,8 @@ class CaptureParams:
     random_alpha: float = 0.1            # F_rnd = α F_thr, random unit direction
     random_redraw_s: float = 10.0
     buffer_damping_nspm: float = 1.0
+    search_attitude: str = "scan"        # "scan" (spin about body z) | "hold" (rate damping only)
+    scan_rate_dps: float = 2.0
     chase_law: str = "governed"          # "literal" (eq. 25–26) | "governed" (error clipped)
     approach_speed_mps: float = 0.08     # governed: ‖e‖ clipped at v K_v / K_p
     broadcast: str = "event"             # "event" (eq. 28) | "every-step" | "periodic"
@@ -63,4 +65,6 @@ class CaptureParams:
             raise ValueError(f"chase_law must be 'literal' or 'governed', got {p.chase_law!r}")
         if p.broadcast not in ("event", "every-step", "periodic"):
             raise ValueError(f"broadcast must be event|every-step|periodic, got {p.broadcast!r}")
+        if p.search_attitude not in ("scan", "hold"):
+            raise ValueError(f"search_attitude must be 'scan' or 'hold', got {p.search_attitude!r}")
         return p
