@@ -19,7 +19,7 @@ from agent.controller import Observation, OrbitInfo
 from agent.missions.p000_capture import payload as pl
 from agent.missions.p000_capture import quaternion as quat
 from agent.missions.p000_capture.controller import CaptureController
-from agent.missions.p000_capture.ellipsoid import Ellipsoid, closest_point, signed_distance, surface_landmarks
+from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 from agent.missions.p000_capture.params import CaptureParams
 from agent.missions.p000_capture.sensing import CaptureSensing
 
@@ -144,7 +144,7 @@ def run_capture(n_agents: int = 10, semi_axes=(2.6, 1.9, 1.4), duration_s: float
         acc = np.zeros((n_agents, 3))
         outbox: list[list[Packet]] = [[] for _ in ids]
         for i, ctl in enumerate(ctls):
-            sd = signed_distance(ell, r[i])
+            sd, x_s, _ = surface_frame(ell, r[i])
             res.min_surface_m = min(res.min_surface_m, sd)
             bore = quat.rotate(q[i], [1.0, 0, 0])
             rel = lm_w - r[i]
@@ -165,7 +165,6 @@ def run_capture(n_agents: int = 10, semi_axes=(2.6, 1.9, 1.4), duration_s: float
             lm_ids[:n_out] = -1
             surf = None
             if sd <= p.r_h_m:
-                x_s, _ = closest_point(ell, r[i])
                 surf = x_s - r[i]
             near = [m for m in range(n_agents) if m != i and d[i, m] <= p.r_h_m]
             sens = CaptureSensing(q[i], w[i], r[i].copy(), v[i].copy(), body, lm_ids, surf)

@@ -240,3 +240,15 @@ def test_controller_registered_and_command_has_torque() -> None:
     assert Command(accel_mps2=np.zeros(3)).torque_nm is None  # backward compatible
     with pytest.raises(ValueError, match="unknown p000-capture"):
         make_controller("p000-capture", "a1", OrbitInfo(6878e3, 0.0011), {"k_p_typo": 1})
+
+
+def test_gnc_solver_jacobian_matches_finite_differences() -> None:
+    from scipy.optimize._numdiff import approx_derivative
+
+    from agent.missions.p000_capture.gnc_tls import _jacobian, _residuals
+    rng = np.random.default_rng(0)
+    pts = rng.normal(size=(30, 3)) * 2
+    th = np.array([0.1, -0.2, 0.3, 0.4, -0.5, 0.6, 0.5, 0.2, 0.1])
+    sw = np.sqrt(rng.uniform(0, 1, 30))
+    num = approx_derivative(lambda t: _residuals(t, pts, sw, 0.02), th, method="3-point")
+    assert np.abs(_jacobian(th, pts, sw, 0.02) - num).max() < 1e-6

@@ -20,7 +20,7 @@ from . import quaternion as quat
 from .apf import apf_force, buffer_force
 from .attitude import desired_attitude, pointing_torque, rate_damping_torque
 from .chase import chase_force
-from .ellipsoid import Ellipsoid, closest_point, signed_distance
+from .ellipsoid import signed_distance, surface_frame
 from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, track_fit
 from .limits import saturate_norm
@@ -145,8 +145,8 @@ class CaptureController:
                 ell = None
         slot = None
         if ell is not None:
-            x_s, nrm = closest_point(ell, r)
-            slot = x_s + p.r_buffer_m * nrm
+            sd, x_s, nrm = surface_frame(ell, r)
+            slot = x_s + p.r_buffer_m * nrm  # eq. 14
         old_mode = self.mode
         at_slot = slot is not None and float(np.linalg.norm(r - slot)) < p.dock_slot_tol_m
         self.mode = next_mode(self.mode, detected, received, self._settled(), at_slot)
@@ -177,8 +177,6 @@ class CaptureController:
                                   self.est.shape)
                 txs.append(Transmission(pl.STATE_TYPE, pl.encode_state(msg)))
                 self.broadcasts += 1
-            sd = signed_distance(ell, r)
-            _, nrm = closest_point(ell, r)
             force = self.held_force + f_col + buffer_force(sd, nrm, v - self.est.velocity_mps, p.k_r_target,
                                                            p.r_buffer_m, p.buffer_damping_nspm)
             q_d = desired_attitude(r, ell.centre_m)

@@ -103,13 +103,21 @@ def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 
+def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(signed distance, closest point x_s, outward normal n) in one closest-point solve."""
+    p = np.asarray(p_m, dtype=float)
+    local = ell.rotation.T @ (p - ell.centre_m)
+    x = closest_point_principal(local, ell.semi_axes_m)
+    n = x / ell.semi_axes_m ** 2
+    n = n / np.linalg.norm(n)
+    d = float(np.linalg.norm(local - x))
+    inside = float(np.sum((local / ell.semi_axes_m) ** 2)) < 1.0
+    return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
+
+
 def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
     """Euclidean distance to the surface, negative inside."""
-    x_s, _ = closest_point(ell, p_m)
-    d = float(np.linalg.norm(np.asarray(p_m, dtype=float) - x_s))
-    local = ell.rotation.T @ (np.asarray(p_m, dtype=float) - ell.centre_m)
-    inside = float(np.sum((local / ell.semi_axes_m) ** 2)) < 1.0
-    return -d if inside else d
+    return surface_frame(ell, p_m)[0]
 
 
 def buffer_slot(ell: Ellipsoid, p_m: np.ndarray, r_buffer_m: float) -> np.ndarray:

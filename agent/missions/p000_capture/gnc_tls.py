@@ -87,10 +87,34 @@ def sphere_fit(points_m: np.ndarray, weights: np.ndarray | None = None) -> tuple
     return c, float(np.sqrt(max(rho2, 1e-6)))
 
 
+def _jacobian(theta: np.ndarray, pts: np.ndarray, sqrt_w: np.ndarray, prior: float) -> np.ndarray:
+    """∂residual/∂θ: analytic for the centre and log axes, forward differences for the rotation."""
+    c, rot, axes = _unpack(theta)
+    d = pts - c
+    local = d @ rot
+    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
+    al = local / axes ** 2
+    q = np.maximum(np.einsum("ij,ij->i", local, al), 1e-12)
+    dr_drho = 1.0 - q ** -0.5
+    dr_dq = 0.5 * rho * q ** -1.5
+    jac = np.zeros((len(pts) + 3, 9))
+    jac[:-3, :3] = (-dr_drho / np.maximum(rho, 1e-12))[:, None] * d + (dr_dq[:, None] * (-2.0 * al @ rot.T))
+    jac[:-3, 6:] = (-2.0 * dr_dq)[:, None] * local * al
+    jac[:-3, :3] *= sqrt_w[:, None]
+    jac[:-3, 6:] *= sqrt_w[:, None]
+    base = _residuals(theta, pts, sqrt_w, prior)[:-3]
+    for k in range(3, 6):
+        th = theta.copy()
+        th[k] += 1e-7
+        jac[:-3, k] = (_residuals(th, pts, sqrt_w, prior)[:-3] - base) / 1e-7
+    jac[-3:, 6:] = prior * (np.eye(3) - 1.0 / 3.0)
+    return jac
+
+
 def weighted_ellipsoid_fit(points_m: np.ndarray, weights: np.ndarray, theta0: np.ndarray,
                            sphere_prior_m: float, max_nfev: int = 200) -> np.ndarray:
     """The non-minimal solver: weighted nonlinear least squares from `theta0`."""
-    sol = least_squares(_residuals, theta0, args=(points_m, np.sqrt(weights), sphere_prior_m),
+    sol = least_squares(_residuals, theta0, jac=_jacobian, args=(points_m, np.sqrt(weights), sphere_prior_m),
                         method="trf", max_nfev=max_nfev)
     return sol.x
 
@@ -286,11 +310,11 @@ def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
 
 def track_fit(points_m: np.ndarray, previous: Ellipsoid, settings: GncSettings = GncSettings()) -> FitResult:
     """Cheap update from the previous estimate: TLS with the bound shrunk in two steps
-    (`start_bound_m`, then c̄) instead of the full GNC schedule. Used while the previous estimate
+    (3c̄, then c̄) instead of the full GNC schedule. Used while the previous estimate
     still explains most points; `gnc_tls_fit` is the acquisition (cold start, lost track)."""
     pts = np.asarray(points_m, dtype=float)
     theta = theta_from(previous)
-    for bound in (settings.start_bound_m, 3.0 * settings.noise_bound_m, settings.noise_bound_m):
+    for bound in (3.0 * settings.noise_bound_m, settings.noise_bound_m):
         c, rot, axes = _unpack(theta)
         r = radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T)
         w = (np.abs(r) <= bound).astype(float)
