@@ -24,6 +24,7 @@ from agent.missions.p000_capture.params import CaptureParams
 from agent.missions.p000_capture.sensing import CaptureSensing
 
 N_RADPS = float(np.sqrt(3.986004418e14 / 6878137.0 ** 3))  # 500 km circular LEO
+SETTLE_S = 20.0  # estimate errors are scored for agents in chase at least this long
 SAFETY_DISTANCE_M = 0.5  # no collision: pair distance stays above this (chosen: 8U CubeSat ~0.35 m)
 
 
@@ -195,7 +196,7 @@ def run_capture(n_agents: int = 10, semi_axes=(2.6, 1.9, 1.4), duration_s: float
     res.modes = [c.mode for c in ctls]
     res.chase_entry_s = [c.chase_entry_t for c in ctls]
     for i, c in enumerate(ctls):
-        if c.est is not None:
+        if c.est is not None and c.chase_entry_t is not None and c.chase_entry_t <= t_end - SETTLE_S:
             res.axes_err.append(float(np.max(np.abs(c.est.semi_axes_sorted() / np.sort(target.semi_axes_m) - 1))))
             res.centre_err_m.append(float(np.linalg.norm(c.est.centre_m + c.est.velocity_mps * (t_end - c.est.t_s) - ell.centre_m)))
             bore = quat.rotate(q[i], [1.0, 0, 0])
@@ -215,3 +216,50 @@ def report(res: RunResult, label: str) -> str:
             f"state broadcasts {res.state_broadcasts} ({res.state_bytes} B) vs every step {every} "
             f"(ratio {res.state_broadcasts / max(every, 1):.3f}) vs 1 Hz {hz1:.0f} (ratio {res.state_broadcasts / max(hz1, 1):.2f}); "
             f"landmark packets {res.landmark_packets} ({res.landmark_bytes} B)")
+
+
+def check_paper_outcome(res: RunResult, min_out_of_search: int, min_settled: int) -> None:
+    """The paper's claims that carry numbers or a clear yes/no (docs/paper000.md)."""
+    assert sum(m != "search" for m in res.modes) >= min_out_of_search, res.modes
+    assert res.min_pair_m > SAFETY_DISTANCE_M                      # no collisions (§4.2)
+    assert res.min_surface_m > 0.0                                  # nobody inside the true target
+    assert len(res.axes_err) >= min_settled                         # agents in chase >= SETTLE_S
+    assert max(res.axes_err) < 0.02                                 # semi-axes recovered (Fig. 7)
+    assert max(res.centre_err_m) < 0.2
+    assert res.state_broadcasts < 0.25 * res.chase_agent_steps      # event trigger << every step
+
+
+def test_closed_loop_ten_agents_capture_case_i() -> None:
+    """Case (i), 10 agents, 100 s at dt = 0.1 s (twice the paper's step, for time; the 550 s run at
+    0.05 s is the system test), perception every 2 s. Measured (seed 1): 7 agents chase from
+    20–34 s, 3 more at ~96 s; axes within 1 %; event broadcasts ≈ 0.12 of every step."""
+    res = run_capture(duration_s=100.0, dt_s=0.1, seed=1, params={"perception_period_s": 2.0})
+    print(report(res, "case i, 100 s, dt 0.1"))
+    check_paper_outcome(res, min_out_of_search=7, min_settled=7)
+
+
+@pytest.mark.system
+def test_system_case_i_550s_paper_step() -> None:
+    """Case (i) as the paper: 10 agents, 550 s at dt = 0.05 s, governed chase, event trigger."""
+    res = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
+    print(report(res, "case i, 550 s, dt 0.05"))
+    check_paper_outcome(res, min_out_of_search=10, min_settled=10)
+    assert res.state_broadcasts < res.chase_agent_steps * res.dt_s  # fewer than 1 Hz periodic
+    assert sorted(x for x in res.chase_entry_s if x is not None)[-1] < 325.6  # enclosure by Fig. 3(d)
+
+
+@pytest.mark.system
+def test_system_case_i_periodic_baseline_sends_more() -> None:
+    """The same seed with the 1 Hz periodic broadcast: the link carries more state packets."""
+    event = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
+    periodic = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"broadcast": "periodic"})
+    print(report(event, "event"), report(periodic, "periodic 1 Hz"), sep="\n")
+    assert event.state_broadcasts < periodic.state_broadcasts
+
+
+@pytest.mark.system
+def test_system_case_ii_twenty_agents() -> None:
+    """Case (ii): 20 agents around the elongated (4.0, 1.3, 1.0) m target, 550 s at 0.05 s."""
+    res = run_capture(n_agents=20, semi_axes=(4.0, 1.3, 1.0), duration_s=550.0, dt_s=0.05, seed=1)
+    print(report(res, "case ii, 550 s, dt 0.05"))
+    check_paper_outcome(res, min_out_of_search=15, min_settled=15)  # NOTES-000 trap 9: a wanderer may stay in search
