@@ -263,3 +263,12 @@ def test_system_case_ii_twenty_agents() -> None:
     res = run_capture(n_agents=20, semi_axes=(4.0, 1.3, 1.0), duration_s=550.0, dt_s=0.05, seed=1)
     print(report(res, "case ii, 550 s, dt 0.05"))
     check_paper_outcome(res, min_out_of_search=15, min_settled=15)  # NOTES-000 trap 9: a wanderer may stay in search
+
+
+@pytest.mark.system
+def test_system_literal_chase_law_flies_into_the_target() -> None:
+    """NOTES-000 trap 1, shown: eq. 25–26 as printed (no approach governor) under F_max = 0.1 N
+    overshoots the slot by metres; measured (seed 1) an agent 1.35 m inside the true surface."""
+    res = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"chase_law": "literal"})
+    print(report(res, "literal chase law"))
+    assert res.min_surface_m < 0.0
