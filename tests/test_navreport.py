@@ -177,7 +177,7 @@ def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None) -> tupl
     (plant.sensors.visibility_matrix per truth message, not dashboards.metrics)."""
     from plant.sensors import CameraGeometry, visibility_matrix
 
-    truth = [m for topic, _l, _p, m in read_mcap(run_dir / "run.mcap") if topic == f"swarm/{run}/truth"]
+    truth = [m for topic, _l, _p, m in read_mcap(run_dir / "run.mcap") if topic == "truth"]
     dv = sum(b.delta_v_mps for b in truth[-1].bodies)
     if rows is None:
         return dv, None

@@ -22,16 +22,20 @@ def test_recorder_answers_a_flush_with_what_it_wrote_and_whether_run_end_is_in(t
     truth = pb.Truth(header=pb.Header(run="r", source="plant", step=3, t=30.0))
     bus.publish("swarm/r/truth", truth.SerializeToString())
     bus.publish(flush_key("r"), b"n1")
-    assert acks == [{"nonce": "n1", "messages": 1, "by_topic": {"swarm/r/truth": 1}, "run_end": False}]
+    # a truth is recorded with its Foxglove frame transforms and scene (MCAP contract)
+    assert acks == [{"nonce": "n1", "messages": 3, "by_topic": {"truth": 1, "foxglove/tf": 1, "foxglove/scene": 1},
+                     "run_end": False}]
     # another source's run_end does not count; the plant's does
     for source in ("agent", "plant"):
         ev = pb.Event(header=pb.Header(run="r", source=source, step=3, t=30.0), kind="run_end", subject=source)
         bus.publish("swarm/r/event", ev.SerializeToString())
         bus.publish(flush_key("r"), f"after-{source}".encode())
-    assert [(a["nonce"], a["messages"], a["run_end"]) for a in acks[1:]] == [("after-agent", 2, False), ("after-plant", 3, True)]
+    # each event is recorded with its foxglove.Log twin
+    assert [(a["nonce"], a["messages"], a["run_end"]) for a in acks[1:]] == [("after-agent", 5, False), ("after-plant", 7, True)]
     node.close()
     # the handshake itself is not recorded (outside swarm/<run>/**)
-    assert [t for t, *_ in read_mcap(tmp_path / "run.mcap")] == ["swarm/r/truth", "swarm/r/event", "swarm/r/event"]
+    topics = [t for t, *_ in read_mcap(tmp_path / "run.mcap")]
+    assert [t for t in topics if not t.startswith("foxglove/")] == ["truth", "event", "event"]
 
 
 def test_router_takes_another_port_when_its_free_port_was_taken_meanwhile() -> None:

@@ -50,7 +50,7 @@ def test_drift20_24h_multiprocess_disperses_like_fig7(tmp_path: Path) -> None:
 
 
 def _truth_full(path: Path, run: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    truth = [m for t, _l, _p, m in read_mcap(path) if t == f"swarm/{run}/truth"]
+    truth = [m for t, _l, _p, m in read_mcap(path) if t == "truth"]
     t = np.array([m.header.t for m in truth])
     pos = np.array([[[b.position_m.x, b.position_m.y, b.position_m.z] for b in m.bodies] for m in truth])
     vel = np.array([[[b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z] for b in m.bodies] for m in truth])
