@@ -258,6 +258,7 @@ def test_system_case_i_periodic_baseline_sends_more() -> None:
 
 
 @pytest.mark.system
+@pytest.mark.study
 def test_system_case_ii_twenty_agents() -> None:
     """Case (ii): 20 agents around the elongated (4.0, 1.3, 1.0) m target, 550 s at 0.05 s."""
     res = run_capture(n_agents=20, semi_axes=(4.0, 1.3, 1.0), duration_s=550.0, dt_s=0.05, seed=1)
@@ -266,6 +267,7 @@ def test_system_case_ii_twenty_agents() -> None:
 
 
 @pytest.mark.system
+@pytest.mark.study
 def test_system_literal_chase_law_flies_into_the_target() -> None:
     """NOTES-000 trap 1, shown: eq. 25–26 as printed (no approach governor) under F_max = 0.1 N
     overshoots the slot by metres; measured (seed 1) an agent 1.35 m inside the true surface."""

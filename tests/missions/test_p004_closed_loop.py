@@ -302,6 +302,7 @@ def test_lyapunov_function_decays_to_a_neighbourhood(paper_run: Run) -> None:
     assert all(b < a for a, b in zip(windows, windows[1:]))
 
 
+CI_VARIANTS = {"no network (Phi = 0)", "thrust limit 10 m/s^2 per axis"}  # the rest: `make test-study`
 VARIANTS: dict[str, tuple[dict, str]] = {
     # name: (keyword arguments of simulate(), expected outcome: converges | bounded | diverges)
     "no network (Phi = 0)": ({"params": {"use_network": False}}, "converges"),
@@ -318,7 +319,7 @@ VARIANTS: dict[str, tuple[dict, str]] = {
 
 
 @pytest.mark.system
-@pytest.mark.parametrize("name", list(VARIANTS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=() if n in CI_VARIANTS else pytest.mark.study) for n in VARIANTS])
 def test_variants(name: str) -> None:
     """The ablation and the variants of docs/paper004.md, each with the outcome measured there."""
     kwargs, expected = VARIANTS[name]
