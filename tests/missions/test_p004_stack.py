@@ -29,6 +29,8 @@ for p in (ROOT, ROOT / "tests", ROOT / "tests" / "missions"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
+from dashboards.sections.p004 import first_time_below, servicing_figures, tracking_errors  # noqa: E402
+
 SCENARIO = ROOT / "deploy" / "scenarios" / "servicing-6.toml"
 SERVICERS = ("s1", "s2", "s3", "s4", "s5", "s6")
 DEFUNCT = "defunct"
@@ -175,27 +177,12 @@ def load_run(run_dir: Path) -> dict:
     }
 
 
-def first_time_below(t: np.ndarray, y: np.ndarray, level: float) -> float:
-    above = np.nonzero(y >= level)[0]
-    if above.size == 0:
-        return float(t[0])
-    return float(t[above[-1] + 1]) if above[-1] + 1 < t.size else float("inf")
-
-
 def metrics(run: dict) -> dict:
-    """The paper's figures from recorded truth: ‖e_i‖ = ‖q0 − q_i‖ (frame-independent), ‖u_i‖, Δv."""
-    e = np.linalg.norm(run["defunct_pos"][:, None, :] - run["pos"], axis=2)       # (K, 6)
-    t = run["t"]
+    """The paper's figures from recorded truth: ‖e_i‖ = ‖q0 − q_i‖ (frame-independent), ‖u_i‖ of the
+    agents' commands (sc/<id>/act), Δv — computed by the report section (dashboards/sections/p004.py)
+    from this test's own reading of the MCAP."""
     u = np.linalg.norm(np.array([run["cmd"][s] for s in run["ids"]]), axis=2).T   # (K-1 or K, 6)
-    out = {"t": t, "e_norm": e, "u_norm": u,
-           "e_start_min_m": float(e[0].min()), "e_end_max_m": float(e[-1].max()),
-           "e_end_mean_m": float(e[-1].mean()),
-           "t_e_below_10m_s": max(first_time_below(t, e[:, i], 10.0) for i in range(e.shape[1])),
-           "u_peak_mps2": float(u.max()), "delta_v_max_mps": float(run["delta_v"][-1].max())}
-    if t[-1] >= 200.0:
-        out["e_mean_after_200s_m"] = float(e[t >= 200.0].mean())
-        out["e_max_after_200s_m"] = float(e[t >= 200.0].max())
-    return out
+    return servicing_figures(run["t"], tracking_errors(run["defunct_pos"], run["pos"]), u, run["delta_v"][-1])
 
 
 # --- runs -----------------------------------------------------------------------------------------
