@@ -74,5 +74,5 @@ def test_full_run_forms_the_hexagon_of_side_10_m(tmp_path: Path) -> None:
     final = pos[-1]
     assert structure_name(final, 10.0) == "6-ring"
     hexa = check_hexagon(final, 10.0)
-    assert hexa.ok, hexa
+    assert hexa.is_hexagon, hexa
     assert np.abs(final[:, 0]).max() < 0.05  # in the yz-plane
