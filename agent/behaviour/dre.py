@@ -16,7 +16,7 @@ The table is computed once per (orbit, weights, grid) and cached for the life of
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -35,14 +35,25 @@ class GainTable:
     gain_per_s2: np.ndarray  # (N, 3, 6) gain on the ROE error in metres: (m/s^2) per m
     riccati: np.ndarray  # (N, 6, 6) P(u) of the dimensionless problem
     orbits_to_converge: int
+    # the last lookup (u, gain): the table is shared by every controller of a process (gain_table's
+    # cache) and all spacecraft ask for the same u in a step, so in batch mode it is computed once
+    # per step instead of once per spacecraft (issue 16); the same arithmetic, a read-only result
+    _last: list = field(default_factory=lambda: [(None, None)], init=False, repr=False, compare=False)
 
     def gain(self, u_rad: float) -> np.ndarray:
-        """(3, 6) gain at u, linear interpolation between the periodic table's nodes."""
+        """(3, 6) gain at u, linear interpolation between the periodic table's nodes (read-only)."""
+        u = float(u_rad)
+        u_last, g_last = self._last[0]
+        if u_last == u:
+            return g_last
         n_table = self.u_grid_rad.size
-        x = (float(u_rad) % TWO_PI) / TWO_PI * n_table
+        x = (u % TWO_PI) / TWO_PI * n_table
         i0 = int(np.floor(x)) % n_table
         f = x - np.floor(x)
-        return (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+        g = (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+        g.setflags(write=False)
+        self._last[0] = (u, g)  # one assignment: a reader never sees a half-updated pair
+        return g
 
 
 def riccati_rate(t_s: float, p_flat: np.ndarray, a_mat: np.ndarray, q_mat: np.ndarray, r_inv: np.ndarray,
