@@ -49,7 +49,8 @@ def one(tree: Path, scenario: str, duration: float, out: Path) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("scenario", nargs="?", default=str(Path(__file__).resolve().parent.parent / "deploy/scenarios/sabatini-20.toml"))
+    root = Path(__file__).resolve().parent.parent
+    ap.add_argument("scenario", nargs="?", default=str(root / "deploy/scenarios/sabatini-20.toml"))
     ap.add_argument("--base", required=True, type=Path)
     ap.add_argument("--tree", type=Path, default=Path(__file__).resolve().parent.parent)
     ap.add_argument("--duration", type=float, default=7200.0)
