@@ -150,6 +150,7 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, execu
         else:  # one single-threaded worker process per job, everything on loopback, no dashboard
             import logging
 
+            logging.getLogger("distributed").setLevel(logging.WARNING)  # its scheduler's INFO lines, in this process
             cluster = LocalCluster(n_workers=max(1, jobs), threads_per_worker=1, processes=True, host="127.0.0.1",
                                    dashboard_address=None, protocol="tcp://", silence_logs=logging.WARNING)
             client = Client(cluster)
