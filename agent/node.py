@@ -15,7 +15,7 @@ import numpy as np
 from agent.controller import Command, Observation, OrbitInfo, make_controller
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header, measurements_to_dict, sense_type, vec
+from bus.codec import RejectedPacket, Rejections, decode, header, measurements_to_dict, sense_type, vec
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.agent")
@@ -23,9 +23,11 @@ log = logging.getLogger("swarmhil.agent")
 
 def observation_from_rel(stim: pb.RelStimulus | pb.Measurements) -> Observation:
     """RelStimulus, or Measurements (neighbours plus named arrays in `extra`), as an Observation."""
-    ids = [nb.id for nb in stim.neighbours]
-    pos = np.array([arr(nb.position_m) for nb in stim.neighbours]).reshape(-1, 3)
-    vel = np.array([arr(nb.velocity_mps) for nb in stim.neighbours]).reshape(-1, 3)
+    nbs = stim.neighbours
+    ids = [nb.id for nb in nbs]
+    # one array from plain tuples (not one small array per neighbour): the same float64 values
+    pos = np.array([(p.x, p.y, p.z) for p in (nb.position_m for nb in nbs)], dtype=float).reshape(-1, 3)
+    vel = np.array([(v.x, v.y, v.z) for v in (nb.velocity_mps for nb in nbs)], dtype=float).reshape(-1, 3)
     extra = measurements_to_dict(stim) if isinstance(stim, pb.Measurements) else {}
     return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad,
                        neighbour_ids=ids, rel_position_m=pos, rel_velocity_mps=vel, extra=extra)
@@ -154,8 +156,10 @@ class AgentNode:
             png = self.perception.debug_image(t)
             if png is not None:
                 self._publish_image(png, t)
+        add_decision = tm.decisions.add  # built in place (append would copy each message)
         for d in self.command.decisions:
-            tm.decisions.append(pb.NeighbourDecision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
-                                                     roe_rel_m=[float(x) for x in d.roe_rel_m], accel_mps2=vec(d.accel_mps2)))
+            dm = add_decision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
+                              roe_rel_m=np.asarray(d.roe_rel_m, dtype=float).tolist())
+            dm.accel_mps2.x, dm.accel_mps2.y, dm.accel_mps2.z = np.asarray(d.accel_mps2, dtype=float).tolist()[:3]
         self.bus.publish(self._tm_key, tm.SerializeToString())
         self.steps += 1

@@ -39,17 +39,14 @@ def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: f
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
     vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
     c, s = np.cos(u_rad), np.sin(u_rad)
-    return np.stack(
-        [
-            4.0 * x + 2.0 * vy,
-            y - 2.0 * vx,
-            3.0 * x * c + vx * s + 2.0 * vy * c,
-            3.0 * x * s - vx * c + 2.0 * vy * s,
-            z * s + vz * c,
-            -z * c + vz * s,
-        ],
-        axis=-1,
-    )
+    out = np.empty(np.broadcast_shapes(x.shape, vx.shape) + (6,))  # filled column by column (np.stack's cost, not its values)
+    out[..., 0] = 4.0 * x + 2.0 * vy
+    out[..., 1] = y - 2.0 * vx
+    out[..., 2] = 3.0 * x * c + vx * s + 2.0 * vy * c
+    out[..., 3] = 3.0 * x * s - vx * c + 2.0 * vy * s
+    out[..., 4] = z * s + vz * c
+    out[..., 5] = -z * c + vz * s
+    return out
 
 
 def state_matrix(n_radps: float) -> np.ndarray:

@@ -5,7 +5,7 @@ by dashboards/truth_io.py; nothing uses what the agents believed. Definitions:
 
 - Visibility digraph (section 4.1): edge j -> k when j's camera sees k: k within the detection
   range and inside j's square field of view around +y (the plant's rule, plant/sensors.py).
-  Integrity = one weakly connected component (scipy.sparse.csgraph.connected_components), at
+  Integrity = one weakly connected component (numbered as scipy.sparse.csgraph.connected_components does), at
   every step; also reported for the union of the digraphs over the last orbital period (a link
   that the relative ellipse takes beyond 500 m for part of each orbit still counts there).
 - Pair ROE: dalpha_jk = roe_j - roe_k (metres; the linear ROE of j relative to k, NOTES-002).
@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
 
 from plant.sensors import CameraGeometry, visibility_matrix
 
@@ -46,12 +45,24 @@ def visibility_series(position_m: np.ndarray, cam: CameraGeometry, alive: np.nda
 
 def weak_components(vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(n_components (T,), labels (T, N)) of the weakly connected components of each step's digraph."""
+    # all steps at once (issue 16: scipy per step was most of a campaign run's metrics time): every
+    # node takes the smallest index of its undirected neighbourhood until nothing changes, so each
+    # ends with the smallest node index of its component; components are then numbered in order of
+    # that index, which is scipy's connected_components numbering (tests/test_metrics.py)
     T, N, _ = vis.shape
-    n = np.empty(T, dtype=int)
-    labels = np.empty((T, N), dtype=int)
-    for t in range(T):
-        n[t], labels[t] = connected_components(vis[t], directed=True, connection="weak")
-    return n, labels
+    if T == 0 or N == 0:
+        return np.zeros(T, dtype=int), np.zeros((T, N), dtype=int)
+    adj = np.asarray(vis, dtype=bool)
+    adj = adj | adj.transpose(0, 2, 1)
+    lab = np.broadcast_to(np.arange(N), (T, N)).copy()
+    while True:
+        new = np.minimum(lab, np.where(adj, lab[:, None, :], N).min(axis=2))
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    is_root = lab == np.arange(N)
+    rank = np.cumsum(is_root, axis=1) - 1
+    return is_root.sum(axis=1).astype(int), np.take_along_axis(rank, lab, axis=1).astype(int)
 
 
 def window_union(vis: np.ndarray, t_s: np.ndarray, window_s: float) -> np.ndarray:

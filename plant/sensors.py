@@ -49,7 +49,21 @@ def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray 
 
 
 def weakly_connected(vis: np.ndarray) -> bool:
-    from scipy.sparse.csgraph import connected_components
+    """True when the digraph vis (N x N, bool) is weakly connected (one component, N >= 1).
 
-    n, _ = connected_components(vis, directed=True, connection="weak")
-    return n == 1
+    Breadth-first over the undirected graph with numpy (exact, like scipy's connected_components,
+    which it replaced so that a process loading a scenario does not import scipy.sparse, issue 16).
+    """
+    adj = np.asarray(vis, dtype=bool)
+    n = adj.shape[0]
+    if n == 0:
+        return False
+    adj = adj | adj.T
+    reach = np.zeros(n, dtype=bool)
+    reach[0] = True
+    frontier = reach.copy()
+    while frontier.any():
+        new = adj[frontier].any(axis=0) & ~reach
+        reach |= new
+        frontier = new
+    return bool(reach.all())

@@ -183,3 +183,17 @@ def test_window_union_keeps_links_seen_within_the_window():
     assert np.array_equal(union, brute)
     n, _ = weak_components(union)
     assert list(n) == [2, 2, 1, 1, 1, 2, 2, 1, 1, 1]
+
+
+def test_weak_components_equal_scipy_per_step():
+    """Issue 16: the all-steps-at-once numpy version gives scipy's counts and labels, step by step."""
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        T, N = int(rng.integers(1, 30)), int(rng.integers(1, 22))
+        vis = rng.random((T, N, N)) < rng.uniform(0.0, 0.3)
+        n, labels = weak_components(vis)
+        for t in range(T):
+            n0, l0 = connected_components(vis[t], directed=True, connection="weak")
+            assert n[t] == n0 and np.array_equal(labels[t], l0)

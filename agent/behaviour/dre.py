@@ -12,15 +12,22 @@ last orbit is tabulated on a uniform grid of u. Weights (NOTES-002): Q as printe
 the dimensionless ROE, R in SI (m/s^2)^-2, i.e. the paper's 1e4, 1e6, 1e5 in (km/s^2)^-2 become
 1e-2, 1 and 1e-1.
 
-The table is computed once per (orbit, weights, grid) and cached for the life of the process.
+The table is computed once per (orbit, weights, grid) and cached for the life of the process, and
+on disk (issue 16): `$SWARMHIL_CACHE_DIR` (default `$XDG_CACHE_HOME/swarmhil` or `~/.cache/swarmhil`),
+one .npz per table, keyed by the inputs, this module's and agent/roe.py's source and the numpy
+and scipy versions, so a cached table is the table this code would compute, bit for bit. A process
+that finds its tables there never imports scipy.integrate (about 60 MB of an agent process's
+memory and 1-2 s of its start). `SWARMHIL_CACHE_DIR=off` disables the disk cache.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import hashlib
+import os
+from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from agent.roe import input_matrix, state_matrix
 
@@ -35,14 +42,25 @@ class GainTable:
     gain_per_s2: np.ndarray  # (N, 3, 6) gain on the ROE error in metres: (m/s^2) per m
     riccati: np.ndarray  # (N, 6, 6) P(u) of the dimensionless problem
     orbits_to_converge: int
+    # the last lookup (u, gain): the table is shared by every controller of a process (gain_table's
+    # cache) and all spacecraft ask for the same u in a step, so in batch mode it is computed once
+    # per step instead of once per spacecraft (issue 16); the same arithmetic, a read-only result
+    _last: list = field(default_factory=lambda: [(None, None)], init=False, repr=False, compare=False)
 
     def gain(self, u_rad: float) -> np.ndarray:
-        """(3, 6) gain at u, linear interpolation between the periodic table's nodes."""
+        """(3, 6) gain at u, linear interpolation between the periodic table's nodes (read-only)."""
+        u = float(u_rad)
+        u_last, g_last = self._last[0]
+        if u_last == u:
+            return g_last
         n_table = self.u_grid_rad.size
-        x = (float(u_rad) % TWO_PI) / TWO_PI * n_table
+        x = (u % TWO_PI) / TWO_PI * n_table
         i0 = int(np.floor(x)) % n_table
         f = x - np.floor(x)
-        return (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+        g = (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+        g.setflags(write=False)
+        self._last[0] = (u, g)  # one assignment: a reader never sees a half-updated pair
+        return g
 
 
 def riccati_rate(t_s: float, p_flat: np.ndarray, a_mat: np.ndarray, q_mat: np.ndarray, r_inv: np.ndarray,
@@ -60,6 +78,8 @@ def integrate_riccati_one_orbit(p_end: np.ndarray, a_m: float, n_radps: float, q
     """Integrate the DRE backward over one orbit, t = T -> 0 (u = 2 pi -> 0); returns the solve_ivp result."""
     period_s = TWO_PI / n_radps
     args = (state_matrix(n_radps), np.diag(q_diag), np.diag(1.0 / r_diag), a_m, n_radps)
+    from scipy.integrate import solve_ivp  # here, not at import: agents with cached tables never load it
+
     scale = max(1.0, float(np.max(np.abs(p_end))))
     return solve_ivp(riccati_rate, (period_s, 0.0), p_end.ravel(), method="DOP853", args=args,
                      rtol=rtol, atol=rtol * scale, dense_output=True)
@@ -91,18 +111,77 @@ def periodic_riccati(a_m: float, n_radps: float, q_diag: np.ndarray, r_diag: np.
     return u_grid, p_table, orbit
 
 
-@lru_cache(maxsize=32)
-def _cached_table(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
-                  n_table: int) -> GainTable:
+def _compute_table(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
+                   n_table: int) -> GainTable:
     u_grid, p_table, orbits = periodic_riccati(a_m, n_radps, np.array(q_diag), np.array(r_diag), n_table)
     r_inv = np.diag(1.0 / np.array(r_diag))
     gains = np.empty((n_table, 3, 6))
     for i, u in enumerate(u_grid):
         gains[i] = r_inv @ input_matrix(u, a_m, n_radps).T @ p_table[i] / a_m  # per metre of ROE error
-    u_grid.setflags(write=False)
-    gains.setflags(write=False)
-    p_table.setflags(write=False)
     return GainTable(u_grid, gains, p_table, orbits)
+
+
+def cache_dir() -> Path | None:
+    """Directory of the on-disk gain tables, None when disabled (SWARMHIL_CACHE_DIR=off)."""
+    d = os.environ.get("SWARMHIL_CACHE_DIR")
+    if d is not None:
+        return None if d.strip().lower() in ("", "off", "0", "none") else Path(d)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "swarmhil"
+
+
+@lru_cache(maxsize=1)
+def _code_fingerprint() -> str:
+    """What the table depends on besides its inputs: this code and the numerical libraries."""
+    import importlib.metadata as md
+
+    h = hashlib.sha256()
+    for mod in ("dre.py", "../roe.py"):
+        h.update((Path(__file__).parent / mod).resolve().read_bytes())
+    for dist in ("numpy", "scipy"):
+        try:
+            h.update(f"{dist}={md.version(dist)}".encode())
+        except md.PackageNotFoundError:
+            h.update(dist.encode())
+    return h.hexdigest()[:16]
+
+
+def _cache_file(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
+                n_table: int) -> Path | None:
+    d = cache_dir()
+    if d is None:
+        return None
+    key = repr((float(a_m).hex(), float(n_radps).hex(), [float(x).hex() for x in q_diag], [float(x).hex() for x in r_diag], n_table))
+    name = hashlib.sha256((key + _code_fingerprint()).encode()).hexdigest()[:32]
+    return d / f"dre-{name}.npz"
+
+
+@lru_cache(maxsize=32)
+def _cached_table(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
+                  n_table: int) -> GainTable:
+    path = _cache_file(a_m, n_radps, q_diag, r_diag, n_table)
+    table = None
+    if path is not None and path.is_file():
+        try:
+            with np.load(path) as z:
+                table = GainTable(z["u_grid"], z["gains"], z["riccati"], int(z["orbits"]))
+        except (OSError, ValueError, KeyError):
+            table = None  # unreadable: computed again (and rewritten) below
+    if table is None:
+        table = _compute_table(a_m, n_radps, q_diag, r_diag, n_table)
+        if path is not None:
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+                with open(tmp, "wb") as f:
+                    np.savez(f, u_grid=table.u_grid_rad, gains=table.gain_per_s2, riccati=table.riccati,
+                             orbits=table.orbits_to_converge)
+                os.replace(tmp, path)  # atomic: concurrent processes read a whole file or none
+            except OSError:
+                pass  # a read-only home is no reason to fail: the table is in memory
+    for a in (table.u_grid_rad, table.gain_per_s2, table.riccati):
+        a.setflags(write=False)
+    return table
 
 
 def gain_table(a_m: float, n_radps: float, q_diag, r_diag, n_table: int = 720) -> GainTable:

@@ -131,65 +131,89 @@ class SabatiniController:
             ALIGN: gain_table(self.a_m, self.n_radps, params.q_al, params.r_al_si, params.dre_table_size),
             ATTRACT: gain_table(self.a_m, self.n_radps, params.q_att, params.r_att_si, params.dre_table_size),
         }
+        self._enabled = {CA: params.enable_collision_avoidance, ALIGN: params.enable_alignment,
+                         ATTRACT: params.enable_attraction}
+        self._d_att_m = params.attraction_fraction * params.d_max_m
+        self._span_m = params.attraction_fraction * params.d_max_m - params.d_min_m
 
     def classify(self, d_min_jk_m: np.ndarray) -> np.ndarray:
         """Behaviour of each pair from its decision distance (section 3.3)."""
-        p = self.p
-        return np.where(d_min_jk_m < p.d_min_m, CA,
-                        np.where(d_min_jk_m > p.attraction_fraction * p.d_max_m, ATTRACT, ALIGN)).astype(object)
+        return np.array(self._labels(np.asarray(d_min_jk_m, float).tolist()), dtype=object)
+
+    def _labels(self, d_min_jk_m: list[float]) -> list[str]:
+        # the same comparisons as np.where(d < d_min, CA, np.where(d > 0.6 d_max, ATTRACT, ALIGN)),
+        # on Python floats (a NaN is ALIGN in both)
+        d_min, d_att = self.p.d_min_m, self._d_att_m
+        return [CA if d < d_min else (ATTRACT if d > d_att else ALIGN) for d in d_min_jk_m]
 
     def references(self, roe_jk_m: np.ndarray, range_m: np.ndarray, behaviour: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(reference ROE (N,6), weight (N,), alignment-correcting flag (N,)) per pair (sections 3.5-3.7)."""
+        return self._references(roe_jk_m, range_m, behaviour == CA, behaviour == ALIGN, behaviour == ATTRACT,
+                                decision_distance_m(roe_jk_m))
+
+    def _references(self, roe_jk_m: np.ndarray, range_m: np.ndarray, is_ca: np.ndarray, is_al: np.ndarray,
+                    is_att: np.ndarray, d_min_jk_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p = self.p
         ref = roe_jk_m.copy()
-        safe = p.k_ecc * p.d_min_trans_m * safe_direction(roe_jk_m)
         de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
         di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
         d_max_trans_m = p.fov_margin * range_m * self.tan_fov
         too_large = (di_m > d_max_trans_m) | (de_m > d_max_trans_m)
         too_small = (di_m < p.d_min_trans_m) | (de_m < p.d_min_trans_m)
         not_parallel = parallelism(roe_jk_m) < p.parallel_min
-        is_ca, is_al, is_att = behaviour == CA, behaviour == ALIGN, behaviour == ATTRACT
         correct = is_ca | (is_al & (too_large | too_small | not_parallel))
-        ref[correct, 2:4] = safe[correct]
-        ref[correct, 4:6] = safe[correct]
+        if correct.any():  # the safe direction only where it is used (elementwise: the same values)
+            safe = p.k_ecc * p.d_min_trans_m * safe_direction(roe_jk_m[correct])
+            ref[correct, 2:4] = safe
+            ref[correct, 4:6] = safe
         ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
         ref[is_att, 2:6] = 0.0  # unweighted in Q_att; the reference of section 3.7 is zero
-        span = (p.attraction_fraction * p.d_max_m - p.d_min_m)
-        w_al = np.clip((p.attraction_fraction * p.d_max_m - decision_distance_m(roe_jk_m)) / span, 0.0, 1.0)
+        w_al = np.clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)
         weight = np.where(is_al, w_al, 1.0)
         return ref, weight, correct
 
     def step(self, obs: Observation) -> Command:
+        # issue 16: the same arithmetic as before (tests/test_truth_checksums.py), with the
+        # behaviour labels as Python strings, each mask and norm computed once, and the safe
+        # direction only for the pairs that use it
         ids = list(obs.neighbour_ids)
         if not ids:
             return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
-        rel_pos = np.asarray(obs.rel_position_m, float).reshape(len(ids), 3)
-        rel_vel = np.asarray(obs.rel_velocity_mps, float).reshape(len(ids), 3)
+        n = len(ids)
+        rel_pos = np.asarray(obs.rel_position_m, float).reshape(n, 3)
+        rel_vel = np.asarray(obs.rel_velocity_mps, float).reshape(n, 3)
         roe_jk_m = relative_roe_observer(rel_pos, rel_vel, obs.u_rad, self.n_radps)
         d_min_jk_m = decision_distance_m(roe_jk_m)
-        behaviour = self.classify(d_min_jk_m)
+        d_list = d_min_jk_m.tolist()
+        labels = self._labels(d_list)
+        is_ca = np.array([b == CA for b in labels])
+        is_att = np.array([b == ATTRACT for b in labels])
+        is_al = ~(is_ca | is_att)
         range_m = np.sqrt(np.einsum("ij,ij->i", rel_pos, rel_pos))
-        ref, weight, correct = self.references(roe_jk_m, range_m, behaviour)
-        enabled = {CA: self.p.enable_collision_avoidance, ALIGN: self.p.enable_alignment,
-                   ATTRACT: self.p.enable_attraction}
+        ref, weight, correct = self._references(roe_jk_m, range_m, is_ca, is_al, is_att, d_min_jk_m)
+        enabled = self._enabled
         gain_now = {b: self.gains[b].gain(obs.u_rad) for b in (CA, ALIGN, ATTRACT) if enabled[b]}
-        contrib = np.zeros((len(ids), 3))
-        for i, b in enumerate(behaviour):
-            if b in gain_now:
-                contrib[i] = -weight[i] * (gain_now[b] @ (roe_jk_m[i] - ref[i]))
+        contrib = np.zeros((n, 3))
+        err = roe_jk_m - ref
+        w = weight.tolist()
+        for i, b in enumerate(labels):
+            g = gain_now.get(b)
+            if g is not None:
+                contrib[i] = -w[i] * (g @ err[i])
         total = contrib.sum(axis=0)
         accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
         decisions = []
+        corr = correct.tolist()
         for i, sid in enumerate(ids):
-            b = behaviour[i]
+            b = labels[i]
             label = b if enabled[b] else f"{b}_disabled"
-            if b == ALIGN and not correct[i] and enabled[b]:
+            if b == ALIGN and not corr[i] and enabled[b]:
                 label = ALIGN_DRIFT
-            decisions.append(Decision(neighbour=sid, behaviour=label, d_min_m=float(d_min_jk_m[i]),
+            decisions.append(Decision(neighbour=sid, behaviour=label, d_min_m=d_list[i],
                                       roe_rel_m=roe_jk_m[i].copy(), accel_mps2=contrib[i].copy()))
-        active = [b for b in (CA, ALIGN, ATTRACT) if enabled[b] and np.any(behaviour == b)]
+        present = set(labels)
+        active = [b for b in (CA, ALIGN, ATTRACT) if enabled[b] and b in present]
         mode = active[0] if active else "coast"
         return Command(accel_mps2=accel, mode=mode, decisions=decisions)
 

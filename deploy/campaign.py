@@ -1,0 +1,353 @@
+"""Monte Carlo campaigns (issue 16): N seeded batch runs of one scenario, one table row per run.
+
+`swarmhil campaign` (deploy/cli_campaign.py) is the command; this module is what runs on the
+workers and what assembles the results, so it imports nothing heavy at module level.
+
+Layout of a campaign directory OUT:
+
+    OUT/campaign.json          the campaign's parameters (scenario, --set, seeds, duration)
+    OUT/rows/seed-000007.json  one finished run (ok or failed): its table row; written atomically
+    OUT/runs/seed-000007/      that run's run.mcap and summary.json (summary["metrics"] with metrics)
+    OUT/campaign.parquet, OUT/campaign.csv, OUT/report.md, OUT/report.html
+
+A seed whose row file exists is finished and is not run again (resume); a run that raised is a
+row with `status = "error"` and its `error`, re-run only with `retry_failed`.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterable, Sequence
+
+ROW_DIR = "rows"
+RUN_DIR = "runs"
+FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "delta_v_total_mps", "steps", "dead_agents_count",
+                 "rejected_packets")
+
+
+def row_path(out: Path, seed: int) -> Path:
+    return Path(out) / ROW_DIR / f"seed-{seed:06d}.json"
+
+
+def run_dir(out: Path, seed: int) -> Path:
+    return Path(out) / RUN_DIR / f"seed-{seed:06d}"
+
+
+def finished_seeds(out: Path, retry_failed: bool = False) -> set[int]:
+    """Seeds with a row file (and, with retry_failed, only those that succeeded)."""
+    done: set[int] = set()
+    d = Path(out) / ROW_DIR
+    if not d.is_dir():
+        return done
+    for p in d.glob("seed-*.json"):
+        try:
+            row = json.loads(p.read_text())
+        except (OSError, ValueError):
+            continue  # a torn file cannot exist (atomic writes), but never trust it: run again
+        if retry_failed and row.get("status") != "ok":
+            continue
+        done.add(int(row["seed"]))
+    return done
+
+
+def flatten_scalars(d: dict[str, Any], prefix: str = "", skip: Sequence[str] = ("config",)) -> dict[str, Any]:
+    """Every scalar (number, bool, str, None) of a nested dict, as `a.b.c` columns; lists are skipped
+    (their length is kept as `a.b_count`), the resolved `config` too (it is in every summary.json)."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if not prefix and k in skip:
+            continue
+        name = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten_scalars(v, f"{name}.", skip))
+        elif isinstance(v, (list, tuple)):
+            out[f"{name}_count"] = len(v)
+        elif v is None or isinstance(v, (bool, int, float, str)):
+            out[name] = v
+    return out
+
+
+def summary_row(summary: dict[str, Any]) -> dict[str, Any]:
+    row = flatten_scalars(summary)
+    # the per-spacecraft dicts become columns too (delta_v_mps.sc01, ...); dead agents also as a count
+    row["dead_agents_count"] = len(summary.get("dead_agents") or {})
+    return row
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s: float | None = None,
+             metrics: bool = True, keep_recording: bool = True) -> dict[str, Any]:
+    """One campaign run (on a worker): the in-process run of SCENARIO with --set SETS and this seed,
+    then its metrics (dashboards/metrics.py, as `swarmhil report` computes them, without figures).
+    Writes and returns its row; never raises for a failed run (the row carries the error)."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    t0 = time.monotonic()
+    row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
+    rdir = run_dir(Path(out), seed)
+    try:
+        from deploy.launcher import run_in_process
+        from deploy.scenario import load_scenario
+
+        sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
+        res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False)
+        summary = res.summary
+        if metrics:
+            from dashboards.report import write_report
+            from plant.sensors import CameraGeometry
+
+            cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
+            write_report(rdir, cam=cam, figures=False)
+            summary = json.loads((rdir / "summary.json").read_text())
+        row.update(summary_row(summary))
+        if not keep_recording:
+            (rdir / "run.mcap").unlink(missing_ok=True)
+    except Exception as exc:  # noqa: BLE001 - a failed run is a row, not a lost campaign
+        row["status"] = "error"
+        row["error"] = f"{type(exc).__name__}: {exc}"
+    row["seed"] = int(seed)
+    row["wall_s"] = time.monotonic() - t0
+    _write_atomic(row_path(Path(out), seed), json.dumps(row, default=_json_default))
+    return row
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "_-." else "_" for c in name) or "campaign"
+
+
+def _json_default(v: Any) -> Any:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return str(v)
+
+
+# --- executors ------------------------------------------------------------------------------------------
+def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, executor: str = "local", jobs: int = 2,
+            scheduler: str | None = None, on_row: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
+    """fn(*calls[seed]) for every seed on the executor (`local`: a process pool of `jobs`; `dask`: a
+    LocalCluster of `jobs` single-threaded workers on 127.0.0.1, or the cluster at `scheduler`).
+    Rows in completion order; a task that raised (or whose worker died) is a failed row."""
+    rows: list[dict[str, Any]] = []
+    seeds = list(calls)
+    call_args = calls.__getitem__
+    if not seeds:
+        return rows
+    if executor == "dask":
+        from dask.distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        if scheduler:
+            client = Client(scheduler)
+        else:  # one single-threaded worker process per job, everything on loopback, no dashboard
+            import logging
+
+            logging.getLogger("distributed").setLevel(logging.WARNING)  # its scheduler's INFO lines, in this process
+            cluster = LocalCluster(n_workers=max(1, jobs), threads_per_worker=1, processes=True, host="127.0.0.1",
+                                   dashboard_address=None, protocol="tcp://", silence_logs=logging.WARNING)
+            client = Client(cluster)
+        try:
+            futs = {client.submit(fn, *call_args(s), pure=False): s for s in seeds}
+            for f in as_completed(futs):
+                try:
+                    r = f.result()
+                except Exception as exc:  # noqa: BLE001 - a worker lost: the seed is a failed row
+                    r = {"seed": futs[f], "status": "error", "error": f"{type(exc).__name__}: {exc}"}
+                rows.append(r)
+                if on_row:
+                    on_row(r)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        return rows
+    if executor == "local":
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+
+        with ProcessPoolExecutor(max_workers=max(1, jobs), mp_context=mp.get_context("spawn")) as pool:
+            futs = {pool.submit(fn, *call_args(s)): s for s in seeds}
+            for f in cf_completed(futs):
+                try:
+                    r = f.result()
+                except Exception as exc:  # noqa: BLE001 - a worker died: the seed is a failed row
+                    r = {"seed": futs[f], "status": "error", "error": f"{type(exc).__name__}: {exc}"}
+                rows.append(r)
+                if on_row:
+                    on_row(r)
+        return rows
+    raise ValueError(f"unknown executor {executor!r}: local or dask")
+
+
+# --- the table and the report ---------------------------------------------------------------------------
+def load_rows(out: Path, seeds: Iterable[int] | None = None) -> list[dict[str, Any]]:
+    want = None if seeds is None else set(int(s) for s in seeds)
+    rows = []
+    for p in sorted((Path(out) / ROW_DIR).glob("seed-*.json")):
+        r = json.loads(p.read_text())
+        if want is None or int(r["seed"]) in want:
+            rows.append(r)
+    return sorted(rows, key=lambda r: r["seed"])
+
+
+def _columns(rows: list[dict[str, Any]]) -> list[str]:
+    seen: dict[str, None] = {c: None for c in FIRST_COLUMNS}
+    for r in rows:
+        for k in r:
+            seen.setdefault(k, None)
+    return list(seen)
+
+
+def _column_values(rows: list[dict[str, Any]], col: str) -> list[Any]:
+    vals = [r.get(col) for r in rows]
+    kinds = {type(v) for v in vals if v is not None}
+    if kinds and kinds <= {int, float} and float in kinds:
+        vals = [None if v is None else float(v) for v in vals]  # ints and floats in one column: floats
+    elif len(kinds) > 1:
+        vals = [None if v is None else str(v) for v in vals]  # anything else mixed: text
+    return vals
+
+
+def write_table(out: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
+    """OUT/campaign.parquet and OUT/campaign.csv: one row per run, the same columns."""
+    import csv
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    cols = _columns(rows)
+    data = {c: _column_values(rows, c) for c in cols}
+    arrays = {c: pa.array(v, type=pa.string() if all(x is None for x in v) else None) for c, v in data.items()}
+    pq.write_table(pa.table(arrays), Path(out) / "campaign.parquet")
+    with open(Path(out) / "campaign.csv", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(cols)
+        for i in range(len(rows)):
+            w.writerow(["" if data[c][i] is None else data[c][i] for c in cols])
+    return Path(out) / "campaign.parquet", Path(out) / "campaign.csv"
+
+
+def mean_ci95(x: Sequence[float]) -> dict[str, float | int | None]:
+    """Mean, sample standard deviation and the 95 % confidence interval of the mean (Student t)."""
+    v = [float(a) for a in x if a is not None and math.isfinite(float(a))]
+    n = len(v)
+    if n == 0:
+        return {"n": 0, "mean": None, "std": None, "ci95_low": None, "ci95_high": None, "min": None, "max": None}
+    m = sum(v) / n
+    if n == 1:
+        return {"n": 1, "mean": m, "std": None, "ci95_low": None, "ci95_high": None, "min": m, "max": m}
+    from scipy.stats import t as student_t
+
+    sd = math.sqrt(sum((a - m) ** 2 for a in v) / (n - 1))
+    h = float(student_t.ppf(0.975, n - 1)) * sd / math.sqrt(n)
+    return {"n": n, "mean": m, "std": sd, "ci95_low": m - h, "ci95_high": m + h, "min": min(v), "max": max(v)}
+
+
+REPORT_METRICS = (
+    ("delta_v_total_mps", "total dV [m/s]"),
+    ("metrics.connectivity.weakly_connected_fraction", "weakly connected, fraction of steps"),
+    ("metrics.connectivity.weakly_connected_fraction_steady", "weakly connected, fraction of steady steps"),
+    ("metrics.connectivity.max_components", "max weakly connected components"),
+    ("metrics.closest_approach.all_pairs.distance_m", "closest approach, all pairs [m]"),
+    ("metrics.closest_approach.visible_pairs.distance_m", "closest approach, visible pairs [m]"),
+    ("dead_agents_count", "dead agents"),
+    ("rejected_packets", "rejected packets"),
+    ("wall_s", "wall per run [s]"),
+)
+
+
+def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) -> tuple[Path, Path]:
+    """OUT/report.md and OUT/report.html: runs ok / failed, mean and 95 % CI of dV and the metrics."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    bad = [r for r in rows if r.get("status") != "ok"]
+    stats = {}
+    for col, label in REPORT_METRICS:
+        if any(col in r for r in ok):
+            stats[col] = (label, mean_ci95([r.get(col) for r in ok]))
+    f = lambda v: "" if v is None else (f"{v:.6g}" if isinstance(v, float) else str(v))  # noqa: E731
+    ci = lambda s: "" if s["ci95_low"] is None else f"[{f(s['ci95_low'])}, {f(s['ci95_high'])}]"  # noqa: E731
+    head = ["| metric | n | mean | 95 % CI of the mean | std | min | max |", "|---|---:|---:|---|---:|---:|---:|"]
+    lines = [f"| {label} | {s['n']} | {f(s['mean'])} | "
+             f"{ci(s)} | "
+             f"{f(s['std'])} | {f(s['min'])} | {f(s['max'])} |" for label, s in stats.values()]
+    md = [f"# Campaign: {meta.get('scenario')}", "",
+          f"{len(rows)} runs ({len(ok)} ok, {len(bad)} failed); seeds {meta.get('seeds_text')}; "
+          f"duration {meta.get('duration_s')} s; --set {list(meta.get('sets') or []) or 'none'}; "
+          f"executor {meta.get('executor')}; campaign wall {f(meta.get('wall_s'))} s.", "",
+          *head, *lines, ""]
+    if bad:
+        md += ["## Failed runs", "", "| seed | error |", "|---:|---|",
+               *[f"| {r['seed']} | {str(r.get('error')).replace('|', '/')} |" for r in bad], ""]
+    md += ["Table: `campaign.parquet` / `campaign.csv` (one row per run; every scalar of the run's summary.json, "
+           "metrics under `metrics.*`). The confidence interval is Student's t on the mean over seeds.", ""]
+    (Path(out) / "report.md").write_text("\n".join(md))
+    import html
+
+    rows_html = "".join(
+        f"<tr><td>{html.escape(label)}</td><td>{s['n']}</td><td>{f(s['mean'])}</td><td>"
+        f"{ci(s)}</td><td>{f(s['std'])}</td>"
+        f"<td>{f(s['min'])}</td><td>{f(s['max'])}</td></tr>" for label, s in stats.values())
+    bad_html = "".join(f"<tr><td>{r['seed']}</td><td>{html.escape(str(r.get('error')))}</td></tr>" for r in bad)
+    page = (f"<!doctype html><meta charset=utf-8><title>campaign {html.escape(str(meta.get('scenario')))}</title>"
+            f"<style>body{{font-family:sans-serif}}td,th{{padding:2px 8px;text-align:right}}</style>"
+            f"<h1>Campaign: {html.escape(str(meta.get('scenario')))}</h1><p>{len(rows)} runs ({len(ok)} ok, {len(bad)} failed), "
+            f"seeds {html.escape(str(meta.get('seeds_text')))}, duration {meta.get('duration_s')} s.</p>"
+            f"<table><tr><th>metric</th><th>n</th><th>mean</th><th>95 % CI</th><th>std</th><th>min</th><th>max</th></tr>"
+            f"{rows_html}</table>" + (f"<h2>Failed runs</h2><table>{bad_html}</table>" if bad else "") +
+            "<p>Table: campaign.parquet / campaign.csv.</p>")
+    (Path(out) / "report.html").write_text(page)
+    return Path(out) / "report.md", Path(out) / "report.html"
+
+
+def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequence[str] = (),
+                 duration_s: float | None = None, executor: str = "local", jobs: int = 2, scheduler: str | None = None,
+                 metrics: bool = True, keep_recording: bool = True, retry_failed: bool = False,
+                 on_row: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    """Run the seeds not finished yet in OUT, then write the table and the report of all of them.
+    Returns {"ran": [seeds run now], "skipped": [seeds already finished], "rows", "table", "report"}."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = str(Path(scenario).resolve())
+    meta_path = out / "campaign.json"
+    meta = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
+    if meta_path.is_file():  # resuming: it must be the same campaign
+        old = json.loads(meta_path.read_text())
+        for k in ("scenario", "sets", "duration_s"):
+            if old.get(k) != meta[k]:
+                raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta[k]!r}; "
+                                 f"use another --out")
+    done = finished_seeds(out, retry_failed)
+    todo = [int(s) for s in seeds if int(s) not in done]
+    skipped = [int(s) for s in seeds if int(s) in done]
+    meta.update({"executor": executor, "seeds": [int(s) for s in seeds]})
+    _write_atomic(meta_path, json.dumps(meta, indent=1))
+    t0 = time.monotonic()
+    calls = {s: (scenario, tuple(sets), s, str(out), duration_s, metrics, keep_recording) for s in todo}
+
+    def got(row: dict[str, Any]) -> None:
+        if not row_path(out, row["seed"]).is_file():  # the worker could not write it (died, other filesystem)
+            _write_atomic(row_path(out, row["seed"]), json.dumps(row, default=_json_default))
+        if on_row:
+            on_row(row)
+
+    execute(run_seed, calls, executor=executor, jobs=jobs, scheduler=scheduler, on_row=got)
+    wall = time.monotonic() - t0
+    rows = load_rows(out, seeds)
+    meta.update({"wall_s": wall, "seeds_text": _seeds_text([int(s) for s in seeds])})
+    table = write_table(out, rows)
+    report = write_report(out, rows, meta)
+    return {"ran": todo, "skipped": skipped, "rows": rows, "table": table, "report": report, "wall_s": wall}
+
+
+def _seeds_text(seeds: list[int]) -> str:
+    if seeds and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
+        return f"{seeds[0]}..{seeds[-1]}"
+    return ",".join(map(str, seeds))
