@@ -49,13 +49,23 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
     return cfg
 
 
-def open_router(listen: str) -> zenoh.Session:
-    """A Python session in router mode: the run's router (no zenohd binary needed)."""
-    return zenoh.open(zenoh_config("router", [listen], []))
+def open_router(listen: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
+    """A Python session in router mode: the run's router (no zenohd binary needed).
+
+    `overrides` carries the run's authentication dictionary and access control (bus/acl.py)."""
+    return zenoh.open(zenoh_config("router", [listen], [], overrides))
 
 
-def open_client(connect: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
-    return zenoh.open(zenoh_config("client", [], [connect], overrides))
+# A client whose router refuses it (no or wrong credentials) would otherwise retry for ever.
+CONNECT_TIMEOUT_MS = 15000
+
+
+def open_client(connect: str, overrides: dict[str, Any] | None = None, credential: Any = None) -> zenoh.Session:
+    """A client session; `credential` (bus.acl.Credential) authenticates it to the run's router."""
+    ov = {"connect/timeout_ms": CONNECT_TIMEOUT_MS, **(overrides or {})}
+    if credential is not None:
+        ov.update(credential.zenoh_overrides())
+    return zenoh.open(zenoh_config("client", [], [connect], ov))
 
 
 class ZenohBus:
@@ -74,9 +84,9 @@ class ZenohBus:
     nothing but a queue put, so they never block that thread.
     """
 
-    def __init__(self, connect: str, *, lease_ms: int | None = None) -> None:
+    def __init__(self, connect: str, *, lease_ms: int | None = None, credential: Any = None) -> None:
         overrides = {"transport/link/tx/lease": lease_ms} if lease_ms else None
-        self.session = open_client(connect, overrides)
+        self.session = open_client(connect, overrides, credential)
         self._queue: queue.SimpleQueue[tuple[Any, ...] | None] = queue.SimpleQueue()
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._handles: list[Any] = []

@@ -30,11 +30,13 @@ def main(verbose: int) -> None:
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
+@click.option("--insecure", is_flag=True,
+              help="Multi-process runs: no per-process credentials and access control on the router (docs/reliability.md).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, sets: tuple[str, ...],
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, insecure: bool, sets: tuple[str, ...],
         **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
@@ -50,6 +52,8 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     out_dir = Path(out) if out else Path("runs") / rid
     progress = not no_progress and sys.stderr.isatty()
     opts = viz_opts(in_process=in_process, **viz)
+    if insecure:
+        opts["secure"] = False
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:

@@ -173,6 +173,9 @@ class MultiProcessRun:
         self.overrides = overrides or {}
         self.opts = opts or {}
         self.companions = enabled_companions(sc, self.opts)
+        # authentication and access control on the router (bus/acl.py); off only by explicit choice
+        self.secure = bool(self.opts.get("secure", True))
+        self.security: Any = None
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
         self.logs: dict[str, Any] = {}
@@ -180,6 +183,8 @@ class MultiProcessRun:
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
                "--scenario", self.scenario_path, "--out", str(self.out), *extra]
+        if self.security is not None:
+            cmd += ["--credentials", str(self.security.credentials[name])]
         for opt, val in self.overrides.items():
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
@@ -223,10 +228,18 @@ class MultiProcessRun:
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
         router_ep = endpoint(free_loopback_port())
-        router = open_router(router_ep)
+        launcher_cred = None
+        if self.secure:
+            from bus.acl import make_run_security
+
+            users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
+            self.security = make_run_security(self.out, self.run, users)
+            launcher_cred = self.security.credential("launcher")
+        router = open_router(router_ep, self.security.router_overrides() if self.security else None)
         summary["router"] = router_ep
+        summary["secure"] = self.secure
         bar = _Progress(self.sc, self.progress)
-        watch = ZenohBus(router_ep)
+        watch = ZenohBus(router_ep, credential=launcher_cred)
         keys = Keys(self.run)
 
         def on_tick(_key: str, payload: bytes) -> None:

@@ -29,6 +29,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int)
     p.add_argument("--mode")
     p.add_argument("--speed", type=float)
+    p.add_argument("--credentials", help="file 'user:password' authenticating this process to the run's router (bus/acl.py)")
 
 
 def _stop_event() -> threading.Event:
@@ -76,12 +77,17 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
+    cred = None
+    if args.credentials:
+        from bus.acl import read_credential
+
+        cred = read_credential(args.credentials)
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     out = Path(args.out)
     if args.role == "plant":
         from plant.node import PlantNode
 
-        bus = with_faults(ZenohBus(args.router), "plant")
+        bus = with_faults(ZenohBus(args.router, credential=cred), "plant")
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
@@ -99,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "agent":
         from deploy.launcher import make_agent
 
-        bus = with_faults(ZenohBus(args.router, lease_ms=2000), f"agent-{args.id}")
+        bus = with_faults(ZenohBus(args.router, lease_ms=2000, credential=cred), f"agent-{args.id}")
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)
@@ -111,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "recorder":
         from bus.recorder import RecorderNode
 
-        bus = ZenohBus(args.router)
+        bus = ZenohBus(args.router, credential=cred)
         node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
         stop.wait()
         stats = node.close()
@@ -122,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         from deploy.companions import load
 
         comp = load(args.name)
-        bus = with_faults(ZenohBus(args.router), args.name)
+        bus = with_faults(ZenohBus(args.router, credential=cred), args.name)
         obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
         stop.wait()
         stats = obj.close()

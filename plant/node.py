@@ -16,7 +16,7 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header
+from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header
 from bus.keys import Keys
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
@@ -94,6 +94,7 @@ class PlantNode:
             if sc not in self.world.index:
                 raise RejectedPacket(f"unknown spacecraft id {sc!r}")
             cmd = decode(pb.ActuatorCommand, payload, run=self.run_id)
+            check_complete_command(cmd)
             if cmd.header.source != sc:
                 raise RejectedPacket(f"header.source {cmd.header.source!r} does not match key id {sc!r}")
         except (RejectedPacket, ValueError) as exc:
