@@ -96,11 +96,13 @@ def _wait_for(path: Path, timeout_s: float = 60.0) -> dict:
     raise TimeoutError(path)
 
 
-def _wait_steps(router: str, run: str, n: int, timeout_s: float = 60.0) -> None:
+def _wait_steps(router: str, run: str, n: int, timeout_s: float = 60.0, out: Path | None = None) -> None:
+    from bus.acl import read_credential
     from bus.zenoh_bus import ZenohBus
 
     seen = threading.Event()
-    bus = ZenohBus(router)
+    cred = out / "secrets" / "launcher.cred" if out is not None else None  # the run's router wants one
+    bus = ZenohBus(router, credential=read_credential(cred) if cred is not None and cred.exists() else None)
     from bus import swarmhil_pb2 as pb
 
     bus.subscribe(f"swarm/{run}/clock", lambda k, p: pb.Tick.FromString(p).header.step >= n and seen.set())
@@ -115,7 +117,7 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     th = threading.Thread(target=lambda: setattr(mp, "result", mp.execute()))
     th.start()
     info = _wait_for(out / "run.json")
-    _wait_steps(info["router"], "kill", 20)
+    _wait_steps(info["router"], "kill", 20, out=out)
     os.kill(info["pids"]["agent-sc02"], signal.SIGKILL)
     th.join(120)
     res = mp.result
@@ -143,10 +145,11 @@ def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -
     from bus.zenoh_bus import open_client
 
     mp, out = _mp(tmp_path, "demo.toml", "bad", duration_s=1000.0, mode="realtime", speed=100.0)
+    mp.secure = False  # the plant's own checks, behind an open router (the ACL: tests/test_security.py)
     th = threading.Thread(target=lambda: setattr(mp, "result", mp.execute()))
     th.start()
     info = _wait_for(out / "run.json")
-    _wait_steps(info["router"], "bad", 5)
+    _wait_steps(info["router"], "bad", 5, out=out)
     rng = np.random.default_rng(0)
     s = open_client(info["router"])
     sent = 0
@@ -207,7 +210,7 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     th = threading.Thread(target=lambda: setattr(mp, "result", mp.execute()))
     th.start()
     info = _wait_for(out / "run.json")
-    _wait_steps(info["router"], "rt", 20)
+    _wait_steps(info["router"], "rt", 20, out=out)
     pid = info["pids"]["agent-sc03"]
     os.kill(pid, signal.SIGSTOP)
     time.sleep(1.0)
@@ -235,7 +238,7 @@ def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
                           "--run-id", "cc", "--mode", "realtime", "--speed", "20", "--no-progress"],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     info = _wait_for(out / "run.json")
-    _wait_steps(info["router"], "cc", 5)
+    _wait_steps(info["router"], "cc", 5, out=out)
     p.send_signal(signal.SIGINT)
     stdout, stderr = p.communicate(timeout=60)
     assert p.returncode == 130, stderr
