@@ -14,6 +14,7 @@ import secrets
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -154,12 +155,47 @@ def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
                      decision_period_steps=sc.decision_period_steps)
 
 
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int) -> Any:
+    """preexec_fn of every child: SIGTERM when the launcher dies, even by SIGKILL (Linux
+    PR_SET_PDEATHSIG, kept across exec); the child then stops as on the launcher's SIGTERM, so the
+    recorder still closes its MCAP. Closes the race where the launcher died before the prctl."""
+    def preexec() -> None:
+        import ctypes
+
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        except (OSError, AttributeError):  # not Linux: the child's parent watchdog (deploy/proc.py) remains
+            pass
+        if os.getppid() != parent_pid:
+            os._exit(1)
+    return preexec
+
+
 def _child_env() -> dict[str, str]:
     env = dict(os.environ)
     env.update({"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"})
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     return env
+
+
+class _Terminated(BaseException):
+    """SIGTERM reached the launcher (`timeout`, a cancelled CI job): stop like on Ctrl-C."""
+
+
+def _on_sigterm_raise() -> Any:
+    """Make SIGTERM interrupt the launcher's main loop; the previous handler, or None when the run
+    is not on the main thread (then signals stay as they are)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def handler(_sig: int, _frame: Any) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the orderly stop must not be cut short
+        raise _Terminated()
+    return signal.signal(signal.SIGTERM, handler)
 
 
 class MultiProcessRun:
@@ -190,8 +226,13 @@ class MultiProcessRun:
                 cmd += [f"--{opt}", str(val)]
         logf = open(self.out / "logs" / f"{name}.log", "wb")
         self.logs[name] = logf
-        self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=_child_env(),
-                                            stdin=subprocess.DEVNULL)
+        # own process group (a terminal's Ctrl-C reaches the launcher only, which stops the children
+        # in order); die with the launcher (no orphans); --parent-pid for the child's own watchdog
+        env = _child_env()
+        env["SWARMHIL_PARENT_PID"] = str(os.getpid())
+        self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
+                                            stdin=subprocess.DEVNULL, process_group=0,
+                                            preexec_fn=_die_with_parent(os.getpid()))
 
     def _signal(self, name: str, sig: int) -> None:
         p = self.procs.get(name)
@@ -242,7 +283,10 @@ class MultiProcessRun:
         watch = ZenohBus(router_ep, credential=launcher_cred)
         keys = Keys(self.run)
 
+        stepping = threading.Event()  # the plant has started step 0: every process came up
+
         def on_tick(_key: str, payload: bytes) -> None:
+            stepping.set()
             try:
                 bar.update(int(pb.Tick.FromString(payload).header.step))
             except Exception:
@@ -250,6 +294,7 @@ class MultiProcessRun:
 
         watch.subscribe(keys.clock, on_tick)
         reason, code, interrupted = "", 0, False
+        old_term = _on_sigterm_raise()
         try:
             self._spawn("recorder", "recorder", router_ep)
             for c in self.companions:
@@ -271,11 +316,16 @@ class MultiProcessRun:
                     if n not in self.exited and p.poll() is not None:
                         self.exited[n] = p.returncode
                         if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
-                            raise RunFailed(f"recorder exited with code {p.returncode}; the run cannot be recorded:\n{self._tail(n)}")
+                            raise RunFailed(f"{n} exited with code {p.returncode}; the run cannot go on:\n{self._tail(n)}")
+                        if not stepping.is_set():  # the plant would wait for it in vain
+                            raise RunFailed(f"{n} (pid {p.pid}) exited with code {p.returncode} at start-up; "
+                                            f"last lines of {self.out / 'logs' / (n + '.log')}:\n{self._tail(n)}")
                         log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
                 time.sleep(0.05)
         except KeyboardInterrupt:
             interrupted, reason, code = True, "interrupted (Ctrl-C)", 130
+        except _Terminated:
+            interrupted, reason, code = True, "interrupted (SIGTERM)", 143
         except RunFailed as exc:
             reason, code = str(exc), 1
         finally:
@@ -298,6 +348,8 @@ class MultiProcessRun:
             router.close()
             for f in self.logs.values():
                 f.close()
+            if old_term is not None:
+                signal.signal(signal.SIGTERM, old_term)
         summary["wall_s"] = time.monotonic() - wall0
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}

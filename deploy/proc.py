@@ -36,7 +36,23 @@ def _stop_event() -> threading.Event:
     stop = threading.Event()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    _watch_parent(stop)
     return stop
+
+
+def _watch_parent(stop: threading.Event) -> None:
+    """No orphans: stop when the launcher is gone. The launcher already asks the kernel for a
+    SIGTERM on its death (PR_SET_PDEATHSIG); this watchdog covers a platform without it."""
+    parent = int(os.environ.get("SWARMHIL_PARENT_PID", "0") or 0)
+    if not parent:
+        return
+
+    def watch() -> None:
+        while not stop.wait(0.5):
+            if os.getppid() != parent:
+                logging.getLogger("swarmhil.proc").warning("launcher (pid %d) is gone; stopping", parent)
+                stop.set()
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
 def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
@@ -92,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
         try:
-            node.wait_ready()
+            node.wait_ready(should_stop=stop.is_set)
         except TimeoutError as exc:  # the launcher sees exit code 3 and says why
             logging.getLogger("swarmhil.proc").error("plant: %s", exc)
             (out / "plant_error.txt").write_text(f"{exc}\n")

@@ -139,11 +139,14 @@ class PlantNode:
     def live_ids(self) -> set[str]:
         return {sid for sid, a in zip(self.world.ids, self.world.alive) if a}
 
-    def wait_ready(self, timeout_s: float = 600.0) -> None:
-        """Wait for every agent's and expected process's liveliness token before step 0."""
+    def wait_ready(self, timeout_s: float = 600.0, should_stop: "Callable[[], bool] | None" = None) -> None:
+        """Wait for every agent's and expected process's liveliness token before step 0 (or until
+        should_stop(): the launcher stopped the run, or is gone)."""
         want = {self.AGENT_PREFIX + s for s in self.world.ids} | set(self.expect_processes)
         t_end = time.monotonic() + timeout_s
         while not want <= self.present:
+            if should_stop is not None and should_stop():
+                return
             if time.monotonic() > t_end:
                 missing = sorted(want - self.present)
                 raise TimeoutError(f"processes not up after {timeout_s:.0f} s: {missing[:10]}")
