@@ -161,14 +161,20 @@ PR_SET_PDEATHSIG = 1
 def _die_with_parent(parent_pid: int) -> Any:
     """preexec_fn of every child: SIGTERM when the launcher dies, even by SIGKILL (Linux
     PR_SET_PDEATHSIG, kept across exec); the child then stops as on the launcher's SIGTERM, so the
-    recorder still closes its MCAP. Closes the race where the launcher died before the prctl."""
-    def preexec() -> None:
-        import ctypes
+    recorder still closes its MCAP. Closes the race where the launcher died before the prctl.
+    (Linux sends it when the *thread* that forked exits: `execute` starts and stops every child on
+    one thread, which outlives them.)"""
+    import ctypes
 
-        try:
-            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-        except (OSError, AttributeError):  # not Linux: the child's parent watchdog (deploy/proc.py) remains
-            pass
+    try:  # looked up in the parent: no dlopen between fork and exec (the launcher has threads)
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):  # not Linux: the child's parent watchdog (deploy/proc.py) remains
+        prctl = None
+    sigterm = int(signal.SIGTERM)
+
+    def preexec() -> None:
+        if prctl is not None:
+            prctl(PR_SET_PDEATHSIG, sigterm, 0, 0, 0)
         if os.getppid() != parent_pid:
             os._exit(1)
     return preexec
