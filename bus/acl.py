@@ -17,6 +17,7 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `recorder` | nothing | `alive/recorder` | `**` (the whole run) |
 | `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*` |
 | `launcher` | nothing | none | `clock` (the progress bar) |
+| other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
 (every key under `swarm/<run>/`). Zenoh ACL semantics used here (checked against eclipse-zenoh
 1.10.2, tests/test_security.py): the router checks `ingress` messages a client sends it (`put`,
@@ -96,7 +97,10 @@ def grants(keys: Keys, user: str) -> Grants:
                       live_sub=[])
     if user == "launcher":
         return Grants(put=[], token=[], sub=[keys.clock], live_sub=[])
-    raise ValueError(f"no access-control grants for process {user!r}")
+    # any other companion (one a plugin registers in deploy/companions.py): it may read the whole
+    # run, and publish only events and its own lockstep barrier
+    name = check_token(user, "process name")
+    return Grants(put=[keys.event, keys.sync(name)], token=[keys.alive(name)], sub=[keys.all], live_sub=[keys.alive_all])
 
 
 def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
