@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup demo test test-system test-all bench proto clean
+.PHONY: setup demo test test-system test-study test-browser test-all bench proto clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -23,7 +23,11 @@ test: setup
 
 # Long system runs (24 h scenarios, browser): marked `system`, run by CI after `make test`.
 test-system: setup
-	$(PY) -m pytest -q -m system --durations=0
+	$(PY) -m pytest -q -m "system and not study" --durations=0
+
+# The full reproduction studies of the papers (every release / variant / case; hours): not run by CI.
+test-study: setup
+	$(PY) -m pytest -q -m study --durations=0
 
 # The live-browser screenshot test (issue 6) alone, printing its capture times and duration.
 test-browser: setup
@@ -37,6 +41,7 @@ bench: setup
 # Regenerate the committed protobuf code from bus/swarmhil.proto.
 proto: setup
 	$(PY) -m grpc_tools.protoc -I bus --python_out=bus --pyi_out=bus bus/swarmhil.proto
+	$(PY) -m bus.keys_json
 
 clean:
 	rm -rf runs .pytest_cache

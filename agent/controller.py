@@ -60,6 +60,12 @@ class Transmission:
 
 @dataclass
 class Command:
+    """What a controller commands for the next step.
+
+    `accel_mps2` is the LVLH acceleration; `torque_nm` the body-frame control torque, for
+    controllers that fly attitude too (None: no attitude command, the plant holds none).
+    """
+
     accel_mps2: np.ndarray
     mode: str = "idle"
     decisions: list[Decision] = field(default_factory=list)

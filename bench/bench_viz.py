@@ -27,14 +27,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def stepping_wall_s(mcap_path: Path) -> tuple[float, int]:
-    """(last - first reception time of swarm/<run>/clock, number of ticks) from the recording."""
+    """(last - first reception time of the clock, number of ticks) from the recording: the
+    reception wall time is publish_time (log_time is simulation time, DESIGN.md MCAP contract)."""
     from mcap.reader import make_reader
 
     times = []
     with open(mcap_path, "rb") as f:
         for _s, ch, m in make_reader(f).iter_messages():
-            if ch.topic.endswith("/clock"):
-                times.append(m.log_time)
+            if ch.topic == "clock" or ch.topic.endswith("/clock"):
+                times.append(m.publish_time)
     return (max(times) - min(times)) / 1e9, len(times)
 
 

@@ -14,12 +14,12 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `agent-X` | `sc/X/act`, `sc/X/tm`, `sc/X/tm/**`, `isl/tx/X` | `alive/agent-X` | `sc/X/sense/*`, `isl/rx/X` |
 | `plant` | `clock`, `truth`, `sc/*/sense/*`, `event` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
 | `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
-| `recorder` | nothing | `alive/recorder` | `**` (the whole run) |
+| `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
 | `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*` |
-| `launcher` | nothing | none | `clock` (the progress bar) |
+| `launcher` | `swarmctl/<run>/recorder/flush` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack` |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
-(every key under `swarm/<run>/`). Zenoh ACL semantics used here (checked against eclipse-zenoh
+(keys under `swarm/<run>/` unless written in full). Zenoh ACL semantics used here (checked against eclipse-zenoh
 1.10.2, tests/test_security.py): the router checks `ingress` messages a client sends it (`put`,
 `liveliness_token`, `declare_subscriber`, ...) and `egress` messages it forwards to a client; a
 message is allowed when a rule's key expression includes the message's key; a denied put is dropped
@@ -89,14 +89,16 @@ def grants(keys: Keys, user: str) -> Grants:
         return Grants(put=[f"{b}/isl/rx/*", keys.link_stats, keys.sync("channel"), keys.event],
                       token=[keys.alive("channel")],
                       sub=[keys.clock, keys.truth, keys.isl_tx_all, keys.act_all], live_sub=[keys.alive_all])
+    # the recorder's flush handshake with the launcher (bus/recorder.py), outside swarm/<run>/**
+    flush, ack = f"swarmctl/{keys.run}/recorder/flush", f"swarmctl/{keys.run}/recorder/ack"
     if user == "recorder":
-        return Grants(put=[], token=[keys.alive("recorder")], sub=[keys.all], live_sub=[])
+        return Grants(put=[ack], token=[keys.alive("recorder")], sub=[keys.all, flush], live_sub=[])
     if user == "viz":
         return Grants(put=[], token=[keys.alive("viz")],
                       sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.link_stats, f"{b}/isl/rx/*"],
                       live_sub=[])
     if user == "launcher":
-        return Grants(put=[], token=[], sub=[keys.clock], live_sub=[])
+        return Grants(put=[flush], token=[], sub=[keys.clock, ack], live_sub=[])
     # any other companion (one a plugin registers in deploy/companions.py): it may read the whole
     # run, and publish only events and its own lockstep barrier
     name = check_token(user, "process name")
@@ -123,7 +125,8 @@ def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
                # a declared publisher learns of matching subscribers through the router and drops puts
                # that have none (write-side filtering): it must be told about them, and they are
                # declared with wildcards (`sc/*/act`, `**`) that the publisher's own keys do not include
-               rule(user, "put-match", "egress", ["declare_subscriber"], [keys.all] if g.put else []),
+               rule(user, "put-match", "egress", ["declare_subscriber"],
+                    [keys.all, f"swarmctl/{run}/**"] if g.put else []),
                rule(user, "token", "ingress", ["liveliness_token"], g.token),
                rule(user, "sub", "ingress", SUB_INGRESS, g.sub),
                rule(user, "recv", "egress", ["put"], g.sub),

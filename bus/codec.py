@@ -40,6 +40,34 @@ def sense_type(kind: str) -> type[Message]:
     return TYPE_OF_SENSE.get(kind, pb.Measurements)
 
 
+def message_type_of_topic(topic: str) -> type[Message] | None:
+    """Message type of a key (`swarm/<run>/...`) or MCAP topic (`truth`, `sc/sc01/act`), None for a
+    key outside the contract or one without payload (liveliness tokens). bus/keys.json is this map
+    as data (bus/keys_json.py)."""
+    from bus.keys import parse_topic, split_topic
+
+    try:
+        kind, _id, sense = parse_topic(split_topic(topic)[1])
+    except ValueError:
+        return None
+    if kind == "sense":
+        return sense_type(sense or "")
+    if kind == "tm_image":
+        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+
+        return CompressedImage
+    return TYPE_OF_KIND.get(kind)
+
+
+PROTOBUF_ENCODING = "application/protobuf"
+
+
+def encoding_of_key(key: str) -> str | None:
+    """The Zenoh encoding of a key's samples: `application/protobuf;<message type>` (DESIGN.md)."""
+    cls = message_type_of_topic(key)
+    return None if cls is None else f"{PROTOBUF_ENCODING};{cls.DESCRIPTOR.full_name}"
+
+
 def measurements_to_dict(msg: "pb.Measurements") -> dict[str, np.ndarray]:
     """Named arrays of a Measurements message: key `name`, or `name/subject` when it has a subject."""
     out: dict[str, np.ndarray] = {}

@@ -108,29 +108,50 @@ class Keys:
         prefix = self.base + "/"
         if not key.startswith(prefix):
             raise ValueError(f"key {key!r} is not under {self.base}/")
-        parts = key[len(prefix):].split("/")
-        match parts:
-            case ["clock"] | ["truth"] | ["event"]:
-                return parts[0], None, None
-            case ["link", "stats"]:
-                return "link_stats", None, None
-            case ["sc", sc, "sense", kind]:
-                return "sense", sc, kind
-            case ["sc", sc, "act"]:
-                return "act", sc, None
-            case ["sc", sc, "tm"]:
-                return "tm", sc, None
-            case ["sc", sc, "tm", "image"]:
-                return "tm_image", sc, None
-            case ["isl", "tx", sc]:
-                return "isl_tx", sc, None
-            case ["isl", "rx", sc]:
-                return "isl_rx", sc, None
-            case ["alive", proc]:
-                return "alive", proc, None
-            case ["sync", proc]:
-                return "sync", proc, None
-        raise ValueError(f"key {key!r} is not a key of the swarmhil contract")
+        return parse_topic(key[len(prefix):], key)
+
+    def topic(self, key: str) -> str:
+        """The MCAP topic of a key of this run: the key without its `swarm/<run>/` prefix
+        (DESIGN.md "MCAP (contract)"); a key of another run or outside `swarm/` is kept whole."""
+        prefix = self.base + "/"
+        return key[len(prefix):] if key.startswith(prefix) else key
+
+
+def parse_topic(topic: str, key: str | None = None) -> tuple[str, str | None, str | None]:
+    """(kind, id, sensor kind) of a key relative to `swarm/<run>/` (an MCAP topic); see Keys.parse."""
+    parts = topic.split("/")
+    match parts:
+        case ["clock"] | ["truth"] | ["event"]:
+            return parts[0], None, None
+        case ["link", "stats"]:
+            return "link_stats", None, None
+        case ["sc", sc, "sense", kind]:
+            return "sense", sc, kind
+        case ["sc", sc, "act"]:
+            return "act", sc, None
+        case ["sc", sc, "tm"]:
+            return "tm", sc, None
+        case ["sc", sc, "tm", "image"]:
+            return "tm_image", sc, None
+        case ["isl", "tx", sc]:
+            return "isl_tx", sc, None
+        case ["isl", "rx", sc]:
+            return "isl_rx", sc, None
+        case ["alive", proc]:
+            return "alive", proc, None
+        case ["sync", proc]:
+            return "sync", proc, None
+    raise ValueError(f"key {key or topic!r} is not a key of the swarmhil contract")
+
+
+def split_topic(topic: str) -> tuple[str | None, str]:
+    """(run, relative topic) of an MCAP topic: a current recording's topics are relative
+    (`truth`, `sc/sc01/act`; run None, take it from the metadata `swarmhil.run`); recordings made
+    before the MCAP contract carried the whole key (`swarm/<run>/truth`). Readers accept both."""
+    parts = topic.split("/", 2)
+    if len(parts) == 3 and parts[0] == ROOT:
+        return parts[1], parts[2]
+    return None, topic
 
 
 def run_of(key: str) -> str:

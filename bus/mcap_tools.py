@@ -1,4 +1,7 @@
-"""MCAP utilities: repair of a recording whose writer was killed, counts per topic."""
+"""MCAP utilities: repair of a recording whose writer was killed, counts per topic, and the
+readers' view of topics: current recordings have relative topics (`truth`, `sc/sc01/act`) and the
+run id in the metadata `swarmhil.run`; recordings made before the MCAP contract carried the whole
+key (`swarm/<run>/truth`). `relative_topic` and `run_of_recording` accept both."""
 from __future__ import annotations
 
 from collections import Counter
@@ -6,9 +9,39 @@ from pathlib import Path
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Schema
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
+
+from bus.keys import split_topic
+
+
+def relative_topic(topic: str) -> str:
+    """`truth` for both `truth` and the old `swarm/<run>/truth`."""
+    return split_topic(topic)[1]
+
+
+def find_topic(topics, rel: str, run: str | None = None) -> list[str]:  # type: ignore[no-untyped-def]
+    """The topics of a recording that are `rel` (new) or `swarm/<run>/rel` (old; any run if run is None)."""
+    out = []
+    for t in topics:
+        r, tail = split_topic(t)
+        if tail == rel and (r is None or run is None or r == run):
+            out.append(t)
+    return sorted(out)
+
+
+def run_of_recording(reader) -> str | None:  # type: ignore[no-untyped-def]
+    """The run id of an open recording: metadata `swarmhil.run`, else the prefix of old topics."""
+    try:
+        for meta in reader.iter_metadata():
+            if meta.name == "swarmhil.run" and meta.metadata.get("run"):
+                return str(meta.metadata["run"])
+    except (McapError, EOFError, ValueError, KeyError):
+        pass
+    summary = reader.get_summary()
+    runs = sorted({r for ch in summary.channels.values() if (r := split_topic(ch.topic)[0])}) if summary else []
+    return runs[0] if len(runs) == 1 else None
 
 
 def repair(src: str | Path, dst: str | Path) -> dict[str, int | bool]:
@@ -32,6 +65,10 @@ def repair(src: str | Path, dst: str | Path) -> dict[str, int | bool]:
                     if rec.id not in channels:
                         channels[rec.id] = w.register_channel(rec.topic, rec.message_encoding,
                                                               schemas.get(rec.schema_id, 0), dict(rec.metadata))
+                elif isinstance(rec, Metadata):  # the run id, configuration (describe_run)
+                    w.add_metadata(rec.name, dict(rec.metadata))
+                elif isinstance(rec, Attachment):
+                    w.add_attachment(rec.create_time, rec.log_time, rec.name, rec.media_type, rec.data)
                 elif isinstance(rec, Message):
                     if rec.channel_id in channels:
                         w.add_message(channels[rec.channel_id], rec.log_time, rec.data, rec.publish_time, rec.sequence)

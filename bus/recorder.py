@@ -1,13 +1,24 @@
 """The recorder: every sample on swarm/<run>/** into one MCAP file (DESIGN.md "MCAP (contract)").
 
-topic = key expression, log_time = reception time, publish_time = header.t in ns, schema = the
+topic = the key without its `swarm/<run>/` prefix (`truth`, `sc/sc01/act`), log_time = the
+scenario epoch (`[run].epoch_utc`) + the sample's simulation time (header.t; a sample without one
+keeps the last), publish_time = the recorder's reception wall time (ns since 1970), schema = the
 protobuf FileDescriptorSet of the key's message type (registered once per type), message
-encoding `protobuf`, zstd chunks. A payload that does not parse as its key's type is kept too,
+encoding `protobuf`, zstd chunks. With every truth it also writes Foxglove's own
+`foxglove.FrameTransforms` (`foxglove/tf`) and `foxglove.SceneUpdate` (`foxglove/scene`), and
+with every event a `foxglove.Log` (`foxglove/log`): bus/foxglove_scene.py. A payload that does not parse as its key's type is kept too,
 wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
 A killed recorder loses at most its open chunk (`chunk_size`); `swarmhil mcap repair` salvages it.
+
+Flush handshake (the launcher's shutdown, issue 10): a payload on `flush_key(run)` (outside the
+recorded swarm/<run>/** namespace) is answered on `ack_key(run)` with JSON {"nonce", "messages",
+"by_topic", "run_end"}: what the recorder has written so far, and whether the plant's `run_end`
+event is among it. The request goes through the same dispatcher queue as the recorded samples,
+so the answer covers every sample the recorder received before the request.
 """
 from __future__ import annotations
 
+import json
 import logging
 import time
 from pathlib import Path
@@ -15,39 +26,51 @@ from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
 from mcap.writer import CompressionType, Writer
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.Log_pb2 import Log
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import TYPE_OF_KIND, sense_type
+from bus.codec import message_type_of_topic
+from bus.foxglove_scene import LOG_TOPIC, SCENE_TOPIC, TF_TOPIC, FoxgloveScene, event_log
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
 
 CHUNK_SIZE = 256 * 1024
+DEFAULT_EPOCH_UTC = "2000-01-01T12:00:00Z"  # deploy/scenario.py [run].epoch_utc
+
+
+def epoch_ns(epoch_utc: str | None) -> int:
+    """Nanoseconds since 1970 of an ISO 8601 UTC epoch (the default when None)."""
+    from datetime import datetime, timezone
+
+    dt = datetime.fromisoformat(epoch_utc or DEFAULT_EPOCH_UTC)
+    dt = dt.replace(tzinfo=timezone.utc) if dt.tzinfo is None else dt
+    return int(dt.timestamp()) * 1_000_000_000 + dt.microsecond * 1000
 
 
 def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     try:
-        kind, _id, sense = keys.parse(key)
+        keys.parse(key)
     except ValueError:
         return None
-    if kind == "sense":
-        return sense_type(sense or "")
-    if kind == "tm_image":
-        from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
-
-        return CompressedImage
-    return TYPE_OF_KIND.get(kind)
+    return message_type_of_topic(key)
 
 
 class McapRecorder:
     """Writes raw, already-serialised samples; safe to call from one thread (the bus dispatcher)."""
 
-    def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE) -> None:
+    def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE, epoch_utc: str | None = None,
+                 config: dict[str, Any] | None = None, foxglove: bool = True) -> None:
         self.path = Path(path)
         self.keys = Keys(run)
         self.run = run
+        self.epoch_ns = epoch_ns(epoch_utc)
+        self._scene = FoxgloveScene(config) if foxglove else None
+        self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._f: BinaryIO = open(self.path, "wb")
         self._w = Writer(self._f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._w.start(profile="", library="swarmhil")
@@ -77,13 +100,25 @@ class McapRecorder:
             self._channels[ck] = cid
         return cid
 
-    def write(self, key: str, payload: bytes, log_time_ns: int | None = None) -> None:
+    def _add(self, topic: str, cls: type[Message], payload: bytes, t_ns: int, wall_ns: int) -> None:
+        self._w.add_message(channel_id=self._channel_id(topic, cls), log_time=self.epoch_ns + max(t_ns, 0),
+                            data=payload, publish_time=wall_ns, sequence=self.count)
+        self.count += 1
+        self.by_topic[topic] = self.by_topic.get(topic, 0) + 1
+        self.bytes_by_topic[topic] = self.bytes_by_topic.get(topic, 0) + len(payload)
+
+    def write(self, key: str, payload: bytes, wall_time_ns: int | None = None) -> None:
+        """One sample: log_time = epoch + its simulation time, publish_time = reception wall time."""
         if self._closed:
             return
-        log_time_ns = time.time_ns() if log_time_ns is None else log_time_ns
-        cls = message_type_for_key(self.keys, key)
+        wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
+        known = self._key_info.get(key)
+        if known is None:  # a run has few distinct keys: parse each once
+            known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
+        cls, topic = known
         reason = "" if cls is not None else "key outside the swarmhil contract"
         t_ns = self._last_t_ns
+        msg = None
         if cls is not None:
             try:
                 msg = cls.FromString(payload)
@@ -98,14 +133,19 @@ class McapRecorder:
             self.undecodable += 1
             wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
                                            header=pb.Header(run=self.run, source="recorder", t=self._last_t_ns / 1e9))
-            cls, payload = pb.UndecodableSample, wrapped.SerializeToString()
+            cls, payload, msg = pb.UndecodableSample, wrapped.SerializeToString(), None
         else:
             self._last_t_ns = max(self._last_t_ns, t_ns)
-        self._w.add_message(channel_id=self._channel_id(key, cls), log_time=log_time_ns, data=payload,
-                            publish_time=max(t_ns, 0), sequence=self.count)
-        self.count += 1
-        self.by_topic[key] = self.by_topic.get(key, 0) + 1
-        self.bytes_by_topic[key] = self.bytes_by_topic.get(key, 0) + len(payload)
+        self._add(topic, cls, payload, t_ns, wall_ns)
+        if self._scene is not None and msg is not None:
+            if cls is pb.Truth:
+                tf, scene = self._scene.from_truth(msg, self.epoch_ns + max(t_ns, 0))
+                self._add(TF_TOPIC, FrameTransforms, tf, t_ns, wall_ns)
+                self._add(SCENE_TOPIC, SceneUpdate, scene, t_ns, wall_ns)
+            elif cls is pb.Event:
+                self._add(LOG_TOPIC, Log, event_log(msg, self.epoch_ns + max(t_ns, 0)), t_ns, wall_ns)
+            elif cls is pb.IslPacket and topic.startswith("isl/rx/"):
+                self._scene.saw_delivery(msg.src, topic[len("isl/rx/"):])
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully
@@ -115,7 +155,9 @@ class McapRecorder:
 
         self._w.add_metadata("swarmhil.run", {"run": self.run, "software_version": str(config.get("software_version")),
                                               "scenario": str(config.get("run", {}).get("name")),
-                                              "scenario_file": str(config.get("scenario_file"))})
+                                              "scenario_file": str(config.get("scenario_file")),
+                                              "epoch_utc": str(config.get("run", {}).get("epoch_utc") or DEFAULT_EPOCH_UTC),
+                                              "topics": "relative"})
         self._w.add_metadata("swarmhil.config", {"json": json.dumps(config, default=float)})
         if document is not None:
             self._w.add_attachment(create_time=time.time_ns(), log_time=0, name="scenario.json",
@@ -129,24 +171,51 @@ class McapRecorder:
         self._f.close()
 
 
+def flush_key(run: str) -> str:
+    return f"swarmctl/{run}/recorder/flush"
+
+
+def ack_key(run: str) -> str:
+    return f"swarmctl/{run}/recorder/ack"
+
+
 class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
                  document: dict[str, Any] | None = None) -> None:
         self.bus = bus
+        self.run = run
         self.keys = Keys(run)
-        self.rec = McapRecorder(path, run)
+        epoch = ((config or {}).get("run") or {}).get("epoch_utc")
+        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config)
         if config is not None:
             self.rec.describe_run(config, document)
-        self._sub = bus.subscribe(self.keys.all, self.rec.write)
+        self.run_end = False
+        self._sub = bus.subscribe(self.keys.all, self._on_sample)
+        self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))
 
+    def _on_sample(self, key: str, payload: bytes) -> None:
+        self.rec.write(key, payload)
+        if key == self.keys.event and not self.run_end:
+            try:
+                ev = pb.Event.FromString(payload)
+            except (DecodeError, RuntimeWarning, ValueError):
+                return
+            self.run_end = ev.kind == "run_end" and ev.header.source == "plant"
+
+    def _on_flush(self, _key: str, payload: bytes) -> None:
+        ack = {"nonce": payload.decode(errors="replace"), "messages": self.rec.count,
+               "by_topic": dict(self.rec.by_topic), "run_end": self.run_end}
+        self.bus.publish(ack_key(self.run), json.dumps(ack).encode())
+
     def close(self) -> dict[str, int]:
-        try:
-            self._sub.undeclare()
-        except Exception:
-            pass
+        for sub in (self._sub, self._flush_sub):
+            try:
+                sub.undeclare()
+            except Exception:
+                pass
         flush = getattr(self.bus, "flush", None)
         if flush:
             flush()

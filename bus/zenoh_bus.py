@@ -16,6 +16,7 @@ from typing import Any
 import zenoh
 
 from bus.base import LivelinessCallback, SampleCallback
+from bus.codec import encoding_of_key
 
 log = logging.getLogger("swarmhil.zenoh")
 
@@ -23,7 +24,10 @@ LOOPBACK = "127.0.0.1"
 
 
 def free_loopback_port() -> int:
-    """A TCP port free on 127.0.0.1 now (the OS picks it, so two runs can coexist)."""
+    """A TCP port free on 127.0.0.1 now (the OS picks it, so two runs can coexist).
+
+    Free *now*: the socket is closed before the caller binds it, so another process can take the
+    port in between. A listener should bind through `open_loopback_router`, which retries."""
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind((LOOPBACK, 0))
         return int(s.getsockname()[1])
@@ -54,6 +58,32 @@ def open_router(listen: str, overrides: dict[str, Any] | None = None) -> zenoh.S
 
     `overrides` carries the run's authentication dictionary and access control (bus/acl.py)."""
     return zenoh.open(zenoh_config("router", [listen], [], overrides))
+
+
+def _address_in_use(exc: BaseException) -> bool:
+    text = str(exc)
+    return "Address already in use" in text or "os error 98" in text or "AddrInUse" in text
+
+
+def open_loopback_router(attempts: int = 8, port_source=None,
+                         overrides: dict[str, Any] | None = None) -> tuple[zenoh.Session, str]:
+    """A router listening on a free 127.0.0.1 port: (session, endpoint).
+
+    The port comes from `free_loopback_port` (or `port_source`, for tests) and is closed before
+    Zenoh binds it, so another process may take it in between; when zenoh.open fails with
+    "address already in use" a new port is drawn, up to `attempts` times. Any other error, or
+    the last collision, is raised. `overrides`: as for open_router."""
+    pick = port_source or free_loopback_port
+    for attempt in range(1, attempts + 1):
+        ep = endpoint(pick())
+        try:
+            return open_router(ep, overrides), ep
+        except zenoh.ZError as exc:
+            if not _address_in_use(exc) or attempt == attempts:
+                raise
+            log.warning("router port %s was taken before Zenoh bound it (attempt %d of %d); trying another",
+                        ep, attempt, attempts)
+    raise AssertionError("unreachable")
 
 
 # A client whose router refuses it (no or wrong credentials) would otherwise retry for ever.
@@ -108,7 +138,9 @@ class ZenohBus:
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
         if pub is None:
-            pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+            enc = encoding_of_key(key)  # typed live traffic: application/protobuf;<message type>
+            pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,
+                                                 encoding=zenoh.Encoding(enc) if enc else None)
             self._publishers[key] = pub
         pub.put(payload)
 

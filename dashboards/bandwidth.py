@@ -67,13 +67,16 @@ class LinkTraffic:
 
 
 def _topic_kind(topic: str) -> tuple[str, str | None]:
-    parts = topic.split("/")
-    if len(parts) == 5 and parts[2] == "isl":
-        return f"isl_{parts[3]}", parts[4]
-    if len(parts) == 4 and parts[2:] == ["link", "stats"]:
+    """Kind and id of an MCAP topic: `isl/tx/sc01` (or the old `swarm/<run>/isl/tx/sc01`)."""
+    from bus.keys import split_topic
+
+    parts = split_topic(topic)[1].split("/")
+    if len(parts) == 3 and parts[0] == "isl" and parts[1] in ("tx", "rx"):
+        return f"isl_{parts[1]}", parts[2]
+    if parts == ["link", "stats"]:
         return "link_stats", None
-    if len(parts) == 3 and parts[2] in ("truth", "event"):
-        return parts[2], None
+    if len(parts) == 1 and parts[0] in ("truth", "event"):
+        return parts[0], None
     return "other", None
 
 
@@ -102,12 +105,14 @@ def read_link_traffic(run_dir: str | Path) -> LinkTraffic:
         s = reader.get_summary()
         topics = sorted({ch.topic for ch in s.channels.values()}) if s is not None else []
         if run is None:
-            runs = sorted({t.split("/")[1] for t in topics if t.startswith("swarm/") and t.endswith("/truth")})
-            if len(runs) != 1:
-                raise ValueError(f"{run_dir}: cannot tell the run id (truth topics of {runs or 'no run'})")
-            run = runs[0]
-        base = f"swarm/{run}/"
-        wanted = [t for t in topics if t.startswith(base) and _topic_kind(t)[0] in
+            from bus.mcap_tools import run_of_recording
+
+            run = run_of_recording(reader)
+            if run is None:
+                raise ValueError(f"{run_dir}: cannot tell the run id (no swarmhil.run metadata, no single swarm/<run>/ prefix)")
+        from bus.keys import split_topic
+
+        wanted = [t for t in topics if split_topic(t)[0] in (None, run) and _topic_kind(t)[0] in
                   ("isl_tx", "isl_rx", "link_stats", "truth", "event")]
         for schema, channel, message, msg in reader.iter_decoded_messages(topics=wanted):
             kind, key_id = _topic_kind(channel.topic)

@@ -1,6 +1,7 @@
 """Navigation error against truth, from the recording alone (issue 4), and a comparison of runs.
 
-What an agent believed is in its telemetry (`swarm/<run>/sc/<id>/tm`, DESIGN.md): each
+What an agent believed is in its telemetry (MCAP topic `sc/<id>/tm`, `swarm/<run>/sc/<id>/tm` in
+recordings made before the MCAP contract; DESIGN.md): each
 `TrackEstimate` holds the estimated state of a neighbour k relative to the observer j (k minus j):
 LVLH position and velocity and ROE in metres, a*(da, dl, dex, dey, dix, diy), with the 6x6 ROE
 covariance where the estimator has one (agent/nav/base.py). What was true is the `Truth` of the
@@ -77,7 +78,8 @@ class DecisionRows:
 def _tm_topics(reader, run: str, ids: list[str]) -> dict[str, int]:
     summary = reader.get_summary()
     topics = {ch.topic for ch in summary.channels.values()} if summary is not None else set()
-    want = {f"swarm/{run}/sc/{sid}/tm": j for j, sid in enumerate(ids)}
+    want = {f"sc/{sid}/tm": j for j, sid in enumerate(ids)}
+    want.update({f"swarm/{run}/sc/{sid}/tm": j for j, sid in enumerate(ids)})  # old recordings
     return {t: j for t, j in want.items() if t in topics}
 
 

@@ -1,6 +1,6 @@
 """MCAP recording -> the same Rerun views as the live bridge (`swarmhil replay RUN_DIR/run.mcap`).
 
-The recording is fed, in log-time order, through the same `SwarmLogger` the live viewer bridge
+The recording is fed, in the order the recorder received it (file order), through the same `SwarmLogger` the live viewer bridge
 uses (dashboards/rerun_bridge.py), so a replay shows the same entities with the same values.
 The camera rule and trail length come from RUN_DIR/summary.json ("viz" section written by a
 live bridge) when present, else from the paper-002 defaults and the recorded mean motion.
@@ -17,7 +17,8 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from bus import swarmhil_pb2 as pb
-from bus.keys import run_of
+from bus.keys import Keys, split_topic
+from bus.mcap_tools import run_of_recording
 from dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
 from dashboards.run_config import config_from_mcap
 from dashboards.viz_node import WebViewer, disable_analytics, free_port, open_recording
@@ -52,22 +53,34 @@ def _settings(mcap_path: Path) -> tuple[CameraRule, int | None, float | None]:
 
 
 def _messages(mcap_path: Path):  # type: ignore[no-untyped-def]
+    """(topic relative to swarm/<run>/, payload) of every swarmhil sample, in file (reception)
+    order: log_time is simulation time, equal for every sample of a step."""
     with open(mcap_path, "rb") as f:
         try:
             reader = make_reader(f)
-            for schema, channel, message in reader.iter_messages(log_time_order=True):
+            for schema, channel, message in reader.iter_messages(log_time_order=False):
                 if schema is not None and schema.name == UNDECODABLE:
                     continue
-                yield channel.topic, message.data
+                topic = split_topic(channel.topic)[1]
+                if topic.startswith("foxglove/"):
+                    continue  # derived from the truth by the recorder
+                yield topic, message.data
         except (McapError, EOFError, ValueError) as exc:
             raise ReplayError(f"{mcap_path}: cannot read the recording ({exc}); "
                               f"if its writer was killed, run `swarmhil mcap repair` first") from None
 
 
 def run_id_of(mcap_path: Path) -> str:
-    for topic, _data in _messages(mcap_path):
-        return run_of(topic)
-    raise ReplayError(f"{mcap_path}: no messages")
+    """The run id: metadata `swarmhil.run`, else the `swarm/<run>/` prefix of an old recording."""
+    with open(mcap_path, "rb") as f:
+        try:
+            run = run_of_recording(make_reader(f))
+        except (McapError, EOFError, ValueError) as exc:
+            raise ReplayError(f"{mcap_path}: cannot read the recording ({exc}); "
+                              f"if its writer was killed, run `swarmhil mcap repair` first") from None
+    if run is None:
+        raise ReplayError(f"{mcap_path}: no run id (no swarmhil.run metadata, no swarm/<run>/ topics)")
+    return run
 
 
 def replay(mcap_path: str | Path, rrd_out: str | Path | None = None, *, serve: bool = False,
@@ -86,11 +99,12 @@ def replay(mcap_path: str | Path, rrd_out: str | Path | None = None, *, serve: b
     rec = open_recording(run, f"{run}-replay", mode="serve" if serve else "save",
                          rrd=Path(rrd_out) if rrd_out else None, viz_port=viz_port)
     logger = None
+    base = Keys(run).base
     try:
         for topic, data in _messages(mcap_path):
             if logger is None:
                 logger = _logger_for(rec, run, mcap_path, camera, trail_steps, step_s)
-            if logger.ingest(topic, data):
+            if logger.ingest(f"{base}/{topic}", data):
                 logger.flush()
         if logger is None:
             raise ReplayError(f"{mcap_path}: no messages")
@@ -120,7 +134,7 @@ def _logger_for(rec: Any, run: str, mcap_path: Path, camera: CameraRule, trail_s
     """A logger whose trail defaults to one orbit of the recorded reference orbit."""
     n_radps, dt = None, step_s
     for topic, data in _messages(mcap_path):
-        if topic.endswith("/truth"):
+        if topic == "truth":
             msg = pb.Truth.FromString(data)
             n_radps = msg.mean_motion_radps or None
             if dt is None and msg.header.step > 0:

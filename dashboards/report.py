@@ -401,10 +401,26 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
         return spath
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
+    summary.setdefault("config", run_config(run_dir) or {})
+    figs = _paper002_figures(truth, m, met, out, projection_last_s) if _is_paper002(summary) else []
+    sections = _mission_sections(run_dir, out, summary, truth)
+    if sections:
+        spath.write_text(json.dumps(summary, indent=1))
+    title = f"swarmhil report: {summary.get('scenario', truth.run)}"
+    page = _page(title, _headline(summary, met), figs,
+                 "<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
+                 "<code>summary.json</code> under <code>metrics</code>.</p>" + sections)
+    (out / "index.html").write_text(page)
+    return out / "index.html"
+
+
+def _paper002_figures(truth: TruthArrays, m: SwarmMetrics, met: dict[str, Any], out: Path,
+                      projection_last_s: float | None) -> list[tuple[str, str]]:
+    """The figures of paper 002 (Figs. 7-22), for runs of its controllers only."""
     ids = truth.ids
     controlled = met["control"]["delta_v_total_mps"] > 0
     last = len(truth.t_s) - 1
-    figs = [
+    return [
         (fig_components(m, len(ids), out / "components.png"),
          "Weakly connected components of the visibility digraph and size of the largest (paper Figs. 10, 31)."),
         (fig_digraph(truth, m, 0, out / "digraph_start.png", "start"), "Visibility digraph at the start (paper Figs. 8-9)."),
@@ -436,12 +452,33 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
          "Minimum distance over each step of pairs in visibility (either direction) and of pairs not in "
          "visibility: the paper's safety claim covers visible pairs only."),
     ]
-    title = f"swarmhil report: {summary.get('scenario', truth.run)}"
-    page = _page(title, _headline(summary, met), figs,
-                 "<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
-                 "<code>summary.json</code> under <code>metrics</code>.</p>")
-    (out / "index.html").write_text(page)
-    return out / "index.html"
+
+
+PAPER002_CONTROLLERS = {"null", "drift-null", "sabatini"}
+
+
+def _is_paper002(summary: dict[str, Any]) -> bool:
+    from dashboards.sections import controllers_of
+
+    cfg = summary.get("config") or {}
+    return not cfg or controllers_of(cfg) <= PAPER002_CONTROLLERS
+
+
+def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: TruthArrays) -> str:
+    """Run every registered report section that applies to this run (dashboards/sections/): metrics
+    into summary["metrics"][name], figures under their own heading. Returns the HTML."""
+    from dashboards.sections import SectionContext, sections_for
+
+    cfg = run_config(run_dir) or {}
+    summary.setdefault("config", cfg)
+    blocks = []
+    for name, fn in sections_for(cfg):
+        res = fn(SectionContext(run_dir, run_dir / "run.mcap", out, summary, cfg, truth))
+        summary["metrics"][name] = res.metrics
+        figs = "".join(f'<figure><img src="{html.escape(f)}" alt="{html.escape(f)}"><figcaption>{c}</figcaption>'
+                       f'</figure>' for f, c in res.figures)
+        blocks.append(f"<h2>{html.escape(res.title)}</h2>{res.html}{figs}")
+    return "".join(blocks)
 
 
 # --- sweep -------------------------------------------------------------------------------------------------

@@ -2,8 +2,9 @@
 
 Only the public contract is used: the `mcap` reader with the `mcap-protobuf-support` decoder,
 which decodes from the FileDescriptorSet embedded in the file, so this reads any swarmhil
-recording without the project's generated classes. The truth topic is `swarm/<run>/truth`
-(bus/keys.py); each `swarmhil.v1.Truth` message is one step k, with the state at t_k.
+recording without the project's generated classes. The truth topic is `truth` (the run id in the
+metadata `swarmhil.run`); recordings made before the MCAP contract have `swarm/<run>/truth`, and
+both are read. Each `swarmhil.v1.Truth` message is one step k, with the state at t_k.
 
 `accel_cmd_mps2` of step k is, in the current contract (bus/swarmhil.proto), the acceleration
 applied over the step that *ended* at t_k; recordings made before that change carry the one
@@ -61,15 +62,19 @@ def run_id_of(run_dir: Path) -> str | None:
     return None
 
 
-def _truth_topic(reader, run: str | None) -> str:
+def _truth_topic(reader, run: str | None) -> tuple[str, str]:
+    """(truth topic, run id): `truth` of a current recording, `swarm/<run>/truth` of an old one."""
+    from bus.keys import split_topic
+    from bus.mcap_tools import find_topic, run_of_recording
+
     summary = reader.get_summary()
     topics = sorted({ch.topic for ch in summary.channels.values()}) if summary is not None else []
-    if run is not None and f"swarm/{run}/truth" in topics:
-        return f"swarm/{run}/truth"
-    found = [t for t in topics if t.startswith("swarm/") and t.endswith("/truth") and t.count("/") == 2]
+    found = find_topic(topics, "truth", run)
     if len(found) != 1:
-        raise ValueError(f"expected one swarm/<run>/truth topic, found {found or 'none'} (run {run!r})")
-    return found[0]
+        raise ValueError(f"expected one truth topic, found {found or 'none'} (run {run!r})")
+    topic = found[0]
+    rec_run = split_topic(topic)[0] or run_of_recording(reader) or run or ""
+    return topic, rec_run
 
 
 def read_truth(mcap_path: str | Path, run: str | None = None) -> TruthArrays:
@@ -83,14 +88,14 @@ def read_truth(mcap_path: str | Path, run: str | None = None) -> TruthArrays:
     rows: dict[int, object] = {}
     with open(mcap_path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        topic = _truth_topic(reader, run)
+        topic, run = _truth_topic(reader, run)
         for schema, _ch, _msg, truth in reader.iter_decoded_messages(topics=[topic]):
             if schema is None or schema.name != TRUTH_SCHEMA:
                 continue  # e.g. an UndecodableSample kept by the recorder on the same topic
             rows.setdefault(int(truth.header.step), truth)
     if not rows:
         raise ValueError(f"{mcap_path}: no {TRUTH_SCHEMA} messages on {topic}")
-    return _to_arrays(topic.split("/")[1], [rows[k] for k in sorted(rows)])
+    return _to_arrays(run, [rows[k] for k in sorted(rows)])
 
 
 def _to_arrays(run: str, msgs: list) -> TruthArrays:

@@ -258,6 +258,31 @@ class MultiProcessRun:
                 self._signal(n, signal.SIGKILL)
                 p.wait()
 
+    def _flush_recorder(self, watch: Any, acks: "_Acks", need_run_end: bool, timeout_s: float = 15.0) -> dict[str, Any] | None:
+        """Flush handshake with the recorder (bus/recorder.py): ask, over Zenoh, what it has written,
+        until it answers (and, with need_run_end, until the plant's run_end event is among it: the
+        plant publishes its final truth and then run_end on one session, so both are recorded).
+        Everything that reached the router before the request is covered by the answer. Bounded:
+        on timeout a warning says what may be missing, and the shutdown goes on."""
+        from bus.recorder import flush_key
+
+        t_end = time.monotonic() + timeout_s
+        ack: dict[str, Any] | None = None
+        while time.monotonic() < t_end:
+            if self.procs.get("recorder") is None or self.procs["recorder"].poll() is not None:
+                log.warning("recorder is not running; cannot confirm the recording is complete")
+                return None
+            nonce = secrets.token_hex(8)
+            watch.publish(flush_key(self.run), nonce.encode())
+            ack = acks.wait(nonce, min(1.0, max(0.05, t_end - time.monotonic())))
+            if ack is not None and (ack["run_end"] or not need_run_end):
+                return ack
+            time.sleep(0.05)
+        what = "the plant's run_end event" if need_run_end else "an answer"
+        log.warning("recorder did not confirm %s within %.0f s (last answer: %s); the recording may miss the "
+                    "last messages", what, timeout_s, None if ack is None else f"{ack['messages']} messages")
+        return None
+
     def _tail(self, name: str, lines: int = 15) -> str:
         try:
             return "\n".join((self.out / "logs" / f"{name}.log").read_text(errors="replace").splitlines()[-lines:])
@@ -265,7 +290,8 @@ class MultiProcessRun:
             return ""
 
     def execute(self) -> RunResult:
-        from bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
+        from bus.recorder import ack_key
+        from bus.zenoh_bus import ZenohBus, open_loopback_router
 
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
@@ -274,7 +300,6 @@ class MultiProcessRun:
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
-        router_ep = endpoint(free_loopback_port())
         launcher_cred = None
         if self.secure:
             from bus.acl import make_run_security
@@ -282,7 +307,8 @@ class MultiProcessRun:
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
             self.security = make_run_security(self.out, self.run, users)
             launcher_cred = self.security.credential("launcher")
-        router = open_router(router_ep, self.security.router_overrides() if self.security else None)
+        # retries when the free port is taken before Zenoh binds it
+        router, router_ep = open_loopback_router(overrides=self.security.router_overrides() if self.security else None)
         summary["router"] = router_ep
         summary["secure"] = self.secure
         bar = _Progress(self.sc, self.progress)
@@ -299,6 +325,8 @@ class MultiProcessRun:
                 pass
 
         watch.subscribe(keys.clock, on_tick)
+        acks = _Acks()
+        watch.subscribe(ack_key(self.run), acks.put)
         reason, code, interrupted = "", 0, False
         old_term = _on_sigterm_raise()
         try:
@@ -336,7 +364,10 @@ class MultiProcessRun:
             reason, code = str(exc), 1
         finally:
             self._stop(["plant"], timeout_s=30.0)
-            time.sleep(0.3)  # let in-flight samples reach the recorder
+            # the recorder has the plant's final truth and run_end (and everything the router had
+            # before them) before the agents go; a plant that failed publishes no run_end
+            plant = self.procs.get("plant")
+            self._flush_recorder(watch, acks, need_run_end=plant is not None and plant.returncode == 0)
             self._stop([n for n in self.procs if n.startswith("agent-")])
             if self.opts.get("viz") == "serve" and not interrupted and not code:
                 bar.close()
@@ -347,7 +378,10 @@ class MultiProcessRun:
                 except KeyboardInterrupt:
                     pass
             self._stop([c.name for c in self.companions])
-            time.sleep(0.2)
+            # the agents and companions have exited, so what they published is at the router, before
+            # this request: once answered, it is recorded
+            final_ack = self._flush_recorder(watch, acks, need_run_end=False)
+            summary["recorder_confirmed"] = final_ack is not None
             self._stop(["recorder"], timeout_s=30.0)
             bar.close()
             watch.close()
@@ -375,6 +409,30 @@ class MultiProcessRun:
             summary["failure"] = reason
         (self.out / "summary.json").write_text(json.dumps(summary, indent=1))
         return RunResult(summary, self.out, code, reason, summary.get("pids", {}))
+
+
+class _Acks:
+    """The recorder's flush answers (JSON), by nonce, for the launcher's waits."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self._cv = threading.Condition()
+        self._by_nonce: dict[str, dict[str, Any]] = {}
+
+    def put(self, _key: str, payload: bytes) -> None:
+        try:
+            ack = json.loads(payload)
+        except ValueError:
+            return
+        with self._cv:
+            self._by_nonce[str(ack.get("nonce"))] = ack
+            self._cv.notify_all()
+
+    def wait(self, nonce: str, timeout_s: float) -> dict[str, Any] | None:
+        with self._cv:
+            self._cv.wait_for(lambda: nonce in self._by_nonce, timeout_s)
+            return self._by_nonce.pop(nonce, None)
 
 
 def _read_json(p: Path) -> dict[str, Any] | None:

@@ -31,7 +31,9 @@ class OrbitCfg:
     semi_major_axis_m: float
     inclination_rad: float
     raan_rad: float
-    u0_rad: float
+    u0_rad: float          # argument of latitude at t = 0 (argp + true anomaly)
+    eccentricity: float = 0.0   # [plant] fidelity = "inertial" only
+    argp_rad: float = 0.0       # argument of periapsis (with eccentricity > 0)
 
     @property
     def mean_motion_radps(self) -> float:
@@ -69,6 +71,7 @@ class Scenario:
     plant_options: dict[str, Any] = field(default_factory=dict)  # frame_origin, j2, atmospheric_drag, ...
     doc: dict[str, Any] = field(default_factory=dict)       # the document after --set, as validated
     sets: tuple[str, ...] = ()                              # the --set overrides applied
+    epoch_utc: str = "2000-01-01T12:00:00Z"                 # t = 0 of the run (MCAP log_time = epoch + t)
 
     def spec(self, sc_id: str) -> Any:
         """The SpacecraftSpec of one spacecraft (generated ones get defaults)."""
@@ -101,11 +104,13 @@ class Scenario:
             "scenario_file": self.source,
             "sets": list(self.sets),
             "run": {"name": self.name, "duration_s": self.duration_s, "step_s": self.step_s, "seed": self.seed,
-                    "mode": self.mode, "speed": self.speed, "steps": self.steps},
+                    "mode": self.mode, "speed": self.speed, "steps": self.steps, "epoch_utc": self.epoch_utc},
             "orbit": {"semi_major_axis_m": self.orbit.semi_major_axis_m,
                       "inclination_deg": math.degrees(self.orbit.inclination_rad),
                       "raan_deg": math.degrees(self.orbit.raan_rad), "u0_deg": math.degrees(self.orbit.u0_rad),
-                      "mean_motion_radps": self.orbit.mean_motion_radps},
+                      "mean_motion_radps": self.orbit.mean_motion_radps,
+                      **({"eccentricity": self.orbit.eccentricity, "argp_deg": math.degrees(self.orbit.argp_rad)}
+                         if self.orbit.eccentricity or self.orbit.argp_rad else {})},
             "plant": {"fidelity": self.fidelity, "drag": self.drag, **self.plant_options},
             "camera": dict(self.camera),
             "actuator": {"max_accel_mps2": self.max_accel_mps2, "limit": self.actuator_limit},
@@ -146,6 +151,26 @@ class Scenario:
                 s.ids, s.roe_m = _generate(self.source, self.sections["dispersion"], s.seed, self)
                 s.spacecraft = _generated_specs(s.ids, s.roe_m)
         return s
+
+
+DEFAULT_EPOCH_UTC = "2000-01-01T12:00:00Z"
+
+
+def _epoch(src: str, value: Any) -> str:
+    """[run].epoch_utc: an ISO 8601 date-time (UTC if it names no offset), normalised to `...Z`."""
+    from datetime import datetime, timezone
+
+    if isinstance(value, str):
+        try:
+            dt = datetime.fromisoformat(value)
+        except ValueError:
+            raise _err(src, "[run].epoch_utc", "must be an ISO 8601 date-time, e.g. 2000-01-01T12:00:00Z", value) from None
+    else:
+        raise _err(src, "[run].epoch_utc", "must be an ISO 8601 date-time as a quoted string", value)
+    dt = dt.replace(tzinfo=timezone.utc) if dt.tzinfo is None else dt.astimezone(timezone.utc)
+    if dt.year < 1970:
+        raise _err(src, "[run].epoch_utc", "must not be before 1970 (MCAP times are unsigned ns since 1970)", value)
+    return dt.strftime("%Y-%m-%dT%H:%M:%S") + (f".{dt.microsecond:06d}" if dt.microsecond else "") + "Z"
 
 
 def _err(src: str, where: str, msg: str, got: Any) -> ScenarioError:
@@ -253,7 +278,8 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:
         raise _err(src, f"[{unknown[0]}]", f"is not a known section; known: {sorted(SECTIONS)}", "…")
-    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins"})
+    run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins",
+                                   "epoch_utc"})
     _import_plugins(src, run.get("plugins", []))
     name = check_name(src, run.get("name", Path(src).stem))
     duration = _positive(src, "[run].duration_s", run.get("duration_s", 600.0))
@@ -264,17 +290,26 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         raise _err(src, "[run].seed", "must be a non-negative integer", seed)
     mode = _choice(src, "[run].mode", run.get("mode", "lockstep"), ("lockstep", "realtime"))
     speed = _positive(src, "[run].speed", run.get("speed", 1.0))
+    epoch_utc = _epoch(src, run.get("epoch_utc", DEFAULT_EPOCH_UTC))
 
-    o = _table(src, doc, "orbit", {"semi_major_axis_m", "inclination_deg", "raan_deg", "u0_deg"})
+    o = _table(src, doc, "orbit", {"semi_major_axis_m", "inclination_deg", "raan_deg", "u0_deg", "eccentricity",
+                                   "argp_deg"})
     orbit = OrbitCfg(
         semi_major_axis_m=_num(src, "[orbit].semi_major_axis_m", o.get("semi_major_axis_m", 6878137.0), lo=6378137.0 + 100e3),
         inclination_rad=math.radians(_num(src, "[orbit].inclination_deg", o.get("inclination_deg", 97.4), 0, 180)),
         raan_rad=math.radians(_num(src, "[orbit].raan_deg", o.get("raan_deg", 0.0))),
         u0_rad=math.radians(_num(src, "[orbit].u0_deg", o.get("u0_deg", 0.0))),
+        eccentricity=_num(src, "[orbit].eccentricity", o.get("eccentricity", 0.0), 0.0, 0.9),
+        argp_rad=math.radians(_num(src, "[orbit].argp_deg", o.get("argp_deg", 0.0))),
     )
     pl = _table(src, doc, "plant", {"fidelity", "drag", "frame_origin", "j2", "atmospheric_drag",
-                                    "max_integration_step_s"})
+                                    "max_integration_step_s", "command_frame"})
     fidelity = _choice(src, "[plant].fidelity", pl.get("fidelity", "linear"), PROPAGATORS)
+    if (orbit.eccentricity or orbit.argp_rad) and fidelity != "inertial":
+        raise _err(src, "[orbit].eccentricity", "and argp_deg need [plant] fidelity = 'inertial' (the other "
+                                                "propagators fly a circular reference)", o.get("eccentricity"))
+    if orbit.semi_major_axis_m * (1.0 - orbit.eccentricity) < 6378137.0 + 100e3:
+        raise _err(src, "[orbit].eccentricity", "puts the periapsis below 100 km altitude", orbit.eccentricity)
     drag = _drag(src, pl.get("drag"))
     plant_options = _plant_options(src, pl, fidelity)
     cam = _table(src, doc, "camera", {"detection_range_m", "image_px", "focal_px"})
@@ -337,7 +372,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
         lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
-        actuator_limit=limit, doc=doc, plant_options=plant_options,
+        actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
         from link.model import LinkConfigError, parse_link_config
@@ -399,8 +434,13 @@ def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any
             out[flag] = pl[flag]
     if "max_integration_step_s" in pl:
         out["max_integration_step_s"] = _positive(src, "[plant].max_integration_step_s", pl["max_integration_step_s"])
-    if out and fidelity != "inertial" and set(out) - {"frame_origin"}:
-        raise _err(src, "[plant]", f"options {sorted(set(out) - {'frame_origin'})} need fidelity = 'inertial'", fidelity)
+    if "command_frame" in pl:
+        # "lvlh" (default): accel commands in the scenario frame (the origin's LVLH); "eci": ECI axes,
+        # applied as such (plant/mission_world.py); the Truth's accel_cmd_mps2 stays in the scenario frame
+        out["command_frame"] = _choice(src, "[plant].command_frame", pl["command_frame"], ("lvlh", "eci"))
+    inertial_only = sorted(k for k in set(out) - {"frame_origin"} if not (k == "command_frame" and out[k] == "lvlh"))
+    if inertial_only and fidelity != "inertial":
+        raise _err(src, "[plant]", f"options {inertial_only} need fidelity = 'inertial'", fidelity)
     return out
 
 

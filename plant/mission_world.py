@@ -7,6 +7,11 @@ Same interface as plant/world.py's `World` (which keeps the `linear` / `j2` ROE 
 - frame: every position, velocity and command is in the LVLH frame of the scenario's origin: the
   circular reference orbit of `[orbit]` (`[plant].frame_origin = "reference"`, default) or a
   spacecraft or propagated body (`frame_origin = "<id>"`; its LVLH rotates with it).
+- `[plant].command_frame = "eci"` (inertial only): acceleration commands are in ECI axes and are
+  applied as given (a mission whose flight software computes in inertial axes, paper 004); the
+  Truth's `accel_cmd_mps2` (`last_accel_mps2`) is still in the scenario frame, rotated with the
+  origin's LVLH at the start of the step. The reference orbit may be eccentric (`[orbit]
+  eccentricity`, `argp_deg`; `u0_deg` is then argp + the true anomaly at t = 0).
 - `cw`: Clohessy-Wiltshire about the circular reference (plant/dynamics/cw.py); spacecraft and
   propagated bodies are rows of one propagator.
 - `inertial`: two-body + J2 + drag in ECI for every row (plant/dynamics/inertial.py), each with its
@@ -119,7 +124,9 @@ class MissionWorld:
             self.propagator = make_propagator("cw", a_m=self.a_m, u0_rad=self.u0_rad, pos_m=pos0, vel_mps=vel0)
             self._origin_row = None
         elif sc.fidelity == "inertial":
-            r_ref, v_ref = kepler_to_eci(self.a_m, 0.0, o.inclination_rad, o.raan_rad, 0.0, self.u0_rad)
+            # the reference orbit: [orbit] (circular unless eccentricity > 0; u0 = argp + true anomaly)
+            ecc, argp = float(getattr(o, "eccentricity", 0.0)), float(getattr(o, "argp_rad", 0.0))
+            r_ref, v_ref = kepler_to_eci(self.a_m, ecc, o.inclination_rad, o.raan_rad, argp, self.u0_rad - argp)
             r_ref, v_ref = np.asarray(r_ref, float), np.asarray(v_ref, float)
             r, v = lvlh_to_eci(r_ref, v_ref, pos0, vel0)
             mass = [s.mass_kg for s in self.specs] + [b.mass_kg for b in self.prop_bodies]
@@ -137,6 +144,12 @@ class MissionWorld:
         else:
             raise ValueError(f"MissionWorld flies the cw and inertial propagators, not {sc.fidelity!r}")
         self._origin_thrust_eci: np.ndarray | None = None  # inertial: the origin row's last thrust + manoeuvre
+        # [plant].command_frame: "lvlh" (default) commands in the scenario frame; "eci" (inertial only)
+        # commands in ECI axes, applied unrotated (limits per axis act on ECI axes); the recorded
+        # last_accel_mps2 is always rotated into the scenario frame (the origin's LVLH at the step's start)
+        self.command_frame = str(sc.plant_options.get("command_frame", "lvlh"))
+        if self.command_frame == "eci" and sc.fidelity != "inertial":
+            raise ValueError("[plant].command_frame = 'eci' needs fidelity = 'inertial'")
         att = [i for i, s in enumerate(self.specs) if s.inertia_kgm2 is not None]
         self.att_index = np.asarray(att, dtype=int)
         self.attitude: AttitudePropagator | None = None
@@ -177,6 +190,14 @@ class MissionWorld:
     def roe_m(self) -> np.ndarray:
         pos, vel = self.lvlh()
         return roe_linear.lvlh_to_roe(pos, vel, self.u_rad, self.n_radps)
+
+    def eci(self) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """Inertial fidelity: (ids, ECI positions, ECI velocities) of every spacecraft, then every
+        propagated body (the propagator's rows without the reference orbit)."""
+        if self.fidelity != "inertial":
+            raise ValueError("ECI states exist with fidelity = 'inertial' only")
+        r, v = self.propagator.state()
+        return self.ids + [b.id for b in self.prop_bodies], r[self._offset:], v[self._offset:]
 
     def attitude_wxyz(self) -> tuple[np.ndarray | None, np.ndarray | None]:
         """(N,4) scalar-first attitude and (N,3) body rates of every spacecraft (NaN rows where not flown)."""
@@ -226,6 +247,10 @@ class MissionWorld:
             r, v = self.propagator.state()
             o = self._origin_row
             acc_eci = lvlh_vector_to_eci(np.broadcast_to(r[o], acc.shape), np.broadcast_to(v[o], acc.shape), acc)
+            if self.command_frame == "eci":
+                n = len(self.ids)
+                acc_eci[:n] = a                                   # ECI commands: applied as given
+                self.last_accel_mps2 = a @ lvlh_basis(r[o], v[o]).T  # recorded in the scenario frame
             acc = np.vstack([np.zeros((1, 3)), acc_eci])
             self._origin_thrust_eci = acc[o].copy()
         self.propagator.step(acc, dt_s)

@@ -65,7 +65,7 @@ def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
     # a 20 bit/s radio cannot send a 16 B + beacon every 10 s: the queue drops, and the counters say so
     assert tot["dropped_queue"][2] > 0 and tot["dropped_range"][2] > 0 and tot["dropped_lost"][2] > 0
     # the link matrix and the time series account for every delivered byte of the recording
-    rx = [m for t, _l, _p, m in read_mcap(run / "run.mcap") if "/isl/rx/" in t]
+    rx = [m for t, _l, _p, m in read_mcap(run / "run.mcap") if t.startswith("isl/rx/")]
     wire = sum(len(m.payload) + 16 for m in rx)
     assert link_matrix(lt).sum() == wire == tot["rx_wire_bytes"][1]
     s = per_agent_series(lt, 30.0)
@@ -86,10 +86,24 @@ def test_comparison_mode(runs: tuple[Path, Path], tmp_path: Path) -> None:
     out = write_bandwidth_comparison(a, b, tmp_path / "cmp" / "compare.html")
     text = out.read_text()
     assert "every10" in text and "every20" in text
-    assert (tmp_path / "cmp" / "bandwidth_compare.png").is_file()
-    assert (tmp_path / "cmp" / "bandwidth_compare_matrix.png").is_file()
+    for png in ("bandwidth_compare.png", "bandwidth_compare_matrix.png"):
+        assert png in text  # the page shows it
+        w, h = _png_size(tmp_path / "cmp" / png)
+        assert w > 300 and h > 200, (png, w, h)  # a real figure, not an empty or broken file
     ta, tb = totals(read_link_traffic(a))["mcap"], totals(read_link_traffic(b))["mcap"]
     assert ta["tx_messages"] == 4 * 20 and tb["tx_messages"] == 4 * 10  # half the beacons
+    # the page's numbers are the recordings': each run's transmissions appear in it
+    for t in (ta, tb):
+        assert f">{t['tx_messages']}<" in text, t['tx_messages']
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk; fails on anything that is not a PNG."""
+    import struct
+
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR", path
+    return struct.unpack(">II", data[16:24])
 
 
 def test_cli_and_disagreement_detection(runs: tuple[Path, Path], tmp_path: Path) -> None:
@@ -102,7 +116,8 @@ def test_cli_and_disagreement_detection(runs: tuple[Path, Path], tmp_path: Path)
     assert "transmissions" in res.output
     res = CliRunner().invoke(report_bandwidth, [str(runs[0]), "--compare", str(runs[1]), "--out", str(tmp_path / "c.html")])
     assert res.exit_code == 0, res.output
-    assert (tmp_path / "c.html").is_file()
+    page = (tmp_path / "c.html").read_text()
+    assert "every10" in page and "every20" in page and "bandwidth_compare.png" in page
     # a channel whose counters do not match the recording is reported, with exit code 1
     bad = tmp_path / "bad"
     shutil.copytree(runs[0], bad)

@@ -147,7 +147,7 @@ def test_enabled_and_validation() -> None:
 
 
 def _rx_samples(path: Path) -> list[tuple[str, bytes]]:
-    return [(t, m.SerializeToString()) for t, _lt, _pt, m in read_mcap(path) if "/isl/rx/" in t]
+    return [(t, m.SerializeToString()) for t, _lt, _pt, m in read_mcap(path) if t.startswith("isl/rx/")]
 
 
 def test_in_process_runs_are_deterministic(tmp_path: Path) -> None:
@@ -203,9 +203,9 @@ def test_bad_packets_are_rejected_counted_and_recorded_while_the_run_continues(t
                                         "unknown destination": ticks}
     assert ch["totals"]["tx_messages"] == 5 * 10  # the agents' own beacons, every step
     msgs = read_mcap(tmp_path / "rogue" / "run.mcap")
-    ev = [m for t, _l, _p, m in msgs if t.endswith("/event") and m.kind == "rejected_packet"]
+    ev = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "rejected_packet"]
     assert len(ev) == 4 * ticks
-    assert not any(m.type == "evil" for t, _l, _p, m in msgs if "/isl/rx/" in t)
+    assert not any(m.type == "evil" for t, _l, _p, m in msgs if t.startswith("isl/rx/"))
     lt = read_link_traffic(tmp_path / "rogue")
     assert lt.rejected_tx == {"forged source": ticks, "malformed": ticks, "oversized payload": ticks,
                               "unknown destination": ticks}

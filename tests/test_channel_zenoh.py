@@ -78,7 +78,7 @@ def _run(tmp_path_factory: pytest.TempPathFactory, name: str, p_loss: float, fau
     assert not s["missed_deadlines"] and s["late_commands"] == 0, (s["missed_deadlines"], s["late_commands"])
     ch = json.loads((out / "summary.json").read_text())["channel"]
     assert ch["forced_windows"] == 0 and ch.get("stalls", 0) == 0 and ch["windows"] == 30, ch
-    events = [m for t, _l, _p, m in read_mcap(out / "run.mcap") if t.endswith("/event")]
+    events = [m for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "event"]
     assert not [e for e in events if e.kind in ("deadline_missed", "link_stall", "rejected_packet")]
     return out
 
@@ -91,11 +91,11 @@ def zenoh_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _recording(out: Path) -> dict:
     msgs = read_mcap(out / "run.mcap")
     truth = {round(m.header.t, 6): {b.id: np.array([b.position_m.x, b.position_m.y, b.position_m.z]) for b in m.bodies}
-             for t, _l, _p, m in msgs if t.endswith("/truth")}
-    tx = [(t.rsplit("/", 1)[1], m) for t, _l, _p, m in msgs if "/isl/tx/" in t]
-    rx = [(t.rsplit("/", 1)[1], m) for t, _l, _p, m in msgs if "/isl/rx/" in t]
-    stats_msgs = [m for t, _l, _p, m in msgs if t.endswith("/link/stats")]
-    config = [json.loads(m.detail) for t, _l, _p, m in msgs if t.endswith("/event") and m.kind == "link_config"]
+             for t, _l, _p, m in msgs if t == "truth"}
+    tx = [(t.rsplit("/", 1)[1], m) for t, _l, _p, m in msgs if t.startswith("isl/tx/")]
+    rx = [(t.rsplit("/", 1)[1], m) for t, _l, _p, m in msgs if t.startswith("isl/rx/")]
+    stats_msgs = [m for t, _l, _p, m in msgs if t == "link/stats"]
+    config = [json.loads(m.detail) for t, _l, _p, m in msgs if t == "event" and m.kind == "link_config"]
     return {"truth": truth, "tx": tx, "rx": rx, "stats": stats_msgs, "config": config}
 
 

@@ -44,12 +44,12 @@ def runs(tmp_path_factory) -> dict[str, Path]:
 def _messages(run_dir: Path, run: str):
     truth, tms, scenes = {}, [], {}
     for topic, _lt, _pt, m in read_mcap(run_dir / "run.mcap"):
-        if topic == f"swarm/{run}/truth":
+        if topic == "truth":
             truth[int(m.header.step)] = m
-        elif topic.endswith("/tm") and topic.startswith(f"swarm/{run}/sc/"):
-            tms.append((topic.split("/")[3], m))
-        elif topic.endswith("/sense/scene"):
-            scenes[(topic.split("/")[3], int(m.header.step))] = {b.id for b in m.bodies}
+        elif topic.endswith("/tm") and topic.startswith("sc/"):
+            tms.append((topic.split("/")[1], m))
+        elif topic.startswith("sc/") and topic.endswith("/sense/scene"):
+            scenes[(topic.split("/")[1], int(m.header.step))] = {b.id for b in m.bodies}
     return truth, tms, scenes
 
 
@@ -85,12 +85,39 @@ def test_tracks_associate_with_the_spacecraft_in_view_and_errors_match_an_indepe
                                         - np.array([bj.position_m.x, bj.position_m.y, bj.position_m.z])))
              for b in truth_msgs[s].bodies if b.id != j}
         assert min(d, key=d.get) == k
-    # a filter on 1080 px images: converged tracks are good to metres, much less than the spacing
-    assert np.median(np.linalg.norm(err.position_err_m, axis=1)) < 5.0
+    # a filter on 1080 px images (focal 1000 px: 1 px = 1 mrad). Lateral: 1 mrad at the median range
+    # (~360 m) is 0.36 m; along the line of sight the range comes from the apparent size, a few per
+    # cent for a fresh track (init_range_rel_sigma 5 %) shrinking as frames accumulate. Measured
+    # median 0.59 m, p95 5.5 m, max 9.0 m: 2 m and 15 m are ~3x and 1.6x the measured values, far
+    # below the 100 m d_min of the controller (a navigator off by one spacing fails them).
+    pos_norm = np.linalg.norm(err.position_err_m, axis=1)
+    assert np.median(pos_norm) < 2.0 and pos_norm.max() < 15.0, (np.median(pos_norm), pos_norm.max())
+    # velocity: ~1 m of position error over the 10 s frame interval, smoothed by the filter: measured
+    # median 4.4 mm/s, max 0.24 m/s; 2 cm/s and 0.5 m/s (a track with no velocity knowledge sits at
+    # the 0.2 m/s prior per axis, n * 360 m = 0.4 m/s of relative orbital motion unmodelled).
+    vel_norm = np.linalg.norm(err.velocity_err_mps, axis=1)
+    assert np.median(vel_norm) < 0.02 and vel_norm.max() < 0.5, (np.median(vel_norm), vel_norm.max())
     assert np.all(err.second_m > err.assoc_m)
     assert nav.summary["identity_switches"] == 0
     nees = err.nees[np.isfinite(err.nees)]
     assert nees.size == rows.n  # the EKF reports a covariance on every track
+    # by a plain solve: P spans ~1e-5..1e5 m^2 (condition ~1e10), so Cholesky vs LU agree to ~1e-8
+    np.testing.assert_allclose(nees, [_nees_by_hand(r, rows, err) for r in range(rows.n)], rtol=1e-6)
+    # chi-square consistency of the published covariance (the IMM mixture of the shipped filter
+    # scenario). One track's errors are strongly correlated over its life (a 300 s run is 1/19 of an
+    # orbit; the error moves slowly), so we count one independent chi^2_6 sample per track, the
+    # conservative end: the mean over T tracks lies in chi2(6T)/T's two-sided 99.8 % interval
+    # (T = 11: [3.3, 9.8]; measured 7.8; a covariance 4x too small gave 38.6 and fails).
+    n_tracks = np.unique(rows.track).size
+    lo, hi = chi2.ppf([0.001, 0.999], 6 * n_tracks) / n_tracks
+    per_track = np.array([err.nees[rows.track == t].mean() for t in np.unique(rows.track)])
+    assert lo < per_track.mean() < hi, f"mean NEES {per_track.mean():.2f} outside [{lo:.2f}, {hi:.2f}] ({n_tracks} tracks)"
+    assert nav.summary["all_tracks"]["nees"]["mean"] == pytest.approx(nees.mean(), rel=1e-12)
+
+
+def _nees_by_hand(r: int, rows, err) -> float:
+    e = err.roe_err_m[r]
+    return float(e @ np.linalg.solve(rows.covariance_m2[r], e))
 
 
 def test_decisions_of_ideal_sensing_have_zero_roe_error(runs):
@@ -144,18 +171,53 @@ def test_nees_of_gaussian_errors_follows_chi_square_6():
     assert np.isnan(nees_of(e[:2], cov[:2])[0]) and np.isfinite(nees_of(e[:2], cov[:2])[1])
 
 
+def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None) -> tuple[float, float | None]:
+    """Total dV (sum over bodies of the final cumulative |a| dt of the truth) and, given the track
+    rows and their associations, the coverage of truly visible pairs by the plant's own rule
+    (plant.sensors.visibility_matrix per truth message, not dashboards.metrics)."""
+    from plant.sensors import CameraGeometry, visibility_matrix
+
+    truth = [m for topic, _l, _p, m in read_mcap(run_dir / "run.mcap") if topic == "truth"]
+    dv = sum(b.delta_v_mps for b in truth[-1].bodies)
+    if rows is None:
+        return dv, None
+    cam = CameraGeometry(500.0, 1080, 1000.0)  # the filter scenario's [camera]
+    ids = [b.id for b in truth[0].bodies]
+    hit = {(int(s), int(j), int(k)) for s, j, k in zip(rows.step, rows.observer, err.neighbour)}
+    total = covered = 0
+    for m in truth:
+        pos = np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in m.bodies])
+        vis = visibility_matrix(pos, cam, np.array([b.alive for b in m.bodies]))
+        for j, k in zip(*np.nonzero(vis)):
+            assert [b.id for b in m.bodies] == ids
+            total += 1
+            covered += (int(m.header.step), int(j), int(k)) in hit
+    return dv, covered / total
+
+
 def test_reports_and_comparison_are_written(runs, tmp_path):
     page = write_nav_report(runs["filter"])
     out = page.parent
     s = json.loads((out / "nav_summary.json").read_text())
     assert s["track_rows"] > 0 and s["all_tracks"]["position_m"]["count"] == s["track_rows"]
-    assert 0.0 < s["coverage_of_visible_pairs"] <= 1.0
+    nav = analyse_run(runs["filter"])
+    _dv, cov = _truth_dv_and_coverage(runs["filter"], "nr-filter", nav.rows, nav.err)
+    assert s["coverage_of_visible_pairs"] == pytest.approx(cov, abs=1e-12)
+    # a track is output after confirm_hits = 3 frames, so the first 2 of a pair's ~28 visible steps
+    # cannot be covered (<= 0.93); occlusion and range edge lose a few more. Measured 0.90.
+    assert 0.8 < cov <= 0.93, cov
     assert {"pairs.png", "error_time.png", "nees_time.png"} <= {p.name for p in out.glob("*.png")}
     md = write_comparison([runs["ideal"], runs["filter"]], tmp_path / "cmp", labels=["ideal", "filter"])
     lines = md.read_text().splitlines()
     assert len(lines) == 4 and lines[2].startswith("| ideal |") and lines[3].startswith("| filter |")
     rows = json.loads((tmp_path / "cmp" / "comparison.json").read_text())
-    assert rows[0]["dv_ratio"] == 1.0 and rows[1]["delta_v_total_mps"] >= 0.0
+    dv = {label: _truth_dv_and_coverage(runs[label], f"nr-{label}")[0] for label in ("ideal", "filter")}
+    # the sabatini controller manoeuvres from the first step in both runs (measured 0.0163 and 0.0244 m/s)
+    assert dv["ideal"] > 1e-3 and dv["filter"] > 1e-3
+    assert rows[0]["delta_v_total_mps"] == pytest.approx(dv["ideal"], rel=1e-9)
+    assert rows[1]["delta_v_total_mps"] == pytest.approx(dv["filter"], rel=1e-9)
+    assert rows[0]["dv_ratio"] == 1.0
+    assert rows[1]["dv_ratio"] == pytest.approx(dv["filter"] / dv["ideal"], rel=1e-9)
 
 
 def test_read_tracks_of_a_run_without_telemetry_tracks(runs):

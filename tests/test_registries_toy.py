@@ -124,7 +124,7 @@ motion = {kind = "kinematic", position_m = [0.0, 10.0, 0.0], velocity_mps = [0.0
 def _truth(path: Path) -> tuple[dict[int, bytes], dict[int, object]]:
     raw, msgs = {}, {}
     for topic, _lt, _pt, m in read_mcap(path):
-        if topic.endswith("truth"):
+        if topic == "truth":
             raw[int(m.header.step)], msgs[int(m.header.step)] = m.SerializeToString(), m
     return raw, msgs
 

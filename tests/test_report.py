@@ -58,7 +58,7 @@ def test_read_truth_matches_an_independent_decode(tiny_run):
     from dashboards.truth_io import read_truth
 
     tr = read_truth(tiny_run / "run.mcap")
-    msgs = [m for topic, _lt, _pt, m in read_mcap(tiny_run / "run.mcap") if topic == "swarm/tiny-run/truth"]
+    msgs = [m for topic, _lt, _pt, m in read_mcap(tiny_run / "run.mcap") if topic == "truth"]
     assert tr.run == "tiny-run" and tr.ids == ["a", "b", "c", "d"]
     assert tr.n_steps == len(msgs) == 61
     last = max(msgs, key=lambda m: m.header.step)
@@ -117,6 +117,15 @@ def test_parse_values_and_set_param():
     assert set_param(doc, "controller.params.k_ecc", 1.2)["controller"]["params"]["k_ecc"] == 1.2
 
 
+def _png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk; fails on anything that is not a PNG."""
+    import struct
+
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR", path
+    return struct.unpack(">II", data[16:24])
+
+
 def test_sweep_command_runs_cases_in_parallel(tmp_path):
     from deploy.cli import main
 
@@ -130,9 +139,27 @@ def test_sweep_command_runs_cases_in_parallel(tmp_path):
     assert [c["value"] for c in sweep["cases"]] == [0, 1e-3]
     dv = [c["delta_v_total_mps"] for c in sweep["cases"]]
     assert dv[0] == 0.0 and dv[1] > 0.0
-    assert (out / "report" / "index.html").is_file() and (out / "report" / "sweep_dv_connectivity.png").is_file()
+    html = (out / "report" / "index.html").read_text()
+    assert "controller.params.gain_per_s" in html and "<td>0.001</td>" in html and "<td>0.00174</td>" in html
+    for png in ("sweep_dv_connectivity.png", "sweep_components_dv_time.png"):
+        assert f'src="{png}"' in html
+        w, h = _png_size(out / "report" / png)
+        assert w > 300 and h > 200, (png, w, h)  # a real figure, not an empty or broken file
+    from dashboards.truth_io import read_truth
+
     for c in sweep["cases"]:
-        assert (Path(c["dir"]) / "metrics_series.npz").is_file() and not (Path(c["dir"]) / "report").exists()
+        assert not (Path(c["dir"]) / "report").exists()
+        series = np.load(Path(c["dir"]) / "metrics_series.npz")
+        tr = read_truth(Path(c["dir"]) / "run.mcap")
+        # one sample per truth step (200 s of 10 s steps), the cumulative dV of the plant's accounting
+        np.testing.assert_array_equal(series["t_s"], tr.t_s)
+        assert series["t_s"].tolist() == [10.0 * k for k in range(21)]
+        dv_truth = [sum(b.delta_v_mps for b in m.bodies) for t, _l, _p, m in read_mcap(Path(c["dir"]) / "run.mcap")
+                    if t == "truth"]
+        np.testing.assert_allclose(series["delta_v_total_mps"], dv_truth, rtol=1e-12, atol=0)
+        assert series["delta_v_total_mps"][-1] == pytest.approx(c["delta_v_total_mps"], rel=1e-12)
+        # d is 2 km ahead of everyone (detection range 500 m): two weak components, a, b, c together
+        assert series["n_components"].tolist() == [2] * 21 and series["largest"].tolist() == [3] * 21
     again = CliRunner().invoke(main, ["report", str(out)])  # a sweep directory: every case and the sweep again
     assert again.exit_code == 0, again.output
     assert json.loads((out / "sweep.json").read_text())["cases"][1]["delta_v_total_mps"] == dv[1]

@@ -30,7 +30,7 @@ def mcap_truth(path: Path) -> dict[int, tuple[list[str], np.ndarray]]:
     out = {}
     with open(path, "rb") as f:
         for _s, ch, _m, msg in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
-            if ch.topic.endswith("/truth"):
+            if ch.topic == "truth":
                 sc = [b for b in msg.bodies if b.kind != "target"]
                 out[msg.header.step] = ([b.id for b in sc],
                                         np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in sc]))
@@ -167,16 +167,21 @@ def test_connect_mode_streams_to_a_running_server(tmp_path: Path) -> None:
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
                            preexec_fn=sigint_default)
     try:
-        t_end = time.monotonic() + 30
-        while time.monotonic() < t_end:
+        t_end = time.monotonic() + 60
+        listening = False
+        while not listening:
+            assert srv.poll() is None, f"rerun --serve-grpc exited with code {srv.returncode} before listening"
+            assert time.monotonic() < t_end, f"rerun --serve-grpc did not listen on 127.0.0.1:{port} within 60 s"
             with socket.socket() as s:
-                if s.connect_ex(("127.0.0.1", port)) == 0:
-                    break
-            time.sleep(0.1)
+                listening = s.connect_ex(("127.0.0.1", port)) == 0
+            if not listening:
+                time.sleep(0.1)
         sc = load_scenario(SCENARIOS / "demo.toml").with_overrides(duration_s=200.0)
-        run_in_process(sc, tmp_path / "run", "viz-connect",
-                       opts={"viz": "connect", "viz_url": f"rerun+http://127.0.0.1:{port}/proxy"})
-        time.sleep(2.0)
+        # the viz node's close flushes the recording stream (blocking) and disconnects the gRPC sink,
+        # which closes its stream only once the server has taken everything: no sleep is needed
+        res = run_in_process(sc, tmp_path / "run", "viz-connect",
+                             opts={"viz": "connect", "viz_url": f"rerun+http://127.0.0.1:{port}/proxy"})
+        assert res.summary["viz"]["samples"]["truth"] == sc.steps + 1
     finally:
         os.kill(srv.pid, signal.SIGINT)   # by PID: the server started here
         try:
@@ -186,5 +191,8 @@ def test_connect_mode_streams_to_a_running_server(tmp_path: Path) -> None:
             srv.wait()
             raise
     got = read_rrd(received)["/world/swarm"]["Points3D:positions"]
-    assert got == read_rrd(tmp_path / "run" / "run.rrd")["/world/swarm"]["Points3D:positions"]
-    assert len(got) == 21
+    sent = read_rrd(tmp_path / "run" / "run.rrd")["/world/swarm"]["Points3D:positions"]
+    assert sorted(sent) == list(range(21)), sorted(sent)  # the local copy holds every step of 200 s
+    missing = sorted(set(sent) - set(got))
+    assert not missing, f"the server did not receive steps {missing} of {sorted(sent)}"
+    assert got == sent

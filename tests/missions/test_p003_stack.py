@@ -90,12 +90,14 @@ def load_run(run_dir: Path) -> dict:
     cmd: {id: (K-1, 3)} the agents' commanded accelerations (sc/<id>/act) by step."""
     from conftest import read_mcap
 
+    from dashboards.run_config import run_config
+
     summary = json.loads((Path(run_dir) / "summary.json").read_text())
     truths, acts = {}, {}
     for topic, _lt, _pt, msg in read_mcap(Path(run_dir) / "run.mcap"):
-        if topic.endswith("/truth"):
+        if topic == "truth":
             truths[int(msg.header.step)] = msg
-        elif topic.endswith("/act"):
+        elif topic.startswith("sc/") and topic.endswith("/act"):
             acts.setdefault(msg.header.source, {})[int(msg.header.step)] = [msg.accel_mps2.x, msg.accel_mps2.y, msg.accel_mps2.z]
     steps = sorted(truths)
     assert steps == list(range(len(steps))), "truth has gaps"
@@ -114,47 +116,18 @@ def load_run(run_dir: Path) -> dict:
         "target_pos": np.array([rows(m, "position_m", "target")[0] for m in tr]),
         "target_vel": np.array([rows(m, "velocity_mps", "target")[0] for m in tr]),
         "cmd": {sid: np.array([acts[sid][k] for k in sorted(acts[sid])]) for sid in acts},
+        "config": run_config(run_dir),
     }
     return out
 
 
 def metrics(run: dict) -> dict:
-    """The figures of docs/paper003.md from recorded truth (servicer index = trailing digit - 1)."""
-    from agent.missions.p003_surround.funnel import funnel_half_width
-    from agent.missions.p003_surround.params import FunnelParams, GameParams
-    from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays
+    """The figures of docs/paper003.md from recorded truth: the report section's own computation
+    (dashboards/sections/p003.py surround_metrics) with the run's recorded configuration."""
+    from dashboards.sections.p003 import setup_from_config, surround_metrics
 
-    fp, gp = FunnelParams(), GameParams()
-    ids = run["ids"]
-    lead = ids.index("lsat")
-    sats = [i for i, s in enumerate(ids) if s != "lsat"]
-    order = [int(ids[i][-1]) - 1 for i in sats]
-    pos, vel = run["pos"], run["vel"]
-    q_tl = run["target_pos"] - pos[:, lead]
-    tt = q_tl - np.asarray(fp.q_des_m)
-    fw = np.array([funnel_half_width(t, fp.mu1, fp.a1_per_s) for t in run["t"]])
-    q_s = pos[:, sats] - pos[:, lead:lead + 1]
-    v_s = vel[:, sats] - vel[:, lead:lead + 1]
-    slots = slots_in_leader_frame(np.asarray(fp.q_des_m), SLOT_OFFSETS_M)[order]
-    ct_pos = np.linalg.norm(q_s - slots[None], axis=2)
-    ct_vel = np.linalg.norm(v_s, axis=2)
-    d_cg, r_g = sphere_arrays()
-    centres = run["target_pos"][:, None, :] + d_cg[None]           # (K, G, 3)
-    clear = (np.linalg.norm(pos[:, sats, None, :] - centres[:, None], axis=3) - r_g[None, None]).min(axis=2)
-    pair = np.linalg.norm(q_s[:, :, None] - q_s[:, None], axis=3) + np.diag(np.full(len(sats), np.inf))[None]
-    acc = run["accel"][1:]
-    lead_n = np.linalg.norm(acc[:, lead], axis=1) * fp.mass_kg
-    sat_n = np.linalg.norm(acc[:, sats], axis=2) * gp.mass_kg
-    return {
-        "t": run["t"], "tt_err_m": tt, "funnel_m": fw, "ct_pos_m": ct_pos, "ct_vel_mps": ct_vel,
-        "clearance_m": clear, "min_pair_m": pair.min(axis=(1, 2)), "leader_n": lead_n, "sat_n": sat_n,
-        "tt_err_end_m": float(np.abs(tt[-1]).max()), "funnel_end_m": float(fw[-1]),
-        "worst_tt_ratio": float((np.abs(tt[1:]).max(axis=1) / fw[1:]).max()),
-        "ct_pos_end_m": float(ct_pos[-1].max()), "ct_vel_end_mps": float(ct_vel[-1].max()),
-        "min_clearance_m": float(clear.min()), "min_pair_end_m": float(pair.min()),
-        "leader_peak_n": float(lead_n.max()), "sat_peak_n": float(sat_n.max()),
-        "sat_saturated_frac": float((sat_n > gp.max_thrust_n * (1 - 1e-9)).mean()),
-    }
+    su = setup_from_config(run.get("config"), run["ids"])
+    return surround_metrics(run["t"], run["pos"], run["vel"], run["accel"][1:], run["target_pos"], su)
 
 
 # --- the sensing kind -----------------------------------------------------------------------------

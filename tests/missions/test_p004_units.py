@@ -197,6 +197,32 @@ def test_sensing_keys_round_trip() -> None:
         DefunctMeasurement.from_extra({KEY_Y: [1.0, 2.0, 3.0]}, 2)
 
 
+def test_stack_measurements_read_as_the_loops() -> None:
+    """The plant's sensing kind (plant/sensing/p004.py) sends named arrays p004.d_m/<j> and
+    p004.y_m/<defunct>; the controller reads them exactly as rel_position_m rows and p004.y_m."""
+    from agent.missions.p004_lbdnn.sensing import neighbour_positions
+
+    d = np.array([[100.0, 0.0, 0.0], [0.0, 50.0, 0.0]])
+    y = np.array([10.0])
+    named = {"p004.d_m/s2": d[0], "p004.d_m/s6": d[1], "p004.y_m/defunct": y}
+    assert set(neighbour_positions(named)) == {"s2", "s6"}
+    assert np.array_equal(DefunctMeasurement.from_extra(named, 1).y_m, y)
+    with pytest.raises(ValueError, match="more than one"):
+        DefunctMeasurement.from_extra({**named, "p004.y_m/other": y}, 1)
+    with pytest.raises(ValueError, match="3 finite"):
+        neighbour_positions({"p004.d_m/s2": [1.0, 2.0]})
+    a, b = (make_controller("p004-lbdnn", "s1", ORBIT, {}) for _ in range(2))
+    for k in range(3):
+        obs_loop = Observation(step=k, t_s=0.1 * k, u_rad=0.0, neighbour_ids=["s2", "s6"], rel_position_m=d * (1 + k),
+                               rel_velocity_mps=np.zeros_like(d), extra=DefunctMeasurement(y_m=y).to_extra())
+        obs_stack = Observation(step=k, t_s=0.1 * k, u_rad=0.0, neighbour_ids=[], rel_position_m=np.zeros((0, 3)),
+                                rel_velocity_mps=np.zeros((0, 3)),
+                                extra={"p004.d_m/s2": d[0] * (1 + k), "p004.d_m/s6": d[1] * (1 + k),
+                                       "p004.y_m/defunct": y})
+        assert np.array_equal(a.step(obs_loop).accel_mps2, b.step(obs_stack).accel_mps2)
+    assert a.stale_measurements == b.stale_measurements == 0
+
+
 def test_scenario_graph_is_trackable_and_h_positive_definite() -> None:
     """Definition 1 and Lemma 1 on the chosen ring with b_i = 1; the paper's sufficient
     lambda_min(H) > 1 is not met by any graph with these C_i (even complete: 0.82)."""

@@ -26,7 +26,7 @@ from agent.controller import Command, Observation, OrbitInfo, Transmission, regi
 from agent.missions.p004_lbdnn import adaptation, lbdnn, observer, packet, rho_filter
 from agent.missions.p004_lbdnn.config import ServicerConfig, mission_from_params
 from agent.missions.p004_lbdnn.control_law import control
-from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
+from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
 
 CONTROLLER_NAME = "p004-lbdnn"
 
@@ -76,6 +76,7 @@ class LbdnnServicer:
     def _measured_eta(self, obs: Observation) -> np.ndarray:
         rows = {nid: np.asarray(obs.rel_position_m[k], dtype=float)
                 for k, nid in enumerate(obs.neighbour_ids)}
+        rows.update(neighbour_positions(obs.extra))  # the stack's sensing kind: named arrays
         for j in self.cfg.neighbours:
             if j in rows:
                 self._d_last[j] = rows[j]

@@ -1,10 +1,12 @@
 """What paper 004's servicer reads in `Observation.extra`, and the frame it is given in.
 
-Relative positions to graph neighbours d_ij = q_j - q_i (eq. 9) arrive in
-`obs.rel_position_m` (rows in the order of `obs.neighbour_ids`); for this room they are in
-**inertial axes** (ECI), the frame of the Cartesian reading of paper 004 (NOTES-004), and so is
-the commanded acceleration. The partial measurement of the defunct craft y_i = C_i (q0 - q_i)
-(eq. 10), for servicers with b_i = 1, arrives in `obs.extra` under the keys below.
+Relative positions to graph neighbours d_ij = q_j - q_i (eq. 9) arrive either in
+`obs.rel_position_m` (rows in the order of `obs.neighbour_ids`; the in-process test loop) or, on
+the stack, as named arrays `obs.extra["p004.d_m/<j>"]` (the plant's sensing kind `p004-partial`,
+plant/sensing/p004.py; `neighbour_positions`); both in **inertial axes** (ECI), the frame of the
+Cartesian reading of paper 004 (NOTES-004), and so is the commanded acceleration. The partial
+measurement of the defunct craft y_i = C_i (q0 - q_i) (eq. 10), for servicers with b_i = 1,
+arrives in `obs.extra` under `KEY_Y` (or `KEY_Y + "/<defunct id>"` from the sensing kind).
 """
 from __future__ import annotations
 
@@ -17,6 +19,30 @@ KEY_Y = "p004.y_m"
 """y_i = C_i (q0 - q_i) + noise, (m_i,) metres, inertial axes; absent when not measured."""
 KEY_Y_VALID = "p004.y_valid"
 """bool: y_i is a fresh measurement at this step (False or absent: no line of sight)."""
+KEY_D = "p004.d_m"
+"""d_ij = q_j - q_i + noise, (3,) metres, inertial axes: obs.extra[f"{KEY_D}/{j}"] per neighbour j."""
+
+
+def neighbour_positions(extra: dict[str, Any]) -> dict[str, np.ndarray]:
+    """{j: d_ij} from the named arrays `p004.d_m/<j>` of `obs.extra` (empty when there are none)."""
+    out = {}
+    for key, value in extra.items():
+        if key.startswith(KEY_D + "/"):
+            d = np.asarray(value, dtype=float).reshape(-1)
+            if d.shape != (3,) or not np.all(np.isfinite(d)):
+                raise ValueError(f"{key} must be 3 finite numbers, got {value!r}")
+            out[key[len(KEY_D) + 1:]] = d
+    return out
+
+
+def _y_key(extra: dict[str, Any]) -> str | None:
+    """`p004.y_m`, or the one `p004.y_m/<subject>` of the sensing kind."""
+    if KEY_Y in extra:
+        return KEY_Y
+    keys = [k for k in extra if k.startswith(KEY_Y + "/")]
+    if len(keys) > 1:
+        raise ValueError(f"more than one partial measurement of the defunct craft: {keys}")
+    return keys[0] if keys else None
 
 
 @dataclass(frozen=True)
@@ -29,13 +55,14 @@ class DefunctMeasurement:
     @classmethod
     def from_extra(cls, extra: dict[str, Any], m_rows: int) -> DefunctMeasurement | None:
         """Read it from `obs.extra`; None when the step carries no valid y_i."""
-        if KEY_Y not in extra or not bool(extra.get(KEY_Y_VALID, True)):
+        key = _y_key(extra)
+        if key is None or not bool(extra.get(KEY_Y_VALID, True)):
             return None
-        y = np.atleast_1d(np.asarray(extra[KEY_Y], dtype=float))
+        y = np.atleast_1d(np.asarray(extra[key], dtype=float))
         if y.shape != (m_rows,):
-            raise ValueError(f"{KEY_Y} has shape {y.shape}, expected ({m_rows},) rows of C_i")
+            raise ValueError(f"{key} has shape {y.shape}, expected ({m_rows},) rows of C_i")
         if not np.all(np.isfinite(y)):
-            raise ValueError(f"{KEY_Y} is not finite: {y}")
+            raise ValueError(f"{key} is not finite: {y}")
         return cls(y_m=y, valid=True)
 
     def to_extra(self) -> dict[str, Any]:

@@ -1,0 +1,55 @@
+"""The agent's target estimate: direct GNC fits, velocity by an α-β filter, consensus (eq. 30)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .ellipsoid import Ellipsoid
+
+
+@dataclass
+class TargetEstimate:
+    t_s: float
+    centre_m: np.ndarray
+    velocity_mps: np.ndarray
+    shape: np.ndarray          # M = R diag(a⁻²) Rᵀ
+    direct: bool               # from this agent's own fit (not only relayed)
+
+    def ellipsoid(self, t_s: float) -> Ellipsoid:
+        """The estimate propagated to t with the estimated velocity."""
+        return Ellipsoid.from_shape_matrix(self.centre_m + self.velocity_mps * (t_s - self.t_s), self.shape)
+
+    def semi_axes_sorted(self) -> np.ndarray:
+        return np.sort(Ellipsoid.from_shape_matrix(self.centre_m, self.shape).semi_axes_m)
+
+
+def alpha_beta(prev: TargetEstimate | None, t_s: float, centre_m: np.ndarray,
+               alpha: float = 0.5, beta: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and velocity after a new centroid measurement (α-β filter)."""
+    if prev is None:
+        return np.asarray(centre_m, dtype=float), np.zeros(3)
+    dt = t_s - prev.t_s
+    pred = prev.centre_m + prev.velocity_mps * dt
+    res = centre_m - pred
+    c = pred + alpha * res
+    v = prev.velocity_mps + (beta / dt) * res if dt > 0 else prev.velocity_mps
+    return c, v
+
+
+def consensus(own: TargetEstimate | None, others: list[TargetEstimate], t_s: float,
+              own_weight: float) -> TargetEstimate | None:
+    """x̂_i = Σ w_ij x̂_j (eq. 30) over centre, velocity and the shape matrix M (NOTES-000: fuse M,
+    not axes); estimates are propagated to t first; the own estimate weighs `own_weight` when it
+    is a direct fit (trap 7: stale relayed estimates), the rest share the remainder equally."""
+    ests = ([own] if own is not None else []) + others
+    if not ests:
+        return None
+    if own is not None and own.direct and others:
+        w = np.array([own_weight] + [(1.0 - own_weight) / len(others)] * len(others))
+    else:
+        w = np.full(len(ests), 1.0 / len(ests))
+    c = sum(wi * (e.centre_m + e.velocity_mps * (t_s - e.t_s)) for wi, e in zip(w, ests))
+    v = sum(wi * e.velocity_mps for wi, e in zip(w, ests))
+    m = sum(wi * e.shape for wi, e in zip(w, ests))
+    return TargetEstimate(t_s, c, v, m, own is not None and own.direct)

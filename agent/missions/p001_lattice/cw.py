@@ -1,0 +1,41 @@
+"""The far layer (paper 001 eq. 1-2): a ballistic Clohessy-Wiltshire velocity field.
+
+Frame: CW/Hill at the reference point, x radial outward, y along-track, z orbit normal;
+xdd = 3n^2 x + 2n yd, ydd = -2n xd, zdd = -n^2 z.
+
+Eq. 1-2 are garbled in the text; the reading used (NOTES-001): the desired velocity is the one
+that puts the agent on the natural CW arc reaching the origin at t_desire,
+v_d = -Phi_rv(T)^-1 Phi_rr(T) r with T = t_desire - t, tracked by g_far = k_g (v_d - v).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def cw_position_blocks(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phi_rr(t) and Phi_rv(t) of the CW state-transition matrix (r(t) = Phi_rr r0 + Phi_rv v0)."""
+    tau = n_radps * t_s
+    s, c = np.sin(tau), np.cos(tau)
+    phi_rr = np.array([[4.0 - 3.0 * c, 0.0, 0.0], [6.0 * (s - tau), 1.0, 0.0], [0.0, 0.0, c]])
+    phi_rv = np.array(
+        [
+            [s, 2.0 * (1.0 - c), 0.0],
+            [-2.0 * (1.0 - c), 4.0 * s - 3.0 * tau, 0.0],
+            [0.0, 0.0, s],
+        ]
+    ) / n_radps
+    return phi_rr, phi_rv
+
+
+def ballistic_velocity(position_m: np.ndarray, n_radps: float, time_to_go_s: float) -> np.ndarray:
+    """Eq. 1 (reading): the velocity on the natural CW arc from `position_m` to the origin in time_to_go_s."""
+    if time_to_go_s <= 0.0:
+        raise ValueError(f"time to go {time_to_go_s} s: the ballistic field is only defined before t_desire")
+    phi_rr, phi_rv = cw_position_blocks(n_radps, time_to_go_s)
+    return -np.linalg.solve(phi_rv, phi_rr @ np.asarray(position_m, dtype=float))
+
+
+def far_accel(position_m: np.ndarray, velocity_mps: np.ndarray, n_radps: float, time_to_go_s: float,
+              gain_ps: float) -> np.ndarray:
+    """Eq. 2 (reading): g_far = k_g (v_d - v), m/s^2; zero once the agent is on its ballistic arc."""
+    return gain_ps * (ballistic_velocity(position_m, n_radps, time_to_go_s) - np.asarray(velocity_mps, dtype=float))

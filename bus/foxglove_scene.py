@@ -1,0 +1,148 @@
+"""Foxglove's own 3D messages from the truth, written by the recorder into every recording.
+
+DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carries
+`foxglove.FrameTransforms` (topic `foxglove/tf`) and `foxglove.SceneUpdate` (topic
+`foxglove/scene`), so Foxglove's 3D panel shows a run with no plugin.
+
+- Frames: the scenario frame `lvlh` (x radial, y along-track, z cross-track) is the root; every
+  body of the truth is a child frame named by its id, translated by its position and rotated by
+  its attitude (body -> LVLH, scalar-first in the truth) where the mission flies attitude,
+  identity otherwise.
+- Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft (blue,
+  grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
+  an ellipsoid, or a list of spheres in the body frame; a small orange sphere without a shape),
+  and its id as a text label; plus one entity `links` in `lvlh` with a line per ISL delivery
+  seen since the previous truth (sender -> receiver).
+- Log: every `swarmhil.v1.Event` also as a `foxglove.Log` (topic `foxglove/log`) for the Log panel.
+"""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.Log_pb2 import Log
+from foxglove_schemas_protobuf.Point3_pb2 import Point3
+from foxglove_schemas_protobuf.Pose_pb2 import Pose
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from google.protobuf.timestamp_pb2 import Timestamp
+
+ROOT_FRAME = "lvlh"
+TF_TOPIC = "foxglove/tf"
+SCENE_TOPIC = "foxglove/scene"
+LOG_TOPIC = "foxglove/log"
+_WARN_EVENTS = ("agent_dead", "deadline_missed", "rejected_packet", "late_command")
+SPACECRAFT_DIAMETER_M = 4.0  # display size (the truth has no spacecraft geometry)
+BODY_DIAMETER_M = 6.0        # a body without a shape
+
+_BLUE = Color(r=0.25, g=0.55, b=1.0, a=1.0)
+_GREY = Color(r=0.5, g=0.5, b=0.5, a=0.6)
+_ORANGE = Color(r=1.0, g=0.6, b=0.2, a=0.8)
+_WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
+_GREEN = Color(r=0.3, g=1.0, b=0.4, a=0.8)
+_IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+
+
+def _timestamp(t_ns: int) -> Timestamp:
+    return Timestamp(seconds=t_ns // 1_000_000_000, nanos=t_ns % 1_000_000_000)
+
+
+def _rotation(body: Any) -> Quaternion:
+    if body.HasField("attitude"):
+        q = body.attitude
+        n = math.sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
+        if n > 0 and math.isfinite(n):
+            return Quaternion(x=q.x / n, y=q.y / n, z=q.z / n, w=q.w / n)
+    return _IDENTITY
+
+
+def _shape_primitives(shape: dict[str, Any] | None) -> list[SpherePrimitive]:
+    if not shape:
+        return [SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=BODY_DIAMETER_M, y=BODY_DIAMETER_M,
+                                                                              z=BODY_DIAMETER_M), color=_ORANGE)]
+    if shape.get("kind") == "ellipsoid":
+        a, b, c = (2.0 * float(x) for x in shape["semi_axes_m"])
+        return [SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=a, y=b, z=c), color=_ORANGE)]
+    out = []
+    for centre, r in zip(shape.get("centers_m", []), shape.get("radii_m", [])):
+        d = 2.0 * float(r)
+        out.append(SpherePrimitive(pose=Pose(position=Vector3(x=centre[0], y=centre[1], z=centre[2]), orientation=_IDENTITY),
+                                   size=Vector3(x=d, y=d, z=d), color=_ORANGE))
+    return out
+
+
+class FoxgloveScene:
+    """Turns each decoded Truth into (FrameTransforms, SceneUpdate) payloads."""
+
+    def __init__(self, config: dict[str, Any] | None = None) -> None:
+        self.shapes: dict[str, dict[str, Any] | None] = {}
+        for b in (config or {}).get("body") or []:
+            if isinstance(b, dict) and "id" in b:
+                self.shapes[str(b["id"])] = b.get("shape")
+        self._links: set[tuple[str, str]] = set()
+        self._templates: dict[tuple[str, str, bool], SceneEntity] = {}
+
+    def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
+        """The entity of a body without its timestamp (built once per body and state)."""
+        key = (body_id, kind, alive)
+        ent = self._templates.get(key)
+        if ent is None:
+            ent = SceneEntity(frame_id=body_id, id=body_id, frame_locked=True)
+            if kind in ("", "spacecraft"):
+                d = SPACECRAFT_DIAMETER_M
+                ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
+                                                   color=_BLUE if alive else _GREY))
+            else:
+                ent.spheres.extend(_shape_primitives(self.shapes.get(body_id)))
+            ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
+                                           billboard=True, font_size=12.0, scale_invariant=True, color=_WHITE,
+                                           text=body_id))
+            ent.metadata.add(key="kind", value=kind or "spacecraft")
+            self._templates[key] = ent
+        return ent
+
+    def saw_delivery(self, src: str, dst: str) -> None:
+        """An ISL delivery src -> dst (drawn with the next truth)."""
+        if src and dst:
+            self._links.add((src, dst))
+
+    def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:
+        stamp = _timestamp(t_ns)
+        tf = FrameTransforms()
+        scene = SceneUpdate()
+        pos: dict[str, Vector3] = {}
+        for b in truth.bodies:
+            p = Vector3(x=b.position_m.x, y=b.position_m.y, z=b.position_m.z)
+            pos[b.id] = p
+            tf.transforms.append(FrameTransform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id,
+                                                translation=p, rotation=_rotation(b)))
+            ent = scene.entities.add()
+            ent.CopyFrom(self._template(b.id, b.kind, b.alive))
+            ent.timestamp.CopyFrom(stamp)
+        links = scene.entities.add(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+        if self._links:
+            line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
+                                 scale_invariant=True, color=_GREEN)
+            for src, dst in sorted(self._links):
+                if src in pos and dst in pos:
+                    for v in (pos[src], pos[dst]):
+                        line.points.append(Point3(x=v.x, y=v.y, z=v.z))
+            if line.points:
+                links.lines.append(line)
+            self._links.clear()
+        return tf.SerializeToString(), scene.SerializeToString()
+
+
+def event_log(event: Any, t_ns: int) -> bytes:
+    """A swarmhil.v1.Event as foxglove.Log (faults as WARNING, the rest INFO)."""
+    level = Log.WARNING if event.kind in _WARN_EVENTS else Log.INFO
+    text = f"{event.kind} {event.subject}".strip() + (f": {event.detail}" if event.detail else "")
+    return Log(timestamp=_timestamp(t_ns), level=level, message=text, name=event.header.source).SerializeToString()

@@ -1,0 +1,73 @@
+"""Report sections: one registered module per mission (issue 11). `swarmhil report RUN` runs every
+section whose `applies(config)` is true for the run's recorded configuration, puts its metrics in
+`summary.json["metrics"][name]` and its figures on the run's report page under its own heading.
+
+    @register_section("p001-formation", applies=lambda cfg: uses_controller(cfg, "p001-lattice"))
+    def formation(ctx: SectionContext) -> SectionResult: ...
+
+A section reads only the recording (ctx.truth from dashboards/truth_io.py, ctx.config the resolved
+configuration, ctx.mcap for anything else) and writes its PNGs into ctx.out. Every module of this
+package is imported on first use, so adding a section is adding a module.
+"""
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+
+@dataclass
+class SectionContext:
+    run_dir: Path
+    mcap: Path
+    out: Path                    # where the figures go (RUN/report)
+    summary: dict[str, Any]
+    config: dict[str, Any]       # the resolved configuration the recording carries ({} for old recordings)
+    truth: Any                   # dashboards.truth_io.TruthArrays
+
+
+@dataclass
+class SectionResult:
+    title: str
+    metrics: dict[str, Any] = field(default_factory=dict)
+    figures: list[tuple[str, str]] = field(default_factory=list)  # (file name in ctx.out, caption)
+    html: str = ""                                                # extra HTML (tables), already escaped
+
+
+Section = Callable[[SectionContext], SectionResult]
+_SECTIONS: dict[str, tuple[Callable[[dict[str, Any]], bool], Section]] = {}
+
+
+def register_section(name: str, applies: Callable[[dict[str, Any]], bool]) -> Callable[[Section], Section]:
+    def deco(fn: Section) -> Section:
+        _SECTIONS[name] = (applies, fn)
+        return fn
+
+    return deco
+
+
+def controllers_of(config: dict[str, Any]) -> set[str]:
+    """Every controller a run's spacecraft flew (the swarm's and the per-spacecraft ones)."""
+    names = {str((config.get("controller") or {}).get("name"))}
+    for s in config.get("spacecraft") or []:
+        if s.get("controller"):
+            names.add(str(s["controller"]))
+    return names
+
+
+def uses_controller(config: dict[str, Any], *names: str) -> bool:
+    return bool(controllers_of(config) & set(names))
+
+
+def _load() -> None:
+    import dashboards.sections as pkg
+
+    for info in pkgutil.iter_modules(pkg.__path__):
+        importlib.import_module(f"dashboards.sections.{info.name}")
+
+
+def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:
+    _load()
+    return [(name, fn) for name, (applies, fn) in sorted(_SECTIONS.items()) if applies(config)]

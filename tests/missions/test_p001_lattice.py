@@ -1,0 +1,206 @@
+"""Paper 001 room, unit level: TB energy and exact forces, far-layer field, wells, layers, eq. 16."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+from scipy.optimize import minimize_scalar
+
+from agent.controller import Observation, OrbitInfo, known_controllers, make_controller
+from agent.missions.p001_lattice.cw import ballistic_velocity, far_accel
+from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, mean_relative_error
+from agent.missions.p001_lattice.layers import Layer, next_layer
+from agent.missions.p001_lattice.params import LatticeParams
+from agent.missions.p001_lattice.sensing import OwnState
+from agent.missions.p001_lattice.tersoff import energy, forces, gradient, tersoff_params
+from agent.missions.p001_lattice.units import A_E_MPS2, TB_GAIN
+from agent.missions.p001_lattice.wells import planar_well, point_well, saturate
+
+N_GEO = 7.2921e-5
+READINGS = ["normalised", "literal"]
+
+
+def fd_gradient(pos: np.ndarray, p, h: float = 1e-6) -> np.ndarray:
+    g = np.zeros_like(pos)
+    for i in range(pos.shape[0]):
+        for k in range(3):
+            xp, xm = pos.copy(), pos.copy()
+            xp[i, k] += h
+            xm[i, k] -= h
+            g[i, k] = (energy(xp, p) - energy(xm, p)) / (2 * h)
+    return g
+
+
+def configs() -> list[np.ndarray]:
+    """Random clusters where every cutoff branch is hit, a triangle, a pentagon plus one, a strained hexagon."""
+    rng = np.random.default_rng(7)
+    out = [rng.uniform(-1.1, 1.1, (n, 3)) for n in (3, 5, 6, 7)]
+    pent = np.column_stack([np.zeros(5), np.cos(np.arange(5) * 1.2566), np.sin(np.arange(5) * 1.2566)]) * 0.9
+    out.append(np.vstack([pent, [[0.1, 1.95, 0.2]]]))
+    out.append(hexagon_vertices(1.0) * 1.1 + rng.normal(scale=0.05, size=(6, 3)))
+    return out
+
+
+def hessian(x: np.ndarray, p, h: float = 1e-5) -> np.ndarray:
+    n = x.size
+    hm = np.zeros((n, n))
+    for a in range(n):
+        xp, xm = x.ravel().copy(), x.ravel().copy()
+        xp[a] += h
+        xm[a] -= h
+        hm[:, a] = (gradient(xp.reshape(-1, 3), p) - gradient(xm.reshape(-1, 3), p)).ravel() / (2 * h)
+    return 0.5 * (hm + hm.T)
+
+
+@pytest.mark.parametrize("reading", READINGS)
+def test_tb_forces_are_the_exact_negative_gradient(reading: str) -> None:
+    p = tersoff_params(reading)
+    d = np.concatenate([np.linalg.norm(x[:, None] - x[None], axis=2)[np.triu_indices(len(x), 1)] for x in configs()])
+    assert np.sum((d > p.r1) & (d < p.r2)) >= 3, "the cutoff's switching region was not exercised"
+    for pos in configs():
+        g = gradient(pos, p)
+        fd = fd_gradient(pos, p)
+        # central differences with h = 1e-6 on energies of order 1: error ~1e-9
+        assert np.max(np.abs(g - fd)) < 1e-7 * max(1.0, np.max(np.abs(g))), (reading, np.max(np.abs(g - fd)))
+        assert np.allclose(forces(pos, p), -g)
+
+
+@pytest.mark.parametrize("reading", READINGS)
+def test_tb_forces_obey_newtons_third_law_and_carry_no_torque(reading: str) -> None:
+    p = tersoff_params(reading)
+    for pos in configs():
+        f = forces(pos, p)
+        assert np.max(np.abs(f.sum(axis=0))) < 1e-12 * max(1.0, np.abs(f).max()) * len(pos)
+        torque = np.cross(pos - pos.mean(axis=0), f).sum(axis=0)
+        assert np.max(np.abs(torque)) < 1e-11 * max(1.0, np.abs(f).max())
+
+
+def test_hexagon_is_a_stable_equilibrium_with_normalised_cutoffs_at_side_1_0404_l() -> None:
+    """Cutoffs / 1.315: only nearest neighbours bond; B_ij(120 deg) < 1 stretches the bond to 1.0404 l."""
+    p = tersoff_params("normalised")
+    assert p.r2 < np.sqrt(3.0)  # second neighbours (sqrt(3) l) never interact
+    hexa = hexagon_vertices(1.0)
+    side = minimize_scalar(lambda s: energy(hexa * s, p), bounds=(0.8, 1.3), method="bounded", options={"xatol": 1e-10}).x
+    assert side == pytest.approx(1.0404, abs=2e-4)
+    assert np.max(np.abs(forces(hexa * side, p))) < 1e-5
+    ev = np.linalg.eigvalsh(hessian(hexa * side, p))
+    assert np.all(np.abs(ev[:6]) < 1e-4) and ev[6] > 1.0  # six rigid-body modes, the rest stiff
+    # at side l exactly the bonds are compressed: every force points radially outwards
+    f = forces(hexa, p)
+    assert np.all(np.einsum("ij,ij->i", f, hexa) > 0.3)
+    assert mean_relative_error(hexa * side * 10.0, 10.0) == pytest.approx(0.0404, abs=2e-4)
+
+
+def test_hexagon_of_side_l_is_not_an_equilibrium_with_literal_cutoffs() -> None:
+    """Cutoffs read as printed (1.95 l, 2.25 l): second neighbours and opposite vertices interact."""
+    p = tersoff_params("literal")
+    hexa = hexagon_vertices(1.0)
+    assert np.max(np.linalg.norm(forces(hexa, p), axis=1)) > 4.0  # ~4.6: 4.6e-3 m/s^2 in the m/s^2 reading
+    side = minimize_scalar(lambda s: energy(hexa * s, p), bounds=(0.8, 1.6), method="bounded", options={"xatol": 1e-10}).x
+    assert side == pytest.approx(1.288, abs=2e-3)  # relaxes to 12.9 m, second neighbours then at 22.3 m > r_Z
+    assert side * np.sqrt(3.0) * 10.0 > 21.0
+
+
+def cw_stm(n: float, t: float) -> np.ndarray:
+    a = np.zeros((6, 6))
+    a[0:3, 3:6] = np.eye(3)
+    a[3, 0], a[3, 4], a[4, 3], a[5, 2] = 3 * n * n, 2 * n, -2 * n, -n * n
+    return expm(a * t)
+
+
+def test_far_layer_field_flies_an_uncontrolled_cw_state_to_the_origin_at_t_desire() -> None:
+    rng = np.random.default_rng(3)
+    t_desire = 1.95e4
+    for _ in range(5):
+        r0 = rng.normal(size=3)
+        r0 *= 1000.0 / np.linalg.norm(r0)
+        t0 = rng.uniform(0.0, 1.5e4)
+        v0 = ballistic_velocity(r0, N_GEO, t_desire - t0)
+        end = cw_stm(N_GEO, t_desire - t0) @ np.concatenate([r0, v0])
+        assert np.linalg.norm(end[:3]) < 1e-6  # metres, from 1000 m
+        # on the arc the field asks for nothing: g_far = 0 at every later point of it
+        mid = cw_stm(N_GEO, 0.5 * (t_desire - t0)) @ np.concatenate([r0, v0])
+        assert np.linalg.norm(far_accel(mid[:3], mid[3:], N_GEO, 0.5 * (t_desire - t0), 0.05)) < 1e-12
+    with pytest.raises(ValueError):
+        ballistic_velocity(r0, N_GEO, 0.0)
+
+
+def test_eq16_of_known_configurations_and_the_geometric_hexagon_test() -> None:
+    hexa = hexagon_vertices(10.0)
+    assert mean_relative_error(hexa, 10.0) == pytest.approx(0.0, abs=1e-12)
+    assert mean_relative_error(hexa * 1.1, 10.0) == pytest.approx(0.1)
+    chk = check_hexagon(hexa, 10.0)
+    assert chk.is_hexagon and chk.ring and chk.phase_deg == pytest.approx(30.0) and chk.normal_x == pytest.approx(1.0)
+    assert np.allclose(chk.centre_m, 0.0, atol=1e-12)
+    # trap 2: a compact 3-D cluster (octahedron of edge l) has a low eq. 16 but is no hexagon
+    octa = np.vstack([np.eye(3), -np.eye(3)]) * 10.0 / np.sqrt(2.0)
+    assert mean_relative_error(octa, 10.0) < 0.02
+    assert not check_hexagon(octa, 10.0).is_hexagon
+    # trap 1: a pentagon with one dangling agent
+    ang = np.deg2rad(72.0 * np.arange(5))
+    r5 = 10.0 / (2 * np.sin(np.pi / 5))
+    pent = np.column_stack([np.zeros(5), r5 * np.cos(ang), r5 * np.sin(ang)])
+    pent1 = np.vstack([pent, [0.0, r5 + 10.0, 0.0]])
+    assert not check_hexagon(pent1, 10.0).is_hexagon
+
+
+def test_wells_layers_and_saturation() -> None:
+    p = LatticeParams()
+    assert np.sqrt(p.k_free_m2) == pytest.approx(127.3, abs=0.1)
+    assert p.alpha_free_ps2 == pytest.approx(2.748e-5, rel=1e-3)
+    assert p.damping_ps == pytest.approx(1.752e-2, rel=1e-3)
+    g = point_well(np.array([10.0, 0, 0]), np.zeros(3), p.alpha_free_ps2, p.k_free_m2)
+    assert g[0] < 0 and g[1] == 0 == g[2]
+    assert planar_well(np.array([3.0, 50.0, -40.0]), 0.0, 1.0, 1e4)[1:].tolist() == [0.0, 0.0]
+    a = saturate(np.array([3e-3, 4e-3, 12e-3]), 5e-3)
+    assert np.linalg.norm(a) == pytest.approx(5e-3) and np.allclose(a / np.linalg.norm(a), np.array([3, 4, 12]) / 13)
+    assert next_layer(Layer.FAR, 500.0, 100.0, 100.0, 15.0, 19012.5) == Layer.FAR
+    assert next_layer(Layer.FAR, 500.0, 19013.0, 100.0, 15.0, 19012.5) == Layer.NEAR
+    assert next_layer(Layer.FAR, 99.0, 100.0, 100.0, 15.0, 19012.5) == Layer.NEAR
+    assert next_layer(Layer.SHAPING, 500.0, 100.0, 100.0, 15.0, 19012.5) == Layer.SHAPING  # latched
+    assert next_layer(Layer.NEAR, 14.0, 100.0, 100.0, 15.0, 19012.5) == Layer.SHAPING
+    with pytest.raises(ValueError, match="unknown p001-lattice parameters"):
+        LatticeParams.from_dict({"cutof_reading": "literal"})
+    with pytest.raises(ValueError, match="true or false"):
+        LatticeParams.from_dict({"free_in_shaping": "False"})
+    assert LatticeParams.from_dict({"free_in_shaping": True, "k_phase_m2": 25}).k_phase_m2 == 25.0
+    with pytest.raises(ValueError, match="tb_unit"):
+        LatticeParams.from_dict({"tb_unit": "N"})
+
+
+def test_controller_is_registered_and_speaks_si() -> None:
+    assert "p001-lattice" in known_controllers()
+    orbit = OrbitInfo(semi_major_axis_m=42164e3, mean_motion_radps=N_GEO)
+    c = make_controller("p001-lattice", "a", orbit, {})
+    own = OwnState(np.array([1000.0, 0.0, 0.0]), np.zeros(3))
+    obs = Observation(step=0, t_s=0.0, u_rad=0.0, neighbour_ids=[], rel_position_m=np.zeros((0, 3)),
+                      rel_velocity_mps=np.zeros((0, 3)), extra=own.to_extra())
+    cmd = c.step(obs)
+    assert cmd.mode == "far" and np.linalg.norm(cmd.accel_mps2) == pytest.approx(5e-3)  # saturated at release
+    with pytest.raises(KeyError, match="own_position_m"):
+        c.step(Observation(step=1, t_s=1.0, u_rad=0.0, neighbour_ids=[], rel_position_m=np.zeros((0, 3)),
+                           rel_velocity_mps=np.zeros((0, 3))))
+    # in the shaping ball, one neighbour 12 m away along +z attracts, 5 m away repels; eq. 14 scale
+    for unit, scale in (("mps2", 1.0), ("a_e", A_E_MPS2)):
+        c = make_controller("p001-lattice", "a", orbit, {"tb_unit": unit, "alpha_phase_ps2": 0.0,
+                                                          "alpha_planar_ps2": 0.0, "damping_ps": 0.0})
+        ex = OwnState(np.zeros(3), np.zeros(3)).to_extra()
+        far = c.step(Observation(0, 0.0, 0.0, ["b"], np.array([[0, 0, 12.0]]), np.zeros((1, 3)), ex)).accel_mps2
+        near = c.step(Observation(1, 1.0, 0.0, ["b"], np.array([[0, 0, 5.0]]), np.zeros((1, 3)), ex)).accel_mps2
+        assert far[2] > 0 and near[2] < 0
+        f = forces(np.array([[0, 0, 0], [0, 0, 1.2]]), tersoff_params())[0]
+        assert far == pytest.approx(TB_GAIN * scale * f)
+    r = OwnState.from_extra(OwnState(np.array([1.0, 2, 3]), np.array([4.0, 5, 6])).to_extra())
+    assert r.position_m.tolist() == [1, 2, 3] and r.velocity_mps.tolist() == [4, 5, 6]
+
+
+def test_the_room_never_imports_plant_or_bus() -> None:
+    import ast
+    from pathlib import Path
+
+    room = Path(__file__).resolve().parents[2] / "agent" / "missions" / "p001_lattice"
+    for path in room.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
+                [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not any(n.split(".")[0] in ("plant", "bus") for n in names), (path.name, names)
