@@ -86,7 +86,7 @@ def test_sigkilled_launcher_leaves_no_child_and_a_readable_recording(tmp_path: P
                 os.kill(pid, signal.SIGKILL)  # this test's own run, by PID
     # the recorder was stopped by SIGTERM (parent-death signal) and closed its file
     msgs = read_mcap(out / "run.mcap")
-    assert any(t == "swarm/sk/truth" for t, *_ in msgs)
+    assert any(t == "truth" for t, *_ in msgs)  # topics are keys without swarm/<run>/
 
 
 def test_sigterm_stops_the_run_like_ctrl_c(tmp_path: Path) -> None:
@@ -102,7 +102,7 @@ def test_sigterm_stops_the_run_like_ctrl_c(tmp_path: Path) -> None:
     assert s["interrupted"] is True and 5 <= s["steps"] < 180, s
     assert not _left(info["pids"], 5.0)
     msgs = read_mcap(out / "run.mcap")
-    assert [m.header.step for t, _l, _p, m in msgs if t == "swarm/st/truth"][:5] == list(range(5))
+    assert [m.header.step for t, _l, _p, m in msgs if t == "truth"][:5] == list(range(5))
 
 
 CRASH_PLUGIN = '''
