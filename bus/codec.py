@@ -161,9 +161,24 @@ def decode(cls: type[M], payload: bytes, *, run: str | None = None) -> M:
     bad = _non_finite_field(msg) if _screen(cls).search(payload) else None
     if bad:
         raise RejectedPacket(f"{cls.DESCRIPTOR.name}: non-finite value {bad}")
-    if run is not None and msg.HasField("header") and msg.header.run != run:  # type: ignore[attr-defined]
-        raise RejectedPacket(f"{cls.DESCRIPTOR.name}: header.run {msg.header.run!r} is not {run!r}")  # type: ignore[attr-defined]
+    if run is not None and "header" in cls.DESCRIPTOR.fields_by_name:
+        # a message without a header cannot be checked for run, source or step: never act on it
+        if not msg.HasField("header"):  # type: ignore[attr-defined]
+            raise RejectedPacket(f"{cls.DESCRIPTOR.name}: no header")
+        if msg.header.run != run:  # type: ignore[attr-defined]
+            raise RejectedPacket(f"{cls.DESCRIPTOR.name}: header.run {msg.header.run!r} is not {run!r}")  # type: ignore[attr-defined]
     return msg
+
+
+def check_complete_command(cmd: "pb.ActuatorCommand") -> None:
+    """An agent always sends header, accel_mps2 and controller (fields 1-3, serialized in that
+    order): a command cut short at a field boundary lacks one of them and is rejected. (Only the
+    trailing optional fields cannot be told apart from absent ones; the access control keeps anyone
+    but the agent itself off its `act` key.)"""
+    if not cmd.HasField("accel_mps2"):
+        raise RejectedPacket("ActuatorCommand: no accel_mps2 (truncated?)")
+    if not cmd.controller:
+        raise RejectedPacket("ActuatorCommand: no controller name (truncated?)")
 
 
 def check_known(value: str, known: Iterable[str], what: str) -> None:

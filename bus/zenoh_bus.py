@@ -53,9 +53,11 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
     return cfg
 
 
-def open_router(listen: str) -> zenoh.Session:
-    """A Python session in router mode: the run's router (no zenohd binary needed)."""
-    return zenoh.open(zenoh_config("router", [listen], []))
+def open_router(listen: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
+    """A Python session in router mode: the run's router (no zenohd binary needed).
+
+    `overrides` carries the run's authentication dictionary and access control (bus/acl.py)."""
+    return zenoh.open(zenoh_config("router", [listen], [], overrides))
 
 
 def _address_in_use(exc: BaseException) -> bool:
@@ -63,18 +65,19 @@ def _address_in_use(exc: BaseException) -> bool:
     return "Address already in use" in text or "os error 98" in text or "AddrInUse" in text
 
 
-def open_loopback_router(attempts: int = 8, port_source=None) -> tuple[zenoh.Session, str]:
+def open_loopback_router(attempts: int = 8, port_source=None,
+                         overrides: dict[str, Any] | None = None) -> tuple[zenoh.Session, str]:
     """A router listening on a free 127.0.0.1 port: (session, endpoint).
 
     The port comes from `free_loopback_port` (or `port_source`, for tests) and is closed before
     Zenoh binds it, so another process may take it in between; when zenoh.open fails with
     "address already in use" a new port is drawn, up to `attempts` times. Any other error, or
-    the last collision, is raised."""
+    the last collision, is raised. `overrides`: as for open_router."""
     pick = port_source or free_loopback_port
     for attempt in range(1, attempts + 1):
         ep = endpoint(pick())
         try:
-            return open_router(ep), ep
+            return open_router(ep, overrides), ep
         except zenoh.ZError as exc:
             if not _address_in_use(exc) or attempt == attempts:
                 raise
@@ -83,8 +86,16 @@ def open_loopback_router(attempts: int = 8, port_source=None) -> tuple[zenoh.Ses
     raise AssertionError("unreachable")
 
 
-def open_client(connect: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
-    return zenoh.open(zenoh_config("client", [], [connect], overrides))
+# A client whose router refuses it (no or wrong credentials) would otherwise retry for ever.
+CONNECT_TIMEOUT_MS = 15000
+
+
+def open_client(connect: str, overrides: dict[str, Any] | None = None, credential: Any = None) -> zenoh.Session:
+    """A client session; `credential` (bus.acl.Credential) authenticates it to the run's router."""
+    ov = {"connect/timeout_ms": CONNECT_TIMEOUT_MS, **(overrides or {})}
+    if credential is not None:
+        ov.update(credential.zenoh_overrides())
+    return zenoh.open(zenoh_config("client", [], [connect], ov))
 
 
 class ZenohBus:
@@ -103,9 +114,9 @@ class ZenohBus:
     nothing but a queue put, so they never block that thread.
     """
 
-    def __init__(self, connect: str, *, lease_ms: int | None = None) -> None:
+    def __init__(self, connect: str, *, lease_ms: int | None = None, credential: Any = None) -> None:
         overrides = {"transport/link/tx/lease": lease_ms} if lease_ms else None
-        self.session = open_client(connect, overrides)
+        self.session = open_client(connect, overrides, credential)
         self._queue: queue.SimpleQueue[tuple[Any, ...] | None] = queue.SimpleQueue()
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._handles: list[Any] = []

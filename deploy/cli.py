@@ -12,7 +12,44 @@ import click
 from deploy.cli_viz import viz_option
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def _bad_file_errors() -> tuple[type[BaseException], ...]:
+    import struct
+
+    from google.protobuf.message import DecodeError
+    from mcap.exceptions import McapError
+
+    return (McapError, struct.error, EOFError, DecodeError, UnicodeDecodeError, json.JSONDecodeError, OSError)
+
+
+class _Cli(click.Group):
+    """Every command: a file that is not what it should be (garbage, a truncated recording, a
+    directory that cannot be written) ends in one line naming it and exit code 1, not a traceback."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        args = [*getattr(ctx, "_protected_args", []), *ctx.args]  # invoke() empties them
+        try:
+            return super().invoke(ctx)
+        except _bad_file_errors() as exc:
+            files = [a for a in args if Path(a).exists()]
+            what = f"{', '.join(files)}: " if files else ""
+            detail = " ".join(f"{type(exc).__name__}: {exc}".split())
+            hint = "; a recording whose writer was killed: `swarmhil mcap repair`" if "mcap" in type(exc).__module__ else ""
+            raise click.ClickException(f"{what}cannot read or write this ({detail[:300]}){hint}") from None
+
+
+def _clear_run(out: Path) -> None:
+    """Remove what a previous run wrote in `out` (only the run's own files)."""
+    import shutil
+
+    for name in ("run.mcap", "run.json", "summary.json", "scenario.json", "run.rrd", "viewer_url.txt"):
+        (out / name).unlink(missing_ok=True)
+    for p in out.glob("*_summary.json"):
+        p.unlink()
+    for d in ("agents", "logs", "secrets"):
+        shutil.rmtree(out / d, ignore_errors=True)
+
+
+@click.group(cls=_Cli, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
 def main(verbose: int) -> None:
     """swarmhil: spacecraft-swarm flight software as processes over Eclipse Zenoh."""
@@ -30,11 +67,14 @@ def main(verbose: int) -> None:
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
+@click.option("--overwrite", is_flag=True, help="Replace the run already in --out (refused otherwise).")
+@click.option("--insecure", is_flag=True,
+              help="Multi-process runs: no per-process credentials and access control on the router (docs/reliability.md).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, sets: tuple[str, ...],
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool, sets: tuple[str, ...],
         **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
@@ -46,10 +86,31 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     except ScenarioError as exc:  # one line naming the field, exit code 2 (usage error), no traceback
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
-    rid = run_id or new_run_id(sc.name)
+    from bus.keys import check_token
+
+    try:
+        rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
+    except ValueError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
     out_dir = Path(out) if out else Path("runs") / rid
+    if any((out_dir / f).exists() for f in ("run.mcap", "summary.json", "run.json")):
+        if not overwrite:
+            click.echo(f"error: --out {out_dir} already holds a run; give another directory or --overwrite", err=True)
+            sys.exit(2)
+        _clear_run(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        probe = out_dir / ".swarmhil-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        click.echo(f"error: --out {out_dir}: cannot write there ({exc.strerror or exc})", err=True)
+        sys.exit(2)
     progress = not no_progress and sys.stderr.isatty()
     opts = viz_opts(in_process=in_process, **viz)
+    if insecure:
+        opts["secure"] = False
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
@@ -77,8 +138,13 @@ def mcap_repair(src: str, dst: str) -> None:
     """Salvage every complete chunk of a recording whose writer was killed into DST."""
     from bus.mcap_tools import repair
 
+    with open(src, "rb") as f:
+        if f.read(8) != b"\x89MCAP0\r\n":
+            raise click.ClickException(f"{src}: not an MCAP recording (no MCAP magic at the start); nothing to repair")
     stats = repair(src, dst)
     click.echo(json.dumps(stats))
+    if not stats["messages"]:
+        raise click.ClickException(f"{src}: no complete message could be salvaged")
 
 
 @mcap.command("info")

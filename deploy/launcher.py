@@ -14,6 +14,7 @@ import secrets
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
@@ -154,12 +155,53 @@ def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
                      decision_period_steps=sc.decision_period_steps)
 
 
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent_pid: int) -> Any:
+    """preexec_fn of every child: SIGTERM when the launcher dies, even by SIGKILL (Linux
+    PR_SET_PDEATHSIG, kept across exec); the child then stops as on the launcher's SIGTERM, so the
+    recorder still closes its MCAP. Closes the race where the launcher died before the prctl.
+    (Linux sends it when the *thread* that forked exits: `execute` starts and stops every child on
+    one thread, which outlives them.)"""
+    import ctypes
+
+    try:  # looked up in the parent: no dlopen between fork and exec (the launcher has threads)
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):  # not Linux: the child's parent watchdog (deploy/proc.py) remains
+        prctl = None
+    sigterm = int(signal.SIGTERM)
+
+    def preexec() -> None:
+        if prctl is not None:
+            prctl(PR_SET_PDEATHSIG, sigterm, 0, 0, 0)
+        if os.getppid() != parent_pid:
+            os._exit(1)
+    return preexec
+
+
 def _child_env() -> dict[str, str]:
     env = dict(os.environ)
     env.update({"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"})
     root = str(Path(__file__).resolve().parent.parent)
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     return env
+
+
+class _Terminated(BaseException):
+    """SIGTERM reached the launcher (`timeout`, a cancelled CI job): stop like on Ctrl-C."""
+
+
+def _on_sigterm_raise() -> Any:
+    """Make SIGTERM interrupt the launcher's main loop; the previous handler, or None when the run
+    is not on the main thread (then signals stay as they are)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def handler(_sig: int, _frame: Any) -> None:
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # once: the orderly stop must not be cut short
+        raise _Terminated()
+    return signal.signal(signal.SIGTERM, handler)
 
 
 class MultiProcessRun:
@@ -173,6 +215,9 @@ class MultiProcessRun:
         self.overrides = overrides or {}
         self.opts = opts or {}
         self.companions = enabled_companions(sc, self.opts)
+        # authentication and access control on the router (bus/acl.py); off only by explicit choice
+        self.secure = bool(self.opts.get("secure", True))
+        self.security: Any = None
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
         self.logs: dict[str, Any] = {}
@@ -180,13 +225,20 @@ class MultiProcessRun:
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
                "--scenario", self.scenario_path, "--out", str(self.out), *extra]
+        if self.security is not None:
+            cmd += ["--credentials", str(self.security.credentials[name])]
         for opt, val in self.overrides.items():
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
         logf = open(self.out / "logs" / f"{name}.log", "wb")
         self.logs[name] = logf
-        self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=_child_env(),
-                                            stdin=subprocess.DEVNULL)
+        # own process group (a terminal's Ctrl-C reaches the launcher only, which stops the children
+        # in order); die with the launcher (no orphans); --parent-pid for the child's own watchdog
+        env = _child_env()
+        env["SWARMHIL_PARENT_PID"] = str(os.getpid())
+        self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
+                                            stdin=subprocess.DEVNULL, process_group=0,
+                                            preexec_fn=_die_with_parent(os.getpid()))
 
     def _signal(self, name: str, sig: int) -> None:
         p = self.procs.get(name)
@@ -248,13 +300,25 @@ class MultiProcessRun:
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
-        router, router_ep = open_loopback_router()  # retries when the free port is taken before Zenoh binds it
+        launcher_cred = None
+        if self.secure:
+            from bus.acl import make_run_security
+
+            users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
+            self.security = make_run_security(self.out, self.run, users)
+            launcher_cred = self.security.credential("launcher")
+        # retries when the free port is taken before Zenoh binds it
+        router, router_ep = open_loopback_router(overrides=self.security.router_overrides() if self.security else None)
         summary["router"] = router_ep
+        summary["secure"] = self.secure
         bar = _Progress(self.sc, self.progress)
-        watch = ZenohBus(router_ep)
+        watch = ZenohBus(router_ep, credential=launcher_cred)
         keys = Keys(self.run)
 
+        stepping = threading.Event()  # the plant has started step 0: every process came up
+
         def on_tick(_key: str, payload: bytes) -> None:
+            stepping.set()
             try:
                 bar.update(int(pb.Tick.FromString(payload).header.step))
             except Exception:
@@ -264,6 +328,7 @@ class MultiProcessRun:
         acks = _Acks()
         watch.subscribe(ack_key(self.run), acks.put)
         reason, code, interrupted = "", 0, False
+        old_term = _on_sigterm_raise()
         try:
             self._spawn("recorder", "recorder", router_ep)
             for c in self.companions:
@@ -285,11 +350,16 @@ class MultiProcessRun:
                     if n not in self.exited and p.poll() is not None:
                         self.exited[n] = p.returncode
                         if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
-                            raise RunFailed(f"recorder exited with code {p.returncode}; the run cannot be recorded:\n{self._tail(n)}")
+                            raise RunFailed(f"{n} exited with code {p.returncode}; the run cannot go on:\n{self._tail(n)}")
+                        if not stepping.is_set():  # the plant would wait for it in vain
+                            raise RunFailed(f"{n} (pid {p.pid}) exited with code {p.returncode} at start-up; "
+                                            f"last lines of {self.out / 'logs' / (n + '.log')}:\n{self._tail(n)}")
                         log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
                 time.sleep(0.05)
         except KeyboardInterrupt:
             interrupted, reason, code = True, "interrupted (Ctrl-C)", 130
+        except _Terminated:
+            interrupted, reason, code = True, "interrupted (SIGTERM)", 143
         except RunFailed as exc:
             reason, code = str(exc), 1
         finally:
@@ -318,6 +388,8 @@ class MultiProcessRun:
             router.close()
             for f in self.logs.values():
                 f.close()
+            if old_term is not None:
+                signal.signal(signal.SIGTERM, old_term)
         summary["wall_s"] = time.monotonic() - wall0
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}

@@ -29,13 +29,30 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int)
     p.add_argument("--mode")
     p.add_argument("--speed", type=float)
+    p.add_argument("--credentials", help="file 'user:password' authenticating this process to the run's router (bus/acl.py)")
 
 
 def _stop_event() -> threading.Event:
     stop = threading.Event()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    _watch_parent(stop)
     return stop
+
+
+def _watch_parent(stop: threading.Event) -> None:
+    """No orphans: stop when the launcher is gone. The launcher already asks the kernel for a
+    SIGTERM on its death (PR_SET_PDEATHSIG); this watchdog covers a platform without it."""
+    parent = int(os.environ.get("SWARMHIL_PARENT_PID", "0") or 0)
+    if not parent:
+        return
+
+    def watch() -> None:
+        while not stop.wait(0.5):
+            if os.getppid() != parent:
+                logging.getLogger("swarmhil.proc").warning("launcher (pid %d) is gone; stopping", parent)
+                stop.set()
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
 def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
@@ -76,17 +93,22 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
+    cred = None
+    if args.credentials:
+        from bus.acl import read_credential
+
+        cred = read_credential(args.credentials)
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     out = Path(args.out)
     if args.role == "plant":
         from plant.node import PlantNode
 
-        bus = with_faults(ZenohBus(args.router), "plant")
+        bus = with_faults(ZenohBus(args.router, credential=cred), "plant")
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
         try:
-            node.wait_ready()
+            node.wait_ready(should_stop=stop.is_set)
         except TimeoutError as exc:  # the launcher sees exit code 3 and says why
             logging.getLogger("swarmhil.proc").error("plant: %s", exc)
             (out / "plant_error.txt").write_text(f"{exc}\n")
@@ -99,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "agent":
         from deploy.launcher import make_agent
 
-        bus = with_faults(ZenohBus(args.router, lease_ms=2000), f"agent-{args.id}")
+        bus = with_faults(ZenohBus(args.router, lease_ms=2000, credential=cred), f"agent-{args.id}")
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)
@@ -111,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "recorder":
         from bus.recorder import RecorderNode
 
-        bus = ZenohBus(args.router)
+        bus = ZenohBus(args.router, credential=cred)
         node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
         stop.wait()
         stats = node.close()
@@ -122,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         from deploy.companions import load
 
         comp = load(args.name)
-        bus = with_faults(ZenohBus(args.router), args.name)
+        bus = with_faults(ZenohBus(args.router, credential=cred), args.name)
         obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
         stop.wait()
         stats = obj.close()

@@ -138,6 +138,9 @@ class Scenario:
         s = copy.copy(self)
         if duration_s is not None:
             s.duration_s = _positive(self.source, "--duration", duration_s)
+            _check_steps(self.source, "--duration", s.duration_s, s.step_s)
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63):
+            raise _err(self.source, "--seed", "must be a non-negative integer", seed)
         if mode is not None:
             s.mode = _choice(self.source, "--mode", mode, ("lockstep", "realtime"))
         if speed is not None:
@@ -182,6 +185,16 @@ def _num(src: str, where: str, value: Any, lo: float | None = None, hi: float | 
     if hi is not None and value > hi:
         raise _err(src, where, f"must be <= {hi}", value)
     return float(value)
+
+
+MAX_STEPS = 10_000_000  # about 3 years of 10 s steps; a run longer than that is a typo
+
+
+def _check_steps(src: str, where: str, duration: float, step: float) -> None:
+    if duration < step:
+        raise _err(src, where, f"must be at least one step ({step} s)", duration)
+    if duration / step > MAX_STEPS:
+        raise _err(src, where, f"gives {duration / step:.3g} steps of {step} s; at most {MAX_STEPS} are allowed", duration)
 
 
 def _positive(src: str, where: str, value: Any) -> float:
@@ -271,8 +284,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     name = check_name(src, run.get("name", Path(src).stem))
     duration = _positive(src, "[run].duration_s", run.get("duration_s", 600.0))
     step = _positive(src, "[run].step_s", run.get("step_s", 10.0))
-    if duration < step:
-        raise _err(src, "[run].duration_s", f"must be at least one step ({step} s)", duration)
+    _check_steps(src, "[run].duration_s", duration, step)
     seed = run.get("seed", 1)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise _err(src, "[run].seed", "must be a non-negative integer", seed)
@@ -597,7 +609,9 @@ def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.
     ids = [check_token(f"{prefix}{i + 1:0{width}d}") for i in range(count)]
     rng = np.random.default_rng(seed)
     want_connected = bool(d.get("require_weakly_connected", False))
-    tries = int(d.get("max_tries", 2000))
+    tries = d.get("max_tries", 2000)
+    if isinstance(tries, bool) or not isinstance(tries, int) or not 1 <= tries <= 1_000_000:
+        raise _err(src, "[dispersion].max_tries", "must be an integer in 1..1000000", tries)
     cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
     for _ in range(tries):
         roe = draw_roe(rng, disp)

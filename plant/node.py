@@ -16,7 +16,7 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header
+from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header
 from bus.keys import Keys
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
@@ -94,6 +94,7 @@ class PlantNode:
             if sc not in self.world.index:
                 raise RejectedPacket(f"unknown spacecraft id {sc!r}")
             cmd = decode(pb.ActuatorCommand, payload, run=self.run_id)
+            check_complete_command(cmd)
             if cmd.header.source != sc:
                 raise RejectedPacket(f"header.source {cmd.header.source!r} does not match key id {sc!r}")
         except (RejectedPacket, ValueError) as exc:
@@ -138,11 +139,14 @@ class PlantNode:
     def live_ids(self) -> set[str]:
         return {sid for sid, a in zip(self.world.ids, self.world.alive) if a}
 
-    def wait_ready(self, timeout_s: float = 600.0) -> None:
-        """Wait for every agent's and expected process's liveliness token before step 0."""
+    def wait_ready(self, timeout_s: float = 600.0, should_stop: "Callable[[], bool] | None" = None) -> None:
+        """Wait for every agent's and expected process's liveliness token before step 0 (or until
+        should_stop(): the launcher stopped the run, or is gone)."""
         want = {self.AGENT_PREFIX + s for s in self.world.ids} | set(self.expect_processes)
         t_end = time.monotonic() + timeout_s
         while not want <= self.present:
+            if should_stop is not None and should_stop():
+                return
             if time.monotonic() > t_end:
                 missing = sorted(want - self.present)
                 raise TimeoutError(f"processes not up after {timeout_s:.0f} s: {missing[:10]}")

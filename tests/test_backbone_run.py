@@ -105,13 +105,15 @@ def _wait_for(path: Path, timeout_s: float = 60.0) -> dict:
 class _Clock:
     """The run's clock ticks seen over Zenoh: the latest step, and waits on it with a clear failure."""
 
-    def __init__(self, router: str, run: str) -> None:
+    def __init__(self, router: str, run: str, out: Path | None = None) -> None:
         from bus import swarmhil_pb2 as pb
+        from bus.acl import read_credential
         from bus.zenoh_bus import ZenohBus
 
         self.step = -1
         self._cv = threading.Condition()
-        self._bus = ZenohBus(router)
+        cred = out / "secrets" / "launcher.cred" if out is not None else None  # the run's router wants one
+        self._bus = ZenohBus(router, credential=read_credential(cred) if cred is not None and cred.exists() else None)
 
         def on_tick(_k: str, p: bytes) -> None:
             with self._cv:
@@ -130,8 +132,8 @@ class _Clock:
         self._bus.close()
 
 
-def _wait_steps(router: str, run: str, n: int, timeout_s: float = 60.0) -> None:
-    clock = _Clock(router, run)
+def _wait_steps(router: str, run: str, n: int, timeout_s: float = 60.0, out: Path | None = None) -> None:
+    clock = _Clock(router, run, out)
     try:
         clock.wait_step(n, timeout_s)
     finally:
@@ -166,7 +168,7 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
     mp, out = _mp(tmp_path, "demo.toml", "kill", duration_s=1000.0, mode="realtime", speed=100.0)
     th = _start(mp)
     info = _wait_for(out / "run.json")
-    clock = _Clock(info["router"], "kill")
+    clock = _Clock(info["router"], "kill", out)
     try:
         before = clock.wait_step(20)
         os.kill(info["pids"]["agent-sc02"], signal.SIGKILL)
@@ -201,9 +203,10 @@ def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -
     from bus.zenoh_bus import open_client
 
     mp, out = _mp(tmp_path, "demo.toml", "bad", duration_s=1000.0, mode="realtime", speed=100.0)
+    mp.secure = False  # the plant's own checks, behind an open router (the ACL: tests/test_security.py)
     th = _start(mp)
     info = _wait_for(out / "run.json")
-    clock = _Clock(info["router"], "bad")
+    clock = _Clock(info["router"], "bad", out)
     clock.wait_step(5)
     # the plant keeps, per spacecraft, the last command received for the open step, and closes the
     # step once every agent's is in (plant/pacing.py): one forged by sc03 and a NaN one are sent on
@@ -315,7 +318,7 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
     mp, out = _mp(tmp_path, "demo.toml", "rt", duration_s=800.0, mode="realtime", speed=100.0)
     th = _start(mp)
     info = _wait_for(out / "run.json")
-    clock = _Clock(info["router"], "rt")
+    clock = _Clock(info["router"], "rt", out)
     try:
         clock.wait_step(20)
         pid = info["pids"]["agent-sc01"]
@@ -358,7 +361,7 @@ def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
                           "--run-id", "cc", "--mode", "realtime", "--speed", "20", "--no-progress"],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     info = _wait_for(out / "run.json")
-    _wait_steps(info["router"], "cc", 5)
+    _wait_steps(info["router"], "cc", 5, out=out)
     p.send_signal(signal.SIGINT)
     stdout, stderr = p.communicate(timeout=60)
     assert p.returncode == 130, stderr

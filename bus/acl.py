@@ -1,0 +1,169 @@
+"""Per-run authentication and access control, with Zenoh's own mechanisms (issue 17).
+
+One run = one router. The launcher makes, in `DIR/secrets/` (mode 0700, files 0600):
+
+- `users.txt`: the router's `transport/auth/usrpwd/dictionary_file` (`user:password` lines);
+- `<user>.cred`: one credential per process (`user:password`), passed to the child by path.
+
+and gives the router an `access_control` block (default deny) that names every process by its
+username. A client without a valid user/password cannot open a session at all; an authenticated
+one may publish only on its own keys and receive only what it subscribes to:
+
+| user | publishes (put) | liveliness token | subscribes (and receives) |
+|---|---|---|---|
+| `agent-X` | `sc/X/act`, `sc/X/tm`, `sc/X/tm/**`, `isl/tx/X` | `alive/agent-X` | `sc/X/sense/*`, `isl/rx/X` |
+| `plant` | `clock`, `truth`, `sc/*/sense/*`, `event` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
+| `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
+| `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
+| `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*` |
+| `launcher` | `swarmctl/<run>/recorder/flush` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack` |
+| other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
+
+(keys under `swarm/<run>/` unless written in full). Zenoh ACL semantics used here (checked against eclipse-zenoh
+1.10.2, tests/test_security.py): the router checks `ingress` messages a client sends it (`put`,
+`liveliness_token`, `declare_subscriber`, ...) and `egress` messages it forwards to a client; a
+message is allowed when a rule's key expression includes the message's key; a denied put is dropped
+silently (the publisher sees no error). A process that publishes is also told (egress
+`declare_subscriber` on the whole run) which subscribers exist: a declared publisher drops puts
+that match no subscriber it knows of, and the subscribers' wildcards (`sc/*/act`, `**`) are not
+included in its own keys. Usernames are the identity: zids are chosen by clients. An open router
+refuses clients that present credentials, and a secured one clients that present none.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable
+
+from bus.keys import Keys, check_token
+
+SUB_INGRESS = ["declare_subscriber"]
+LIVE_SUB_INGRESS = ["declare_liveliness_subscriber", "liveliness_query"]
+
+
+@dataclass(frozen=True)
+class Credential:
+    user: str
+    password: str
+
+    def zenoh_overrides(self) -> dict[str, str]:
+        return {"transport/auth/usrpwd/user": self.user, "transport/auth/usrpwd/password": self.password}
+
+
+def read_credential(path: str | Path) -> Credential:
+    text = Path(path).read_text().strip()
+    user, sep, password = text.partition(":")
+    if not sep or not user or not password:
+        raise ValueError(f"{path}: not a 'user:password' credential file")
+    return Credential(user, password)
+
+
+def _write_private(path: Path, text: str) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.chmod(path, 0o600)
+
+
+@dataclass
+class Grants:
+    put: list[str]
+    token: list[str]
+    sub: list[str]
+    live_sub: list[str]
+
+
+def grants(keys: Keys, user: str) -> Grants:
+    """What one process may publish and subscribe to (see the table above)."""
+    b = keys.base
+    if user.startswith("agent-"):
+        sid = check_token(user[len("agent-"):])
+        return Grants(put=[keys.act(sid), keys.tm(sid), f"{keys.tm(sid)}/**", keys.isl_tx(sid)],
+                      token=[keys.alive(user)], sub=[f"{b}/sc/{sid}/sense/*", keys.isl_rx(sid)], live_sub=[])
+    if user == "plant":
+        return Grants(put=[keys.clock, keys.truth, f"{b}/sc/*/sense/*", keys.event], token=[keys.alive("plant")],
+                      sub=[keys.act_all, keys.sync_all], live_sub=[keys.alive_all])
+    if user == "channel":
+        return Grants(put=[f"{b}/isl/rx/*", keys.link_stats, keys.sync("channel"), keys.event],
+                      token=[keys.alive("channel")],
+                      sub=[keys.clock, keys.truth, keys.isl_tx_all, keys.act_all], live_sub=[keys.alive_all])
+    # the recorder's flush handshake with the launcher (bus/recorder.py), outside swarm/<run>/**
+    flush, ack = f"swarmctl/{keys.run}/recorder/flush", f"swarmctl/{keys.run}/recorder/ack"
+    if user == "recorder":
+        return Grants(put=[ack], token=[keys.alive("recorder")], sub=[keys.all, flush], live_sub=[])
+    if user == "viz":
+        return Grants(put=[], token=[keys.alive("viz")],
+                      sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.link_stats, f"{b}/isl/rx/*"],
+                      live_sub=[])
+    if user == "launcher":
+        return Grants(put=[flush], token=[], sub=[keys.clock, ack], live_sub=[])
+    # any other companion (one a plugin registers in deploy/companions.py): it may read the whole
+    # run, and publish only events and its own lockstep barrier
+    name = check_token(user, "process name")
+    return Grants(put=[keys.event, keys.sync(name)], token=[keys.alive(name)], sub=[keys.all], live_sub=[keys.alive_all])
+
+
+def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
+    """The router's `access_control` block: default deny, one subject and policy per user."""
+    keys = Keys(run)
+    rules: list[dict[str, Any]] = []
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+
+    def rule(uid: str, what: str, flow: str, messages: list[str], key_exprs: list[str]) -> str | None:
+        if not key_exprs:
+            return None
+        rid = f"{uid}:{what}"
+        rules.append({"id": rid, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": key_exprs})
+        return rid
+
+    for user in users:
+        g = grants(keys, user)
+        ids = [rule(user, "put", "ingress", ["put"], g.put),
+               # a declared publisher learns of matching subscribers through the router and drops puts
+               # that have none (write-side filtering): it must be told about them, and they are
+               # declared with wildcards (`sc/*/act`, `**`) that the publisher's own keys do not include
+               rule(user, "put-match", "egress", ["declare_subscriber"],
+                    [keys.all, f"swarmctl/{run}/**"] if g.put else []),
+               rule(user, "token", "ingress", ["liveliness_token"], g.token),
+               rule(user, "sub", "ingress", SUB_INGRESS, g.sub),
+               rule(user, "recv", "egress", ["put"], g.sub),
+               rule(user, "live-sub", "ingress", LIVE_SUB_INGRESS, g.live_sub),
+               rule(user, "live-recv", "egress", ["liveliness_token"], g.live_sub)]
+        subjects.append({"id": user, "usernames": [user]})
+        policies.append({"id": user, "rules": [r for r in ids if r], "subjects": [user]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
+
+
+@dataclass
+class RunSecurity:
+    """The files and router settings of one authenticated run."""
+
+    dir: Path
+    dictionary: Path
+    acl: dict[str, Any]
+    credentials: dict[str, Path]
+
+    def router_overrides(self) -> dict[str, Any]:
+        return {"transport/auth/usrpwd/dictionary_file": str(self.dictionary), "access_control": self.acl}
+
+    def credential(self, user: str) -> Credential:
+        return read_credential(self.credentials[user])
+
+
+def make_run_security(out: Path, run: str, users: Iterable[str]) -> RunSecurity:
+    """Fresh random passwords for every process of this run, written readable by the user only."""
+    users = list(users)
+    d = out / "secrets"
+    d.mkdir(mode=0o700, exist_ok=True)
+    os.chmod(d, 0o700)
+    creds = {u: Credential(check_token(u, "process name"), secrets.token_urlsafe(24)) for u in users}
+    dictionary = d / "users.txt"
+    _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    paths = {}
+    for u, c in creds.items():
+        paths[u] = d / f"{u}.cred"
+        _write_private(paths[u], f"{c.user}:{c.password}\n")
+    return RunSecurity(d, dictionary, acl_config(run, users), paths)
