@@ -57,7 +57,9 @@ class CaptureParams:
     @classmethod
     def from_dict(cls, params: dict[str, Any]) -> "CaptureParams":
         names = {f.name for f in fields(cls)}
-        unknown = set(params) - names - {"name"}
+        # the scenario loader passes [actuator].max_accel_mps2 to every controller; this agent limits
+        # by force (force_max_n), the plant by each [[spacecraft]] max_force_n: ignored here
+        unknown = set(params) - names - {"name", "max_accel_mps2"}
         if unknown:
             raise ValueError(f"unknown p000-capture parameters {sorted(unknown)}")
         p = replace(cls(), **{k: v for k, v in params.items() if k in names})

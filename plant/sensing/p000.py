@@ -1,0 +1,167 @@
+"""Sensing kind `p000-landmarks` (paper 000 §2.2, §3.2.2): what a capture agent measures.
+
+For every spacecraft j, one Measurements message with the obs.extra keys of
+agent/missions/p000_capture/sensing.py (names as the room reads them; units in the names where
+there are units):
+
+    p000_q_body_to_lvlh   (4,)   own attitude, scalar first, body -> CW frame. Stands for a star
+                                 tracker: the plant flies attitude in an inertial frame aligned with
+                                 the CW frame at t = 0 (plant/mission_world.py), so the sensor reports
+                                 q_z(-n t) (x) q_body_to_inertial (the CW frame turns at n about +z).
+    p000_omega_body_radps (3,)   own body rate (a gyro: the inertial rate, body axes).
+    p000_position_m       (3,)   own position in the CW frame centred on the target's initial
+    p000_velocity_mps     (3,)   position; stands for precise relative navigation (e.g. carrier-phase
+                                 differential GNSS to the frame's origin), ideal: the truth row minus
+                                 the target's initial position (0 in the scenarios).
+    p000_landmarks_body_m (K, 3) landmark returns in the body (sensor) frame: the target's surface
+                                 landmarks (Fibonacci set, fixed in the target body frame) that face
+                                 the sensor, lie within `range_m` (R_l) and inside the full cone
+                                 `fov_full_deg` about body +x; Gaussian noise `noise_m` per axis; a
+                                 binomial `outlier_fraction` of the returns replaced by points uniform
+                                 in the cone out to R_l.
+    p000_landmark_ids     (K,)   landmark index, -1 for an outlier.
+    p000_surface_rel_m    (3,)   agent -> closest point of the true surface (CW frame), present only
+                                 within `proximity_range_m` (R_h).
+
+Neighbours within `neighbour_range_m` (R_h) go in msg.neighbours (truth relative states; they
+become Observation.rel_*). The noise of agent j at step k comes from a generator seeded by
+([run].seed, NOISE_TAG, k, j): the draws do not depend on the order in which the plant asks.
+This is the synthetic sensor of tests/missions/test_p000_closed_loop.py, on the plant's truth.
+The landmark set and the closest surface point use the room's geometry
+(agent/missions/p000_capture/ellipsoid.py: pure geometry, no flight-software state).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from bus import swarmhil_pb2 as pb
+from bus.codec import add_measurement
+from plant.sensing.registry import SensingContext, register_sensing
+
+KIND = "p000-landmarks"
+PREFIX = "p000_"
+NOISE_TAG = 0x0C0
+
+
+class P000Params(BaseModel):
+    """[sensing.params] of `p000-landmarks` (defaults: docs/paper000.md, Table 1)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    target_id: str = "target"                               # a kinematic [[body]] with an ellipsoid shape
+    landmarks: int = Field(400, ge=1)                       # surface landmarks (Fibonacci set)
+    range_m: float = Field(8.5, gt=0)                       # R_l
+    fov_full_deg: float = Field(75.0, gt=0, lt=180)         # full cone about body +x
+    noise_m: float = Field(0.02, ge=0)                      # 1 sigma per axis
+    outlier_fraction: float = Field(0.1, ge=0, le=1)
+    proximity_range_m: float = Field(5.5, gt=0)             # R_h: surface proximity
+    neighbour_range_m: float = Field(5.5, gt=0)             # R_h: neighbours
+
+
+def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product, scalar first."""
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return np.array([pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw])
+
+
+def dcm(q: np.ndarray) -> np.ndarray:
+    """Body -> frame rotation matrix of a scalar-first unit quaternion."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def inertial_to_cw(q_body_to_inertial: np.ndarray, n_radps: float, t_s: float) -> np.ndarray:
+    """Body -> CW-frame attitude from the body -> (inertial frame aligned with CW at t = 0) one."""
+    h = -0.5 * n_radps * t_s
+    return quat_mul(np.array([np.cos(h), 0.0, 0.0, np.sin(h)]), q_body_to_inertial)
+
+
+def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray,
+                     p: P000Params) -> tuple[np.ndarray, np.ndarray]:
+    """Returns (CW frame, relative to the sensor) and landmark ids (-1: outlier) of one sensor."""
+    half = np.radians(p.fov_full_deg / 2)
+    dist = np.linalg.norm(rel_m, axis=1)
+    vis = ((np.einsum("ij,ij->i", normals, -rel_m) > 0) & (dist <= p.range_m)
+           & (rel_m @ bore >= np.cos(half) * dist))
+    ids = np.flatnonzero(vis)
+    ret = rel_m[vis] + rng.normal(0.0, p.noise_m, (len(ids), 3))
+    n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
+    if n_out:
+        dirs = rng.normal(size=(n_out, 3))
+        dirs -= np.outer(dirs @ bore, bore)
+        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        ang = rng.uniform(0.0, half, n_out)
+        u = np.cos(ang)[:, None] * bore + np.sin(ang)[:, None] * dirs
+        ret[:n_out] = u * rng.uniform(1.0, p.range_m, n_out)[:, None]
+        ids[:n_out] = -1
+    return ret, ids
+
+
+@register_sensing(KIND, validate=P000Params.model_validate)
+class P000LandmarkKind:
+    message = pb.Measurements
+
+    def __init__(self, scenario: Any) -> None:
+        from agent.missions.p000_capture.ellipsoid import surface_landmarks
+
+        self.p = P000Params.model_validate(scenario.sensing.get("params", {}))
+        body = next((b for b in scenario.bodies if b.id == self.p.target_id), None)
+        if body is None:
+            raise ValueError(f"[sensing.params].target_id {self.p.target_id!r} is not a [[body]]; "
+                             f"known: {[b.id for b in scenario.bodies]}")
+        if body.shape is None or body.shape.kind != "ellipsoid" or body.motion.kind != "kinematic":
+            raise ValueError(f"p000-landmarks needs [[body]] {body.id!r} with shape.kind = 'ellipsoid' and "
+                             f"motion.kind = 'kinematic'")
+        if scenario.fidelity != "cw":
+            raise ValueError("p000-landmarks measures in the CW frame: [plant].fidelity must be 'cw'")
+        if any(s.inertia_kgm2 is None for s in scenario.spacecraft):
+            raise ValueError("p000-landmarks reports attitude: every [[spacecraft]] needs inertia_kgm2")
+        self.semi_axes = np.asarray(body.shape.semi_axes_m, float)
+        self.origin = np.asarray(body.motion.position_m, float)
+        self.lm_body, self.nrm_body = surface_landmarks(self.semi_axes, self.p.landmarks)
+        self.seed = int(scenario.seed)
+
+    def _step_truth(self, ctx: SensingContext) -> dict[str, Any]:
+        from agent.missions.p000_capture.ellipsoid import Ellipsoid
+
+        bt = next(b for b in ctx.world.body_truth() if b.spec.id == self.p.target_id)
+        rot = dcm(bt.attitude_q)
+        q, w = ctx.world.attitude_wxyz()
+        return {"ell": Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
+                "nrm": self.nrm_body @ rot.T, "q": q, "w": w, "n": float(ctx.world.n_radps)}
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+        from agent.missions.p000_capture.ellipsoid import surface_frame
+
+        p = self.p
+        tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
+        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
+        pos, vel = ctx.position_m, ctx.velocity_mps
+        r = pos[j]
+        d = np.linalg.norm(pos - r, axis=1)
+        for k in np.flatnonzero((d <= p.neighbour_range_m) & ctx.alive).tolist():
+            if k == j:
+                continue
+            nb = msg.neighbours.add(id=ctx.ids[k])
+            nb.position_m.x, nb.position_m.y, nb.position_m.z = (pos[k] - r).tolist()
+            nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = (vel[k] - vel[j]).tolist()
+        q_cw = inertial_to_cw(tr["q"][j], tr["n"], ctx.t_s)
+        rot = dcm(q_cw)
+        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
+        ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
+        add_measurement(msg, PREFIX + "q_body_to_lvlh", q_cw)
+        add_measurement(msg, PREFIX + "omega_body_radps", tr["w"][j])
+        add_measurement(msg, PREFIX + "position_m", r - self.origin)
+        add_measurement(msg, PREFIX + "velocity_mps", vel[j])
+        add_measurement(msg, PREFIX + "landmarks_body_m", (ret @ rot).reshape(-1, 3))
+        add_measurement(msg, PREFIX + "landmark_ids", ids.astype(float))
+        sd, x_s, _ = surface_frame(tr["ell"], r)
+        if sd <= p.proximity_range_m:
+            add_measurement(msg, PREFIX + "surface_rel_m", x_s - r)
+        return msg
