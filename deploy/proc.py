@@ -20,6 +20,13 @@ from bus.zenoh_bus import ZenohBus
 from deploy.scenario import load_scenario, resolved_document
 
 
+# An agent's Zenoh lease: a frozen (SIGSTOPped) agent's liveliness token goes after this long.
+# 2 s was too short on a loaded 2-core machine: an agent that was merely starved of CPU for 2 s
+# lost its token and was declared dead (issue 10: a false death under load). 5 s keeps detection
+# quick; a lockstep miss is caught sooner anyway by the plant's deadline.
+AGENT_LEASE_MS = 5000
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--router", required=True, help="zenoh endpoint of the run's router, e.g. tcp/127.0.0.1:7447")
     p.add_argument("--run", required=True)
@@ -121,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "agent":
         from deploy.launcher import make_agent
 
-        bus = with_faults(ZenohBus(args.router, lease_ms=2000, credential=cred), f"agent-{args.id}")
+        bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred), f"agent-{args.id}")
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)

@@ -325,7 +325,7 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
         os.kill(pid, signal.SIGSTOP)
         frozen_from = clock.step
         # frozen for 8 plant steps, counted on the plant's clock rather than the wall (~0.8 s at 100x),
-        # but never for 1.5 s: the agents' Zenoh lease is 2 s, and a lost lease would make it dead
+        # but never for 1.5 s: well inside the agents' Zenoh lease (5 s), whose loss would make it dead
         try:
             clock.wait_step(frozen_from + 8, timeout_s=1.5, must=False)
         finally:
