@@ -189,31 +189,18 @@ def load_run(run_dir: Path) -> dict:
 
 
 def metrics(run: dict) -> dict:
-    """The figures of docs/paper000.md "On the stack" from the recorded truth, telemetry and link."""
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance
-    from plant.sensing.p000 import dcm
+    """The figures of docs/paper000.md "On the stack" from the recorded truth, telemetry and link
+    (the shared computations are the report section's, dashboards/sections/p000.py)."""
+    from dashboards.sections.p000 import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
 
     s = run["summary"]
-    axes = np.array(s["config"]["body"][0]["shape"]["semi_axes_m"])
+    axes = target_axes(s["config"])
     pos, t = run["pos"], run["t"]
-    n = len(run["ids"])
-    pair = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=3) + np.eye(n)[None] * 1e9
-    surf = np.array([[signed_distance(Ellipsoid(run["target_pos"][k], dcm(run["target_q"][k]), axes), pos[k, i])
-                      for i in range(n)] for k in range(0, len(t), 10)])
-    entry, chase_steps = {}, 0
-    for sid, m in run["modes"].items():
-        ks = sorted(m)
-        out = [k for k in ks if m[k] != "search"]
-        if out:
-            entry[sid] = round(out[0] * DT, 2)
-        chase_steps += len(out)
-    links = s["channel"]["links"]
-    by_type: dict[str, list[int]] = {}
-    for src, dst, typ, msgs, pay, *_ in links:
-        if dst == "*":
-            r = by_type.setdefault(typ, [0, 0])
-            r[0] += msgs
-            r[1] += pay
+    pair = pair_distance(pos)
+    surf = surface_distance(pos, run["target_pos"], run["target_q"], axes, np.arange(0, len(t), 10))
+    entry, chase_steps = chase_entry(run["modes"], DT)
+    by_type = {typ: [sum(c["tx_messages"] for c in rows.values()), sum(c["tx_payload_bytes"] for c in rows.values())]
+               for typ, rows in link_by_type(s["channel"]["links"], s["channel"].get("link_columns")).items()}
     state_msgs, state_bytes = by_type.get("p000-state", [0, 0])
     hz1 = chase_steps * DT  # one state packet per chase/dock agent-second
     return {
