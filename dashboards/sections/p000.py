@@ -58,7 +58,12 @@ def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureR
     with open(mcap, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         truth_topic, _run = _truth_topic(reader, run)
-        for schema, ch, _msg, m in reader.iter_decoded_messages():
+        summ = reader.get_summary()
+        topics = [truth_topic] + sorted({
+            ch.topic for ch in (summ.channels.values() if summ is not None else [])
+            if (split_topic(ch.topic)[1].startswith("sc/") and split_topic(ch.topic)[1].endswith("/tm"))
+            or split_topic(ch.topic)[1].startswith("isl/tx/")})
+        for schema, ch, _msg, m in reader.iter_decoded_messages(topics=topics):  # not the big sensing ones
             rel = split_topic(ch.topic)[1]
             if ch.topic == truth_topic:
                 k = int(m.header.step)
