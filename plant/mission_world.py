@@ -20,8 +20,9 @@ Same interface as plant/world.py's `World` (which keeps the `linear` / `j2` ROE 
 - actuators: acceleration limit per craft, `per_axis` or by `norm` ([[spacecraft]] max_accel_mps2 or
   max_force_n / mass_kg); torque limit by norm where attitude is flown.
 - attitude: craft with `inertia_kgm2` get Euler's equations (plant/dynamics/attitude.py) in an
-  inertial frame aligned with the origin's LVLH at t = 0 (paper 000 flies attitude this way over
-  minutes; the LVLH rotation n t is below 1e-2 rad there).
+  inertial frame aligned with the origin's LVLH at t = 0. The LVLH frame turns by n t from it
+  (0.61 rad in paper 000's 550 s at 500 km): a sensor reporting attitude in the rotating frame must
+  rotate it (plant/sensing/p000.py does).
 - kinematic bodies: position p0 + v t, attitude q(t) = R(axis, w t) q0 (constant spin about a fixed
   axis of the scenario frame).
 """
