@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 setup: $(STAMP)
 
 demo: setup
-	$(PY) -m deploy.cli run deploy/scenarios/demo.toml --out runs/demo
+	$(PY) -m deploy.cli run deploy/scenarios/demo.toml --out runs/demo --overwrite
 	$(PY) -m deploy.cli mcap info runs/demo/run.mcap | tail -n 5
 
 test: setup
