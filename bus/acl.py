@@ -90,7 +90,7 @@ def grants(keys: Keys, user: str) -> Grants:
                       token=[keys.alive("channel")],
                       sub=[keys.clock, keys.truth, keys.isl_tx_all, keys.act_all], live_sub=[keys.alive_all])
     # the recorder's flush handshake with the launcher (bus/recorder.py), outside swarm/<run>/**
-    flush, ack = f"swarmctl/{keys.run}/recorder/flush", f"swarmctl/{keys.run}/recorder/ack"
+    flush, ack = keys.recorder_flush, keys.recorder_ack
     if user == "recorder":
         return Grants(put=[ack], token=[keys.alive("recorder")], sub=[keys.all, flush], live_sub=[])
     if user == "viz":
@@ -126,7 +126,7 @@ def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
                # that have none (write-side filtering): it must be told about them, and they are
                # declared with wildcards (`sc/*/act`, `**`) that the publisher's own keys do not include
                rule(user, "put-match", "egress", ["declare_subscriber"],
-                    [keys.all, f"swarmctl/{run}/**"] if g.put else []),
+                    [keys.all, keys.control_all] if g.put else []),
                rule(user, "token", "ingress", ["liveliness_token"], g.token),
                rule(user, "sub", "ingress", SUB_INGRESS, g.sub),
                rule(user, "recv", "egress", ["put"], g.sub),

@@ -38,6 +38,20 @@ class Keys:
     def all(self) -> str:
         return f"{self.base}/**"
 
+    # control keys outside swarm/<run>/** (so the recorder does not record them): the launcher's
+    # flush handshake with the recorder (bus/recorder.py)
+    @property
+    def control_all(self) -> str:
+        return f"swarmctl/{self.run}/**"
+
+    @property
+    def recorder_flush(self) -> str:
+        return f"swarmctl/{self.run}/recorder/flush"
+
+    @property
+    def recorder_ack(self) -> str:
+        return f"swarmctl/{self.run}/recorder/ack"
+
     @property
     def clock(self) -> str:
         return f"{self.base}/clock"

@@ -172,11 +172,11 @@ class McapRecorder:
 
 
 def flush_key(run: str) -> str:
-    return f"swarmctl/{run}/recorder/flush"
+    return Keys(run).recorder_flush
 
 
 def ack_key(run: str) -> str:
-    return f"swarmctl/{run}/recorder/ack"
+    return Keys(run).recorder_ack
 
 
 class RecorderNode:

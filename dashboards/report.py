@@ -469,8 +469,7 @@ def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: 
     into summary["metrics"][name], figures under their own heading. Returns the HTML."""
     from dashboards.sections import SectionContext, sections_for
 
-    cfg = run_config(run_dir) or {}
-    summary.setdefault("config", cfg)
+    cfg = summary["config"]  # write_report filled it from the recording
     blocks = []
     for name, fn in sections_for(cfg):
         res = fn(SectionContext(run_dir, run_dir / "run.mcap", out, summary, cfg, truth))

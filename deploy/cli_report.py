@@ -10,7 +10,6 @@ changes the initial conditions; with explicit [[spacecraft]] it changes only the
 """
 from __future__ import annotations
 
-import copy
 import json
 import os
 import sys

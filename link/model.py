@@ -27,8 +27,8 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 
 from bus import swarmhil_pb2 as pb
+from plant.dynamics.constants import R_EARTH_M  # the one definition of the shared constants
 
-from plant.dynamics.constants import R_EARTH_M  # noqa: E402  (the one definition of the shared constants)
 TX_ROW = "*"  # LinkCounter.dst of a transmitter's own row (what it offered to its radio, queue drops)
 COUNTER_FIELDS = ("messages", "payload_bytes", "wire_bytes", "dropped_range", "dropped_occulted",
                   "dropped_lost", "dropped_queue")

@@ -18,7 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from plant.dynamics import cw, roe_linear
+from plant.dynamics import cw
 from plant.dynamics.propagator import Propagator, make_propagator
 
 MU = 3.986004418e14

@@ -13,7 +13,6 @@ run directory.
 from __future__ import annotations
 
 import json
-import math
 import subprocess
 import sys
 import tomllib

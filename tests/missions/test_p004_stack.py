@@ -237,7 +237,7 @@ def assert_stack_run(mp: dict, ip: dict, duration_s: float, loop, loop_tol_m: fl
     assert m["loop_diff_to_16s_m"] < 1e-6 and m["loop_u_diff_to_16s_mps2"] < 1e-6   # commands up to 3.5e3
     assert m["loop_max_diff_m"] < loop_tol_m
     # 4. the errors shrink as in the loop: from 2.5-5 km to the loop's level
-    t, e = m["t"], m["e_norm"]
+    e = m["e_norm"]
     assert m["e_start_min_m"] > 2000.0
     for t_check in (10.0, 20.0, duration_s):
         k = int(round(t_check / 0.1))
