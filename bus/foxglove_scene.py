@@ -39,7 +39,8 @@ ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
 SCENE_TOPIC = "foxglove/scene"
 LOG_TOPIC = "foxglove/log"
-_WARN_EVENTS = ("agent_dead", "deadline_missed", "rejected_packet", "late_command")
+_WARN_EVENTS = ("agent_dead", "deadline_missed", "rejected_packet", "late_command", "lockstep_stall", "link_stall",
+                "agent_restart", "agent_rejoin", "recorder_restart")
 SPACECRAFT_DIAMETER_M = 4.0  # display size (the truth has no spacecraft geometry)
 BODY_DIAMETER_M = 6.0        # a body without a shape
 

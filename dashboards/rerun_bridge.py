@@ -83,7 +83,8 @@ TARGET_COLOUR = (255, 215, 0)
 VISIBILITY_COLOUR = (170, 170, 170)
 LINK_COLOUR = (0, 230, 255)
 ERROR_COLOUR = (255, 80, 80)
-EVENT_LEVELS = {"agent_dead": "ERROR", "rejected_packet": "WARN", "deadline_missed": "WARN"}
+EVENT_LEVELS = {"agent_dead": "ERROR", "rejected_packet": "WARN", "deadline_missed": "WARN", "lockstep_stall": "ERROR",
+                "link_stall": "ERROR", "agent_restart": "WARN", "agent_rejoin": "WARN", "recorder_restart": "WARN"}
 
 
 def mode_colour(name: str) -> tuple[int, int, int]:

@@ -17,8 +17,9 @@ from bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
-    "spacecraft", "body", "link", "beacon", "nav", "time", "viz",
+    "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision",
 }
+RESTART_POLICIES = ("never", "on-failure")
 PROPAGATORS = ("linear", "j2", "cw", "inertial")  # plant/dynamics/propagator.py
 
 
@@ -61,8 +62,9 @@ class Scenario:
     sensing: dict[str, Any]
     ids: list[str]
     roe_m: np.ndarray  # (N, 6)
-    lockstep_timeout_s: float
-    dead_after_missed: int
+    stall_timeout_s: float = 120.0     # [supervision]: lockstep's one wall-time decision (a stall)
+    restart: str = "never"            # [supervision]: what the launcher does with a dead agent
+    max_restarts: int = 3             # [supervision]: restarts per agent
     decision_period_steps: int = 1
     sections: dict[str, Any] = field(default_factory=dict)  # raw tables for link, beacon, nav, viz
     spacecraft: list[Any] = field(default_factory=list)     # plant.bodies.SpacecraftSpec, one per id
@@ -117,7 +119,8 @@ class Scenario:
             "controller": {"name": self.controller, "params": self.controller_params,
                            "decision_period_s": self.decision_period_steps * self.step_s},
             "sensing": dict(self.sensing),
-            "time": {"lockstep_timeout_s": self.lockstep_timeout_s, "dead_after_missed": self.dead_after_missed},
+            "supervision": {"stall_timeout_s": self.stall_timeout_s, "restart": self.restart,
+                            "max_restarts": self.max_restarts},
             "link": link,
             "beacon": self.sections.get("beacon"),
             "nav": self.sections.get("nav"),
@@ -360,9 +363,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
             nav_config(doc.get("nav"))
         except ValueError as exc:
             raise ScenarioError(f"{src}: {exc}") from None
-    tm = _table(src, doc, "time", {"lockstep_timeout_s", "dead_after_missed"})
-    timeout = _positive(src, "[time].lockstep_timeout_s", tm.get("lockstep_timeout_s", 5.0))
-    dead_after = int(_positive(src, "[time].dead_after_missed", tm.get("dead_after_missed", 3)))
+    stall, restart, max_restarts = _supervision(src, doc)
 
     _beacon(src, doc)
     _viz(src, doc)
@@ -370,7 +371,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         name=name, source=src, duration_s=duration, step_s=step, seed=seed, mode=mode, speed=speed,
         orbit=orbit, fidelity=fidelity, drag=drag, camera=camera, max_accel_mps2=max_accel,
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
-        lockstep_timeout_s=timeout, dead_after_missed=dead_after, decision_period_steps=decision_steps,
+        stall_timeout_s=stall, restart=restart, max_restarts=max_restarts, decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
@@ -404,6 +405,29 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if origin != "reference" and origin not in sc.ids + [b.id for b in sc.bodies if b.motion.kind == "propagated"]:
         raise _err(src, "[plant].frame_origin", "must be 'reference', a spacecraft id or a propagated body id", origin)
     return sc
+
+
+def _supervision(src: str, doc: dict[str, Any]) -> tuple[float, str, int]:
+    """[supervision]: stall_timeout_s (lockstep waits for every live process; a step open this long
+    on the wall clock is a stall, an error event), restart ("never" | "on-failure": a dead agent is
+    restarted and rejoins cold) and max_restarts (per agent). The old `[time].lockstep_timeout_s`
+    is read as the stall timeout; `[time].dead_after_missed` is gone (a slow live agent is waited
+    for, a dead one is dropped when its liveliness token goes: docs/reliability.md)."""
+    tm = _table(src, doc, "time", {"lockstep_timeout_s", "dead_after_missed"})
+    if "dead_after_missed" in tm:
+        raise _err(src, "[time].dead_after_missed", "is no more: lockstep waits for a live agent and drops a dead "
+                                                    "one at once; see [supervision].stall_timeout_s", tm["dead_after_missed"])
+    sup = _table(src, doc, "supervision", {"stall_timeout_s", "restart", "max_restarts"})
+    if "lockstep_timeout_s" in tm and "stall_timeout_s" in sup:
+        raise _err(src, "[time].lockstep_timeout_s", "is the old name of [supervision].stall_timeout_s; give one",
+                   tm["lockstep_timeout_s"])
+    stall = _num(src, "[supervision].stall_timeout_s", sup.get("stall_timeout_s", tm.get("lockstep_timeout_s", 120.0)),
+                 0.1, 86400.0 * 7)
+    restart = _choice(src, "[supervision].restart", sup.get("restart", "never"), RESTART_POLICIES)
+    max_restarts = sup.get("max_restarts", 3)
+    if isinstance(max_restarts, bool) or not isinstance(max_restarts, int) or not 0 <= max_restarts <= 1000:
+        raise _err(src, "[supervision].max_restarts", "must be an integer in 0..1000", max_restarts)
+    return float(stall), restart, max_restarts
 
 
 def _import_plugins(src: str, plugins: Any) -> None:

@@ -20,8 +20,8 @@ need not arrive in that order, so the count, not the order, tells the channel it
 the stimuli of step k, and waits for this barrier before step k+1: the receiver's `obs.isl_rx` at
 step k+1 holds step k's deliveries, deterministically. In lockstep no window closes on wall
 time, except (a) an agent declared dead (its liveliness token goes), (b) the plant moving on to
-step k+1 without the barrier (its own lockstep deadline), or (c) the stall timeout
-(`stall_timeout_s`, long), which is reported as an `Event` of kind "link_stall".
+step k+1 without the barrier (its own stall timeout), or (c) the channel's stall timeout
+(2 x `[supervision].stall_timeout_s`), which is reported as an `Event` of kind "link_stall".
 
 Bad input (undecodable, foreign run, unknown or forged source, unknown destination, oversized
 payload, a step outside the open window) is rejected, counted and recorded as an `Event` (kind
@@ -52,7 +52,7 @@ log = logging.getLogger("swarmhil.channel")
 
 LOCKSTEP_BARRIER = True
 NAME = "channel"
-STALL_TIMEOUT_S = 60.0  # lockstep: a window still open this long after its tick is a stall (an error event)
+STALL_FACTOR = 2.0      # lockstep: a window open STALL_FACTOR x [supervision].stall_timeout_s after its tick is a stall
 EARLY_STEPS = 1         # a packet or command may be dated at most this many steps after the channel's tick
 
 
@@ -71,9 +71,9 @@ def enabled(sc: Any, opts: dict[str, Any]) -> bool:
 def start(bus: Bus, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "ChannelNode":
     cfg = parse_link_config(sc.sections["link"], sc.source, sc.seed)
     if sc.mode == "lockstep":
-        # never on wall time in lockstep but for a real stall: the plant's own deadline moves the
-        # clock on long before this fires (a forced window then comes with tick k+1)
-        watchdog_s, stall = max(STALL_TIMEOUT_S, 4.0 * sc.lockstep_timeout_s), True
+        # never on wall time in lockstep but for a real stall: the plant's own stall timeout (it
+        # sees every process) moves the clock on first (a forced window then comes with tick k+1)
+        watchdog_s, stall = STALL_FACTOR * sc.stall_timeout_s, True
     else:
         watchdog_s, stall = 0.7 * sc.step_s / sc.speed, False
     from bus.memory import MemoryBus

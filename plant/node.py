@@ -52,7 +52,7 @@ class PlantNode:
         else:
             self.world = MissionWorld(scenario)
         self.step_s = scenario.step_s
-        self.pacer: Pacer = Lockstep(scenario.lockstep_timeout_s) if scenario.mode == "lockstep" else RealTime(scenario.step_s, scenario.speed)
+        self.pacer: Pacer = Lockstep(scenario.stall_timeout_s) if scenario.mode == "lockstep" else RealTime(scenario.step_s, scenario.speed)
         self.box = CommandBox()
         self.rejections = Rejections("plant")
         self.stats = PlantStats()
@@ -62,7 +62,6 @@ class PlantNode:
         self.present: set[str] = set()      # processes whose liveliness token is up
         self.seen_alive: set[str] = set()   # agents that were up once
         self.held = np.zeros((len(scenario.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
-        self._missed_in_row = np.zeros(len(scenario.ids), dtype=int)
         self._seq: dict[str, int] = {}
         self._step = 0
         self.timing: dict[str, float] = {}
@@ -209,23 +208,33 @@ class PlantNode:
             b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w_.tolist()
 
     def collect_and_advance(self) -> None:
+        """Wait for step k's commands and barriers, then propagate. Lockstep waits for every live
+        process however slow it is: only a vanished liveliness token (dead: dropped at once, the
+        wait re-evaluates) or the stall timeout ends the wait; a stall is an error event and drops
+        the agents it waited for. Real time: what missed the wall deadline is held."""
         k = self._step
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
+        lockstep = self.pacer.name == "lockstep"
+        missing = sorted(self._expected() - got.keys())
+        if lockstep and missing:
+            self._event("lockstep_stall", "plant", f"step {k}: no command or barrier from {missing[:10]} within "
+                                                   f"the stall timeout ({self.sc.stall_timeout_s:.0f} s wall); "
+                                                   f"agents among them are dropped")
         for b in self.barriers:
-            if f"sync:{b}" not in got:
+            if f"sync:{b}" not in got and not lockstep:
                 self._event("deadline_missed", b, f"no lockstep barrier for step {k}")
         for sid in sorted(live):
             i = self.world.index[sid]
             if sid in got:
                 self.held[i] = got[sid]
-                self._missed_in_row[i] = 0
             elif self.world.alive[i]:
                 self.stats.missed_deadlines[sid] = self.stats.missed_deadlines.get(sid, 0) + 1
-                self._missed_in_row[i] += 1
-                self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
-                if self.pacer.name == "lockstep" and self._missed_in_row[i] >= self.sc.dead_after_missed:
-                    self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
+                if lockstep:
+                    self._mark_dead(sid, f"lockstep stall: no command for step {k} within {self.sc.stall_timeout_s:.0f} s "
+                                         f"while its liveliness token was up")
+                else:
+                    self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
         self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])

@@ -1,7 +1,7 @@
 """How the plant synchronises with the flight software: two implementations of one interface.
 
-`Lockstep`: step k ends when every live agent's command for step k has arrived (or the wall
-timeout passes): deterministic whatever the OS scheduling. `RealTime`: step k ends at its wall
+`Lockstep`: step k ends when every live agent's command for step k has arrived (or, on a stall,
+the long `[supervision].stall_timeout_s` passes): deterministic whatever the OS scheduling and load. `RealTime`: step k ends at its wall
 deadline t0 + (k+1) * step / speed; what has not arrived is a missed deadline, and the plant
 holds that agent's previous command (DESIGN.md "Time").
 """

@@ -84,7 +84,7 @@ def test_the_recording_carries_the_resolved_configuration_and_the_document(recor
     assert cfg["controller"]["params"]["k_ecc"] == 1.5
     assert cfg["camera"] == {"detection_range_m": 777.0, "image_px": 960, "focal_px": 1234.0}
     assert cfg["link"]["range_m"] == 600.0 and cfg["link"]["loss_probability"] == 0.0  # defaults filled in
-    assert cfg["time"] == {"lockstep_timeout_s": 5.0, "dead_after_missed": 3}
+    assert cfg["supervision"] == {"stall_timeout_s": 120.0, "restart": "never", "max_restarts": 3}
     assert [s["id"] for s in cfg["spacecraft"]] == ["sc01", "sc02", "sc03", "sc04"]
     assert all(len(s["roe_m"]) == 6 for s in cfg["spacecraft"])
     assert cfg["software_version"]
