@@ -3,6 +3,8 @@
 One run = one router. The launcher makes, in `DIR/secrets/` (mode 0700, files 0600):
 
 - `users.txt`: the router's `transport/auth/usrpwd/dictionary_file` (`user:password` lines);
+- `acl.json`: the router's `access_control` block (so a router process reads the directory:
+  `swarmhil router --listen EP --acl-dir DIR`);
 - `<user>.cred`: one credential per process (`user:password`), passed to the child by path.
 
 and gives the router an `access_control` block (default deny) that names every process by its
@@ -31,6 +33,7 @@ refuses clients that present credentials, and a secured one clients that present
 """
 from __future__ import annotations
 
+import json
 import os
 import secrets
 from dataclasses import dataclass
@@ -153,6 +156,20 @@ class RunSecurity:
         return read_credential(self.credentials[user])
 
 
+ACL_FILE = "acl.json"     # the router's access_control block, beside users.txt (`swarmhil router --acl-dir`)
+USERS_FILE = "users.txt"
+
+
+def router_overrides_from_dir(d: str | Path) -> dict[str, Any]:
+    """The router settings of a run's secrets directory (what `make_run_security` wrote there):
+    `users.txt` as the usrpwd dictionary and `acl.json` as the access_control block."""
+    d = Path(d)
+    if not (d / USERS_FILE).is_file() or not (d / ACL_FILE).is_file():
+        raise ValueError(f"{d}: not a run's secrets directory (needs {USERS_FILE} and {ACL_FILE})")
+    return {"transport/auth/usrpwd/dictionary_file": str((d / USERS_FILE).resolve()),
+            "access_control": json.loads((d / ACL_FILE).read_text())}
+
+
 def make_run_security(out: Path, run: str, users: Iterable[str]) -> RunSecurity:
     """Fresh random passwords for every process of this run, written readable by the user only."""
     users = list(users)
@@ -160,10 +177,12 @@ def make_run_security(out: Path, run: str, users: Iterable[str]) -> RunSecurity:
     d.mkdir(mode=0o700, exist_ok=True)
     os.chmod(d, 0o700)
     creds = {u: Credential(check_token(u, "process name"), secrets.token_urlsafe(24)) for u in users}
-    dictionary = d / "users.txt"
+    dictionary = d / USERS_FILE
     _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    acl = acl_config(run, users)
+    _write_private(d / ACL_FILE, json.dumps(acl, indent=1))
     paths = {}
     for u, c in creds.items():
         paths[u] = d / f"{u}.cred"
         _write_private(paths[u], f"{c.user}:{c.password}\n")
-    return RunSecurity(d, dictionary, acl_config(run, users), paths)
+    return RunSecurity(d, dictionary, acl, paths)

@@ -114,8 +114,14 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
-        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
-                              overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        from deploy.launcher import RunFailed
+
+        try:
+            res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
+                                  overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        except RunFailed as exc:  # the run could not start (its router)
+            click.echo(f"error: {' '.join(str(exc).split())[:400]}", err=True)
+            sys.exit(1)
     s = res.summary
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
@@ -124,6 +130,23 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if res.exit_code:
         click.echo(f"run failed: {res.reason}", err=True)
         sys.exit(res.exit_code)
+
+
+@main.command()
+@click.option("--listen", required=True, metavar="ENDPOINT", help="Endpoint to listen on, e.g. tcp/127.0.0.1:7447.")
+@click.option("--acl-dir", type=click.Path(file_okay=False), help="A run's secrets directory (users.txt, acl.json).")
+def router(listen: str, acl_dir: str | None) -> None:
+    """The run's Zenoh router as its own process (what `swarmhil run` starts; compose and multi-host
+    deployments too). Runs until SIGTERM or Ctrl-C."""
+    import signal
+    import threading
+
+    from deploy.proc import run_router
+
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    sys.exit(run_router(listen, acl_dir, stop))
 
 
 @main.group()

@@ -230,15 +230,51 @@ class MultiProcessRun:
         for opt, val in self.overrides.items():
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
+        self._popen(name, cmd)
+
+    def _popen(self, name: str, cmd: list[str]) -> subprocess.Popen:
         logf = open(self.out / "logs" / f"{name}.log", "wb")
+        if name in self.logs:
+            self.logs[name].close()
         self.logs[name] = logf
         # own process group (a terminal's Ctrl-C reaches the launcher only, which stops the children
-        # in order); die with the launcher (no orphans); --parent-pid for the child's own watchdog
+        # in order); die with the launcher (no orphans); SWARMHIL_PARENT_PID for the child's own watchdog
         env = _child_env()
         env["SWARMHIL_PARENT_PID"] = str(os.getpid())
         self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
                                             stdin=subprocess.DEVNULL, process_group=0,
                                             preexec_fn=_die_with_parent(os.getpid()))
+        return self.procs[name]
+
+    def _start_router(self, attempts: int = 8, timeout_s: float = 30.0) -> str:
+        """The run's router as its own process (`python -m deploy.proc router`), on a free loopback
+        port: the launcher is not the router. A port taken before the router bound it (exit code 4)
+        draws another one. Returns the endpoint once the router accepts connections."""
+        import socket
+
+        from bus.zenoh_bus import endpoint, free_loopback_port
+
+        for _attempt in range(attempts):
+            port = free_loopback_port()
+            ep = endpoint(port)
+            cmd = [sys.executable, "-m", "deploy.proc", "router", "--listen", ep]
+            if self.security is not None:
+                cmd += ["--acl-dir", str(self.security.dir)]
+            p = self._popen("router", cmd)
+            t_end = time.monotonic() + timeout_s
+            while p.poll() is None and time.monotonic() < t_end:
+                try:
+                    with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+                        return ep
+                except OSError:
+                    time.sleep(0.05)
+            if p.poll() is None:
+                self._stop(["router"])
+                raise RunFailed(f"the router did not listen on {ep} within {timeout_s:.0f} s:\n{self._tail('router')}")
+            if p.returncode != 4:
+                raise RunFailed(f"the router exited with code {p.returncode}:\n{self._tail('router')}")
+            log.warning("router port %s was taken before it bound it; trying another", ep)
+        raise RunFailed(f"no free loopback port for the router after {attempts} attempts")
 
     def _signal(self, name: str, sig: int) -> None:
         p = self.procs.get(name)
@@ -291,7 +327,7 @@ class MultiProcessRun:
 
     def execute(self) -> RunResult:
         from bus.recorder import ack_key
-        from bus.zenoh_bus import ZenohBus, open_loopback_router
+        from bus.zenoh_bus import ZenohBus
 
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
@@ -307,12 +343,18 @@ class MultiProcessRun:
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
             self.security = make_run_security(self.out, self.run, users)
             launcher_cred = self.security.credential("launcher")
-        # retries when the free port is taken before Zenoh binds it
-        router, router_ep = open_loopback_router(overrides=self.security.router_overrides() if self.security else None)
+        try:
+            router_ep = self._start_router()
+            watch = ZenohBus(router_ep, credential=launcher_cred)
+        except BaseException:
+            if "router" in self.procs:
+                self._stop(["router"])
+            for f in self.logs.values():
+                f.close()
+            raise
         summary["router"] = router_ep
         summary["secure"] = self.secure
         bar = _Progress(self.sc, self.progress)
-        watch = ZenohBus(router_ep, credential=launcher_cred)
         keys = Keys(self.run)
 
         stepping = threading.Event()  # the plant has started step 0: every process came up
@@ -349,6 +391,9 @@ class MultiProcessRun:
                 for n, p in self.procs.items():
                     if n not in self.exited and p.poll() is not None:
                         self.exited[n] = p.returncode
+                        if n == "router":
+                            raise RunFailed(f"the router (pid {p.pid}) exited with code {p.returncode}; every "
+                                            f"process stops:\n{self._tail(n)}")
                         if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
                             raise RunFailed(f"{n} exited with code {p.returncode}; the run cannot go on:\n{self._tail(n)}")
                         if not stepping.is_set():  # the plant would wait for it in vain
@@ -363,11 +408,13 @@ class MultiProcessRun:
         except RunFailed as exc:
             reason, code = str(exc), 1
         finally:
+            router_up = self.procs["router"].poll() is None
             self._stop(["plant"], timeout_s=30.0)
             # the recorder has the plant's final truth and run_end (and everything the router had
             # before them) before the agents go; a plant that failed publishes no run_end
             plant = self.procs.get("plant")
-            self._flush_recorder(watch, acks, need_run_end=plant is not None and plant.returncode == 0)
+            if router_up:
+                self._flush_recorder(watch, acks, need_run_end=plant is not None and plant.returncode == 0)
             self._stop([n for n in self.procs if n.startswith("agent-")])
             if self.opts.get("viz") == "serve" and not interrupted and not code:
                 bar.close()
@@ -380,12 +427,12 @@ class MultiProcessRun:
             self._stop([c.name for c in self.companions])
             # the agents and companions have exited, so what they published is at the router, before
             # this request: once answered, it is recorded
-            final_ack = self._flush_recorder(watch, acks, need_run_end=False)
+            final_ack = self._flush_recorder(watch, acks, need_run_end=False) if router_up else None
             summary["recorder_confirmed"] = final_ack is not None
             self._stop(["recorder"], timeout_s=30.0)
             bar.close()
             watch.close()
-            router.close()
+            self._stop(["router"])
             for f in self.logs.values():
                 f.close()
             if old_term is not None:

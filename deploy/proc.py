@@ -13,7 +13,9 @@ import os
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
+from typing import Any
 
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
@@ -62,6 +64,71 @@ def _watch_parent(stop: threading.Event) -> None:
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
+# A child whose session has had no router this long exits (the router is gone: no orphans). Longer
+# than a client's reconnection after a pause (SIGSTOP, then SIGCONT) so a resumed agent rejoins.
+ROUTER_GRACE_S = 8.0
+
+
+def _watch_router(bus: Any, stop: threading.Event, grace_s: float = ROUTER_GRACE_S) -> None:
+    """Stop when the session has been without its router for `grace_s` (the router process was
+    killed, or the launcher and the router with it): every child then ends as on SIGTERM."""
+    log = logging.getLogger("swarmhil.proc")
+    session = getattr(bus, "session", None) or getattr(getattr(bus, "inner", None), "session")
+
+    def watch() -> None:
+        lost_since = None
+        while not stop.wait(0.25):
+            try:
+                connected = bool(list(session.info.routers_zid()))
+            except Exception:  # a closed session
+                return
+            if connected:
+                if lost_since is not None:
+                    log.warning("router is back after %.1f s", time.monotonic() - lost_since)
+                lost_since = None
+            elif lost_since is None:
+                lost_since = time.monotonic()
+                log.warning("lost the router; waiting %.0f s for it", grace_s)
+            elif time.monotonic() - lost_since > grace_s:
+                log.error("no router for %.0f s: stopping", grace_s)
+                stop.set()
+                return
+    threading.Thread(target=watch, name="router-watchdog", daemon=True).start()
+
+
+def run_router(listen: str, acl_dir: str | None, stop: threading.Event) -> int:
+    """The run's Zenoh router as its own process (`swarmhil router`): with `acl_dir`, the run's
+    authentication dictionary and access control (bus/acl.py). Exit code 4 when the endpoint is
+    taken (the launcher then draws another port), 2 for a bad --acl-dir."""
+    import zenoh
+
+    from bus.zenoh_bus import _address_in_use, open_router
+
+    overrides = None
+    if acl_dir:
+        from bus.acl import router_overrides_from_dir
+
+        try:
+            overrides = router_overrides_from_dir(acl_dir)
+        except (ValueError, OSError) as exc:
+            print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+            return 2
+    try:
+        session = open_router(listen, overrides)
+    except zenoh.ZError as exc:
+        print(f"swarmhil router: cannot listen on {listen}: {exc}", file=sys.stderr, flush=True)
+        return 4 if _address_in_use(exc) else 2
+    except ValueError as exc:
+        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        return 2
+    print(f"router listening on {listen}", flush=True)
+    stop.wait()
+    t = threading.Thread(target=session.close, daemon=True)
+    t.start()
+    t.join(3.0)
+    return 0
+
+
 def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
     """Close the session, but never let a hung close (STACK-NOTES) keep the process alive."""
     t = threading.Thread(target=bus.close, daemon=True)
@@ -87,17 +154,12 @@ def main(argv: list[str] | None = None) -> int:
         if role == "companion":
             p.add_argument("--name", required=True)
             p.add_argument("--opts", default="{}")
-    r = sub.add_parser("router", help="a Zenoh router session (for compose deployments)")
-    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/router:7447")
+    r = sub.add_parser("router", help="the run's Zenoh router (launcher, compose deployments)")
+    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
+    r.add_argument("--acl-dir", help="the run's secrets directory (users.txt, acl.json: bus/acl.py)")
     args = ap.parse_args(argv)
     if args.role == "router":
-        from bus.zenoh_bus import open_router
-
-        stop = _stop_event()
-        session = open_router(args.listen)
-        stop.wait()
-        session.close()
-        return 0
+        return run_router(args.listen, args.acl_dir, _stop_event())
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
     cred = None
@@ -111,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         from plant.node import PlantNode
 
         bus = with_faults(ZenohBus(args.router, credential=cred), "plant")
+        _watch_router(bus, stop)
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
@@ -129,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         from deploy.launcher import make_agent
 
         bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred), f"agent-{args.id}")
+        _watch_router(bus, stop)
         node = make_agent(bus, args.run, sc, args.id)
         stop.wait()
         (out / "agents").mkdir(exist_ok=True)
@@ -141,6 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         from bus.recorder import RecorderNode
 
         bus = ZenohBus(args.router, credential=cred)
+        _watch_router(bus, stop)
         node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
         stop.wait()
         stats = node.close()
@@ -152,6 +217,7 @@ def main(argv: list[str] | None = None) -> int:
 
         comp = load(args.name)
         bus = with_faults(ZenohBus(args.router, credential=cred), args.name)
+        _watch_router(bus, stop)
         obj = comp.module.start(bus, args.run, sc, out, json.loads(args.opts))
         stop.wait()
         stats = obj.close()

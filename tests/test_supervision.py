@@ -132,3 +132,32 @@ def test_agent_dying_at_start_up_fails_the_run_at_once(tmp_path: Path, monkeypat
     assert not _left(res.pids, 5.0)
     s = json.loads((out / "summary.json").read_text())
     assert "agent-sc02" in s["failure"]
+
+
+def test_sigkilled_router_stops_every_process_and_leaves_a_readable_recording(tmp_path: Path) -> None:
+    """The router is its own process: SIGKILL it and every child (plant, agents, recorder) notices
+    its session has lost the router and stops (deploy/proc.py ROUTER_GRACE_S); the launcher reports
+    the failure; the recorder closed its MCAP."""
+    import os
+
+    out = tmp_path / "rk"
+    p = _launch(out, "rk")
+    try:
+        info = _wait_for(out / "run.json")
+        assert set(info["pids"]) >= {"router", "plant", "recorder"} and len(set(info["pids"].values())) == len(info["pids"])
+        _wait_steps(out, info, 5)
+        os.kill(info["pids"]["router"], signal.SIGKILL)
+        _stdout, stderr = p.communicate(timeout=90)
+        assert p.returncode == 1 and "router" in stderr and "Traceback" not in stderr, stderr
+        left = _left(info["pids"], 10.0)
+        assert not left, f"orphans: {left}"
+    finally:
+        if p.poll() is None:
+            p.kill()
+        for pid in json.loads((out / "run.json").read_text())["pids"].values() if (out / "run.json").exists() else []:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)  # this test's own run, by PID
+    s = json.loads((out / "summary.json").read_text())
+    assert "router" in s["failure"]
+    steps = [m.header.step for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "truth"]
+    assert steps[:5] == list(range(5))
