@@ -221,6 +221,9 @@ class MultiProcessRun:
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
         self.logs: dict[str, Any] = {}
+        self.all_pids: dict[str, list[int]] = {}
+        self.restarts: dict[str, int] = {}
+        self._event_seq = 0
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
@@ -233,7 +236,7 @@ class MultiProcessRun:
         self._popen(name, cmd)
 
     def _popen(self, name: str, cmd: list[str]) -> subprocess.Popen:
-        logf = open(self.out / "logs" / f"{name}.log", "wb")
+        logf = open(self.out / "logs" / f"{name}.log", "ab" if name in self.logs else "wb")  # a restart appends
         if name in self.logs:
             self.logs[name].close()
         self.logs[name] = logf
@@ -244,7 +247,42 @@ class MultiProcessRun:
         self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
                                             stdin=subprocess.DEVNULL, process_group=0,
                                             preexec_fn=_die_with_parent(os.getpid()))
+        self.all_pids.setdefault(name, []).append(self.procs[name].pid)
         return self.procs[name]
+
+    def _write_run_json(self, router_ep: str) -> None:
+        """run.json: the router and the PIDs, current (`pids`) and every one started (`all_pids`)."""
+        pids = {n: p.pid for n, p in self.procs.items()}
+        (self.out / "run.json").write_text(json.dumps({"run": self.run, "router": router_ep, "pids": pids,
+                                                       "all_pids": self.all_pids}, indent=1))
+
+    def _supervision_event(self, watch: Any, kind: str, subject: str, detail: str, step: int) -> None:
+        """An Event from the launcher (agent_restart, recorder_restart), recorded like the plant's."""
+        from bus.codec import header
+
+        self._event_seq += 1
+        ev = pb.Event(header=header(self.run, "launcher", step, step * self.sc.step_s, self._event_seq),
+                      kind=kind, subject=subject, detail=detail)
+        watch.publish(Keys(self.run).event, ev.SerializeToString())
+        log.warning("%s %s: %s", kind, subject, detail)
+
+    def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
+        """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
+        rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
+        if self.sc.restart != "on-failure" or p.returncode == 0:
+            return False
+        done = self.restarts.get(name, 0)
+        if done >= self.sc.max_restarts:
+            log.warning("%s exited with code %s; not restarted (max_restarts = %d reached)", name, p.returncode,
+                        self.sc.max_restarts)
+            return False
+        self.restarts[name] = done + 1
+        self._spawn(name, "agent", router_ep, ["--id", name[len("agent-"):]])
+        self._write_run_json(router_ep)
+        self._supervision_event(watch, "agent_restart", name[len("agent-"):],
+                                f"pid {p.pid} exited with code {p.returncode}; restart {done + 1} of "
+                                f"{self.sc.max_restarts} as pid {self.procs[name].pid}", step)
+        return True
 
     def _start_router(self, attempts: int = 8, timeout_s: float = 30.0) -> str:
         """The run's router as its own process (`python -m deploy.proc router`), on a free loopback
@@ -381,15 +419,17 @@ class MultiProcessRun:
                         ["--companions", ",".join(c.name for c in self.companions),
                          "--barriers", ",".join(c.name for c in self.companions if c.barrier)])
             summary["pids"] = {n: p.pid for n, p in self.procs.items()}
-            (self.out / "run.json").write_text(json.dumps({"run": self.run, "router": router_ep, "pids": summary["pids"]}, indent=1))
+            self._write_run_json(router_ep)
             while True:
                 rc = self.procs["plant"].poll()
                 if rc is not None:
                     if rc != 0:
                         reason, code = f"plant exited with code {rc}:\n{self._tail('plant')}", 1
                     break
-                for n, p in self.procs.items():
+                for n, p in list(self.procs.items()):
                     if n not in self.exited and p.poll() is not None:
+                        if stepping.is_set() and n.startswith("agent-") and self._restart_agent(n, p, router_ep, watch, bar.last):
+                            continue
                         self.exited[n] = p.returncode
                         if n == "router":
                             raise RunFailed(f"the router (pid {p.pid}) exited with code {p.returncode}; every "
@@ -440,6 +480,8 @@ class MultiProcessRun:
         summary["wall_s"] = time.monotonic() - wall0
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
+        summary["restarts"] = dict(self.restarts)
+        summary["all_pids"] = self.all_pids
         plant_s = _read_json(self.out / "plant_summary.json")
         rec_s = _read_json(self.out / "recorder_summary.json")
         agents_rej, faults = {}, {}

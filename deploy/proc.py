@@ -67,6 +67,8 @@ def _watch_parent(stop: threading.Event) -> None:
 # A child whose session has had no router this long exits (the router is gone: no orphans). Longer
 # than a client's reconnection after a pause (SIGSTOP, then SIGCONT) so a resumed agent rejoins.
 ROUTER_GRACE_S = 8.0
+ROUTER_LOST_EXIT = 5  # exit code of a child that stopped because it lost the router (a failure: restartable)
+_router_lost = threading.Event()
 
 
 def _watch_router(bus: Any, stop: threading.Event, grace_s: float = ROUTER_GRACE_S) -> None:
@@ -91,6 +93,7 @@ def _watch_router(bus: Any, stop: threading.Event, grace_s: float = ROUTER_GRACE
                 log.warning("lost the router; waiting %.0f s for it", grace_s)
             elif time.monotonic() - lost_since > grace_s:
                 log.error("no router for %.0f s: stopping", grace_s)
+                _router_lost.set()
                 stop.set()
                 return
     threading.Thread(target=watch, name="router-watchdog", daemon=True).start()
@@ -229,6 +232,8 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     code = main()
+    if code == 0 and _router_lost.is_set():
+        code = ROUTER_LOST_EXIT
     # Everything is written and closed by now. Skip the interpreter's teardown: with a Zenoh session
     # and the numba runtime loaded it sometimes outlived the launcher's 10 s SIGTERM grace (7 of 20
     # agents were SIGKILLed at the end of a 24 h camera run), and a Ctrl-C then took over a minute.

@@ -32,6 +32,7 @@ class PlantStats:
     missed_deadlines: dict[str, int] = field(default_factory=dict)
     late_commands: int = 0
     steps: int = 0
+    rejoins: list[dict[str, Any]] = field(default_factory=list)
 
 
 class PlantNode:
@@ -61,6 +62,7 @@ class PlantNode:
         self.progress = progress
         self.present: set[str] = set()      # processes whose liveliness token is up
         self.seen_alive: set[str] = set()   # agents that were up once
+        self._rejoin: set[str] = set()      # dead agents whose token is back: alive again at the next step
         self.held = np.zeros((len(scenario.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
         self._seq: dict[str, int] = {}
         self._step = 0
@@ -79,10 +81,14 @@ class PlantNode:
         if alive:
             self.present.add(proc)
             if proc.startswith(self.AGENT_PREFIX):
-                self.seen_alive.add(proc[len(self.AGENT_PREFIX):])
+                sc = proc[len(self.AGENT_PREFIX):]
+                self.seen_alive.add(sc)
+                if sc in self.stats.dead_agents and sc in self.world.index:
+                    self._rejoin.add(sc)  # restarted, or resumed after a pause longer than its lease
         else:
             self.present.discard(proc)
             sc = proc[len(self.AGENT_PREFIX):] if proc.startswith(self.AGENT_PREFIX) else None
+            self._rejoin.discard(sc)
             if sc in self.world.index and self.world.alive[self.world.index[sc]]:
                 self._mark_dead(sc, "liveliness token disappeared")
         self.box.wake()
@@ -134,6 +140,23 @@ class PlantNode:
         self.world.alive[i] = False
         self.stats.dead_agents[sc] = {"step": self._step, "t_s": self.world.t_s, "reason": reason}
         self._event("agent_dead", sc, reason)
+
+    def _apply_rejoins(self) -> None:
+        """Between steps (main loop): a dead agent whose liveliness token is back rejoins cold at
+        this step: the plant sends it this step's stimulus (the current state) and waits for its
+        command again; it has coasted with no command since it died."""
+        for sc in sorted(self._rejoin):
+            self._rejoin.discard(sc)
+            i = self.world.index[sc]
+            if self.world.alive[i] or self.AGENT_PREFIX + sc not in self.present:
+                continue
+            dead = self.stats.dead_agents.pop(sc, {})
+            self.world.alive[i] = True
+            self.held[i] = 0.0
+            self.stats.rejoins.append({"id": sc, "step": self._step, "t_s": self.world.t_s,
+                                       "dead_step": dead.get("step"), "dead_reason": dead.get("reason")})
+            self._event("agent_rejoin", sc, f"rejoined cold at step {self._step} (dead since step {dead.get('step')}: "
+                                            f"{dead.get('reason')})")
 
     def live_ids(self) -> set[str]:
         return {sid for sid, a in zip(self.world.ids, self.world.alive) if a}
@@ -254,6 +277,8 @@ class PlantNode:
             if should_stop():
                 self._event("run_stopped", "plant", f"stopped at step {k} of {self.sc.steps}")
                 break
+            if self._rejoin:
+                self._apply_rejoins()
             self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()
@@ -277,6 +302,7 @@ class PlantNode:
             "delta_v_mps": {s: float(v) for s, v in zip(self.world.ids, self.world.delta_v_mps)},
             "delta_v_total_mps": float(self.world.delta_v_mps.sum()),
             "dead_agents": self.stats.dead_agents,
+            "rejoins": self.stats.rejoins,
             "missed_deadlines": self.stats.missed_deadlines,
             "late_commands": self.stats.late_commands,
             "rejected_packets": {"plant": self.rejections.total, "plant_by_key": dict(self.rejections.by_key)},
