@@ -8,7 +8,10 @@ encoding `protobuf`, zstd chunks. With every truth it also writes Foxglove's own
 `foxglove.FrameTransforms` (`foxglove/tf`) and `foxglove.SceneUpdate` (`foxglove/scene`), and
 with every event a `foxglove.Log` (`foxglove/log`): bus/foxglove_scene.py. A payload that does not parse as its key's type is kept too,
 wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
-A killed recorder loses at most its open chunk (`chunk_size`); `swarmhil mcap repair` salvages it.
+A killed recorder loses at most its open chunk, which is written out at the first clock tick after
+`FLUSH_PERIOD_S` (1 s) of wall time: so about a second; `swarmhil mcap repair` salvages the rest,
+and the launcher restarts a killed recorder into a new segment `run.NNN.mcap` (metadata
+`swarmhil.segment`) that `swarmhil mcap merge` joins to the others (bus/mcap_tools.py).
 
 Flush handshake (the launcher's shutdown, issue 10): a payload on `flush_key(run)` (outside the
 recorded swarm/<run>/** namespace) is answered on `ack_key(run)` with JSON {"nonce", "messages",
@@ -40,6 +43,7 @@ from bus.keys import Keys
 log = logging.getLogger("swarmhil.recorder")
 
 CHUNK_SIZE = 256 * 1024
+FLUSH_PERIOD_S = 1.0  # the open chunk is written out at the first clock tick after this much wall time
 DEFAULT_EPOCH_UTC = "2000-01-01T12:00:00Z"  # deploy/scenario.py [run].epoch_utc
 
 
@@ -64,7 +68,8 @@ class McapRecorder:
     """Writes raw, already-serialised samples; safe to call from one thread (the bus dispatcher)."""
 
     def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE, epoch_utc: str | None = None,
-                 config: dict[str, Any] | None = None, foxglove: bool = True) -> None:
+                 config: dict[str, Any] | None = None, foxglove: bool = True,
+                 flush_period_s: float | None = FLUSH_PERIOD_S) -> None:
         self.path = Path(path)
         self.keys = Keys(run)
         self.run = run
@@ -82,6 +87,8 @@ class McapRecorder:
         self.bytes_by_topic: dict[str, int] = {}
         self._last_t_ns = 0
         self._closed = False
+        self._flush_period_s = flush_period_s
+        self._last_flush = time.monotonic()
 
     def _schema_id(self, cls: type[Message]) -> int:
         name = cls.DESCRIPTOR.full_name
@@ -137,6 +144,9 @@ class McapRecorder:
         else:
             self._last_t_ns = max(self._last_t_ns, t_ns)
         self._add(topic, cls, payload, t_ns, wall_ns)
+        if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
+            self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
+            self._last_flush = time.monotonic()
         if self._scene is not None and msg is not None:
             if cls is pb.Truth:
                 tf, scene = self._scene.from_truth(msg, self.epoch_ns + max(t_ns, 0))
@@ -163,6 +173,9 @@ class McapRecorder:
             self._w.add_attachment(create_time=time.time_ns(), log_time=0, name="scenario.json",
                                    media_type="application/json", data=json.dumps(document, indent=1).encode())
 
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self._w.add_metadata(name, data)
+
     def close(self) -> None:
         if self._closed:
             return
@@ -183,7 +196,7 @@ class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
-                 document: dict[str, Any] | None = None) -> None:
+                 document: dict[str, Any] | None = None, segment: int = 0) -> None:
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
@@ -191,6 +204,9 @@ class RecorderNode:
         self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config)
         if config is not None:
             self.rec.describe_run(config, document)
+        if segment:  # a restarted recorder: this file continues the run after a gap (bus/mcap_tools.merge)
+            self.rec.add_metadata("swarmhil.segment", {"index": str(segment), "file": Path(path).name,
+                                                       "started_wall_ns": str(time.time_ns())})
         self.run_end = False
         self._sub = bus.subscribe(self.keys.all, self._on_sample)
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)

@@ -16,7 +16,6 @@ from typing import Any
 import zenoh
 
 from bus.base import LivelinessCallback, SampleCallback
-from bus.codec import encoding_of_key
 
 log = logging.getLogger("swarmhil.zenoh")
 
@@ -138,6 +137,8 @@ class ZenohBus:
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
         if pub is None:
+            from bus.codec import encoding_of_key  # here: a router process needs no numpy/protobuf
+
             enc = encoding_of_key(key)  # typed live traffic: application/protobuf;<message type>
             pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,
                                                  encoding=zenoh.Encoding(enc) if enc else None)

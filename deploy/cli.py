@@ -138,15 +138,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
 def router(listen: str, acl_dir: str | None) -> None:
     """The run's Zenoh router as its own process (what `swarmhil run` starts; compose and multi-host
     deployments too). Runs until SIGTERM or Ctrl-C."""
-    import signal
-    import threading
+    from deploy.router import main as router_main
 
-    from deploy.proc import run_router
-
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    sys.exit(run_router(listen, acl_dir, stop))
+    sys.exit(router_main(["--listen", listen, *(["--acl-dir", acl_dir] if acl_dir else [])]))
 
 
 @main.group()
@@ -168,6 +162,29 @@ def mcap_repair(src: str, dst: str) -> None:
     click.echo(json.dumps(stats))
     if not stats["messages"]:
         raise click.ClickException(f"{src}: no complete message could be salvaged")
+
+
+@mcap.command("merge")
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+def mcap_merge(files: tuple[str, ...]) -> None:
+    """Join the segments of one run (SEG... OUT: run.mcap run.001.mcap ... merged.mcap) into OUT,
+    the segments of a recorder that was killed and restarted; a segment without footer is read as
+    `repair` reads it. The metadata `swarmhil.segments` keeps each segment's span (the gaps)."""
+    from bus.mcap_tools import merge
+
+    if len(files) < 2:
+        raise click.ClickException("give one or more segments and the output file: mcap merge SEG... OUT")
+    *segs, dst = files
+    for src in segs:
+        with open(src, "rb") as f:
+            if f.read(8) != b"\x89MCAP0\r\n":
+                raise click.ClickException(f"{src}: not an MCAP recording (no MCAP magic at the start)")
+    if Path(dst).resolve() in {Path(x).resolve() for x in segs}:
+        raise click.ClickException(f"{dst}: the output is one of the segments")
+    stats = merge(list(segs), dst)
+    click.echo(json.dumps(stats))
+    if not stats["messages"]:
+        raise click.ClickException("no complete message could be read from the segments")
 
 
 @mcap.command("info")

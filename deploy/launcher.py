@@ -156,6 +156,7 @@ def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
 
 
 PR_SET_PDEATHSIG = 1
+RECORDER_MAX_RESTARTS = 5  # a recorder killed mid-run is started again into a new segment, this many times
 
 
 def _die_with_parent(parent_pid: int) -> Any:
@@ -223,6 +224,7 @@ class MultiProcessRun:
         self.logs: dict[str, Any] = {}
         self.all_pids: dict[str, list[int]] = {}
         self.restarts: dict[str, int] = {}
+        self.recorder_segment = 0  # recorder restarts so far: it writes run.NNN.mcap (bus/mcap_tools.py)
         self._event_seq = 0
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
@@ -266,6 +268,37 @@ class MultiProcessRun:
         watch.publish(Keys(self.run).event, ev.SerializeToString())
         log.warning("%s %s: %s", kind, subject, detail)
 
+    def _restart_recorder(self, p: subprocess.Popen, router_ep: str, watch: Any, acks: "_Acks", step: int) -> bool:
+        """A recorder that died mid-run is started again into the next segment (run.001.mcap, ...);
+        once it answers the flush handshake it is recording, and the launcher's Event
+        `recorder_restart` (recorded in the new segment) says what was lost in between."""
+        from bus.mcap_tools import segment_name
+
+        if self.recorder_segment >= RECORDER_MAX_RESTARTS:
+            return False
+        self.recorder_segment += 1
+        seg = segment_name(self.recorder_segment)
+        self._spawn("recorder", "recorder", router_ep, ["--segment", str(self.recorder_segment)])
+        self._write_run_json(router_ep)
+        up = self._flush_recorder(watch, acks, need_run_end=False, timeout_s=60.0) is not None
+        self._supervision_event(watch, "recorder_restart", "recorder",
+                                f"pid {p.pid} exited with code {p.returncode} near step {step}; recording goes on in "
+                                f"{seg} (pid {self.procs['recorder'].pid}){'' if up else ', not confirmed yet'}; what "
+                                f"was published in between is missing", step)
+        return True
+
+    def _merge_segments(self) -> dict[str, Any]:
+        """After a recorder restart: run.mcap becomes run.000.mcap and the segments are merged into
+        run.mcap (bus/mcap_tools.merge), so every reader sees one recording with the gaps listed."""
+        from bus.mcap_tools import merge, segment_name
+
+        first = self.out / "run.000.mcap"
+        (self.out / "run.mcap").replace(first)
+        segs = [first] + [self.out / segment_name(i) for i in range(1, self.recorder_segment + 1)]
+        segs = [x for x in segs if x.exists()]
+        stats = merge(segs, self.out / "run.mcap")
+        return {"files": [x.name for x in segs], "merged_into": "run.mcap", **stats}
+
     def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
         """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
         rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
@@ -284,8 +317,8 @@ class MultiProcessRun:
                                 f"{self.sc.max_restarts} as pid {self.procs[name].pid}", step)
         return True
 
-    def _start_router(self, attempts: int = 8, timeout_s: float = 30.0) -> str:
-        """The run's router as its own process (`python -m deploy.proc router`), on a free loopback
+    def _start_router(self, attempts: int = 8, timeout_s: float = 120.0) -> str:
+        """The run's router as its own process (`python -m deploy.router`, deploy/router.py), on a free loopback
         port: the launcher is not the router. A port taken before the router bound it (exit code 4)
         draws another one. Returns the endpoint once the router accepts connections."""
         import socket
@@ -295,7 +328,7 @@ class MultiProcessRun:
         for _attempt in range(attempts):
             port = free_loopback_port()
             ep = endpoint(port)
-            cmd = [sys.executable, "-m", "deploy.proc", "router", "--listen", ep]
+            cmd = [sys.executable, "-m", "deploy.router", "--listen", ep]
             if self.security is not None:
                 cmd += ["--acl-dir", str(self.security.dir)]
             p = self._popen("router", cmd)
@@ -430,6 +463,8 @@ class MultiProcessRun:
                     if n not in self.exited and p.poll() is not None:
                         if stepping.is_set() and n.startswith("agent-") and self._restart_agent(n, p, router_ep, watch, bar.last):
                             continue
+                        if n == "recorder" and stepping.is_set() and self._restart_recorder(p, router_ep, watch, acks, bar.last):
+                            continue
                         self.exited[n] = p.returncode
                         if n == "router":
                             raise RunFailed(f"the router (pid {p.pid}) exited with code {p.returncode}; every "
@@ -481,6 +516,12 @@ class MultiProcessRun:
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         summary["restarts"] = dict(self.restarts)
+        if self.recorder_segment:
+            try:
+                summary["recording_segments"] = self._merge_segments()
+            except Exception as exc:  # noqa: BLE001 - the segments stay; `swarmhil mcap merge` can be run by hand
+                log.error("merging the recording's segments failed: %s", exc)
+                summary["recording_segments"] = {"error": f"{type(exc).__name__}: {exc}"}
         summary["all_pids"] = self.all_pids
         plant_s = _read_json(self.out / "plant_summary.json")
         rec_s = _read_json(self.out / "recorder_summary.json")

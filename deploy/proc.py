@@ -99,39 +99,6 @@ def _watch_router(bus: Any, stop: threading.Event, grace_s: float = ROUTER_GRACE
     threading.Thread(target=watch, name="router-watchdog", daemon=True).start()
 
 
-def run_router(listen: str, acl_dir: str | None, stop: threading.Event) -> int:
-    """The run's Zenoh router as its own process (`swarmhil router`): with `acl_dir`, the run's
-    authentication dictionary and access control (bus/acl.py). Exit code 4 when the endpoint is
-    taken (the launcher then draws another port), 2 for a bad --acl-dir."""
-    import zenoh
-
-    from bus.zenoh_bus import _address_in_use, open_router
-
-    overrides = None
-    if acl_dir:
-        from bus.acl import router_overrides_from_dir
-
-        try:
-            overrides = router_overrides_from_dir(acl_dir)
-        except (ValueError, OSError) as exc:
-            print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
-            return 2
-    try:
-        session = open_router(listen, overrides)
-    except zenoh.ZError as exc:
-        print(f"swarmhil router: cannot listen on {listen}: {exc}", file=sys.stderr, flush=True)
-        return 4 if _address_in_use(exc) else 2
-    except ValueError as exc:
-        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
-        return 2
-    print(f"router listening on {listen}", flush=True)
-    stop.wait()
-    t = threading.Thread(target=session.close, daemon=True)
-    t.start()
-    t.join(3.0)
-    return 0
-
-
 def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
     """Close the session, but never let a hung close (STACK-NOTES) keep the process alive."""
     t = threading.Thread(target=bus.close, daemon=True)
@@ -154,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
         if role == "plant":
             p.add_argument("--companions", default="")
             p.add_argument("--barriers", default="")
+        if role == "recorder":
+            p.add_argument("--segment", type=int, default=0, help="0: run.mcap; N: run.NNN.mcap (a restart)")
         if role == "companion":
             p.add_argument("--name", required=True)
             p.add_argument("--opts", default="{}")
@@ -162,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--acl-dir", help="the run's secrets directory (users.txt, acl.json: bus/acl.py)")
     args = ap.parse_args(argv)
     if args.role == "router":
+        from deploy.router import run_router
+
         return run_router(args.listen, args.acl_dir, _stop_event())
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
@@ -209,7 +180,10 @@ def main(argv: list[str] | None = None) -> int:
 
         bus = ZenohBus(args.router, credential=cred)
         _watch_router(bus, stop)
-        node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
+        from bus.mcap_tools import segment_name
+
+        node = RecorderNode(bus, args.run, out / segment_name(args.segment), config=sc.resolved(),
+                            document=resolved_document(sc), segment=args.segment)
         stop.wait()
         stats = node.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
