@@ -16,6 +16,7 @@ from pathlib import Path
 from conftest import ROOT, SCENARIOS, read_mcap
 from deploy.launcher import MultiProcessRun
 from deploy.scenario import load_scenario
+from test_restart import _no_process_left
 
 
 def test_a_killed_recorder_is_restarted_into_a_segment_and_merged(tmp_path: Path) -> None:
@@ -53,7 +54,9 @@ def test_a_killed_recorder_is_restarted_into_a_segment_and_merged(tmp_path: Path
     missing = sorted(set(range(31)) - set(steps))
     assert len(steps) == len(set(steps)) and steps[0] == 0 and steps[-1] == 30
     assert missing and missing == list(range(missing[0], missing[-1] + 1)), missing  # one gap
-    assert 6 <= missing[0] and len(missing) <= 12, missing  # at most ~1 s (one flush period) lost before the kill
+    # killed at step >= 8: at most about a second (one flush period, 1 step at x10) lost before the
+    # kill; the restart's start-up (a few seconds, more on a loaded machine) is the rest of the gap
+    assert 6 <= missing[0] and missing[-1] <= 27, missing
     ev = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "recorder_restart"]
     assert len(ev) == 1 and "run.001.mcap" in ev[0].detail and ev[0].header.source == "launcher"
     assert any(m.kind == "run_end" for t, _l, _p, m in msgs if t == "event")
@@ -68,7 +71,5 @@ def test_a_killed_recorder_is_restarted_into_a_segment_and_merged(tmp_path: Path
     assert json.loads(cli.stdout)["messages"] == len(msgs)
     assert len(read_mcap(tmp_path / "m.mcap")) == len(msgs)
     # no process of the run is left (the killed recorder was reaped, the restarted one stopped)
-    pids = [p for ps in json.loads((out / "run.json").read_text())["all_pids"].values() for p in ps]
     assert len(json.loads((out / "run.json").read_text())["all_pids"]["recorder"]) == 2
-    assert not [p for p in pids if Path(f"/proc/{p}").exists()
-                and Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"]
+    _no_process_left(out)

@@ -16,6 +16,7 @@ import pytest
 from conftest import SCENARIOS, read_mcap
 from deploy.launcher import MultiProcessRun
 from deploy.scenario import load_scenario
+from test_supervision import _alive
 
 CRASH_PLUGIN = '''
 import os, sys
@@ -50,13 +51,6 @@ def _run(scen: Path, out: Path, run: str):  # type: ignore[no-untyped-def]
     """Real time at x10 (1 s a step): a restarted agent (a few seconds to start) rejoins mid-run."""
     sc = load_scenario(scen).with_overrides(mode="realtime", speed=10.0)
     return MultiProcessRun(str(scen), sc, out, run, progress=False, overrides={"mode": "realtime", "speed": 10.0})
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
 
 
 def _no_process_left(out: Path) -> None:
