@@ -16,20 +16,28 @@ import sys
 import threading
 
 
+def _overrides(acl_dir: str | None) -> dict | None:
+    """The run's authentication and access control from its secrets directory (ValueError if not one)."""
+    if not acl_dir:
+        return None
+    from bus.acl import router_overrides_from_dir
+
+    try:
+        return router_overrides_from_dir(acl_dir)
+    except OSError as exc:
+        raise ValueError(f"{acl_dir}: {exc}") from None
+
+
 def run_router(listen: str, acl_dir: str | None, stop: threading.Event) -> int:
     import zenoh
 
     from bus.zenoh_bus import _address_in_use, open_router
 
-    overrides = None
-    if acl_dir:
-        from bus.acl import router_overrides_from_dir
-
-        try:
-            overrides = router_overrides_from_dir(acl_dir)
-        except (ValueError, OSError) as exc:
-            print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
-            return 2
+    try:
+        overrides = _overrides(acl_dir)
+    except ValueError as exc:
+        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        return 2
     try:
         session = open_router(listen, overrides)
     except zenoh.ZError as exc:
@@ -63,6 +71,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
     ap.add_argument("--acl-dir", help="a run's secrets directory (users.txt, acl.json: bus/acl.py)")
     args = ap.parse_args(argv)
+    try:
+        _overrides(args.acl_dir)  # a bad directory fails before any signal handler is installed
+    except ValueError as exc:
+        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        return 2
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())

@@ -56,6 +56,11 @@ CASES = [
     ("report-bandwidth garbage", lambda f: ["report-bandwidth", str(f["garbage_dir"])], "garbage_run"),
     ("report-bandwidth truncated", lambda f: ["report-bandwidth", str(f["truncated_dir"])], "truncated_run"),
     ("mcap repair garbage", lambda f: ["mcap", "repair", str(f["garbage"]), str(f["d"] / "fixed.mcap")], "not an MCAP"),
+    ("bad restart policy", lambda f: ["run", DEMO, "--in-process", "--set", 'supervision.restart="always"', "--out", str(f["d"] / "x7")], "[supervision].restart"),
+    ("dead_after_missed is gone", lambda f: ["run", DEMO, "--in-process", "--set", "time.dead_after_missed=3", "--out", str(f["d"] / "x8")], "dead_after_missed"),
+    ("mcap merge garbage", lambda f: ["mcap", "merge", str(f["garbage"]), str(f["d"] / "merged.mcap")], "not an MCAP"),
+    ("mcap merge without output", lambda f: ["mcap", "merge", str(f["truncated"])], "output file"),
+    ("router without secrets", lambda f: ["router", "--listen", "tcp/127.0.0.1:9", "--acl-dir", str(f["d"])], "secrets directory"),
 ]
 
 
