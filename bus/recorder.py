@@ -26,15 +26,12 @@ from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
 from mcap.writer import CompressionType, Writer
-from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
-from foxglove_schemas_protobuf.Log_pb2 import Log
-from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import message_type_of_topic
-from bus.foxglove_scene import LOG_TOPIC, SCENE_TOPIC, TF_TOPIC, FoxgloveScene, event_log
+from bus.foxglove_scene import FoxgloveScene
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -137,15 +134,9 @@ class McapRecorder:
         else:
             self._last_t_ns = max(self._last_t_ns, t_ns)
         self._add(topic, cls, payload, t_ns, wall_ns)
-        if self._scene is not None and msg is not None:
-            if cls is pb.Truth:
-                tf, scene = self._scene.from_truth(msg, self.epoch_ns + max(t_ns, 0))
-                self._add(TF_TOPIC, FrameTransforms, tf, t_ns, wall_ns)
-                self._add(SCENE_TOPIC, SceneUpdate, scene, t_ns, wall_ns)
-            elif cls is pb.Event:
-                self._add(LOG_TOPIC, Log, event_log(msg, self.epoch_ns + max(t_ns, 0)), t_ns, wall_ns)
-            elif cls is pb.IslPacket and topic.startswith("isl/rx/"):
-                self._scene.saw_delivery(msg.src, topic[len("isl/rx/"):])
+        if self._scene is not None:
+            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(t_ns, 0)):
+                self._add(d_topic, d_cls, d_payload, t_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

@@ -216,8 +216,8 @@ class VizNode:
             self.url = opts.get("viz_url") or DEFAULT_CONNECT_URL
         self.camera = CameraRule.from_scenario(getattr(sc, "camera", None))
         self.trail_steps = trail_steps_for(sc.step_s, sc.orbit.mean_motion_radps, getattr(sc, "sections", {}).get("viz"))
-        self.logger = SwarmLogger(self.rec, run, camera=self.camera, trail_steps=self.trail_steps, step_s=sc.step_s)
-        self.logger.send_blueprint()
+        self.logger = SwarmLogger(self.rec, run, camera=self.camera, trail_steps=self.trail_steps, step_s=sc.step_s,
+                                  config=sc.resolved())
         self._lock = threading.Lock()
         self._flush_s = 0.0
         self._stop = threading.Event()
@@ -226,6 +226,8 @@ class VizNode:
         # step k reaches Zenoh before that truth, so draining truth before the rest never splits a step
         key_exprs = (keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.link_stats,
                      f"{keys.base}/isl/rx/*")
+        if self.logger.spec.landmark_kind:   # paper 000: the landmark returns in the sensing stimuli
+            key_exprs += (f"{keys.base}/sc/*/sense/{self.logger.spec.landmark_kind}",)
         self._rings: list[Any] = []
         self._subs: list[Any] = []
         session = getattr(bus, "session", None)
