@@ -57,6 +57,25 @@ def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     return message_type_of_topic(key)
 
 
+def parse_sample(cls: type[Message] | None, payload: bytes) -> tuple[Message | None, int | None, str]:
+    """(message, its simulation time in ns or None, why it does not parse: "" when it does).
+
+    The time is header.t where the message has a header with a finite, sane t (NaN/inf packets
+    keep the last time). Shared by the recorder and the live Foxglove server."""
+    if cls is None:
+        return None, None, "key outside the swarmhil contract"
+    try:
+        msg = cls.FromString(payload)
+    except (DecodeError, RuntimeWarning, ValueError) as exc:
+        return None, None, f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
+    hdr = getattr(msg, "header", None)
+    if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
+        t = hdr.t
+        if t == t and abs(t) < 1e12:
+            return msg, int(round(t * 1e9)), ""
+    return msg, None, ""
+
+
 class McapRecorder:
     """Writes raw, already-serialised samples; safe to call from one thread (the bus dispatcher)."""
 
@@ -113,19 +132,8 @@ class McapRecorder:
         if known is None:  # a run has few distinct keys: parse each once
             known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
         cls, topic = known
-        reason = "" if cls is not None else "key outside the swarmhil contract"
-        t_ns = self._last_t_ns
-        msg = None
-        if cls is not None:
-            try:
-                msg = cls.FromString(payload)
-                hdr = getattr(msg, "header", None)
-                if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
-                    t = hdr.t
-                    if t == t and abs(t) < 1e12:  # finite and sane; NaN/inf packets keep the last time
-                        t_ns = int(round(t * 1e9))
-            except (DecodeError, RuntimeWarning, ValueError) as exc:
-                reason = f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
+        msg, t, reason = parse_sample(cls, payload)
+        t_ns = self._last_t_ns if t is None else t
         if reason:
             self.undecodable += 1
             wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
