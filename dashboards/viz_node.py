@@ -1,7 +1,7 @@
-"""The viewer bridge companion "viz" (deploy/companions.py): the run's samples -> Rerun.
+"""The viewer bridge companion "viz" (deploy/companions.py): the run's samples -> Rerun (or Foxglove).
 
-Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries
-(over Zenoh: ring-channel subscribers drained every DRAIN_PERIOD_S, so no Python runs on Zenoh's
+Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries,
+and for paper 000 the sensing stimuli that carry landmark returns (over Zenoh: ring-channel subscribers drained every DRAIN_PERIOD_S, so no Python runs on Zenoh's
 threads); the samples are only queued (dashboards/rerun_bridge.py), and a timer flushes them in
 column batches every FLUSH_PERIOD_S (0.5 s live, 2 s when only saving), so the bridge costs little
 and the plant never waits for it (LOCKSTEP_BARRIER = False: not a lockstep participant). When only
