@@ -44,7 +44,7 @@ def advertised_class(ch: dict[str, Any]) -> Any:
     return message_factory.GetMessageClass(pool.FindMessageTypeByName(ch["schemaName"]))
 
 
-async def watch(url: str, deadline: float, proc: subprocess.Popen, need: int = 5) -> dict[str, list[tuple[int, Any]]]:
+async def watch(url: str, deadline: float, proc: subprocess.Popen, need: int = 5) -> dict[str, list[tuple[int, bytes, Any]]]:
     """Connect (retrying until the server listens), subscribe to WANT, collect `need` messages of each."""
     import websockets
 
@@ -56,7 +56,7 @@ async def watch(url: str, deadline: float, proc: subprocess.Popen, need: int = 5
             break
         except OSError:
             await asyncio.sleep(0.2)
-    got: dict[str, list[tuple[int, Any]]] = {t: [] for t in WANT}
+    got: dict[str, list[tuple[int, bytes, Any]]] = {t: [] for t in WANT}
     subs: dict[int, tuple[str, Any]] = {}
     async with ws:
         assert ws.subprotocol in SUBPROTOCOLS
