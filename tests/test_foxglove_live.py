@@ -83,7 +83,7 @@ async def watch(url: str, deadline: float, proc: subprocess.Popen, need: int = 5
     return got
 
 
-@pytest.mark.timeout(300)
+@pytest.mark.timeout(600)
 def test_live_run_serves_scene_transforms_and_truth(tmp_path: Path) -> None:
     from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -97,8 +97,8 @@ def test_live_run_serves_scene_transforms_and_truth(tmp_path: Path) -> None:
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                             preexec_fn=sigint_default)
     try:
-        got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 150, proc))
-        out, _ = proc.communicate(timeout=180)
+        got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 240, proc))
+        out, _ = proc.communicate(timeout=240)
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGINT)   # by PID: the run started here
