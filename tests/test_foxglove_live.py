@@ -92,18 +92,20 @@ def test_live_run_serves_scene_transforms_and_truth(tmp_path: Path) -> None:
 
     port = free_loopback_port()
     cmd = [sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"), "--viz", "foxglove",
-           "--viz-port", str(port), "--mode", "realtime", "--speed", "40", "--duration", "600", "--out", str(tmp_path / "run"),
+           "--viz-port", str(port), "--mode", "realtime", "--speed", "40", "--duration", "400", "--out", str(tmp_path / "run"),
            "--no-progress"]
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                            preexec_fn=sigint_default)
-    try:
-        got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 240, proc))
-        out, _ = proc.communicate(timeout=240)
-    finally:
-        if proc.poll() is None:
-            os.kill(proc.pid, signal.SIGINT)   # by PID: the run started here
-            proc.wait(60)
-    assert proc.returncode == 0, out.decode(errors="replace")
+    log_path = tmp_path / "cli.log"   # a file, not a pipe nobody reads while the client watches
+    with open(log_path, "wb") as log:
+        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                preexec_fn=sigint_default)
+        try:
+            got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 240, proc))
+            proc.wait(240)
+        finally:
+            if proc.poll() is None:
+                os.kill(proc.pid, signal.SIGINT)   # by PID: the run started here
+                proc.wait(60)
+    assert proc.returncode == 0, log_path.read_text(errors="replace")
     truth_t = {lt: msg for lt, _raw, msg in got["truth"]}
     ids = None
     for lt, raw, generic in got["foxglove/tf"]:
