@@ -9,8 +9,9 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
   its attitude where the mission flies attitude, identity otherwise (`lvlh_attitude_wxyz`: a
   spacecraft's truth attitude is body -> the inertial frame aligned with LVLH at t = 0, turned here
   into body -> LVLH; a kinematic body's is already in the scenario frame).
-- Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft (blue,
-  grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
+- Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft coloured
+  by its agent's mode (`MODE_COLOURS`, the viewer's; the mode of the newest telemetry before this
+  truth, so one step behind; blue before any, grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
   an ellipsoid, or a list of spheres in the body frame; a small orange sphere without a shape),
   and its id as a text label; plus one entity `links` in `lvlh` with a line per ISL delivery
   seen since the previous truth (sender -> receiver).
@@ -23,6 +24,7 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
 from __future__ import annotations
 
 import math
+import zlib
 from typing import Any
 
 import numpy as np
@@ -58,6 +60,37 @@ _ORANGE = Color(r=1.0, g=0.6, b=0.2, a=0.8)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
 _GREEN = Color(r=0.3, g=1.0, b=0.4, a=0.8)
 _IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
+
+# Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
+MODE_COLOURS: dict[str, tuple[int, int, int]] = {
+    "collision_avoidance": (230, 57, 70),
+    "attraction": (244, 162, 37),
+    "alignment": (72, 191, 99),
+    "alignment_drift": (155, 214, 96),
+    "coast": (84, 140, 235),
+    "search": (176, 120, 230),
+    "chase": (244, 162, 37),
+    "dock": (72, 191, 99),
+    "drift-null": (40, 190, 205),
+    "idle": (150, 150, 150),
+    "none": (150, 150, 150),
+    "fault": (255, 0, 200),
+}
+
+
+def mode_colour(name: str) -> tuple[int, int, int]:
+    """Colour of a mode or behaviour label; `x_disabled` is a dimmed `x`."""
+    if name in MODE_COLOURS:
+        return MODE_COLOURS[name]
+    if name.endswith("_disabled") and name[: -len("_disabled")] in MODE_COLOURS:
+        return tuple(int(c * 0.45) for c in MODE_COLOURS[name[: -len("_disabled")]])  # type: ignore[return-value]
+    h = zlib.crc32(name.encode())
+    return (64 + h % 160, 64 + (h >> 8) % 160, 64 + (h >> 16) % 160)
+
+
+def _mode_color(mode: str) -> Color:
+    r, g, b = mode_colour(mode)
+    return Color(r=r / 255.0, g=g / 255.0, b=b / 255.0, a=1.0)
 
 
 def _timestamp(t_ns: int) -> Timestamp:
@@ -115,18 +148,20 @@ class FoxgloveScene:
             if isinstance(b, dict) and "id" in b:
                 self.shapes[str(b["id"])] = b.get("shape")
         self._links: set[tuple[str, str]] = set()
-        self._templates: dict[tuple[str, str, bool], SceneEntity] = {}
+        self._modes: dict[str, str] = {}
+        self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
-        """The entity of a body without its timestamp (built once per body and state)."""
-        key = (body_id, kind, alive)
+        """The entity of a body without its timestamp (built once per body, state and mode)."""
+        mode = self._modes.get(body_id, "")
+        key = (body_id, kind, alive, mode)
         ent = self._templates.get(key)
         if ent is None:
             ent = SceneEntity(frame_id=body_id, id=body_id, frame_locked=True)
             if kind in ("", "spacecraft"):
                 d = SPACECRAFT_DIAMETER_M
                 ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
-                                                   color=_BLUE if alive else _GREY))
+                                                   color=_GREY if not alive else _mode_color(mode) if mode else _BLUE))
             else:
                 ent.spheres.extend(_shape_primitives(self.shapes.get(body_id)))
             ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
@@ -143,7 +178,8 @@ class FoxgloveScene:
 
     def derive(self, cls: type, msg: Any, topic: str, t_ns: int) -> list[tuple[str, type, bytes]]:
         """Foxglove messages made from one decoded sample of `topic` (log time t_ns since 1970):
-        (topic, class, payload) to write or send; an ISL delivery is kept for the next truth."""
+        (topic, class, payload) to write or send; an ISL delivery and an agent's mode (telemetry) are
+        kept for the next truth."""
         if msg is None:
             return []
         if cls is pb.Truth:
@@ -153,6 +189,8 @@ class FoxgloveScene:
             return [(LOG_TOPIC, Log, event_log(msg, t_ns))]
         if cls is pb.IslPacket and topic.startswith("isl/rx/"):
             self.saw_delivery(msg.src, topic[len("isl/rx/"):])
+        elif cls is pb.Telemetry and msg.mode and topic.startswith("sc/") and topic.endswith("/tm"):
+            self._modes[topic[3:-3]] = msg.mode   # sc/<id>/tm: the sphere's colour from the next truth on
         return []
 
     def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:

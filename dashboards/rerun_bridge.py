@@ -53,7 +53,6 @@ The blueprint is sent once, when the logger is made: its camera views come from 
 from __future__ import annotations
 
 import math
-import zlib
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Iterable
@@ -65,7 +64,7 @@ from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import Rejections
-from bus.foxglove_scene import lvlh_attitude_wxyz
+from bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # noqa: F401 (MODE_COLOURS: re-exported)
 from bus.keys import Keys
 from dashboards.rerun_bodies import (R_LVLH_FROM_CAM, SceneSpec, cone_strips, display_lengths, shape_ellipsoids,
                                      wxyz_to_xyzw)
@@ -80,21 +79,6 @@ ESTIMATE_RADIUS_UI = -3.0
 TARGET_RADIUS_UI = -9.0
 LINE_RADIUS_UI = -0.75
 
-# Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
-MODE_COLOURS: dict[str, tuple[int, int, int]] = {
-    "collision_avoidance": (230, 57, 70),
-    "attraction": (244, 162, 37),
-    "alignment": (72, 191, 99),
-    "alignment_drift": (155, 214, 96),
-    "coast": (84, 140, 235),
-    "search": (176, 120, 230),
-    "chase": (244, 162, 37),
-    "dock": (72, 191, 99),
-    "drift-null": (40, 190, 205),
-    "idle": (150, 150, 150),
-    "none": (150, 150, 150),
-    "fault": (255, 0, 200),
-}
 DEAD_COLOUR = (64, 64, 64)
 TARGET_COLOUR = (255, 215, 0)
 VISIBILITY_COLOUR = (170, 170, 170)
@@ -107,16 +91,6 @@ LANDMARK_COLOUR = (80, 255, 120)
 OUTLIER_COLOUR = (255, 60, 60)
 SHAPE_COLOUR = (255, 215, 0, 90)
 EVENT_LEVELS = {"agent_dead": "ERROR", "rejected_packet": "WARN", "deadline_missed": "WARN"}
-
-
-def mode_colour(name: str) -> tuple[int, int, int]:
-    """Colour of a mode or behaviour label; `x_disabled` is a dimmed `x`."""
-    if name in MODE_COLOURS:
-        return MODE_COLOURS[name]
-    if name.endswith("_disabled") and name[: -len("_disabled")] in MODE_COLOURS:
-        return tuple(int(c * 0.45) for c in MODE_COLOURS[name[: -len("_disabled")]])  # type: ignore[return-value]
-    h = zlib.crc32(name.encode())
-    return (64 + h % 160, 64 + (h >> 8) % 160, 64 + (h >> 16) % 160)
 
 
 def id_colours(n: int) -> np.ndarray:
