@@ -440,6 +440,9 @@ class MultiProcessRun:
         watch.subscribe(keys.clock, on_tick)
         acks = _Acks()
         watch.subscribe(ack_key(self.run), acks.put)
+        stalled: list[str] = []  # agents the plant dropped on a lockstep stall: killed, so restarted
+        if self.sc.restart == "on-failure":
+            watch.subscribe(keys.event, lambda _k, p: stalled.extend(_stalled_agent(p)))
         reason, code, interrupted = "", 0, False
         old_term = _on_sigterm_raise()
         try:
@@ -475,6 +478,11 @@ class MultiProcessRun:
                             raise RunFailed(f"{n} (pid {p.pid}) exited with code {p.returncode} at start-up; "
                                             f"last lines of {self.out / 'logs' / (n + '.log')}:\n{self._tail(n)}")
                         log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
+                while stalled:  # alive but silent past the stall timeout: end it, the restart policy follows
+                    name = f"agent-{stalled.pop()}"
+                    if name in self.procs and self.procs[name].poll() is None:
+                        log.warning("%s stalled the lockstep; SIGKILL (pid %d) to restart it", name, self.procs[name].pid)
+                        self._signal(name, signal.SIGKILL)
                 time.sleep(0.05)
         except KeyboardInterrupt:
             interrupted, reason, code = True, "interrupted (Ctrl-C)", 130
@@ -563,6 +571,17 @@ class _Acks:
         with self._cv:
             self._cv.wait_for(lambda: nonce in self._by_nonce, timeout_s)
             return self._by_nonce.pop(nonce, None)
+
+
+def _stalled_agent(payload: bytes) -> list[str]:
+    """[id] when an event is the plant dropping an agent on a lockstep stall (plant/node.py)."""
+    try:
+        ev = pb.Event.FromString(payload)
+    except Exception:  # noqa: BLE001 - not an event: nothing to do
+        return []
+    if ev.kind == "agent_dead" and ev.header.source == "plant" and ev.detail.startswith("lockstep stall"):
+        return [ev.subject]
+    return []
 
 
 def _read_json(p: Path) -> dict[str, Any] | None:

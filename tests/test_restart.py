@@ -137,3 +137,20 @@ def test_a_paused_agent_rejoins_after_its_lease(tmp_path: Path) -> None:
     kinds = [e.kind for e in _events(out) if e.subject == "sc02"]
     assert "agent_dead" in kinds and "agent_rejoin" in kinds
     _no_process_left(out)
+
+
+def test_a_stalled_agent_is_killed_and_restarted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Alive but silent past `stall_timeout_s` (2 s; it sleeps 60 s in step 3): the plant drops it
+    (lockstep_stall), and with restart = "on-failure" the launcher ends it by PID and restarts it."""
+    from test_lockstep_load import SLOW_PLUGIN
+
+    scen = _scenario(tmp_path, monkeypatch, "stallrs", SLOW_PLUGIN.replace("{sleep_s}", "60.0"),
+                     '\n[supervision]\nstall_timeout_s = 2.0\nrestart = "on-failure"\n', duration_s=1800.0)
+    out = tmp_path / "run"
+    res = MultiProcessRun(str(scen), load_scenario(scen), out, "stallrs", progress=False).execute()
+    assert res.exit_code == 0, res.reason
+    assert res.summary["restarts"] == {"agent-sc02": 1}, res.summary
+    kinds = [(e.kind, e.subject) for e in _events(out) if e.kind in ("lockstep_stall", "agent_dead", "agent_restart")]
+    assert kinds[:3] == [("lockstep_stall", "plant"), ("agent_dead", "sc02"), ("agent_restart", "sc02")], kinds
+    assert res.summary["wall_s"] < 55  # not the 60 s sleep
+    _no_process_left(out)
