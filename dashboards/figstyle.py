@@ -14,8 +14,9 @@
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -36,6 +37,17 @@ def pyplot():
     return plt
 
 
+@contextmanager
+def exporting(formats: tuple[str, ...]) -> Iterator[None]:
+    """Within the block, save() writes these vector copies (e.g. () for PNG only)."""
+    global EXPORT
+    old, EXPORT = EXPORT, tuple(formats)
+    try:
+        yield
+    finally:
+        EXPORT = old
+
+
 def colors(n: int) -> list:
     cmap = pyplot().get_cmap("tab20")
     return [cmap(i % 20) for i in range(n)]
@@ -44,9 +56,10 @@ def colors(n: int) -> list:
 def save(fig: Any, path: Path, export: tuple[str, ...] | None = None) -> str:
     """Write fig as path (PNG) and as each of `export` (default EXPORT) with the same stem; close it."""
     path = Path(path)
-    fig.savefig(path, bbox_inches="tight", pad_inches=0.08)
-    for ext in EXPORT if export is None else export:
-        fig.savefig(path.with_suffix(f".{ext}"), bbox_inches="tight", pad_inches=0.08)
+    box = fig.get_tightbbox(fig.canvas.get_renderer()).padded(0.08)  # inches; computed once for every format
+    fig.savefig(path, bbox_inches=box)
+    for ext in (EXPORT if export is None else export):
+        fig.savefig(path.with_suffix(f".{ext}"), bbox_inches=box)
     pyplot().close(fig)
     return path.name
 
@@ -69,7 +82,7 @@ def span_text(s: float) -> str:
     """'45 s', '20 min', '4.7 h', '1 d 2 h'."""
     if s < 120:
         return f"{s:.3g} s"
-    if s < 2 * H:
+    if s < H:
         return f"{s / 60:.3g} min"
     if s < 48 * H:
         return f"{s / H:.3g} h"
@@ -170,7 +183,12 @@ _DASH = {"-": "solid", "--": "dash", ":": "dot"}
 
 
 def render_static(spec: LineFigure, path: Path) -> str:
-    """The LineFigure as a matplotlib figure (PNG and the EXPORT copies)."""
+    """The LineFigure as a matplotlib figure saved to path (PNG and the EXPORT copies)."""
+    return save(draw_static(spec), path)
+
+
+def draw_static(spec: LineFigure):  # type: ignore[no-untyped-def]
+    """The LineFigure as a matplotlib figure (not saved)."""
     plt = pyplot()
     n = len(spec.panels)
     fig, axs = plt.subplots(n, 1, figsize=(spec.width_in, spec.panel_height_in * n + 0.5), sharex=spec.sharex,
@@ -206,4 +224,4 @@ def render_static(spec: LineFigure, path: Path) -> str:
     if spec.title:
         fig.suptitle(spec.title)
     fig.tight_layout()
-    return save(fig, path)
+    return fig

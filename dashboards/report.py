@@ -60,6 +60,11 @@ def _circle_layout(n: int) -> np.ndarray:
 
 def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label: str) -> str:
     """Figs. 8-9 / 11: the visibility digraph (j -> k: j sees k) in LVLH and as a graph plot."""
+    return _save(draw_digraph(truth, m, row, label), path)
+
+
+def draw_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, label: str):  # type: ignore[no-untyped-def]
+    """The matplotlib figure of fig_digraph (not saved)."""
     plt = _plt()
     vis = m.vis[row]
     pos = relative_to_com(truth.position_m[row:row + 1], truth.alive[row:row + 1])[0]
@@ -99,7 +104,7 @@ def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label
                 "nodes ordered by along-track position")
     fig.suptitle(f"Visibility digraph at the {label} (t = {span_text(float(truth.t_s[row]))})")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 _ROE_NAMES = ["a da", "a dl", "a dex", "a dey", "a dix", "a diy"]
@@ -183,13 +188,14 @@ def projection_window(truth: TruthArrays, orbits: float = 3.0) -> tuple[float, s
     return used, (label if used >= run_s else f"{label}, {orbits:g} orbits")
 
 
-def spec_projections(truth: TruthArrays, last_s: float | None) -> LineFigure:
-    """Fig. 22: cross-track (x-z) and in-orbit (y-x) projections relative to the centre of mass."""
+def spec_projections(truth: TruthArrays, orbits: float | None = 3.0) -> LineFigure:
+    """Fig. 22: cross-track (x-z) and in-orbit (y-x) projections relative to the centre of mass, over
+    the last `orbits` orbits (None: the whole run); the window is clipped to the run and named in the titles."""
     pos = relative_to_com(truth.position_m, truth.alive)
-    if last_s is None:
+    if orbits is None:
         last_s, span = window_text(float(truth.t_s[-1] - truth.t_s[0]), None)
     else:
-        last_s, span = window_text(float(truth.t_s[-1] - truth.t_s[0]), last_s)
+        last_s, span = projection_window(truth, orbits)
     p = pos[truth.t_s >= truth.t_s[-1] - last_s - 1e-9]
     cols = _colors(truth.n_bodies)
     ids = truth.ids
@@ -307,15 +313,23 @@ def _camera_for(run_dir: Path, summary: dict[str, Any]) -> CameraGeometry:
 
 
 def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, steady_from_s: float | None = None,
-                 projection_orbits: float = 3.0, figures: bool = True, interactive: bool = True) -> Path:
+                 projection_orbits: float = 3.0, figures: bool = True, interactive: bool = True,
+                 export: tuple[str, ...] = ("svg", "pdf")) -> Path:
     """Metrics into run_dir/summary.json["metrics"] and their time series into
     run_dir/metrics_series.npz; with `figures`, the report site run_dir/report/ (dashboards/site.py):
     index.html and its pages, the figures (PNG, SVG, PDF; Plotly where there are many lines when
-    `interactive`) and the tables of report/data/."""
+    `interactive`; the vector copies of `export`) and the tables of report/data/."""
+    from dashboards.figstyle import exporting
+
+    with exporting(export):
+        return _write_report(Path(run_dir), cam, steady_from_s, projection_orbits, figures, interactive)
+
+
+def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: float | None, projection_orbits: float,
+                  figures: bool, interactive: bool) -> Path:
     from dashboards.frames import metrics_series_frame
     from dashboards.site import figures_of, write_site
 
-    run_dir = Path(run_dir)
     spath = run_dir / "summary.json"
     summary = json.loads(spath.read_text()) if spath.is_file() else {}
     cam = cam or _camera_for(run_dir, summary)
@@ -333,7 +347,7 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
     summary.setdefault("config", run_config(run_dir) or {})
-    figs = (_paper002_figures(truth, m, met, out, projection_window(truth, projection_orbits)[0], interactive)
+    figs = (_paper002_figures(truth, m, met, out, projection_orbits, interactive)
             if _is_paper002(summary) else [])
     sections = _mission_sections(run_dir, out, summary, truth)
     for s in sections:
@@ -348,7 +362,7 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
 
 
 def _paper002_figures(truth: TruthArrays, m: SwarmMetrics, met: dict[str, Any], out: Path,
-                      projection_s: float, interactive: bool = True) -> list:
+                      projection_orbits: float | None, interactive: bool = True) -> list:
     """The figures of paper 002 (Figs. 7-22), for runs of its controllers only: many-line figures
     interactive (and static), the digraphs static."""
     from dashboards.site import line_figure, static_figure
@@ -388,7 +402,7 @@ def _paper002_figures(truth: TruthArrays, m: SwarmMetrics, met: dict[str, Any], 
         lf(spec_along_track(truth, "Along-track position relative to the centre of mass (paper Fig. 21)" if controlled
                             else "Along-track position of the uncontrolled swarm (paper Fig. 7)"), "along_track.png",
            "Along-track position relative to the swarm centre of mass."),
-        lf(spec_projections(truth, projection_s), "projections.png",
+        lf(spec_projections(truth, projection_orbits), "projections.png",
            "Cross-track and in-orbit projections of the trajectories relative to the centre of mass (paper Fig. 22)."),
         lf(spec_closest_approach(m), "closest_approach.png",
            "Minimum distance over each step of pairs in visibility (either direction) and of pairs not in "

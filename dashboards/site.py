@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dashboards.figstyle import EXPORT, LineFigure, render_static
+from dashboards import figstyle
+from dashboards.figstyle import LineFigure, render_static
 
 PAGES = [("index.html", "Overview and mission metrics"), ("navigation.html", "Navigation"),
          ("bandwidth.html", "Bandwidth"), ("events.html", "Events"), ("data.html", "Data tables")]
@@ -54,7 +55,7 @@ def render(template: str, out: Path, **ctx: Any) -> Path:
 def static_figure(out: Path, png: str, caption: str) -> SiteFigure:
     """An image already written into out, with the static copies that exist beside it."""
     stem = Path(png).stem
-    ex = [("PNG", png)] + [(e.upper(), f"{stem}.{e}") for e in EXPORT if (out / f"{stem}.{e}").is_file()]
+    ex = [("PNG", png)] + [(e.upper(), f"{stem}.{e}") for e in figstyle.EXPORT if (out / f"{stem}.{e}").is_file()]
     return SiteFigure(stem, png, caption, None, ex)
 
 
