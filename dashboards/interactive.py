@@ -16,7 +16,7 @@ import numpy as np
 from dashboards.figstyle import _DASH, LineFigure
 
 PLOTLY_JS = "plotly.min.js"
-MAX_POINTS = 2000
+MAX_POINTS = 1500
 
 
 def write_plotly_js(out_dir: Path) -> str:

@@ -24,6 +24,7 @@ from typing import Any
 from dashboards import figstyle
 from dashboards.figstyle import LineFigure, render_static
 
+MAX_EVENT_ROWS = 5000  # rows of the event page; data/events.csv has them all
 PAGES = [("index.html", "Overview and mission metrics"), ("navigation.html", "Navigation"),
          ("bandwidth.html", "Bandwidth"), ("events.html", "Events"), ("data.html", "Data tables")]
 
@@ -115,8 +116,9 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
                head=nav_body[0], figures=nav_body[1], intro=nav_body[2])
     ev = fr["events"]
     render("events.html", out / "events.html", title=f"Events: {fr['run']}", pages=bar,
-           events=[(f"{r.t_s:.6g}", r.step, r.source, r.kind, r.subject, r.detail) for r in ev.itertuples()],
-           counts=sorted(Counter(ev["kind"]).items()))
+           events=[(f"{r.t_s:.6g}", r.step, r.source, r.kind, r.subject, r.detail)
+                   for r in ev.head(MAX_EVENT_ROWS).itertuples()],
+           total=len(ev), counts=sorted(Counter(ev["kind"]).items()))
     rows = [(t["name"], t["rows"], ", ".join(t["columns"]),
              Markup(f'<a href="data/{html.escape(t["name"])}.parquet">{html.escape(t["name"])}.parquet</a>'),
              Markup(f'<a href="data/{html.escape(t["name"])}.csv">{html.escape(t["name"])}.csv</a>')) for t in written]
