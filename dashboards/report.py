@@ -252,7 +252,9 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
                f"{_fmt(100 * d.get('fraction_ge_threshold', float('nan')))} % >= {_fmt(d.get('threshold'))}"
 
     def ap(d: dict) -> str:
-        return "none" if d["distance_m"] is None else f"{_fmt(d['distance_m'])} m ({'-'.join(d['pair'])} at t = {span_text(d['t_s'])})"
+        if d["distance_m"] is None:
+            return "none"
+        return f"{_fmt(d['distance_m'])} m ({'-'.join(d['pair'])} at t = {span_text(d['t_s'])})"
 
     return [
         ("run", _fmt(summary.get("run"))),

@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from test_browser import CACHE, CHROMIUM, CHROMIUM_ARGS, ensure_chromium, ensure_playwright_core
-from test_site import site_run  # noqa: F401 - the fixture: a 20-minute run with every kind of page, reported
+from test_site import site_run  # noqa: F401, F811 - the fixture: a 20-minute run with every kind of page, reported
 
 CHECK_JS = r"""
 // Open START, follow the <nav> links, and report per page what rendered and what went wrong.
@@ -102,7 +102,7 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 @pytest.mark.system
 @pytest.mark.browser
 @pytest.mark.timeout(1800)  # a fresh machine installs Chromium (apt) and playwright-core (npm) first
-def test_every_page_of_the_report_site_renders_in_chromium(site_run: Path) -> None:
+def test_every_page_of_the_report_site_renders_in_chromium(site_run: Path) -> None:  # noqa: F811
     why = ensure_chromium()
     if why:
         pytest.skip(f"Chromium cannot be installed here: {why}")
