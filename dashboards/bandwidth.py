@@ -323,6 +323,22 @@ def fig_per_agent(lt: LinkTraffic, path: Path, bin_s: float) -> str:
     return _save(fig, path)
 
 
+def spec_per_agent(lt: LinkTraffic, bin_s: float):  # type: ignore[no-untyped-def]
+    """fig_per_agent's lines as a LineFigure (dashboards/figstyle.py), for the interactive version."""
+    from dashboards.figstyle import Line, LineFigure, Panel, colors
+
+    s = per_agent_series(lt, bin_s)
+    x, xl = _time_axis(s["edges_s"][1:])
+    cols = colors(len(lt.ids))
+    panels = [Panel([Line(x, np.cumsum(s[key][i]), sid, cols[i], 1.0) for i, sid in enumerate(lt.ids)], label,
+                    title=title, integer_y=True, xlabel=xl if key == "rx_msgs" else "")
+              for key, label, title in [("tx_bytes", "bytes", "sent, bytes with overhead (cumulative)"),
+                                        ("rx_bytes", "bytes", "received, bytes with overhead (cumulative)"),
+                                        ("tx_msgs", "messages", "sent, messages (cumulative)"),
+                                        ("rx_msgs", "messages", "received, messages (cumulative)")]]
+    return LineFigure(panels, title=f"Link traffic per agent: {lt.run}")
+
+
 def fig_rate(lt: LinkTraffic, path: Path, bin_s: float) -> str:
     plt = _plt()
     s = per_agent_series(lt, bin_s)
@@ -402,10 +418,6 @@ def _page(title: str, body: str, out: Path) -> Path:
     return render("page.html", out, title=title, intro=body)
 
 
-def _fig(name: str, caption: str) -> str:
-    return f'<figure><img src="{html.escape(name)}" alt="{html.escape(name)}"><figcaption>{caption}</figcaption></figure>'
-
-
 def _bin_s(lt: LinkTraffic) -> float:
     dur = max(lt.t_end_s, lt.step_s)
     return max(lt.step_s, float(lt.config.get("stats_period_s", 60.0)) if dur <= 6 * 3600 else dur / 200.0)
@@ -417,8 +429,9 @@ def per_link_table(lt: LinkTraffic) -> list[list[Any]]:
     return [[s, d, t, *v] for (s, d, t), v in sorted(lt.stats_rows.items())]
 
 
-def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_") -> str:
-    """The report's HTML body (figures written into out_dir): usable as a section of the main report."""
+def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_", interactive: bool = False) -> str:
+    """The report's HTML body (figures written into out_dir): usable as a section of the main report.
+    With `interactive`, the per-agent traffic is a Plotly figure (the page must load plotly.js)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     tot = totals(lt)
     bin_s = _bin_s(lt)
@@ -458,7 +471,14 @@ def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_"
         (fig_matrix(lt, out_dir / f"{prefix}matrix.png"), "Link matrix: delivered bytes per (transmitter, receiver)."),
         (fig_drops(lt, out_dir / f"{prefix}drops.png"), "Drops by cause per transmitter."),
     ]
-    body += "".join(_fig(f, c) for f, c in figs)
+    from dashboards.site import figure_html, static_figure
+
+    shown = [static_figure(out_dir, f, c) for f, c in figs]
+    if interactive:
+        from dashboards.interactive import plotly_div
+
+        shown[0].div = plotly_div(spec_per_agent(lt, bin_s), f"plot-{prefix}per-agent")
+    body += "".join(figure_html(f) for f in shown)
     rows = per_link_table(lt)
     body += (f"<h2>Per link and message type (channel counters)</h2><p>dst <code>{TX_ROW}</code>: what the "
              "transmitter offered to its radio (and its queue drops); other rows: deliveries and drops per receiver.</p>")
@@ -538,7 +558,9 @@ def write_bandwidth_comparison(run_a: str | Path | LinkTraffic, run_b: str | Pat
     fig_matrix(a, None, vmax=vmax, ax=axes[0])
     fig_matrix(b, None, vmax=vmax, ax=axes[1])
     mname = _save(fig, out_dir / "bandwidth_compare_matrix.png")
-    body += _fig(fig_compare(a, b, out_dir / "bandwidth_compare.png"), "A solid, B dashed.")
-    body += _fig(mname, "Link matrices on one colour scale.")
+    from dashboards.site import figure_html, static_figure
+
+    body += figure_html(static_figure(out_dir, fig_compare(a, b, out_dir / "bandwidth_compare.png"), "A solid, B dashed."))
+    body += figure_html(static_figure(out_dir, mname, "Link matrices on one colour scale."))
     _page(f"swarmhil bandwidth: {a.run} vs {b.run}", body, out_html)
     return out_html

@@ -76,6 +76,11 @@ def figures_of(out: Path, pairs: list[tuple[str, str]]) -> list[SiteFigure]:
     return [static_figure(out, f, c) for f, c in pairs if f]
 
 
+def figure_html(f: SiteFigure) -> str:
+    """One figure as the pages show it (the `figure` macro of templates/macros.html)."""
+    return str(_env().get_template("macros.html").module.figure(f))
+
+
 def _nav_bar(available: set[str]) -> list[dict[str, str]]:
     return [{"href": h, "label": lab} for h, lab in PAGES if h in available]
 
@@ -100,7 +105,7 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
         {"navigation.html"} if nav_body is not None else set())
     bar = _nav_bar(available)
     interactive = any(f.div for f in figures) or any(f.div for s in sections for f in s["figures"])
-    js = write_plotly_js(out) if interactive else None
+    js = write_plotly_js(out) if interactive or has_link else None
     notes = {"navigation.html": "navigation error of every track against truth",
              "bandwidth.html": "link traffic, drops, and the channel's counters checked against the recording",
              "events.html": f"{len(fr['events'])} events", "data.html": "time series and metrics as Parquet and CSV"}
@@ -110,7 +115,7 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
 
         lt = read_link_traffic(run_dir)
         render("page.html", out / "bandwidth.html", title=f"Bandwidth: {lt.run}", pages=bar,
-               intro=bandwidth_section(lt, out))
+               intro=bandwidth_section(lt, out, interactive=js is not None), plotly_js=js)
     if nav_body is not None:
         render("page.html", out / "navigation.html", title=f"Navigation error: {fr['run']}", pages=bar,
                head=nav_body[0], figures=nav_body[1], intro=nav_body[2])
