@@ -1,9 +1,12 @@
-"""HTML + PNG reports of a run and of a sweep, in the spirit of paper 002's Figs. 7-22 and 30-31.
+"""Reports of a run and of a sweep, in the spirit of paper 002's Figs. 7-22 and 30-31.
 
 `write_report(run_dir)` reads run_dir/run.mcap (truth only, dashboards/truth_io.py), computes the
-metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metrics" and writes
-run_dir/report/index.html with one PNG per figure. `write_sweep_report(sweep_dir, cases)` does the
-same for a parameter sweep (dV and connectivity against the parameter, Figs. 30-31).
+metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metrics" and writes the
+report site run_dir/report/ (dashboards/site.py): index.html with the headline metrics, paper 002's
+figures (many-line ones as LineFigure specs, drawn static by dashboards/figstyle.py and
+interactive by dashboards/interactive.py) and the mission sections, and the pages and tables the
+site links. `write_sweep_report(sweep_dir, cases)` does the same for a parameter sweep (dV and
+connectivity against the parameter, Figs. 30-31).
 """
 from __future__ import annotations
 
@@ -43,9 +46,12 @@ def _per_sc(x: np.ndarray, y: np.ndarray, ids: list[str], width: float = 0.8) ->
 def spec_components(m: SwarmMetrics, n: int, title: str = "") -> LineFigure:
     """Fig. 10 / 31: weakly connected components of the visibility digraph over time."""
     x, xl = time_axis(m.t_s)
+    period = float(m.summary["connectivity"]["orbit_period_s"])
+    union = ("union of the digraphs over the last orbit" if m.t_s[-1] - m.t_s[0] >= period else
+             f"union of the digraphs since the start (run shorter than the {span_text(period)} orbit)")
     return LineFigure([
         Panel([Line(x, m.n_components, "digraph of the step", "C0", 1.0, step=True),
-               Line(x, m.n_components_orbit, "union of the digraphs over the last orbit", "C2", 0.9, "--", step=True)],
+               Line(x, m.n_components_orbit, union, "C2", 0.9, "--", step=True)],
               "weakly connected components", title=title or "Swarm integrity (paper 002 Figs. 10, 31)",
               ylim=(0, max(3, int(m.n_components.max()) + 1)), integer_y=True),
         Panel([Line(x, m.largest, "largest component", "C1", 1.0, step=True)], "largest component [spacecraft]",

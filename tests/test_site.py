@@ -115,6 +115,9 @@ def test_windows_and_titles_follow_the_run(short_and_long: tuple[Path, Path]) ->
             assert "over the whole run, 20 min" in page and "in the last hour" not in page
             assert "last 1 h" not in page and "20 min (121 steps)" in page
             assert "time [min]" in dv and "time [h]" not in dv
+        # the orbit-union line of Fig. 10 says what it is when the run is shorter than an orbit
+        comp = " ".join(_svg_texts(run / "report" / "components.svg"))
+        assert ("over the last orbit" in comp) if long else ("since the start (run shorter than the" in comp), comp
         # the steady window (last sixth) is written in the run's own units
         assert ("t &gt;= 20 h" in page) if long else ("t &gt;= 16.7 min" in page), page[:3000]
 
