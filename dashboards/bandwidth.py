@@ -413,9 +413,10 @@ def _table(head: list[str], rows: list[list[Any]], left: int = 1) -> str:
 
 
 def _page(title: str, body: str, out: Path) -> Path:
-    from dashboards.site import render
+    """The page, with the report site's link bar when it joins a site (RUN/report/bandwidth.html)."""
+    from dashboards.site import bar_for, render
 
-    return render("page.html", out, title=title, intro=body)
+    return render("page.html", out, title=title, intro=body, pages=bar_for(out))
 
 
 def _bin_s(lt: LinkTraffic) -> float:

@@ -85,6 +85,14 @@ def _nav_bar(available: set[str]) -> list[dict[str, str]]:
     return [{"href": h, "label": lab} for h, lab in PAGES if h in available]
 
 
+def bar_for(page: Path) -> list[dict[str, str]] | None:
+    """The link bar for a page written on its own (report-bandwidth) into an existing site, else None."""
+    d = page.parent
+    if page.name not in dict(PAGES) or not (d / "index.html").is_file():
+        return None
+    return _nav_bar({h for h, _l in PAGES if (d / h).is_file()} | {page.name})
+
+
 def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]], figures: list[SiteFigure],
                sections: list[dict[str, Any]], metrics_series: Any, metrics: dict[str, Any], intro: str = "") -> Path:
     """Every page of the site and data/ (module docstring). Returns index.html."""
