@@ -96,8 +96,11 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
 @click.option("--steady-from-h", type=float, help="Start of the steady-state window [h] (default: last sixth of the run).")
 @click.option("--scenario", "scenario", type=click.Path(exists=True, dir_okay=False),
               help="Scenario file to take the camera from (default: the run's, else the paper's camera).")
-def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> None:
-    """Metrics (into RUN_DIR/summary.json) and RUN_DIR/report/index.html from RUN_DIR/run.mcap.
+@click.option("--vector/--no-vector", default=True, show_default=True,
+              help="Also save every figure as SVG and PDF (for papers) beside its PNG.")
+def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vector: bool) -> None:
+    """Metrics (into RUN_DIR/summary.json) and the report site RUN_DIR/report/index.html from RUN_DIR/run.mcap:
+    mission metrics and sections, navigation, bandwidth, events and the data tables (docs/analysis.md).
 
     For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
     """
@@ -121,7 +124,7 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> N
                     write_report(d, cam=cam, steady_from_s=steady_s, figures=(d / "report" / "index.html").is_file())
             click.echo(f"wrote {write_sweep_report(run_dir, sw['param'], sw['cases'])}")
             return
-        page = write_report(run_dir, cam=cam, steady_from_s=steady_s)
+        page = write_report(run_dir, cam=cam, steady_from_s=steady_s, export=("svg", "pdf") if vector else ())
     except (OSError, ValueError) as exc:
         raise click.ClickException(str(exc)) from None
     met = json.loads((Path(run_dir) / "summary.json").read_text())["metrics"]
