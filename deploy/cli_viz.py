@@ -66,6 +66,9 @@ def replay(mcap_path: str, rrd_out: str | None, serve: bool, viz_port: int | Non
     """Build the viewer's views from a recording alone: RUN_DIR/run.mcap -> .rrd and/or web viewer."""
     from dashboards.replay import ReplayError
     from dashboards.replay import replay as do_replay
+    from deploy.cli_inputs import check_recording
+
+    check_recording(mcap_path)
 
     if rrd_out is None and not serve:
         rrd_out = str(Path(mcap_path).with_name("replay.rrd"))
