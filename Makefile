@@ -5,10 +5,12 @@ STAMP  := $(VENV)/.installed-stamp
 
 .PHONY: setup demo test test-system test-study test-browser test-all bench proto clean
 
-$(STAMP): pyproject.toml
+# Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
+# An agent image needs only the core: `pip install .` (docs/packaging.md).
+$(STAMP): pyproject.toml constraints.txt
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -e '.[all,dev]' -c constraints.txt
 	$(VENV)/bin/rerun analytics disable >/dev/null 2>&1 || true
 	touch $(STAMP)
 

@@ -312,8 +312,9 @@ def drops_by_transmitter(lt: LinkTraffic) -> dict[str, np.ndarray]:
 
 # --- figures -----------------------------------------------------------------------------------------
 def _plt():
-    import matplotlib
+    from bus.optional import require
 
+    matplotlib = require("matplotlib", "the bandwidth report's figures")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

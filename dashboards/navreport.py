@@ -327,8 +327,9 @@ def nav_summary(rows: TrackRows, err: NavErrors, dec_err: np.ndarray, vis: np.nd
 
 # --- figures -------------------------------------------------------------------------------------------
 def _plt():
-    import matplotlib
+    from bus.optional import require
 
+    matplotlib = require("matplotlib", "the navigation report's figures")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -25,8 +25,9 @@ SERIES = "metrics_series.npz"  # per-step series a sweep report overlays
 
 
 def _plt():
-    import matplotlib
+    from bus.optional import require
 
+    matplotlib = require("matplotlib", "the report's figures")
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -47,13 +47,15 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import Rejections
 from bus.keys import Keys
+from bus.optional import require
+
+rr = require("rerun", "the Rerun viewer (--viz, replay)")
+rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")
 
 APP_ID = "swarmhil"
 STEP = "step"

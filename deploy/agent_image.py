@@ -39,8 +39,24 @@ def agent_config(sc: Any, sid: str) -> dict[str, Any]:
 
 
 def agent_configs(sc: Any) -> dict[str, dict[str, Any]]:
-    """{id: agent_config} for every spacecraft (the "agents" entry of DIR/scenario.json)."""
-    return {sid: agent_config(sc, sid) for sid in sc.ids}
+    """{id: agent_config} for every spacecraft (the "agents" entry of DIR/scenario.json).
+
+    Also builds, here in the launcher, one controller of each distinct configuration: whatever a
+    controller computes once and caches on disk at construction (the DRE gain tables of
+    agent/behaviour/dre.py, solved with scipy) is then there before the agents start, so no agent
+    solves it (nor imports scipy), even on a machine's first run."""
+    from agent.controller import OrbitInfo, make_controller
+
+    configs = {sid: agent_config(sc, sid) for sid in sc.ids}
+    seen: set[str] = set()
+    for cfg in configs.values():
+        key = json.dumps([cfg["controller"], cfg["params"], cfg["orbit"]], sort_keys=True)
+        if key not in seen:
+            seen.add(key)
+            o = cfg["orbit"]
+            make_controller(cfg["controller"], cfg["id"], OrbitInfo(o["semi_major_axis_m"], o["mean_motion_radps"]),
+                            cfg["params"])
+    return configs
 
 
 def read_agent_config(path: str | Path, sid: str) -> dict[str, Any] | None:

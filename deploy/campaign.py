@@ -142,7 +142,10 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, execu
     if not seeds:
         return rows
     if executor == "dask":
-        from dask.distributed import Client, LocalCluster, as_completed
+        from bus.optional import require
+
+        dd = require("dask.distributed", "--executor dask")
+        Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
 
         cluster = None
         if scheduler:
@@ -220,8 +223,10 @@ def write_table(out: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
     """OUT/campaign.parquet and OUT/campaign.csv: one row per run, the same columns."""
     import csv
 
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    from bus.optional import require
+
+    pa = require("pyarrow", "the campaign table (Parquet)")
+    pq = require("pyarrow.parquet", "the campaign table (Parquet)")
 
     cols = _columns(rows)
     data = {c: _column_values(rows, c) for c in cols}

@@ -10,6 +10,7 @@ from typing import Any
 
 import click
 
+from bus.optional import MissingExtra
 from deploy.cli_viz import viz_option
 
 
@@ -68,6 +69,8 @@ class _Cli(click.Group):
             _fail(exc.format_message() + hint, exc.exit_code)
         except click.ClickException as exc:  # a file that cannot be read or written: 1
             _fail(exc.format_message(), exc.exit_code)
+        except MissingExtra as exc:  # an optional part not installed (bus/optional.py): 1
+            _fail(str(exc), EXIT_FAILED)
         except BrokenPipeError:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
             sys.exit(EXIT_OK)

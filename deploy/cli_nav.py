@@ -20,8 +20,10 @@ import click
 def report_nav(run_dirs: tuple[str, ...], out: str, labels: tuple[str, ...]) -> None:
     """Navigation error against truth per run, and a comparison table across the runs."""
     from dashboards.navreport import write_comparison, write_nav_report
+    from bus.optional import require
     from deploy.cli_inputs import check_run_dir
 
+    require("matplotlib", "swarmhil report-nav (its figures)")
     for d in run_dirs:
         check_run_dir(d)
 

@@ -100,8 +100,11 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> N
 
     For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
     """
+    from bus.optional import require
     from dashboards.report import write_report, write_sweep_report
     from deploy.cli_inputs import check_run_dir
+
+    require("matplotlib", "swarmhil report (its figures)")
     from plant.sensors import CameraGeometry
 
     if not (Path(run_dir) / "sweep.json").is_file():
@@ -152,8 +155,11 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
+    from bus.optional import require
     from dashboards.report import write_sweep_report
     from deploy.launcher import new_run_id
+
+    require("matplotlib", "swarmhil sweep (its report's figures)")  # before any case runs
     from deploy.scenario import ScenarioError, parse_scenario, read_document
 
     values = parse_values(values_text)

@@ -179,15 +179,16 @@ def main(argv: list[str] | None = None) -> int:
 
 def write_import_audit(role: str) -> None:
     """With SWARMHIL_IMPORT_AUDIT=DIR set: write DIR/<role>.json, the top-level packages this process
-    has imported and its peak RSS (Linux ru_maxrss), for tests/test_imports.py and bench/agent_rss.py."""
+    has imported and its peak and current RSS, for tests/test_imports.py and bench/agent_rss.py.
+    (The peak is /proc VmHWM, not getrusage's ru_maxrss, which keeps the launcher's RSS at the fork.)"""
     where = os.environ.get("SWARMHIL_IMPORT_AUDIT")
     if not where:
         return
-    import resource
-
     tops = sorted({m.split(".")[0] for m in list(sys.modules)})
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    Path(where, f"{role}.json").write_text(json.dumps({"role": role, "modules": tops, "peak_rss_bytes": peak}))
+    status = dict(line.split(":", 1) for line in Path("/proc/self/status").read_text().splitlines() if ":" in line)
+    kb = {k: int(status[k].split()[0]) * 1024 for k in ("VmHWM", "VmRSS")}
+    Path(where, f"{role}.json").write_text(json.dumps({"role": role, "modules": tops, "peak_rss_bytes": kb["VmHWM"],
+                                                       "rss_bytes": kb["VmRSS"]}))
 
 
 if __name__ == "__main__":
