@@ -16,9 +16,11 @@ $(STAMP): pyproject.toml constraints.txt
 
 setup: $(STAMP)
 
+# The first five minutes: the demo run (6 agent processes, 30 simulated minutes) with its 3D views
+# saved (runs/demo/run.rrd) and its report (runs/demo/report/index.html); it ends by printing
+# both paths and the command that opens each.
 demo: setup
-	$(PY) -m deploy.cli run deploy/scenarios/demo.toml --out runs/demo --overwrite
-	$(PY) -m deploy.cli mcap info runs/demo/run.mcap | tail -n 5
+	$(PY) -m deploy.cli demo --out runs/demo
 
 test: setup
 	$(PY) -m pytest -q

@@ -145,6 +145,8 @@ CASES = [
                                               "--label", "b"], "--label", 2),
     ("report-bandwidth compare garbage", lambda f: ["report-bandwidth", str(f["good"]), "--compare", str(f["garbage_dir"])],
      "garbage_run", 1),
+    ("demo unwritable out", lambda f: ["demo", "--out", "/proc/swarmhil-no/such"], "--out", 2),
+    ("demo unknown option", lambda f: ["demo", "--speed", "3"], "--speed", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
 ]
 
