@@ -4,9 +4,10 @@
 
 Runs `python -m deploy.cli run SCENARIO --duration D` from each source tree (default: this one) in
 turn, samples the RSS of every child of the launcher with psutil every 0.1 s, and prints per tree
-the median and maximum over the agent processes of each one's peak RSS, and the plant's, the
-recorder's and the launcher's. With a tree that has the import audit (deploy/proc.py
-SWARMHIL_IMPORT_AUDIT) it also prints the heavy packages each role imported. The machine is
+the median and maximum over the agent processes of each one's peak sampled RSS, and the plant's,
+the recorder's and the launcher's. With a tree that has the import audit (deploy/proc.py
+SWARMHIL_IMPORT_AUDIT) it also prints the median of the agents' exact peak (VmHWM) and the heavy
+packages each role imported. The machine is
 shared: memory, unlike time, hardly depends on the load, but the load is printed too.
 """
 from __future__ import annotations
@@ -63,15 +64,18 @@ def measure(tree: Path, scenario: str, duration: float, out: Path) -> dict:
     if launcher.returncode:
         raise SystemExit(f"run from {tree} failed ({launcher.returncode}):\n{text}")
     agents = sorted(v for k, v in peak.items() if k.startswith("agent-"))
-    mods = {}
+    mods, hwm = {}, []
     for f in sorted(audit.glob("*.json")):
         d = json.loads(f.read_text())
         mods[d["role"]] = [m for m in d["modules"] if m in HEAVY]
+        if d["role"].startswith("agent-"):
+            hwm.append(d["peak_rss_bytes"])
+    first_agent = min((r for r in mods if r.startswith("agent-")), default=None)
     return {"tree": str(tree), "agents": len(agents), "agent_median_mb": statistics.median(agents) / 1e6,
             "agent_max_mb": agents[-1] / 1e6, "plant_mb": peak.get("plant", 0) / 1e6,
             "recorder_mb": peak.get("recorder", 0) / 1e6, "launcher_mb": peak["launcher"] / 1e6,
-            "heavy_imports": {k: v for k, v in mods.items() if not k.startswith("agent-") or k == min(
-                (r for r in mods if r.startswith("agent-")), default="")}}
+            "agent_vmhwm_median_mb": statistics.median(hwm) / 1e6 if hwm else None,
+            "heavy_imports": {k: v for k, v in mods.items() if not k.startswith("agent-") or k == first_agent}}
 
 
 def main() -> None:
