@@ -181,7 +181,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
-        from deploy.launcher import NotEnoughMemory
+        from deploy.memory import NotEnoughMemory
 
         try:
             res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,

@@ -177,37 +177,6 @@ def _child_env() -> dict[str, str]:
     return env
 
 
-# Peak RSS per process, rounded up from bench/agent_rss.py (docs/performance.md "Agent memory and
-# imports"): an ideal-sensing agent 54 MB, a camera + filter agent (numba) 225 MB, plant / recorder /
-# companions 110-135 MB.
-AGENT_MB = {"scene": 240.0}
-AGENT_MB_DEFAULT = 60.0
-GROUND_MB = 150.0
-
-
-class NotEnoughMemory(RunFailed):
-    """The machine has less memory available than the run's processes need."""
-
-
-def check_memory(sc: Scenario, n_ground: int) -> float:
-    """Refuse (NotEnoughMemory, one line) before starting anything when N agents x their figure plus
-    the ground processes need more than the memory available now (psutil); returns the need in MB.
-    SWARMHIL_MEMORY_CHECK=off skips it."""
-    per_agent = AGENT_MB.get(sc.sensing["kind"], AGENT_MB_DEFAULT)
-    need = len(sc.ids) * per_agent + n_ground * GROUND_MB
-    if os.environ.get("SWARMHIL_MEMORY_CHECK", "").lower() == "off":
-        return need
-    import psutil
-
-    avail = psutil.virtual_memory().available / 1e6
-    if need > avail:
-        raise NotEnoughMemory(
-            f"not enough memory: {len(sc.ids)} agent processes x {per_agent:.0f} MB + {n_ground} ground processes x "
-            f"{GROUND_MB:.0f} MB need about {need:,.0f} MB, {avail:,.0f} MB are available; run fewer agents, "
-            f"--in-process, or free memory (SWARMHIL_MEMORY_CHECK=off skips this check)")
-    return need
-
-
 class _Terminated(BaseException):
     """SIGTERM reached the launcher (`timeout`, a cancelled CI job): stop like on Ctrl-C."""
 
@@ -313,7 +282,9 @@ class MultiProcessRun:
         from bus.recorder import ack_key
         from bus.zenoh_bus import ZenohBus, open_loopback_router
 
-        check_memory(self.sc, n_ground=2 + len(self.companions))  # plant, recorder, companions
+        from deploy.memory import check_memory
+
+        check_memory(self.sc, n_ground=2 + len(self.companions))  # plant, recorder, companions: refuse before any start
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
         # every child reads the one validated document (after --set), not the user's file
