@@ -65,6 +65,9 @@ class _Cli(click.Group):
         try:
             rv = super().main(args, prog_name, complete_var, False, **extra)
         except click.UsageError as exc:  # bad option, missing argument, path that does not exist: 2
+            if type(exc).__name__ == "NoArgsIsHelpError" and exc.ctx is not None:  # `swarmhil`, `swarmhil mcap`
+                click.echo(exc.ctx.get_help(), err=True)
+                sys.exit(exc.exit_code)
             hint = f" (see `{exc.ctx.command_path} --help`)" if exc.ctx is not None else ""
             _fail(exc.format_message() + hint, exc.exit_code)
         except click.ClickException as exc:  # a file that cannot be read or written: 1
