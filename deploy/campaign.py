@@ -324,7 +324,11 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     meta_path = out / "campaign.json"
     meta = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
     if meta_path.is_file():  # resuming: it must be the same campaign
-        old = json.loads(meta_path.read_text())
+        try:
+            old = json.loads(meta_path.read_text())
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"{meta_path}: not a campaign's record ({' '.join(str(exc).split())[:100]}); "
+                             f"use another --out") from None
         for k in ("scenario", "sets", "duration_s"):
             if old.get(k) != meta[k]:
                 raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta[k]!r}; "

@@ -43,14 +43,7 @@ class _Cli(click.Group):
             return super().invoke(ctx)
         except BrokenPipeError:  # `swarmhil mcap info F | head`: the reader left, not a bad file
             raise
-        except _bad_file_errors() as exc:
-            from deploy.cli_inputs import recording_problem, run_dir_problem
-
-            for a in args:  # a recording or run directory among the arguments says best what is wrong
-                p = Path(a)
-                problem = run_dir_problem(p) if p.is_dir() else recording_problem(p) if p.suffix == ".mcap" else None
-                if problem:
-                    raise click.ClickException(f"{a}: {problem}") from None
+        except _bad_file_errors() as exc:  # (recordings and run directories are checked up front: cli_inputs.py)
             files = [a for a in args if Path(a).exists()]
             what = f"{', '.join(files)}: " if files else ""
             detail = " ".join(f"{type(exc).__name__}: {exc}".split())

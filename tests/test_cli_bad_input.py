@@ -68,6 +68,9 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     f["bad_summary"].mkdir()
     (f["bad_summary"] / "run.mcap").write_bytes(data)
     (f["bad_summary"] / "summary.json").write_text('{"run": "x", "metr')
+    f["bad_campaign"] = d / "bad_campaign"
+    f["bad_campaign"].mkdir()
+    (f["bad_campaign"] / "campaign.json").write_bytes(os.urandom(100))
     return f
 
 
@@ -145,6 +148,8 @@ CASES = [
                                               "--label", "b"], "--label", 2),
     ("report-bandwidth compare garbage", lambda f: ["report-bandwidth", str(f["good"]), "--compare", str(f["garbage_dir"])],
      "garbage_run", 1),
+    ("campaign garbage record in --out", lambda f: ["campaign", DEMO, "--seeds", "1", "--out", str(f["bad_campaign"])],
+     "campaign.json", 2),
     ("demo unwritable out", lambda f: ["demo", "--out", "/proc/swarmhil-no/such"], "--out", 2),
     ("demo unknown option", lambda f: ["demo", "--speed", "3"], "--speed", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
