@@ -59,6 +59,16 @@ def agent_configs(sc: Any) -> dict[str, dict[str, Any]]:
     return configs
 
 
+def write_resolved_scenario(sc: Any, path: str | Path) -> Path:
+    """What a launcher (or `swarmhil compose`) hands every child: the validated document after --set
+    and each agent's config under "agents" (deploy/scenario.py reads the document part)."""
+    from deploy.scenario import resolved_document
+
+    p = Path(path)
+    p.write_text(json.dumps({**resolved_document(sc), "agents": agent_configs(sc)}, indent=1))
+    return p
+
+
 def read_agent_config(path: str | Path, sid: str) -> dict[str, Any] | None:
     """Agent `sid`'s config from a launcher-written DIR/scenario.json, or None when the file has no
     "agents" entry for it (a TOML scenario, as compose deployments pass: then validate it in full)."""

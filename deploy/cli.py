@@ -235,6 +235,7 @@ def mcap_info(src: str) -> None:
 @click.option("--image", default="swarmhil:latest", show_default=True)
 def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
     """Write a compose file that starts the run's processes as containers, each agent its own."""
+    from deploy.agent_image import write_resolved_scenario
     from deploy.compose import write_compose
     from deploy.launcher import new_run_id
     from deploy.scenario import ScenarioError, load_scenario
@@ -243,8 +244,11 @@ def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
-    path = write_compose(sc, scenario, run_id or new_run_id(sc.name), Path(out), image=image)
-    click.echo(f"wrote {path} ({len(sc.ids)} agents)")
+    # the containers read the validated document and the agents their own configs, as in `run`
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    resolved = write_resolved_scenario(sc, Path(out).with_name(f"{Path(out).stem}.scenario.json"))
+    path = write_compose(sc, str(resolved), run_id or new_run_id(sc.name), Path(out), image=image)
+    click.echo(f"wrote {path} ({len(sc.ids)} agents) and {resolved}")
 
 
 @main.command()

@@ -289,9 +289,9 @@ class MultiProcessRun:
         (self.out / "logs").mkdir(exist_ok=True)
         # every child reads the one validated document (after --set), not the user's file
         # (and each agent only its own config: no scenario validation in an agent image)
-        from deploy.agent_image import agent_configs
+        from deploy.agent_image import write_resolved_scenario
 
-        (self.out / "scenario.json").write_text(json.dumps({**resolved_document(self.sc), "agents": agent_configs(self.sc)}, indent=1))
+        write_resolved_scenario(self.sc, self.out / "scenario.json")
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
