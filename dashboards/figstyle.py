@@ -26,7 +26,9 @@ H = 3600.0
 
 
 def pyplot():
-    import matplotlib
+    from bus.optional import require
+
+    matplotlib = require("matplotlib", "the report's figures")
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
