@@ -60,6 +60,13 @@ class LinkTraffic:
     summary_channel: dict[str, Any] | None = None
 
     @property
+    def has_link(self) -> bool:
+        """False for a run without the link channel (no [link] in its scenario): no link configuration,
+        no transmission, delivery or counter in the recording or the summary."""
+        return bool(set(self.config) - {"ids"} or self.tx or self.rx or self.rejected_tx or self.stats_series
+                    or self.summary_channel)
+
+    @property
     def overhead_bytes(self) -> int:
         return int(self.config.get("overhead_bytes", 0))
 

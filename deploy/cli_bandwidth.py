@@ -65,8 +65,7 @@ def _write_no_link_report(lt: Any, path: Path) -> Path:
     from dashboards.bandwidth import _page
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(_page(f"swarmhil bandwidth: {lt.run}",
-                          f"<p>Run <code>{html.escape(lt.run)}</code> has no inter-satellite link (no <code>[link]</code> "
-                          "table in its scenario, or it is disabled): no transmission, delivery or link counter was "
-                          "recorded, so there is nothing to count.</p>"))
-    return path
+    return _page(f"swarmhil bandwidth: {lt.run}",
+                 f"<p>Run <code>{html.escape(lt.run)}</code> has no inter-satellite link (no <code>[link]</code> "
+                 "table in its scenario, or it is disabled): no transmission, delivery or link counter was "
+                 "recorded, so there is nothing to count.</p>", path)
