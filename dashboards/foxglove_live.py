@@ -39,9 +39,9 @@ class FoxgloveLive:
     """Samples of one run -> Foxglove channels on a WebSocket server (not thread-safe: one caller)."""
 
     def __init__(self, run: str, config: dict[str, Any] | None, port: int = DEFAULT_PORT) -> None:
-        import foxglove
+        from bus.optional import require
 
-        self._fg = foxglove
+        self._fg = foxglove = require("foxglove", "--viz foxglove")
         self.run = run
         self.keys = Keys(run)
         self.epoch_ns = epoch_ns(((config or {}).get("run") or {}).get("epoch_utc"))

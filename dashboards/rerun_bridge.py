@@ -58,8 +58,6 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
@@ -68,6 +66,10 @@ from bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # 
 from bus.keys import Keys
 from dashboards.rerun_bodies import (R_LVLH_FROM_CAM, SceneSpec, cone_strips, display_lengths, shape_ellipsoids,
                                      wxyz_to_xyzw)
+from bus.optional import require
+
+rr = require("rerun", "the Rerun viewer (--viz, replay)")
+rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")
 
 APP_ID = "swarmhil"
 STEP = "step"

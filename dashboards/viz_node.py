@@ -168,9 +168,10 @@ class WebViewer:
 def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, viz_port: int | None = None,
                    viz_url: str | None = None) -> Any:
     """A RecordingStream with the sinks of a mode (rrd: also write this file)."""
-    import rerun as rr
-
+    from bus.optional import require
     from dashboards.rerun_bridge import APP_ID
+
+    rr = require("rerun", "the Rerun viewer (--viz)")
 
     rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
     sinks: list[Any] = []

@@ -43,6 +43,10 @@ def viz_opts(*, in_process: bool = False, viz: str = "none", viz_url: str | None
         viz, viz_url = "connect", viz
     if viz == "none":
         return {}
+    from bus.optional import require
+
+    # before the run starts, not in its viewer process
+    require("foxglove" if viz == "foxglove" else "rerun", f"--viz {viz}")
     opts: dict[str, Any] = {"viz": viz}
     if viz == "connect":
         opts["viz_url"] = viz_url or "rerun+http://127.0.0.1:9876/proxy"
@@ -88,6 +92,11 @@ def replay(mcap_path: str, rrd_out: str | None, serve: bool, viz_port: int | Non
     """Build the viewer's views from a recording alone: RUN_DIR/run.mcap -> .rrd and/or web viewer."""
     from dashboards.replay import ReplayError
     from dashboards.replay import replay as do_replay
+    from bus.optional import require
+    from deploy.cli_inputs import check_recording
+
+    require("rerun", "swarmhil replay")
+    check_recording(mcap_path)
 
     if rrd_out is None and not serve:
         rrd_out = str(Path(mcap_path).with_name("replay.rrd"))
