@@ -36,15 +36,15 @@ def run_router(listen: str, acl_dir: str | None, stop: threading.Event) -> int:
     try:
         overrides = _overrides(acl_dir)
     except ValueError as exc:
-        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
     try:
         session = open_router(listen, overrides)
     except zenoh.ZError as exc:
-        print(f"swarmhil router: cannot listen on {listen}: {exc}", file=sys.stderr, flush=True)
+        print(f"error: router: cannot listen on {listen}: {exc}", file=sys.stderr, flush=True)
         return 4 if _address_in_use(exc) else 2
     except ValueError as exc:
-        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
     print(f"router listening on {listen}", flush=True)
     stop.wait()
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _overrides(args.acl_dir)  # a bad directory fails before any signal handler is installed
     except ValueError as exc:
-        print(f"swarmhil router: {exc}", file=sys.stderr, flush=True)
+        print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -86,7 +86,9 @@ def test_a_crashed_agent_is_restarted_and_rejoins_cold(tmp_path: Path, monkeypat
     assert acts[5:] == list(range(rejoin_step, 30))  # cold rejoin: every step from the rejoin on
     truth = [m for t, _l, _p, m in msgs if t == "truth"]
     alive = [next(b.alive for b in m.bodies if b.id == "sc02") for m in truth]
-    assert alive[4] and not alive[7] and not alive[rejoin_step - 1] and alive[rejoin_step] and alive[-1]
+    dead_step = s["rejoins"][0]["dead_step"]
+    assert alive[4] and alive[rejoin_step] and alive[-1] and rejoin_step > dead_step
+    assert not any(alive[dead_step + 1:rejoin_step])  # coasting, dead, until it rejoined
     assert "crash at step 5 (test)" in (out / "logs" / "agent-sc02.log").read_text()  # the log is appended to
     _no_process_left(out)
 
