@@ -70,12 +70,14 @@ def main(verbose: int) -> None:
 @click.option("--overwrite", is_flag=True, help="Replace the run already in --out (refused otherwise).")
 @click.option("--insecure", is_flag=True,
               help="Multi-process runs: no per-process credentials and access control on the router (docs/reliability.md).")
+@click.option("--tls", is_flag=True,
+              help="Multi-process runs: mutual TLS to the router with per-run certificates in DIR/secrets/tls (needs openssl).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool, sets: tuple[str, ...],
-        **viz: Any) -> None:
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool,
+        tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
@@ -88,6 +90,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         sys.exit(2)
     from bus.keys import check_token
 
+    if tls and (insecure or in_process):
+        click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
+        sys.exit(2)
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
     except ValueError as exc:
@@ -111,11 +116,19 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     opts = viz_opts(in_process=in_process, **viz)
     if insecure:
         opts["secure"] = False
+    if tls:
+        opts["tls"] = True
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
-        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
-                              overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        from bus.tls import TlsError
+
+        try:
+            res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
+                                  overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        except TlsError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(1)
     s = res.summary
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "

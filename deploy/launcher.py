@@ -217,6 +217,8 @@ class MultiProcessRun:
         self.companions = enabled_companions(sc, self.opts)
         # authentication and access control on the router (bus/acl.py); off only by explicit choice
         self.secure = bool(self.opts.get("secure", True))
+        # mutual TLS on every link to the router, with per-run certificates (bus/tls.py)
+        self.tls = bool(self.opts.get("tls", False))
         self.security: Any = None
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
@@ -227,6 +229,8 @@ class MultiProcessRun:
                "--scenario", self.scenario_path, "--out", str(self.out), *extra]
         if self.security is not None:
             cmd += ["--credentials", str(self.security.credentials[name])]
+            if self.security.tls is not None:
+                cmd += ["--tls", str(self.security.tls.dir)]
         for opt, val in self.overrides.items():
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
@@ -305,12 +309,16 @@ class MultiProcessRun:
             from bus.acl import make_run_security
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            self.security = make_run_security(self.out, self.run, users)
+            self.security = make_run_security(self.out, self.run, users, tls=self.tls)
             launcher_cred = self.security.credential("launcher")
+        elif self.tls:
+            raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
         # retries when the free port is taken before Zenoh binds it
-        router, router_ep = open_loopback_router(overrides=self.security.router_overrides() if self.security else None)
+        router, router_ep = open_loopback_router(overrides=self.security.router_overrides() if self.security else None,
+                                                 proto="tls" if self.tls else "tcp")
         summary["router"] = router_ep
         summary["secure"] = self.secure
+        summary["tls"] = self.tls
         bar = _Progress(self.sc, self.progress)
         watch = ZenohBus(router_ep, credential=launcher_cred)
         keys = Keys(self.run)

@@ -37,6 +37,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode")
     p.add_argument("--speed", type=float)
     p.add_argument("--credentials", help="file 'user:password' authenticating this process to the run's router (bus/acl.py)")
+    p.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, <user>.pem/.key; bus/tls.py): "
+                   "mutual TLS to a router on a tls/... endpoint; needs --credentials (the user names the certificate)")
 
 
 def _stop_event() -> threading.Event:
@@ -73,6 +75,57 @@ def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
         os._exit(0)
 
 
+def _await_run_end(node: object, timeout_s: float) -> None:
+    import time
+
+    t_end = time.monotonic() + timeout_s
+    while not getattr(node, "run_end", True) and time.monotonic() < t_end:
+        time.sleep(0.05)
+
+
+def _router(args: argparse.Namespace) -> int:
+    """The run's router on its own: auth dictionary + ACL (bus/acl.py) and mutual TLS (bus/tls.py)."""
+    from bus.zenoh_bus import open_router
+
+    overrides: dict = {}
+    if args.acl and not args.users:
+        print("router: --acl needs --users (the ACL names authenticated users)", file=sys.stderr)
+        return 2
+    if args.users:
+        from bus.acl import router_settings
+
+        overrides.update(router_settings(args.users, args.acl) if args.acl else
+                         {"transport/auth/usrpwd/dictionary_file": args.users})
+    if args.tls:
+        from bus.tls import router_tls
+
+        overrides.update(router_tls(args.tls))
+    if args.listen.startswith("tls/") != bool(args.tls):
+        print(f"router: --listen {args.listen} and --tls go together (a tls/ endpoint needs the run's certificates)",
+              file=sys.stderr)
+        return 2
+    stop = _stop_event()
+    session = open_router(args.listen, overrides)
+    if args.ready_file:
+        Path(args.ready_file).write_text(f"{args.listen}\n")
+    stop.wait()
+    session.close()
+    return 0
+
+
+def _probe(router: str, timeout_s: float) -> int:
+    """TCP connect to the host:port of a zenoh endpoint (`tcp/`, `tls/`): the router's health check."""
+    import socket
+
+    try:
+        host, _, port = router.split("/", 1)[1].rpartition(":")
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return 0
+    except (OSError, ValueError, IndexError) as exc:
+        print(f"probe: {router}: {exc}", file=sys.stderr)
+        return 1
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
@@ -84,20 +137,29 @@ def main(argv: list[str] | None = None) -> int:
         if role == "plant":
             p.add_argument("--companions", default="")
             p.add_argument("--barriers", default="")
+        if role == "recorder":
+            # without the launcher's flush handshake (compose, several hosts): a recorder told to stop
+            # still waits up to this long for the plant's run_end (the plant publishes its last truth,
+            # then run_end, on one session), so everything the plant published is recorded
+            p.add_argument("--await-run-end", type=float, default=0.0, metavar="SECONDS")
         if role == "companion":
             p.add_argument("--name", required=True)
             p.add_argument("--opts", default="{}")
-    r = sub.add_parser("router", help="a Zenoh router session (for compose deployments)")
-    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/router:7447")
+    r = sub.add_parser("router", help="a Zenoh router session (compose deployments, another host)")
+    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tls/router:7447")
+    r.add_argument("--users", help="the run's user/password dictionary (secrets/users.txt, bus/acl.py)")
+    r.add_argument("--acl", help="the run's access control (secrets/acl.json); needs --users")
+    r.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
+    r.add_argument("--ready-file", help="written once the router listens (a container health check reads it)")
+    h = sub.add_parser("probe", help="exit 0 when something accepts TCP connections at a router endpoint "
+                       "(a compose health check)")
+    h.add_argument("--router", required=True)
+    h.add_argument("--timeout", type=float, default=2.0)
     args = ap.parse_args(argv)
     if args.role == "router":
-        from bus.zenoh_bus import open_router
-
-        stop = _stop_event()
-        session = open_router(args.listen)
-        stop.wait()
-        session.close()
-        return 0
+        return _router(args)
+    if args.role == "probe":
+        return _probe(args.router, args.timeout)
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
     cred = None
@@ -105,6 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         from bus.acl import read_credential
 
         cred = read_credential(args.credentials)
+        if args.tls:
+            cred = cred.with_tls(args.tls)
+    elif args.tls:
+        ap.error("--tls needs --credentials (the user names the certificate)")
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     out = Path(args.out)
     if args.role == "plant":
@@ -143,6 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         bus = ZenohBus(args.router, credential=cred)
         node = RecorderNode(bus, args.run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc))
         stop.wait()
+        _await_run_end(node, args.await_run_end)
         stats = node.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
         _close_within(bus)
