@@ -175,8 +175,11 @@ def mcap_info(src: str) -> None:
 @click.option("--out", "out", type=click.Path(dir_okay=False), default="compose.yml", show_default=True)
 @click.option("--run-id", help="Run id; default <scenario>-<time>-<hex>.")
 @click.option("--image", default="swarmhil:latest", show_default=True)
-def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
-    """Write a compose file that starts the run's processes as containers, each agent its own."""
+@click.option("--router-host", "router_hosts", multiple=True, metavar="ADDRESS",
+              help="The router's address as other hosts dial it (repeatable): named in its TLS certificate.")
+def compose(scenario: str, out: str, run_id: str | None, image: str, router_hosts: tuple[str, ...]) -> None:
+    """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
+    containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
     from deploy.compose import write_compose
     from deploy.launcher import new_run_id
     from deploy.scenario import ScenarioError, load_scenario
@@ -185,7 +188,15 @@ def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
         raise click.ClickException(str(exc)) from None
-    path = write_compose(sc, scenario, run_id or new_run_id(sc.name), Path(out), image=image)
+    from bus.keys import check_token
+    from bus.tls import TlsError
+
+    try:
+        rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
+        hosts = [check_token(h, "--router-host") for h in router_hosts]
+        path = write_compose(sc, scenario, rid, Path(out), image=image, router_hosts=hosts)
+    except (ValueError, TlsError) as exc:
+        raise click.ClickException(str(exc)) from None
     click.echo(f"wrote {path} ({len(sc.ids)} agents)")
 
 
