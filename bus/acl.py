@@ -3,7 +3,9 @@
 One run = one router. The launcher makes, in `DIR/secrets/` (mode 0700, files 0600):
 
 - `users.txt`: the router's `transport/auth/usrpwd/dictionary_file` (`user:password` lines);
-- `<user>.cred`: one credential per process (`user:password`), passed to the child by path.
+- `<user>.cred`: one credential per process (`user:password`), passed to the child by path;
+- `acl.json`: the access control below, for a router started on its own (`deploy.proc router`);
+- with TLS, `tls/`: the run's CA and certificates (bus/tls.py).
 
 and gives the router an `access_control` block (default deny) that names every process by its
 username. A client without a valid user/password cannot open a session at all; an authenticated
