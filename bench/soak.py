@@ -98,7 +98,7 @@ def main() -> None:
     # the plant's loop: the last loop_wall_s seconds before the plant exited
     loop = float(s.get("loop_wall_s") or a.duration / a.speed)
     end = plant_gone if plant_gone is not None else wall
-    mem = memory_table(samples, a.speed, (end - loop, end))
+    mem = memory_table(samples, a.speed, (end - loop, end)) if s.get("steps") else {}  # no loop, no figures
     missed = s.get("missed_deadlines", {})
     report = {"scenario": Path(a.scenario).name, "speed": a.speed, "duration_s": a.duration, "exit_code": proc.returncode,
               "steps": s.get("steps"), "wall_s": wall, "loop_wall_s": loop, "missed_deadlines_total": int(sum(missed.values())),
@@ -118,7 +118,7 @@ def main() -> None:
               f"{np.median([r['rss_end_mib'] for r in rows]):12.1f} {max(r['rss_max_mib'] for r in rows):8.1f} "
               f"{worst['slope_mib_per_sim_h']:24.3f}")
     if proc.returncode:
-        print(log[-2000:])
+        print(f"the run failed (exit {proc.returncode}): {str(s.get('failure', ''))[:500] or log[-2000:]}")
     print(json.dumps(report))
 
 
