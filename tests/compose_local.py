@@ -138,7 +138,7 @@ def stop(svcs: dict[str, Service], names: list[str], timeout_s: float = 30.0) ->
 
 
 def run_to_end(svcs: dict[str, Service], logs: Path, prefix: dict[str, list[str]] | None = None,
-               timeout_s: float = 150.0, on_started: Any = None) -> dict[str, int]:
+               timeout_s: float = 400.0, on_started: Any = None) -> dict[str, int]:
     """`docker compose up --exit-code-from plant`: start all, wait for the plant, stop the rest
     (the recorder after the others, the router last). Exit codes by service. `on_started()` is
     called once every service has started."""
