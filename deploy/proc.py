@@ -106,8 +106,6 @@ def _router(args: argparse.Namespace) -> int:
         return 2
     stop = _stop_event()
     session = open_router(args.listen, overrides)
-    if args.ready_file:
-        Path(args.ready_file).write_text(f"{args.listen}\n")
     stop.wait()
     session.close()
     return 0
@@ -150,7 +148,6 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--users", help="the run's user/password dictionary (secrets/users.txt, bus/acl.py)")
     r.add_argument("--acl", help="the run's access control (secrets/acl.json); needs --users")
     r.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
-    r.add_argument("--ready-file", help="written once the router listens (a container health check reads it)")
     h = sub.add_parser("probe", help="exit 0 when something accepts TCP connections at a router endpoint "
                        "(a compose health check)")
     h.add_argument("--router", required=True)
