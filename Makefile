@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup demo test test-system test-study test-browser test-all bench proto clean
+.PHONY: setup demo test test-system test-study test-browser test-all bench soak proto clean
 
 # Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
 # An agent image needs only the core: `pip install .` (docs/packaging.md).
@@ -41,6 +41,11 @@ test-all: test test-system
 
 bench: setup
 	$(PY) bench/bench_backbone.py
+
+# The periodic soak check (issue 17): drift-20, 24 h in real time at x100 (about 15 min wall);
+# `bench/soak.py` alone runs it at x500. Deadline misses and memory slope per process.
+soak: setup
+	$(PY) bench/soak.py --speed 100
 
 # Regenerate the committed protobuf code from bus/swarmhil.proto.
 proto: setup

@@ -5,7 +5,8 @@ One run = one router. The launcher makes, in `DIR/secrets/` (mode 0700, files 06
 - `users.txt`: the router's `transport/auth/usrpwd/dictionary_file` (`user:password` lines);
 - `acl.json`: the router's `access_control` block (so a router process reads the directory:
   `swarmhil router --listen EP --acl-dir DIR`);
-- `<user>.cred`: one credential per process (`user:password`), passed to the child by path.
+- `<user>.cred`: one credential per process (`user:password`), passed to the child by path;
+- with TLS, `tls/`: the run's CA and certificates (bus/tls.py).
 
 and gives the router an `access_control` block (default deny) that names every process by its
 username. A client without a valid user/password cannot open a session at all; an authenticated
@@ -36,7 +37,7 @@ from __future__ import annotations
 import json
 import os
 import secrets
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -48,11 +49,20 @@ LIVE_SUB_INGRESS = ["declare_liveliness_subscriber", "liveliness_query"]
 
 @dataclass(frozen=True)
 class Credential:
+    """A process's identity on the run's router: user/password, and with TLS (bus/tls.py) its
+    certificate settings (`transport/link/tls/...`)."""
+
     user: str
     password: str
+    tls: dict[str, Any] = field(default_factory=dict, compare=False)
 
-    def zenoh_overrides(self) -> dict[str, str]:
-        return {"transport/auth/usrpwd/user": self.user, "transport/auth/usrpwd/password": self.password}
+    def zenoh_overrides(self) -> dict[str, Any]:
+        return {"transport/auth/usrpwd/user": self.user, "transport/auth/usrpwd/password": self.password, **self.tls}
+
+    def with_tls(self, tls_dir: str | Path) -> "Credential":
+        from bus.tls import client_tls
+
+        return replace(self, tls=client_tls(tls_dir, self.user))
 
 
 def read_credential(path: str | Path) -> Credential:
@@ -149,12 +159,15 @@ class RunSecurity:
     dictionary: Path
     acl: dict[str, Any]
     credentials: dict[str, Path]
+    tls: Any = None  # bus.tls.RunTls when the run's links are TLS
 
     def router_overrides(self) -> dict[str, Any]:
-        return {"transport/auth/usrpwd/dictionary_file": str(self.dictionary), "access_control": self.acl}
+        ov = {"transport/auth/usrpwd/dictionary_file": str(self.dictionary), "access_control": self.acl}
+        return {**ov, **(self.tls.router_overrides() if self.tls else {})}
 
     def credential(self, user: str) -> Credential:
-        return read_credential(self.credentials[user])
+        cred = read_credential(self.credentials[user])
+        return cred.with_tls(self.tls.dir) if self.tls else cred
 
 
 ACL_FILE = "acl.json"     # the router's access_control block, beside users.txt (`swarmhil router --acl-dir`)
@@ -171,8 +184,17 @@ def router_overrides_from_dir(d: str | Path) -> dict[str, Any]:
             "access_control": json.loads((d / ACL_FILE).read_text())}
 
 
-def make_run_security(out: Path, run: str, users: Iterable[str]) -> RunSecurity:
-    """Fresh random passwords for every process of this run, written readable by the user only."""
+def router_settings(dictionary: str | Path, acl_file: str | Path) -> dict[str, Any]:
+    """A router's auth and ACL settings from the two files `make_run_security` wrote (a router started
+    on its own with --users/--acl: compose, another host)."""
+    return {"transport/auth/usrpwd/dictionary_file": str(dictionary), "access_control": json.loads(Path(acl_file).read_text())}
+
+
+def make_run_security(out: Path, run: str, users: Iterable[str], *, tls: bool = False,
+                      tls_hosts: Iterable[str] = ()) -> RunSecurity:
+    """Fresh random passwords for every process of this run, written readable by the user only;
+    also `acl.json` (the router's access control) and, with tls, the run's certificates
+    (bus/tls.py; tls_hosts: the router's addresses on other hosts)."""
     users = list(users)
     d = out / "secrets"
     d.mkdir(mode=0o700, exist_ok=True)
@@ -186,4 +208,9 @@ def make_run_security(out: Path, run: str, users: Iterable[str]) -> RunSecurity:
     for u, c in creds.items():
         paths[u] = d / f"{u}.cred"
         _write_private(paths[u], f"{c.user}:{c.password}\n")
-    return RunSecurity(d, dictionary, acl, paths)
+    run_tls = None
+    if tls:
+        from bus.tls import make_run_tls
+
+        run_tls = make_run_tls(d, users, tls_hosts)
+    return RunSecurity(d, dictionary, acl, paths, run_tls)

@@ -32,8 +32,8 @@ def free_loopback_port() -> int:
         return int(s.getsockname()[1])
 
 
-def endpoint(port: int, host: str = LOOPBACK) -> str:
-    return f"tcp/{host}:{port}"
+def endpoint(port: int, host: str = LOOPBACK, proto: str = "tcp") -> str:
+    return f"{proto}/{host}:{port}"
 
 
 def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: dict[str, Any] | None = None) -> zenoh.Config:
@@ -65,16 +65,17 @@ def _address_in_use(exc: BaseException) -> bool:
 
 
 def open_loopback_router(attempts: int = 8, port_source=None,
-                         overrides: dict[str, Any] | None = None) -> tuple[zenoh.Session, str]:
+                         overrides: dict[str, Any] | None = None, proto: str = "tcp") -> tuple[zenoh.Session, str]:
     """A router listening on a free 127.0.0.1 port: (session, endpoint).
 
     The port comes from `free_loopback_port` (or `port_source`, for tests) and is closed before
     Zenoh binds it, so another process may take it in between; when zenoh.open fails with
     "address already in use" a new port is drawn, up to `attempts` times. Any other error, or
-    the last collision, is raised. `overrides`: as for open_router."""
+    the last collision, is raised. `overrides`: as for open_router; `proto` "tls" with the run's
+    certificates in the overrides (bus/tls.py)."""
     pick = port_source or free_loopback_port
     for attempt in range(1, attempts + 1):
-        ep = endpoint(pick())
+        ep = endpoint(pick(), proto=proto)
         try:
             return open_router(ep, overrides), ep
         except zenoh.ZError as exc:

@@ -133,12 +133,14 @@ def main(verbose: int) -> None:
 @click.option("--overwrite", is_flag=True, help="Replace the run already in --out (refused otherwise).")
 @click.option("--insecure", is_flag=True,
               help="Multi-process runs: no per-process credentials and access control on the router (docs/reliability.md).")
+@click.option("--tls", is_flag=True,
+              help="Multi-process runs: mutual TLS to the router with per-run certificates in DIR/secrets/tls (needs openssl).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool, sets: tuple[str, ...],
-        **viz: Any) -> None:
+        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool,
+        tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
@@ -151,6 +153,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         sys.exit(2)
     from bus.keys import check_token
 
+    if tls and (insecure or in_process):
+        click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
+        sys.exit(2)
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
     except ValueError as exc:
@@ -174,11 +179,14 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     opts = viz_opts(in_process=in_process, **viz)
     if insecure:
         opts["secure"] = False
+    if tls:
+        opts["tls"] = True
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
     else:
         from deploy.launcher import RunFailed
         from deploy.memory import NotEnoughMemory
+        from bus.tls import TlsError
 
         try:
             res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
@@ -188,6 +196,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
             sys.exit(1)
         except NotEnoughMemory as exc:
             _fail(str(exc), EXIT_MEMORY)
+        except TlsError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(1)
     s = res.summary
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
@@ -271,9 +282,11 @@ def mcap_info(src: str) -> None:
 @click.option("--out", "out", type=click.Path(dir_okay=False), default="compose.yml", show_default=True)
 @click.option("--run-id", help="Run id; default <scenario>-<time>-<hex>.")
 @click.option("--image", default="swarmhil:latest", show_default=True)
-def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
-    """Write a compose file that starts the run's processes as containers, each agent its own."""
-    from deploy.agent_image import write_resolved_scenario
+@click.option("--router-host", "router_hosts", multiple=True, metavar="ADDRESS",
+              help="The router's address as other hosts dial it (repeatable): named in its TLS certificate.")
+def compose(scenario: str, out: str, run_id: str | None, image: str, router_hosts: tuple[str, ...]) -> None:
+    """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
+    containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
     from deploy.compose import write_compose
     from deploy.launcher import new_run_id
     from deploy.scenario import ScenarioError, load_scenario
@@ -282,11 +295,19 @@ def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
-    # the containers read the validated document and the agents their own configs, as in `run`
-    Path(out).parent.mkdir(parents=True, exist_ok=True)
-    resolved = write_resolved_scenario(sc, Path(out).with_name(f"{Path(out).stem}.scenario.json"))
-    path = write_compose(sc, str(resolved), run_id or new_run_id(sc.name), Path(out), image=image)
-    click.echo(f"wrote {path} ({len(sc.ids)} agents) and {resolved}")
+    from bus.keys import check_token
+    from bus.tls import TlsError
+
+    try:
+        rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
+        hosts = [check_token(h, "--router-host") for h in router_hosts]
+    except ValueError as exc:
+        _fail(str(exc), EXIT_USAGE)
+    try:
+        path = write_compose(sc, scenario, rid, Path(out), image=image, router_hosts=hosts)
+    except (OSError, TlsError) as exc:
+        _fail(str(exc), EXIT_FAILED)
+    click.echo(f"wrote {path} ({len(sc.ids)} agents)")
 
 
 @main.command()

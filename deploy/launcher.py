@@ -207,6 +207,8 @@ class MultiProcessRun:
         self.companions = enabled_companions(sc, self.opts)
         # authentication and access control on the router (bus/acl.py); off only by explicit choice
         self.secure = bool(self.opts.get("secure", True))
+        # mutual TLS on every link to the router, with per-run certificates (bus/tls.py)
+        self.tls = bool(self.opts.get("tls", False))
         self.security: Any = None
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}
@@ -221,6 +223,8 @@ class MultiProcessRun:
                "--scenario", self.scenario_path, "--out", str(self.out), *extra]
         if self.security is not None:
             cmd += ["--credentials", str(self.security.credentials[name])]
+            if self.security.tls is not None:
+                cmd += ["--tls", str(self.security.tls.dir)]
         for opt, val in self.overrides.items():
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
@@ -316,10 +320,12 @@ class MultiProcessRun:
 
         for _attempt in range(attempts):
             port = free_loopback_port()
-            ep = endpoint(port)
+            ep = endpoint(port, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "deploy.router", "--listen", ep]
             if self.security is not None:
                 cmd += ["--acl-dir", str(self.security.dir)]
+                if self.security.tls is not None:
+                    cmd += ["--tls", str(self.security.tls.dir)]
             p = self._popen("router", cmd)
             t_end = time.monotonic() + timeout_s
             while p.poll() is None and time.monotonic() < t_end:
@@ -407,8 +413,10 @@ class MultiProcessRun:
             from bus.acl import make_run_security
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            self.security = make_run_security(self.out, self.run, users)
+            self.security = make_run_security(self.out, self.run, users, tls=self.tls)
             launcher_cred = self.security.credential("launcher")
+        elif self.tls:
+            raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
         try:
             router_ep = self._start_router()
             watch = ZenohBus(router_ep, credential=launcher_cred)
@@ -420,6 +428,7 @@ class MultiProcessRun:
             raise
         summary["router"] = router_ep
         summary["secure"] = self.secure
+        summary["tls"] = self.tls
         bar = _Progress(self.sc, self.progress)
         keys = Keys(self.run)
 

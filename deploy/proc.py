@@ -39,6 +39,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mode")
     p.add_argument("--speed", type=float)
     p.add_argument("--credentials", help="file 'user:password' authenticating this process to the run's router (bus/acl.py)")
+    p.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, <user>.pem/.key; bus/tls.py): "
+                   "mutual TLS to a router on a tls/... endpoint; needs --credentials (the user names the certificate)")
 
 
 def _stop_event() -> threading.Event:
@@ -133,6 +135,40 @@ def _agent(args: argparse.Namespace, stop: threading.Event, cred: Any, out: Path
     return 0
 
 
+def _await_run_end(node: object, timeout_s: float) -> None:
+    import time
+
+    t_end = time.monotonic() + timeout_s
+    while not getattr(node, "run_end", True) and time.monotonic() < t_end:
+        time.sleep(0.05)
+
+
+def _router(args: argparse.Namespace) -> int:
+    """The run's router on its own (compose, another host): deploy/router.py with the run's auth
+    dictionary + ACL (bus/acl.py: --acl-dir, or --users/--acl) and mutual TLS (bus/tls.py: --tls)."""
+    from deploy.router import router_overrides, run_router
+
+    try:
+        overrides = router_overrides(args.listen, acl_dir=args.acl_dir, users=args.users, acl=args.acl, tls=args.tls)
+    except ValueError as exc:
+        print(f"error: router: {exc}", file=sys.stderr, flush=True)
+        return 2
+    return run_router(args.listen, overrides, _stop_event())
+
+
+def _probe(router: str, timeout_s: float) -> int:
+    """TCP connect to the host:port of a zenoh endpoint (`tcp/`, `tls/`): the router's health check."""
+    import socket
+
+    try:
+        host, _, port = router.split("/", 1)[1].rpartition(":")
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            return 0
+    except (OSError, ValueError, IndexError) as exc:
+        print(f"probe: {router}: {exc}", file=sys.stderr)
+        return 1
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
@@ -146,17 +182,28 @@ def main(argv: list[str] | None = None) -> int:
             p.add_argument("--barriers", default="")
         if role == "recorder":
             p.add_argument("--segment", type=int, default=0, help="0: run.mcap; N: run.NNN.mcap (a restart)")
+            # without the launcher's flush handshake (compose, several hosts): a recorder told to stop
+            # still waits up to this long for the plant's run_end (the plant publishes its last truth,
+            # then run_end, on one session), so everything the plant published is recorded
+            p.add_argument("--await-run-end", type=float, default=0.0, metavar="SECONDS")
         if role == "companion":
             p.add_argument("--name", required=True)
             p.add_argument("--opts", default="{}")
-    r = sub.add_parser("router", help="the run's Zenoh router (launcher, compose deployments)")
-    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
+    r = sub.add_parser("router", help="the run's Zenoh router (launcher, compose deployments, another host)")
+    r.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447 or tls/router:7447")
     r.add_argument("--acl-dir", help="the run's secrets directory (users.txt, acl.json: bus/acl.py)")
+    r.add_argument("--users", help="the run's user/password dictionary (secrets/users.txt, bus/acl.py)")
+    r.add_argument("--acl", help="the run's access control (secrets/acl.json); needs --users")
+    r.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
+    h = sub.add_parser("probe", help="exit 0 when something accepts TCP connections at a router endpoint "
+                       "(a compose health check)")
+    h.add_argument("--router", required=True)
+    h.add_argument("--timeout", type=float, default=2.0)
     args = ap.parse_args(argv)
     if args.role == "router":
-        from deploy.router import run_router
-
-        return run_router(args.listen, args.acl_dir, _stop_event())
+        return _router(args)
+    if args.role == "probe":
+        return _probe(args.router, args.timeout)
     logging.basicConfig(level=logging.WARNING, format=f"%(asctime)s {args.role}{'/' + args.id if args.role == 'agent' else ''} %(levelname)s %(message)s")
     stop = _stop_event()
     cred = None
@@ -164,6 +211,10 @@ def main(argv: list[str] | None = None) -> int:
         from bus.acl import read_credential
 
         cred = read_credential(args.credentials)
+        if args.tls:
+            cred = cred.with_tls(args.tls)
+    elif args.tls:
+        ap.error("--tls needs --credentials (the user names the certificate)")
     out = Path(args.out)
     if args.role == "agent":  # before any scenario validation: an agent image reads its own config only
         return _agent(args, stop, cred, out)
@@ -198,6 +249,7 @@ def main(argv: list[str] | None = None) -> int:
         node = RecorderNode(bus, args.run, out / segment_name(args.segment), config=sc.resolved(),
                             document=resolved_document(sc), segment=args.segment)
         stop.wait()
+        _await_run_end(node, args.await_run_end)
         stats = node.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
         write_import_audit("recorder")

@@ -1,4 +1,4 @@
-"""The run's Zenoh router as its own process: `python -m deploy.router --listen EP [--acl-dir DIR]`
+"""The run's Zenoh router as its own process: `python -m deploy.router --listen EP [--acl-dir DIR] [--tls DIR]`
 (what the launcher starts; `swarmhil router` is the same for compose and multi-host deployments).
 
 Lean on purpose (no numpy, no scenario): it must come up fast on a loaded machine. With
@@ -16,28 +16,39 @@ import sys
 import threading
 
 
-def _overrides(acl_dir: str | None) -> dict | None:
-    """The run's authentication and access control from its secrets directory (ValueError if not one)."""
-    if not acl_dir:
-        return None
-    from bus.acl import router_overrides_from_dir
+def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | None = None, acl: str | None = None,
+                     tls: str | None = None) -> dict | None:
+    """The router's Zenoh settings: authentication and access control from the run's secrets
+    directory (`acl_dir`: users.txt + acl.json) or from the two files (`users`, `acl`), and mutual TLS
+    from the run's TLS directory (bus/tls.py). ValueError (one line) for a bad combination or directory."""
+    overrides: dict = {}
+    if acl and not users:
+        raise ValueError("--acl needs --users (the ACL names authenticated users)")
+    if acl_dir:
+        from bus.acl import router_overrides_from_dir
 
-    try:
-        return router_overrides_from_dir(acl_dir)
-    except OSError as exc:
-        raise ValueError(f"{acl_dir}: {exc}") from None
+        try:
+            overrides.update(router_overrides_from_dir(acl_dir))
+        except OSError as exc:
+            raise ValueError(f"{acl_dir}: {exc}") from None
+    elif users:
+        from bus.acl import router_settings
+
+        overrides.update(router_settings(users, acl) if acl else {"transport/auth/usrpwd/dictionary_file": users})
+    if listen.startswith("tls/") != bool(tls):
+        raise ValueError(f"--listen {listen} and --tls go together (a tls/ endpoint needs the run's certificates)")
+    if tls:
+        from bus.tls import router_tls
+
+        overrides.update(router_tls(tls))
+    return overrides or None
 
 
-def run_router(listen: str, acl_dir: str | None, stop: threading.Event) -> int:
+def run_router(listen: str, overrides: dict | None, stop: threading.Event) -> int:
     import zenoh
 
     from bus.zenoh_bus import _address_in_use, open_router
 
-    try:
-        overrides = _overrides(acl_dir)
-    except ValueError as exc:
-        print(f"error: router: {exc}", file=sys.stderr, flush=True)
-        return 2
     try:
         session = open_router(listen, overrides)
     except zenoh.ZError as exc:
@@ -70,9 +81,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.router")
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
     ap.add_argument("--acl-dir", help="a run's secrets directory (users.txt, acl.json: bus/acl.py)")
+    ap.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
     args = ap.parse_args(argv)
-    try:
-        _overrides(args.acl_dir)  # a bad directory fails before any signal handler is installed
+    try:  # a bad directory fails before any signal handler is installed
+        overrides = router_overrides(args.listen, acl_dir=args.acl_dir, tls=args.tls)
     except ValueError as exc:
         print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
@@ -80,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     _watch_parent(stop)
-    return run_router(args.listen, args.acl_dir, stop)
+    return run_router(args.listen, overrides, stop)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
+import stat
 import subprocess
 import sys
 import tarfile
@@ -20,8 +22,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import ROOT, SCENARIOS
-from deploy.compose import compose_document
+from conftest import ROOT, SCENARIOS, read_mcap
+from deploy.compose import compose_document, write_compose
 from deploy.scenario import load_scenario
 
 CACHE = ROOT / "tests" / ".browser" / "compose"
@@ -71,12 +73,20 @@ def _download_compose() -> Path:
     return exe
 
 
+def _project(tmp_path: Path, scenario: str = "drift-20.toml", run: str = "c1", *extra: str) -> tuple[Path, dict]:
+    out = tmp_path / "proj" / "compose.yml"
+    r = subprocess.run([sys.executable, "-m", "deploy.cli", "compose", str(SCENARIOS / scenario), "--out", str(out),
+                        "--run-id", run, *extra], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return out, yaml.safe_load(out.read_text())
+
+
 def test_compose_document_structure() -> None:
     sc = load_scenario(SCENARIOS / "drift-20.toml")
-    doc = compose_document(sc, str(SCENARIOS / "drift-20.toml"), "r1")
+    doc = compose_document(sc, "r1")
     agents = [s for s in doc["services"] if s.startswith("agent-")]
     assert len(agents) == 20
-    assert doc["networks"]["swarm"]["internal"] is True
+    assert doc["networks"]["swarm"]["internal"] == "${SWARMHIL_INTERNAL:-true}"
     text = yaml.safe_dump(doc)
     assert "0.0.0.0" not in text and "[::]" not in text
     plant = doc["services"]["plant"]
@@ -85,23 +95,107 @@ def test_compose_document_structure() -> None:
 
 def test_compose_starts_the_link_channel_when_the_scenario_has_one() -> None:
     sc = load_scenario(SCENARIOS / "sabatini-20-beacon.toml")
-    doc = compose_document(sc, str(SCENARIOS / "sabatini-20-beacon.toml"), "r2")
+    doc = compose_document(sc, "r2")
     assert "channel" in doc["services"]
     cmd = doc["services"]["plant"]["command"]
     assert cmd[cmd.index("--barriers") + 1] == "channel"
 
 
+def test_compose_file_is_hardened_and_portable(tmp_path: Path) -> None:
+    """Issue 17: a health-checked router every service waits for, restart policies, no path of the
+    generating checkout, the router address a variable, credentials and certificates as secrets."""
+    out, doc = _project(tmp_path, "sabatini-20-beacon.toml", "c2", "--router-host", "10.1.2.3")
+    text = out.read_text()
+    for p in (str(ROOT), str(tmp_path), str(Path.home())):
+        assert p not in text, p
+    svcs = doc["services"]
+    router = svcs["router"]
+    assert router["healthcheck"]["test"][0] == "CMD" and "probe" in router["healthcheck"]["test"]
+    assert router["restart"] == "unless-stopped"
+    for name, s in svcs.items():
+        assert s["user"].startswith("${SWARMHIL_UID:-10001}"), name  # never root
+        assert "restart" in s, name
+        for v in s.get("volumes", []):
+            assert v.rsplit(":", 1)[0].startswith(("./", "${SWARMHIL_DATA:-./")), v
+        if name == "router":
+            continue
+        assert s["depends_on"]["router"] == {"condition": "service_healthy"}, name
+        cmd = s["command"]
+        assert cmd[cmd.index("--router") + 1] == "${SWARMHIL_ROUTER:-tls/router:7447}", name
+        # its own credential and certificate, mounted as secrets, and nobody else's
+        user = name if name != "plant" else "plant"
+        mine = {x["target"] for x in s["secrets"]}
+        assert mine == {f"{user}.cred", "ca.pem", f"{user}.pem", f"{user}.key"}, (name, mine)
+        assert cmd[cmd.index("--credentials") + 1] == f"/run/secrets/{user}.cred"
+    assert svcs["agent-sc01"]["restart"].startswith("on-failure") and svcs["plant"]["restart"] == "no"
+    assert {x["target"] for x in router["secrets"]} == {"users.txt", "acl.json", "ca.pem", "router.pem", "router.key"}
+    # every secret is a file of the project, private to the user
+    for sec in doc["secrets"].values():
+        f = out.parent / sec["file"]
+        assert sec["file"].startswith("./secrets/") and f.is_file(), sec
+        assert stat.S_IMODE(f.stat().st_mode) == 0o600, f
+    assert not (out.parent / "secrets" / "tls" / "ca.key").exists()  # the run's CA signs nothing more
+    # the router's certificate names the address given for other hosts
+    r = subprocess.run(["openssl", "x509", "-noout", "-ext", "subjectAltName", "-in",
+                        str(out.parent / "secrets" / "tls" / "router.pem")], capture_output=True, text=True)
+    assert "IP Address:10.1.2.3" in r.stdout and "DNS:router" in r.stdout, r.stdout + r.stderr
+
+
+def test_dockerfile_is_hardened() -> None:
+    text = (ROOT / "deploy" / "Dockerfile").read_text()
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    assert "|| true" not in text
+    base = next(ln for ln in lines if ln.startswith("FROM ")).split()[1]
+    assert "@sha256:" in base or re.fullmatch(r"python:\d+\.\d+\.\d+-slim-\w+", base), base  # a patch release or a digest
+    user = [ln for ln in lines if ln.startswith("USER ")]
+    assert user and user[-1].split()[1].split(":")[0] not in ("root", "0")
+    assert any(ln.startswith("COPY link") for ln in lines)  # the link channel runs in the image too
+
+
 def test_compose_file_validates_with_compose_v2(tmp_path: Path) -> None:
     exe = _compose_command()
-    out = tmp_path / "compose.yml"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "compose", str(SCENARIOS / "drift-20.toml"), "--out", str(out),
-                        "--run-id", "c1"], cwd=ROOT, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    out, _doc = _project(tmp_path)
     v = subprocess.run([*exe, "-f", str(out), "config", "-q"], capture_output=True, text=True, cwd=tmp_path)
     assert v.returncode == 0, v.stderr
     full = subprocess.run([*exe, "-f", str(out), "config", "--services"], capture_output=True, text=True, cwd=tmp_path)
     assert len(full.stdout.split()) == 23  # router, recorder, plant, 20 agents
     # every process reads the resolved document written beside it; each agent its own config there
-    resolved = json.loads((tmp_path / "compose.scenario.json").read_text())
+    resolved = json.loads((out.parent / "scenario.json").read_text())
     assert sorted(resolved["agents"]) == [f"sc{i:02d}" for i in range(1, 21)] and resolved["doc"]["run"]["name"] == "drift-20"
-    assert "/scenarios/compose.scenario.json" in out.read_text()
+    # the variables really parameterize it: the router address and the network
+    env = {**os.environ, "SWARMHIL_ROUTER": "tls/10.9.8.7:7447", "SWARMHIL_INTERNAL": "false"}
+    cfg = subprocess.run([*exe, "-f", str(out), "config", "--format", "json"], capture_output=True, text=True,
+                         cwd=tmp_path, env=env)
+    assert cfg.returncode == 0, cfg.stderr
+    resolved = json.loads(cfg.stdout)
+    assert "tls/10.9.8.7:7447" in resolved["services"]["agent-sc01"]["command"]
+    assert not resolved["networks"]["swarm"].get("internal", False)
+
+
+LOOPBACK_SCENARIO = "sabatini-20-beacon.toml"
+
+
+@pytest.mark.system
+def test_compose_services_run_together_as_plain_processes(tmp_path: Path) -> None:
+    """The compose file's own commands, environment, secrets and healthcheck, run as processes on
+    loopback (no Docker engine on these machines): an authenticated mutual-TLS run that completes."""
+    from bus.zenoh_bus import endpoint, free_loopback_port
+    from compose_local import run_to_end, services, tail
+
+    out = tmp_path / "proj" / "compose.yml"
+    sc = load_scenario(SCENARIOS / LOOPBACK_SCENARIO, ("dispersion.count=3", "run.duration_s=100.0"))
+    write_compose(sc, LOOPBACK_SCENARIO, "cl1", out)
+    doc = yaml.safe_load(out.read_text())
+    ep = endpoint(free_loopback_port(), proto="tls")
+    svcs = services(doc, out.parent, {"SWARMHIL_ROUTER": ep, "SWARMHIL_ROUTER_LISTEN": ep}, tmp_path / "work")
+    logs = tmp_path / "logs"
+    codes = run_to_end(svcs, logs)
+    assert all(c == 0 for c in codes.values()), {n: (c, tail(logs, n)) for n, c in codes.items() if c}
+    data = out.parent / "data"
+    plant = json.loads((data / "plant_summary.json").read_text())
+    assert plant["steps"] == 10 and not plant["dead_agents"] and not plant["missed_deadlines"], plant
+    assert plant["delta_v_total_mps"] > 0  # the agents' commands reached the plant
+    msgs = read_mcap(data / "run.mcap")
+    assert sum(t == "truth" for t, *_ in msgs) == 11
+    assert any(t == "event" and m.kind == "run_end" for t, _l, _p, m in msgs)
+    assert any(t.startswith("isl/rx/") for t, *_ in msgs)  # the link channel delivered
