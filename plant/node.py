@@ -38,7 +38,8 @@ class PlantNode:
     AGENT_PREFIX = "agent-"
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
-                 barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None) -> None:
+                 barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
+                 local_agents: Callable[[SensingContext, np.ndarray, Any], np.ndarray] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -68,6 +69,13 @@ class PlantNode:
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
+        # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
+        # process, called with the sensing kind's stimuli as arrays (`batch`) instead of one
+        # message per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
+        self.local_agents = local_agents
+        self._local_cmd: np.ndarray | None = None
+        if local_agents is not None and not hasattr(self.sensor, "batch"):
+            raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
             bus.subscribe(self.keys.sync_all, self._on_barrier)
@@ -183,6 +191,10 @@ class PlantNode:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
                              alive=self.world.alive, world=self.world)
+        if self.local_agents is not None:
+            rows = np.flatnonzero(self.world.alive)
+            self._local_cmd = self.local_agents(ctx, rows, self.sensor.batch(ctx, rows))
+            return
         for j, sid in enumerate(ids):
             if not alive[j]:
                 continue
@@ -210,6 +222,14 @@ class PlantNode:
 
     def collect_and_advance(self) -> None:
         k = self._step
+        if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
+            alive = self.world.alive
+            self.held[alive, :3] = self._local_cmd[alive]
+            self.held[alive, 3:] = 0.0
+            self._missed_in_row[alive] = 0
+            self._local_cmd = None
+            self._advance(k)
+            return
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
         for b in self.barriers:
@@ -226,6 +246,9 @@ class PlantNode:
                 self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
                 if self.pacer.name == "lockstep" and self._missed_in_row[i] >= self.sc.dead_after_missed:
                     self._mark_dead(sid, f"{self._missed_in_row[i]} lockstep deadlines missed in a row")
+        self._advance(k)
+
+    def _advance(self, k: int) -> None:
         self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])

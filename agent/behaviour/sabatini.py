@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from agent.behaviour.dre import GainTable, gain_table
-from agent.controller import Command, Decision, Observation, OrbitInfo
+from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
@@ -216,6 +216,103 @@ class SabatiniController:
         active = [b for b in (CA, ALIGN, ATTRACT) if enabled[b] and b in present]
         mode = active[0] if active else "coast"
         return Command(accel_mps2=accel, mode=mode, decisions=decisions)
+
+    @classmethod
+    def step_batch(cls, controllers: "list[SabatiniController]", batch: ObservationBatch) -> CommandBatch:
+        """`step` of many spacecraft at once (issue 16): every pair of the batch in one pass of
+        numpy, the same floating-point operations as `step` on each pair (elementwise, the gain
+        product through the same per-pair matrix-vector call of `np.matmul`, each spacecraft's sum
+        over its neighbours in the same order), so each command equals its `step`'s bit for bit
+        (tests/test_behaviour_batch.py). Controllers with different parameters or orbits are
+        stepped one by one."""
+        if not controllers:
+            return CommandBatch(np.zeros((0, 3)), [])
+        c0 = controllers[0]
+        if not _alike(controllers):
+            return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
+        return c0._step_pairs(batch)
+
+    def _step_pairs(self, batch: ObservationBatch) -> CommandBatch:
+        n_obs = len(batch)
+        off = np.asarray(batch.offsets, dtype=np.int64)
+        counts = np.diff(off)
+        rel_pos = np.asarray(batch.rel_position_m, float).reshape(-1, 3)
+        rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(-1, 3)
+        u = batch.u_rad
+        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, u, self.n_radps)
+        d_min_jk_m = decision_distance_m(roe_jk_m)
+        # the comparisons of _labels on arrays (a NaN is ALIGN in both)
+        is_ca = d_min_jk_m < self.p.d_min_m
+        is_att = ~is_ca & (d_min_jk_m > self._d_att_m)
+        is_al = ~(is_ca | is_att)
+        range_m = np.sqrt(np.einsum("ij,ij->i", rel_pos, rel_pos))
+        ref, weight, correct = self._references(roe_jk_m, range_m, is_ca, is_al, is_att, d_min_jk_m)
+        enabled = self._enabled
+        err = roe_jk_m - ref
+        n_pairs = len(roe_jk_m)
+        contrib = np.zeros((n_pairs, 3))
+        masks = {CA: is_ca, ALIGN: is_al, ATTRACT: is_att}
+        on = np.zeros(n_pairs, dtype=bool)
+        g_sel = np.empty((n_pairs, 3, 6))
+        for b in (CA, ALIGN, ATTRACT):
+            if enabled[b]:
+                g_sel[masks[b]] = self.gains[b].gain(u)
+                on |= masks[b]
+        if on.any():  # (3,6) @ (6,) per pair: np.matmul calls the same matrix-vector product as `g @ err[i]`
+            prod = np.matmul(g_sel[on], err[on][:, :, None])[:, :, 0]
+            contrib[on] = -weight[on][:, None] * prod
+        # each observer's rows summed in order from +0.0, as contrib.sum(axis=0) of `step` does
+        # (np.add.reduceat does not: it differs in the last bit for some sums of 3 rows)
+        total = np.zeros((n_obs, 3))
+        has = counts > 0
+        for r in range(int(counts.max()) if n_obs else 0):
+            sel = np.flatnonzero(counts > r)
+            total[sel] += contrib[off[sel] + r]
+        accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
+        # mode: the first enabled behaviour present among the observer's pairs ("search" without any)
+        mode = np.full(n_obs, "coast", dtype=object)
+        if has.any():
+            starts = off[:-1][has]
+            for b in (ATTRACT, ALIGN, CA):  # the last assignment wins: CA before ALIGN before ATTRACT
+                if enabled[b]:
+                    m = np.zeros(n_obs, dtype=bool)
+                    m[has] = np.logical_or.reduceat(masks[b], starts)
+                    mode[m] = b
+        mode[~has] = "search"
+        modes = mode.tolist()
+
+        def build(i: int) -> Command:
+            """Observer i's full Command with its decisions (telemetry), as `step` returns it."""
+            a, b_ = int(off[i]), int(off[i + 1])
+            if a == b_:
+                return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
+            decisions = []
+            for r in range(a, b_):
+                b = CA if is_ca[r] else (ATTRACT if is_att[r] else ALIGN)
+                label = b if enabled[b] else f"{b}_disabled"
+                if b == ALIGN and not correct[r] and enabled[b]:
+                    label = ALIGN_DRIFT
+                decisions.append(Decision(neighbour=batch.neighbour_ids[r], behaviour=label,
+                                          d_min_m=float(d_min_jk_m[r]), roe_rel_m=roe_jk_m[r].copy(),
+                                          accel_mps2=contrib[r].copy()))
+            return Command(accel_mps2=accel[i].copy(), mode=modes[i], decisions=decisions)
+
+        return CommandBatch(accel_mps2=accel, modes=modes, build=build)
+
+
+_ALIKE: list = [((), False)]  # the last controllers checked (kept alive: identity means the same objects)
+
+
+def _alike(controllers: "list[SabatiniController]") -> bool:
+    """Same parameters and orbit for all (one vectorised law); the verdict of the last list is kept,
+    since a batch run asks about the same controllers every step."""
+    last, verdict = _ALIKE[0]
+    if len(last) == len(controllers) and all(a is b for a, b in zip(last, controllers)):
+        return verdict
+    c0 = controllers[0]
+    verdict = all(c.p == c0.p and c.a_m == c0.a_m and c.n_radps == c0.n_radps for c in controllers[1:])
+    _ALIKE[0] = (tuple(controllers), verdict)
+    return verdict
 
 
 def make_sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> SabatiniController:
