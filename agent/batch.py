@@ -42,7 +42,10 @@ class BatchAgents:
             log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
 
     def _decide(self, rows: np.ndarray, batch: ObservationBatch) -> CommandBatch:
-        ctrls = [self.controllers[i] for i in rows.tolist()]
+        if len(rows) == len(self.controllers):  # everyone alive (rows are sorted and unique)
+            ctrls = self.controllers
+        else:
+            ctrls = [self.controllers[i] for i in rows.tolist()]
         try:
             return step_batch(ctrls, batch)
         except Exception:  # noqa: BLE001 - find the spacecraft whose software raised: each on its own
@@ -71,8 +74,11 @@ class BatchAgents:
                     acc[r] = 0.0
                     modes[r] = "fault"
             self.accel_mps2[rows] = acc
-            for r, i in enumerate(rows.tolist()):
-                self.modes[i] = modes[r]
+            if len(rows) == len(self.ids):
+                self.modes = modes
+            else:
+                for r, i in enumerate(rows.tolist()):
+                    self.modes[i] = modes[r]
             self.last = cb
         self.steps += 1
         return self.accel_mps2

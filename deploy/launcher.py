@@ -134,7 +134,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
             hook = BatchHook(bus, run, sc)
     summary["record"] = record
     plant = PlantNode(bus, run, sc, expect_processes=("recorder", *[c.name for c in comps]),
-                      barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update, local_agents=hook)
+                      barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update if progress else None,
+                      local_agents=hook)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
     agents = [make_agent(bus, run, sc, sid) for sid in sc.ids] if hook is None else []
     plant.wait_ready(timeout_s=1.0)

@@ -177,11 +177,15 @@ class PlantNode:
                          mean_motion_radps=self.world.n_radps)
         P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
         A = self.world.last_accel_mps2.tolist()
-        for i, sid in enumerate(ids):
-            b = truth.bodies.add(id=sid, kind="spacecraft", delta_v_mps=DV[i], alive=alive[i], roe_m=R[i])
-            b.position_m.x, b.position_m.y, b.position_m.z = P[i]
-            b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = V[i]
-            b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z = A[i]
+        add = truth.bodies.add
+        for sid, dv, al, r, p, v, a in zip(ids, DV, alive, R, P, V, A):  # each sub-message looked up once
+            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
+            q = b.position_m
+            q.x, q.y, q.z = p
+            q = b.velocity_mps
+            q.x, q.y, q.z = v
+            q = b.accel_cmd_mps2
+            q.x, q.y, q.z = a
         if isinstance(self.world, MissionWorld):
             self._add_mission_truth(truth)
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from agent.behaviour.dre import GainTable, gain_table
+from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe
 
@@ -138,6 +138,7 @@ class SabatiniController:
         self._enabled = {CA: params.enable_collision_avoidance, ALIGN: params.enable_alignment,
                          ATTRACT: params.enable_attraction}
         self._enabled_codes = np.array([self._enabled[b] for b in (CA, ALIGN, ATTRACT)])
+        self._gain_stack = stacked_gains(tuple(self.gains[b] for b in (CA, ALIGN, ATTRACT)))
         self._d_att_m = params.attraction_fraction * params.d_max_m
         self._span_m = params.attraction_fraction * params.d_max_m - params.d_min_m
 
@@ -231,7 +232,7 @@ class SabatiniController:
         err = roe_jk_m - ref
         # u_c = -sum_k w_jk K_b(u) (dalpha_jk - dalpha_ref_jk), the gains of the enabled behaviours
         on_b = self._enabled_codes
-        gains = np.stack([self.gains[b].gain(u) if on_b[i] else np.zeros((3, 6)) for i, b in enumerate(BEHAVIOURS)])
+        gains = interpolate_periodic(self._gain_stack, u, axis=1)  # (3 behaviours, 3, 6): GainTable.gain of each
         contrib = np.zeros((n_pairs, 3))
         if on_b.all():
             contrib = -weight[:, None] * np.matmul(gains[code], err[:, :, None])[:, :, 0]
