@@ -102,6 +102,9 @@ def test_mixed_parameters_and_controllers_without_a_batch_path() -> None:
     drift = [make_controller("drift-null", f"d{i}", ORBIT, {"gain_per_s": 1e-4}) for i in range(3)]
     cb = _check(drift, [_random_obs(rng, k, 5) for k in (0, 2, 5)])  # the default: each `step` in turn
     assert cb.modes == ["search", "drift-null", "drift-null"]
+    null = [make_controller("null", f"z{i}", ORBIT, {}) for i in range(3)]
+    cb = _check(null, [_random_obs(rng, k, 5) for k in (0, 2, 5)])  # its own batch path
+    assert cb.modes == ["coast"] * 3 and not cb.accel_mps2.any()
 
 
 def test_observation_batch_round_trip() -> None:
