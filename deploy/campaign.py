@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 ROW_DIR = "rows"
 RUN_DIR = "runs"
-FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "delta_v_total_mps", "steps", "dead_agents_count",
+FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "cpu_s", "delta_v_total_mps", "steps", "dead_agents_count",
                  "rejected_packets")
 
 
@@ -92,7 +92,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
     `swarmhil report` computes them, without figures). Writes and returns its row; never raises
     for a failed run (the row carries the error)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    t0 = time.monotonic()
+    t0, c0 = time.monotonic(), time.thread_time()
     row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
     rdir = run_dir(Path(out), seed)
     try:
@@ -117,6 +117,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         row["error"] = f"{type(exc).__name__}: {exc}"
     row["seed"] = int(seed)
     row["wall_s"] = time.monotonic() - t0
+    row["cpu_s"] = time.thread_time() - c0  # this run's CPU time (the worker thread's): the load-free cost
     _write_atomic(row_path(Path(out), seed), json.dumps(row, default=_json_default))
     return row
 
@@ -264,6 +265,7 @@ REPORT_METRICS = (
     ("dead_agents_count", "dead agents"),
     ("rejected_packets", "rejected packets"),
     ("wall_s", "wall per run [s]"),
+    ("cpu_s", "CPU per run [s]"),
 )
 
 
