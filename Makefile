@@ -5,18 +5,22 @@ STAMP  := $(VENV)/.installed-stamp
 
 .PHONY: setup demo test test-system test-study test-browser test-all bench proto clean
 
-$(STAMP): pyproject.toml
+# Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
+# An agent image needs only the core: `pip install .` (docs/packaging.md).
+$(STAMP): pyproject.toml constraints.txt
 	python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev]'
+	$(PY) -m pip install -q -e '.[all,dev]' -c constraints.txt
 	$(VENV)/bin/rerun analytics disable >/dev/null 2>&1 || true
 	touch $(STAMP)
 
 setup: $(STAMP)
 
+# The first five minutes: the demo run (6 agent processes, 30 simulated minutes) with its 3D views
+# saved (runs/demo/run.rrd) and its report (runs/demo/report/index.html); it ends by printing
+# both paths and the command that opens each.
 demo: setup
-	$(PY) -m deploy.cli run deploy/scenarios/demo.toml --out runs/demo --overwrite
-	$(PY) -m deploy.cli mcap info runs/demo/run.mcap | tail -n 5
+	$(PY) -m deploy.cli demo --out runs/demo
 
 test: setup
 	$(PY) -m pytest -q

@@ -30,8 +30,8 @@ class BeaconEmitter:
         return [Transmission(type="beacon", payload=b.SerializeToString())]
 
 
-def beacon_from_scenario(sc: Any, sc_id: str) -> BeaconEmitter | None:
-    cfg = sc.sections.get("beacon")
+def beacon_from_config(cfg: dict[str, Any] | None, sc_id: str) -> BeaconEmitter | None:
+    """The emitter of a `[beacon]` table (None when it is absent, disabled or has no period)."""
     if not cfg or not cfg.get("enabled", True) or "period_s" not in cfg:
         return None
     return BeaconEmitter(sc_id, float(cfg["period_s"]), bool(cfg.get("include_estimates", False)))

@@ -205,8 +205,18 @@ def validate_params(name: str, params: dict[str, Any]) -> None:
         check(dict(params))
 
 
-def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:
+def controller_module(name: str) -> str:
+    """The module whose import registers controller `name` (an agent image imports only that one)."""
     load_controllers()
+
+    if name not in _REGISTRY:
+        raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")
+    return _REGISTRY[name].__module__
+
+
+def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:
+    if name not in _REGISTRY:  # an agent image has imported its controller's module only
+        load_controllers()
 
     if name not in _REGISTRY:
         raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")

@@ -57,6 +57,10 @@ def _check_drift_null(params: dict[str, Any]) -> None:
     unknown = sorted(set(params) - {"gain_per_s", "max_accel_mps2"})
     if unknown:
         raise ValueError(f"unknown parameter {unknown[0]!r}; known: ['gain_per_s', 'max_accel_mps2']")
+    for k in ("gain_per_s", "max_accel_mps2"):  # finite numbers >= 0 (a string, a bool or NaN is refused)
+        v = params.get(k, 0.0)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+            raise ValueError(f"{k} must be a finite number >= 0 (got {v!r})")
 
 
 def _check_sabatini(params: dict[str, Any]) -> None:

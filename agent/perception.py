@@ -151,9 +151,10 @@ class Perception:
         if period <= 0 or t_s + 1e-9 < self._next_image_t:
             return None
         self._next_image_t = t_s + period
-        from PIL import Image
-
         from agent.camera.render import compose_frame
+        from bus.optional import require
+
+        Image = require("PIL.Image", "debug images ([nav] debug_image_period_s)")
 
         frame = compose_frame(self.vision.last_stacks, self.vision.renderer.camera)
         if self.cfg["imaging"] == "exact":  # no image in the paper's exact mode: draw the blob centroids

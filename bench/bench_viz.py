@@ -10,6 +10,15 @@ included) is compared too: on a shared, loaded machine it is steadier than wall 
     .venv/bin/python bench/bench_viz.py [--scenario deploy/scenarios/sabatini-20.toml] [--duration 7200] [--repeats 3]
 
 Writes bench/results/bench_viz.json.
+
+The bridge's own cost per step, old code against new (`--logger RUN_DIR/run.mcap --trees A B`):
+`swarmhil replay` of one recording to a .rrd, run with each source tree as the working directory
+(so that tree's dashboards/ is imported), alternately, `--repeats` times; the CPU time of the
+replay process after its imports (every thread: Rerun encodes on its own), divided by the truth
+steps. The replay feeds the recording through the same logger as the live
+bridge.
+
+    .venv/bin/python bench/bench_viz.py --logger RUN_DIR/run.mcap --trees /path/to/old-checkout . [--repeats 3]
 """
 from __future__ import annotations
 
@@ -59,13 +68,60 @@ def one_run(scenario: str, duration_s: float, viz: bool, work: Path, i: int) -> 
             "viz_process_cpu_s": v.get("process_cpu_s"), "viz_flush_cpu_s": v.get("flush_cpu_s")}
 
 
+LOGGER_CODE = """
+import resource, sys
+from dashboards.replay import replay
+ru = resource.getrusage(resource.RUSAGE_SELF)
+c0 = ru.ru_utime + ru.ru_stime
+st = replay(sys.argv[1], sys.argv[2])
+ru = resource.getrusage(resource.RUSAGE_SELF)
+print(ru.ru_utime + ru.ru_stime - c0, st["last_step"] + 1)
+"""
+
+
+def logger_cpu(tree: Path, mcap: Path, rrd: Path) -> tuple[float, int]:
+    """(CPU seconds after the imports, truth steps) of one `replay` with `tree` as the working directory."""
+    r = subprocess.run([sys.executable, "-c", LOGGER_CODE, str(mcap), str(rrd)], cwd=tree,
+                       capture_output=True, text=True, timeout=1800)
+    if r.returncode != 0:
+        raise RuntimeError(f"replay in {tree} failed:\n{r.stderr}")
+    cpu, steps = r.stdout.split()[-2:]
+    return float(cpu), int(steps)
+
+
+def bench_logger(mcap: Path, trees: list[Path], repeats: int, out: Path) -> None:
+    rows: dict[str, list[float]] = {str(t): [] for t in trees}
+    steps = 0
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-viz-") as tmp:
+        for i in range(repeats):
+            for t in trees:   # alternate, so drifts in machine load hit both alike
+                cpu, steps = logger_cpu(t, mcap, Path(tmp) / f"{i}.rrd")
+                rows[str(t)].append(cpu)
+                print(f"{t}: replay CPU {cpu:.2f} s, {steps} steps, {1e6 * cpu / steps:.0f} us/step", flush=True)
+    med = {t: statistics.median(v) for t, v in rows.items()}
+    base = med[str(trees[0])]
+    result = {"mcap": str(mcap), "steps": steps, "repeats": repeats, "cpu_s": rows,
+              "median_us_per_step": {t: 1e6 * m / steps for t, m in med.items()},
+              "ratio_to_first": {t: m / base for t, m in med.items()}}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1))
+    print("median CPU per step: " + "; ".join(f"{t} {1e6 * m / steps:.0f} us ({m / base:.2f}x)" for t, m in med.items())
+          + f"; wrote {out}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--logger", type=Path, help="RUN_DIR/run.mcap: time the logger (replay) instead of whole runs")
+    ap.add_argument("--trees", type=Path, nargs="+", default=[ROOT], help="--logger: source trees to compare")
     ap.add_argument("--scenario", default=str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"))
     ap.add_argument("--duration", type=float, default=7200.0, help="simulated seconds per run")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default=str(ROOT / "bench" / "results" / "bench_viz.json"))
     a = ap.parse_args()
+    if a.logger:
+        out = Path(a.out) if a.out != ap.get_default("out") else ROOT / "bench" / "results" / "bench_viz_logger.json"
+        bench_logger(a.logger.resolve(), [t.resolve() for t in a.trees], a.repeats, out)
+        return
     runs = []
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-viz-") as tmp:
         for i in range(a.repeats):

@@ -15,7 +15,7 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `plant` | `clock`, `truth`, `sc/*/sense/*`, `event` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
 | `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
 | `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
-| `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*` |
+| `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*`, `sc/*/sense/*` (landmark returns) |
 | `launcher` | `swarmctl/<run>/recorder/flush` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack` |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
@@ -95,7 +95,8 @@ def grants(keys: Keys, user: str) -> Grants:
         return Grants(put=[ack], token=[keys.alive("recorder")], sub=[keys.all, flush], live_sub=[])
     if user == "viz":
         return Grants(put=[], token=[keys.alive("viz")],
-                      sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.link_stats, f"{b}/isl/rx/*"],
+                      sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.link_stats, f"{b}/isl/rx/*",
+                           f"{b}/sc/*/sense/*"],
                       live_sub=[])
     if user == "launcher":
         return Grants(put=[flush], token=[], sub=[keys.clock, ack], live_sub=[])

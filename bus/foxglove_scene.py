@@ -6,19 +6,28 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
 
 - Frames: the scenario frame `lvlh` (x radial, y along-track, z cross-track) is the root; every
   body of the truth is a child frame named by its id, translated by its position and rotated by
-  its attitude (body -> LVLH, scalar-first in the truth) where the mission flies attitude,
-  identity otherwise.
-- Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft (blue,
-  grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
+  its attitude where the mission flies attitude, identity otherwise (`lvlh_attitude_wxyz`: a
+  spacecraft's truth attitude is body -> the inertial frame aligned with LVLH at t = 0, turned here
+  into body -> LVLH; a kinematic body's is already in the scenario frame).
+- Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft coloured
+  by its agent's mode (`MODE_COLOURS`, the viewer's; the mode of the newest telemetry before this
+  truth, so one step behind; blue before any, grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
   an ellipsoid, or a list of spheres in the body frame; a small orange sphere without a shape),
   and its id as a text label; plus one entity `links` in `lvlh` with a line per ISL delivery
   seen since the previous truth (sender -> receiver).
 - Log: every `swarmhil.v1.Event` also as a `foxglove.Log` (topic `foxglove/log`) for the Log panel.
+
+`FoxgloveScene.derive` is the one place these messages are made from samples: the recorder
+(bus/recorder.py) writes what it returns into the MCAP, the live Foxglove server
+(dashboards/foxglove_live.py) sends the same over its WebSocket.
 """
 from __future__ import annotations
 
 import math
+import zlib
 from typing import Any
+
+import numpy as np
 
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
@@ -35,6 +44,8 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
+from bus import swarmhil_pb2 as pb
+
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
 SCENE_TOPIC = "foxglove/scene"
@@ -50,17 +61,66 @@ _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
 _GREEN = Color(r=0.3, g=1.0, b=0.4, a=0.8)
 _IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
 
+# Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
+MODE_COLOURS: dict[str, tuple[int, int, int]] = {
+    "collision_avoidance": (230, 57, 70),
+    "attraction": (244, 162, 37),
+    "alignment": (72, 191, 99),
+    "alignment_drift": (155, 214, 96),
+    "coast": (84, 140, 235),
+    "search": (176, 120, 230),
+    "chase": (244, 162, 37),
+    "dock": (72, 191, 99),
+    "drift-null": (40, 190, 205),
+    "idle": (150, 150, 150),
+    "none": (150, 150, 150),
+    "fault": (255, 0, 200),
+}
+
+
+def mode_colour(name: str) -> tuple[int, int, int]:
+    """Colour of a mode or behaviour label; `x_disabled` is a dimmed `x`."""
+    if name in MODE_COLOURS:
+        return MODE_COLOURS[name]
+    if name.endswith("_disabled") and name[: -len("_disabled")] in MODE_COLOURS:
+        return tuple(int(c * 0.45) for c in MODE_COLOURS[name[: -len("_disabled")]])  # type: ignore[return-value]
+    h = zlib.crc32(name.encode())
+    return (64 + h % 160, 64 + (h >> 8) % 160, 64 + (h >> 16) % 160)
+
+
+def _mode_color(mode: str) -> Color:
+    r, g, b = mode_colour(mode)
+    return Color(r=r / 255.0, g=g / 255.0, b=b / 255.0, a=1.0)
+
 
 def _timestamp(t_ns: int) -> Timestamp:
     return Timestamp(seconds=t_ns // 1_000_000_000, nanos=t_ns % 1_000_000_000)
 
 
-def _rotation(body: Any) -> Quaternion:
+def lvlh_attitude_wxyz(q_wxyz: np.ndarray, n_radps: float, t_s: float) -> np.ndarray:
+    """Body -> LVLH attitude (..., 4) scalar-first, from the plant's body -> inertial one.
+
+    plant/mission_world.py flies attitude in an inertial frame aligned with the scenario's LVLH at
+    t = 0; the LVLH frame of a circular reference has turned by n t about +z since, so
+    q_lvlh = q_z(-n t) (x) q_inertial (Hamilton), as plant/sensing/p000.py inertial_to_cw.
+    """
+    q = np.asarray(q_wxyz, float)
+    h = -0.5 * float(n_radps) * float(t_s)
+    c, s = math.cos(h), math.sin(h)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack((c * w - s * z, c * x - s * y, c * y + s * x, c * z + s * w), axis=-1)
+
+
+def _rotation(body: Any, n_radps: float = 0.0, t_s: float = 0.0) -> Quaternion:
+    """The frame rotation of a truth body (spacecraft: turned into LVLH), identity without attitude."""
     if body.HasField("attitude"):
         q = body.attitude
         n = math.sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z)
         if n > 0 and math.isfinite(n):
-            return Quaternion(x=q.x / n, y=q.y / n, z=q.z / n, w=q.w / n)
+            w, x, y, z = q.w / n, q.x / n, q.y / n, q.z / n
+            if body.kind in ("", "spacecraft") and n_radps:
+                w, x, y, z = lvlh_attitude_wxyz(np.array([w, x, y, z]), n_radps, t_s).tolist()
+            return Quaternion(x=x, y=y, z=z, w=w)
     return _IDENTITY
 
 
@@ -88,18 +148,20 @@ class FoxgloveScene:
             if isinstance(b, dict) and "id" in b:
                 self.shapes[str(b["id"])] = b.get("shape")
         self._links: set[tuple[str, str]] = set()
-        self._templates: dict[tuple[str, str, bool], SceneEntity] = {}
+        self._modes: dict[str, str] = {}
+        self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
-        """The entity of a body without its timestamp (built once per body and state)."""
-        key = (body_id, kind, alive)
+        """The entity of a body without its timestamp (built once per body, state and mode)."""
+        mode = self._modes.get(body_id, "")
+        key = (body_id, kind, alive, mode)
         ent = self._templates.get(key)
         if ent is None:
             ent = SceneEntity(frame_id=body_id, id=body_id, frame_locked=True)
             if kind in ("", "spacecraft"):
                 d = SPACECRAFT_DIAMETER_M
                 ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
-                                                   color=_BLUE if alive else _GREY))
+                                                   color=_GREY if not alive else _mode_color(mode) if mode else _BLUE))
             else:
                 ent.spheres.extend(_shape_primitives(self.shapes.get(body_id)))
             ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
@@ -114,8 +176,26 @@ class FoxgloveScene:
         if src and dst:
             self._links.add((src, dst))
 
+    def derive(self, cls: type, msg: Any, topic: str, t_ns: int) -> list[tuple[str, type, bytes]]:
+        """Foxglove messages made from one decoded sample of `topic` (log time t_ns since 1970):
+        (topic, class, payload) to write or send; an ISL delivery and an agent's mode (telemetry) are
+        kept for the next truth."""
+        if msg is None:
+            return []
+        if cls is pb.Truth:
+            tf, scene = self.from_truth(msg, t_ns)
+            return [(TF_TOPIC, FrameTransforms, tf), (SCENE_TOPIC, SceneUpdate, scene)]
+        if cls is pb.Event:
+            return [(LOG_TOPIC, Log, event_log(msg, t_ns))]
+        if cls is pb.IslPacket and topic.startswith("isl/rx/"):
+            self.saw_delivery(msg.src, topic[len("isl/rx/"):])
+        elif cls is pb.Telemetry and msg.mode and topic.startswith("sc/") and topic.endswith("/tm"):
+            self._modes[topic[3:-3]] = msg.mode   # sc/<id>/tm: the sphere's colour from the next truth on
+        return []
+
     def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:
         stamp = _timestamp(t_ns)
+        n_radps, t_s = truth.mean_motion_radps, truth.header.t
         tf = FrameTransforms()
         scene = SceneUpdate()
         pos: dict[str, Vector3] = {}
@@ -123,7 +203,7 @@ class FoxgloveScene:
             p = Vector3(x=b.position_m.x, y=b.position_m.y, z=b.position_m.z)
             pos[b.id] = p
             tf.transforms.append(FrameTransform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id,
-                                                translation=p, rotation=_rotation(b)))
+                                                translation=p, rotation=_rotation(b, n_radps, t_s)))
             ent = scene.entities.add()
             ent.CopyFrom(self._template(b.id, b.kind, b.alive))
             ent.timestamp.CopyFrom(stamp)

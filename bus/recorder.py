@@ -26,15 +26,12 @@ from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
 from mcap.writer import CompressionType, Writer
-from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
-from foxglove_schemas_protobuf.Log_pb2 import Log
-from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import message_type_of_topic
-from bus.foxglove_scene import LOG_TOPIC, SCENE_TOPIC, TF_TOPIC, FoxgloveScene, event_log
+from bus.foxglove_scene import FoxgloveScene
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -58,6 +55,25 @@ def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     except ValueError:
         return None
     return message_type_of_topic(key)
+
+
+def parse_sample(cls: type[Message] | None, payload: bytes) -> tuple[Message | None, int | None, str]:
+    """(message, its simulation time in ns or None, why it does not parse: "" when it does).
+
+    The time is header.t where the message has a header with a finite, sane t (NaN/inf packets
+    keep the last time). Shared by the recorder and the live Foxglove server."""
+    if cls is None:
+        return None, None, "key outside the swarmhil contract"
+    try:
+        msg = cls.FromString(payload)
+    except (DecodeError, RuntimeWarning, ValueError) as exc:
+        return None, None, f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
+    hdr = getattr(msg, "header", None)
+    if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
+        t = hdr.t
+        if t == t and abs(t) < 1e12:
+            return msg, int(round(t * 1e9)), ""
+    return msg, None, ""
 
 
 class McapRecorder:
@@ -116,19 +132,8 @@ class McapRecorder:
         if known is None:  # a run has few distinct keys: parse each once
             known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
         cls, topic = known
-        reason = "" if cls is not None else "key outside the swarmhil contract"
-        t_ns = self._last_t_ns
-        msg = None
-        if cls is not None:
-            try:
-                msg = cls.FromString(payload)
-                hdr = getattr(msg, "header", None)
-                if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
-                    t = hdr.t
-                    if t == t and abs(t) < 1e12:  # finite and sane; NaN/inf packets keep the last time
-                        t_ns = int(round(t * 1e9))
-            except (DecodeError, RuntimeWarning, ValueError) as exc:
-                reason = f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
+        msg, t, reason = parse_sample(cls, payload)
+        t_ns = self._last_t_ns if t is None else t
         if reason:
             self.undecodable += 1
             wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
@@ -137,15 +142,9 @@ class McapRecorder:
         else:
             self._last_t_ns = max(self._last_t_ns, t_ns)
         self._add(topic, cls, payload, t_ns, wall_ns)
-        if self._scene is not None and msg is not None:
-            if cls is pb.Truth:
-                tf, scene = self._scene.from_truth(msg, self.epoch_ns + max(t_ns, 0))
-                self._add(TF_TOPIC, FrameTransforms, tf, t_ns, wall_ns)
-                self._add(SCENE_TOPIC, SceneUpdate, scene, t_ns, wall_ns)
-            elif cls is pb.Event:
-                self._add(LOG_TOPIC, Log, event_log(msg, self.epoch_ns + max(t_ns, 0)), t_ns, wall_ns)
-            elif cls is pb.IslPacket and topic.startswith("isl/rx/"):
-                self._scene.saw_delivery(msg.src, topic[len("isl/rx/"):])
+        if self._scene is not None:
+            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(t_ns, 0)):
+                self._add(d_topic, d_cls, d_payload, t_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

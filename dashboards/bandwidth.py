@@ -27,13 +27,11 @@ from typing import Any
 
 import numpy as np
 
+from dashboards.figstyle import integer_axis, legend
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
+from dashboards.figstyle import time_axis as _time_axis
 from link.model import COUNTER_FIELDS, DROP_CAUSES, TX_ROW, check_tx, line_of_sight_clear, reason_class
-
-_CSS = ("body{font-family:sans-serif;margin:1.5em;max-width:1400px}table{border-collapse:collapse;margin:.5em 0 1.2em}"
-        "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right;font-size:13px}th{background:#f3f3f3}"
-        "td.l,th.l{text-align:left}.ok{color:#070;font-weight:bold}.bad{color:#b00;font-weight:bold}"
-        "figure{display:inline-block;margin:.5em}img{max-width:100%}details{margin:.5em 0}")
-
 
 @dataclass
 class LinkTraffic:
@@ -60,6 +58,13 @@ class LinkTraffic:
     occulted_delivered: int = 0    # deliveries through the Earth
     unchecked_geometry: int = 0    # deliveries whose sending-time truth is not in the recording
     summary_channel: dict[str, Any] | None = None
+
+    @property
+    def has_link(self) -> bool:
+        """False for a run without the link channel (no [link] in its scenario): no link configuration,
+        no transmission, delivery or counter in the recording or the summary."""
+        return bool(set(self.config) - {"ids"} or self.tx or self.rx or self.rejected_tx or self.stats_series
+                    or self.summary_channel)
 
     @property
     def overhead_bytes(self) -> int:
@@ -304,28 +309,6 @@ def drops_by_transmitter(lt: LinkTraffic) -> dict[str, np.ndarray]:
 
 
 # --- figures -----------------------------------------------------------------------------------------
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"figure.dpi": 100, "savefig.dpi": 100, "axes.grid": True, "grid.alpha": 0.3,
-                         "font.size": 9, "legend.fontsize": 7})
-    return plt
-
-
-def _save(fig: Any, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path)
-    _plt().close(fig)
-    return path.name
-
-
-def _time_axis(t_s: np.ndarray) -> tuple[np.ndarray, str]:
-    return (t_s / 3600.0, "time [h]") if t_s.size and t_s[-1] > 3 * 3600 else (t_s / 60.0, "time [min]")
-
-
 def fig_per_agent(lt: LinkTraffic, path: Path, bin_s: float) -> str:
     plt = _plt()
     s = per_agent_series(lt, bin_s)
@@ -340,10 +323,27 @@ def fig_per_agent(lt: LinkTraffic, path: Path, bin_s: float) -> str:
             ax.plot(x, np.cumsum(s[key][i]), color=cmap(i % 20), lw=1, label=sid)
         ax.set_title(title)
         ax.set_xlabel(xl)
-    if len(lt.ids) <= 24:
-        axes[0, 1].legend(ncol=2, loc="upper left")
+    legend(axes[0, 1], len(lt.ids))
+    for ax in axes[1]:
+        integer_axis(ax.yaxis)
     fig.suptitle(f"Link traffic per agent: {lt.run}")
     return _save(fig, path)
+
+
+def spec_per_agent(lt: LinkTraffic, bin_s: float):  # type: ignore[no-untyped-def]
+    """fig_per_agent's lines as a LineFigure (dashboards/figstyle.py), for the interactive version."""
+    from dashboards.figstyle import Line, LineFigure, Panel, colors
+
+    s = per_agent_series(lt, bin_s)
+    x, xl = _time_axis(s["edges_s"][1:])
+    cols = colors(len(lt.ids))
+    panels = [Panel([Line(x, np.cumsum(s[key][i]), sid, cols[i], 1.0) for i, sid in enumerate(lt.ids)], label,
+                    title=title, integer_y=True, xlabel=xl if key == "rx_msgs" else "")
+              for key, label, title in [("tx_bytes", "bytes", "sent, bytes with overhead (cumulative)"),
+                                        ("rx_bytes", "bytes", "received, bytes with overhead (cumulative)"),
+                                        ("tx_msgs", "messages", "sent, messages (cumulative)"),
+                                        ("rx_msgs", "messages", "received, messages (cumulative)")]]
+    return LineFigure(panels, title=f"Link traffic per agent: {lt.run}")
 
 
 def fig_rate(lt: LinkTraffic, path: Path, bin_s: float) -> str:
@@ -391,6 +391,7 @@ def fig_drops(lt: LinkTraffic, path: Path) -> str:
         bottom += d[c]
     ax.set_xticks(x, lt.ids, rotation=90, fontsize=7)
     ax.set_ylabel("drops (packet x receiver; queue: packets)")
+    integer_axis(ax.yaxis)
     ax.set_title("Drops by cause per transmitter (channel counters)")
     ax.legend()
     return _save(fig, path)
@@ -418,13 +419,11 @@ def _table(head: list[str], rows: list[list[Any]], left: int = 1) -> str:
     return f"<table><tr>{th}</tr>{body}</table>"
 
 
-def _page(title: str, body: str) -> str:
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>{body}</body></html>")
+def _page(title: str, body: str, out: Path) -> Path:
+    """The page, with the report site's link bar when it joins a site (RUN/report/bandwidth.html)."""
+    from dashboards.site import bar_for, render
 
-
-def _fig(name: str, caption: str) -> str:
-    return f'<figure><img src="{html.escape(name)}" alt="{html.escape(name)}"><figcaption>{caption}</figcaption></figure>'
+    return render("page.html", out, title=title, intro=body, pages=bar_for(out))
 
 
 def _bin_s(lt: LinkTraffic) -> float:
@@ -438,8 +437,9 @@ def per_link_table(lt: LinkTraffic) -> list[list[Any]]:
     return [[s, d, t, *v] for (s, d, t), v in sorted(lt.stats_rows.items())]
 
 
-def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_") -> str:
-    """The report's HTML body (figures written into out_dir): usable as a section of the main report."""
+def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_", interactive: bool = False) -> str:
+    """The report's HTML body (figures written into out_dir): usable as a section of the main report.
+    With `interactive`, the per-agent traffic is a Plotly figure (the page must load plotly.js)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     tot = totals(lt)
     bin_s = _bin_s(lt)
@@ -479,7 +479,14 @@ def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_"
         (fig_matrix(lt, out_dir / f"{prefix}matrix.png"), "Link matrix: delivered bytes per (transmitter, receiver)."),
         (fig_drops(lt, out_dir / f"{prefix}drops.png"), "Drops by cause per transmitter."),
     ]
-    body += "".join(_fig(f, c) for f, c in figs)
+    from dashboards.site import figure_html, static_figure
+
+    shown = [static_figure(out_dir, f, c) for f, c in figs]
+    if interactive:
+        from dashboards.interactive import plotly_div
+
+        shown[0].div = plotly_div(spec_per_agent(lt, bin_s), f"plot-{prefix}per-agent")
+    body += "".join(figure_html(f) for f in shown)
     rows = per_link_table(lt)
     body += (f"<h2>Per link and message type (channel counters)</h2><p>dst <code>{TX_ROW}</code>: what the "
              "transmitter offered to its radio (and its queue drops); other rows: deliveries and drops per receiver.</p>")
@@ -501,7 +508,7 @@ def write_bandwidth_report(run_dir: str | Path, out_html: str | Path | None = No
     out_html.parent.mkdir(parents=True, exist_ok=True)
     lt = traffic or read_link_traffic(run_dir)
     body = bandwidth_section(lt, out_html.parent)
-    out_html.write_text(_page(f"swarmhil bandwidth: {lt.run}", body))
+    _page(f"swarmhil bandwidth: {lt.run}", body, out_html)
     return out_html
 
 
@@ -559,7 +566,9 @@ def write_bandwidth_comparison(run_a: str | Path | LinkTraffic, run_b: str | Pat
     fig_matrix(a, None, vmax=vmax, ax=axes[0])
     fig_matrix(b, None, vmax=vmax, ax=axes[1])
     mname = _save(fig, out_dir / "bandwidth_compare_matrix.png")
-    body += _fig(fig_compare(a, b, out_dir / "bandwidth_compare.png"), "A solid, B dashed.")
-    body += _fig(mname, "Link matrices on one colour scale.")
-    out_html.write_text(_page(f"swarmhil bandwidth: {a.run} vs {b.run}", body))
+    from dashboards.site import figure_html, static_figure
+
+    body += figure_html(static_figure(out_dir, fig_compare(a, b, out_dir / "bandwidth_compare.png"), "A solid, B dashed."))
+    body += figure_html(static_figure(out_dir, mname, "Link matrices on one colour scale."))
+    _page(f"swarmhil bandwidth: {a.run} vs {b.run}", body, out_html)
     return out_html

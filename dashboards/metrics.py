@@ -321,7 +321,7 @@ def compute_metrics(truth: Any, cam: CameraGeometry | None = None, steady_from_s
     seen_by_nobody_end = [ids[k] for k in range(N) if not vis[-1, :, k].any()]
     summary: dict[str, Any] = {
         "definitions": "dashboards/metrics.py docstring; steady state = t >= steady_from_s",
-        "steps": int(t.size), "t_end_s": float(t[-1]), "steady_from_s": float(steady_from_s),
+        "steps": int(t.size), "t_start_s": float(t[0]), "t_end_s": float(t[-1]), "steady_from_s": float(steady_from_s),
         "connectivity": {
             "weakly_connected_fraction": float(np.mean(ncomp == 1)),
             "weakly_connected_fraction_steady": float(np.mean(ncomp[steady] == 1)),

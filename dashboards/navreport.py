@@ -326,22 +326,9 @@ def nav_summary(rows: TrackRows, err: NavErrors, dec_err: np.ndarray, vis: np.nd
 
 
 # --- figures -------------------------------------------------------------------------------------------
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"figure.dpi": 100, "savefig.dpi": 100, "axes.grid": True, "grid.alpha": 0.3,
-                         "font.size": 9, "legend.fontsize": 7})
-    return plt
-
-
-def _save(fig, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path)
-    _plt().close(fig)
-    return path.name
+from dashboards.figstyle import pyplot as _plt  # noqa: E402
+from dashboards.figstyle import save as _save  # noqa: E402
+from dashboards.figstyle import time_unit  # noqa: E402
 
 
 def binned(x: np.ndarray, y: np.ndarray, edges: np.ndarray, qs: Sequence[float] = (50, 95)) -> np.ndarray:
@@ -369,7 +356,8 @@ def fig_error_time(t_s: np.ndarray, err: NavErrors, used: np.ndarray, path: Path
     mags = {"position [m]": np.linalg.norm(err.position_err_m, axis=1), **{
         f"|{k[:-2]}| [m]": v for k, v in roe_error_magnitudes(err.roe_err_m).items()}}
     edges = _time_edges(t_s)
-    mid = 0.5 * (edges[:-1] + edges[1:]) / H
+    tu, xl = time_unit(t_s)
+    mid = 0.5 * (edges[:-1] + edges[1:]) / tu
     fig, ax = plt.subplots(len(mags), 1, figsize=(8, 1.7 * len(mags)), sharex=True)
     for a, (name, v) in zip(ax, mags.items()):
         for sel, lab, c in ((np.ones_like(used), "all tracks", "C0"), (used, "used by the controller", "C3")):
@@ -380,14 +368,15 @@ def fig_error_time(t_s: np.ndarray, err: NavErrors, used: np.ndarray, path: Path
         a.set_ylabel(name)
     ax[0].legend(loc="upper right", ncol=2)
     ax[0].set_title("Navigation error against truth, all tracked pairs")
-    ax[-1].set_xlabel("time [h]")
+    ax[-1].set_xlabel(xl)
     return _save(fig, path)
 
 
 def fig_nees_time(t_s: np.ndarray, err: NavErrors, used: np.ndarray, path: Path) -> str:
     plt = _plt()
     edges = _time_edges(t_s)
-    mid = 0.5 * (edges[:-1] + edges[1:]) / H
+    tu, xl = time_unit(t_s)
+    mid = 0.5 * (edges[:-1] + edges[1:]) / tu
     fig, ax = plt.subplots(figsize=(8, 3.2))
     for sel, lab, c in ((np.ones_like(used), "all tracks", "C0"), (used, "used by the controller", "C3")):
         q = binned(t_s[sel], err.nees[sel], edges, (50,))
@@ -400,7 +389,7 @@ def fig_nees_time(t_s: np.ndarray, err: NavErrors, used: np.ndarray, path: Path)
     ax.axhline(5.35, color="0.5", lw=0.6, ls=":", label="5.35 (consistent, median)")
     ax.set_yscale("log")
     ax.set_ylabel("NEES of the ROE (6 dof)")
-    ax.set_xlabel("time [h]")
+    ax.set_xlabel(xl)
     ax.legend(loc="upper right", ncol=3)
     ax.set_title("Consistency of the estimator: NEES = e^T P^-1 e")
     return _save(fig, path)
@@ -430,6 +419,7 @@ def fig_pairs(t_s: np.ndarray, rows: TrackRows, err: NavErrors, path: Path, max_
     plt = _plt()
     from matplotlib.collections import LineCollection
 
+    tu, xl = time_unit(t_s)
     fig, ax = plt.subplots(figsize=(8, 3.5))
     life = np.bincount(rows.track, minlength=len(rows.track_names)) if rows.n else np.zeros(0, int)
     keep = np.argsort(life)[::-1][:max_tracks]
@@ -441,14 +431,14 @@ def fig_pairs(t_s: np.ndarray, rows: TrackRows, err: NavErrors, path: Path, max_
         idx = order[s0:s0 + life[c]]
         ok = np.isfinite(e[idx])
         if ok.sum() > 1:
-            segs.append(np.column_stack((t_s[idx][ok] / H, np.maximum(e[idx][ok], 1e-6))))
+            segs.append(np.column_stack((t_s[idx][ok] / tu, np.maximum(e[idx][ok], 1e-6))))
     if segs:
         ax.add_collection(LineCollection(segs, linewidths=0.5, alpha=0.5, colors="C0"))
-        ax.set_xlim(t_s.min() / H, t_s.max() / H)
+        ax.set_xlim(np.nanmin(t_s) / tu, np.nanmax(t_s) / tu)
         allv = np.concatenate([s[:, 1] for s in segs])
         ax.set_ylim(max(np.percentile(allv, 0.5), 1e-4), allv.max() * 1.5)
     ax.set_yscale("log")
-    ax.set_xlabel("time [h]")
+    ax.set_xlabel(xl)
     ax.set_ylabel("|position error| [m]")
     ax.set_title(f"Navigation error per tracked pair ({len(segs)} longest tracks)")
     return _save(fig, path)
@@ -457,13 +447,14 @@ def fig_pairs(t_s: np.ndarray, rows: TrackRows, err: NavErrors, path: Path, max_
 def fig_one_track(t_s: np.ndarray, rows: TrackRows, err: NavErrors, path: Path) -> str:
     """ROE error of the longest track with its +-3 sigma envelope (the covariance it reported)."""
     plt = _plt()
+    tu, xl = time_unit(t_s)
     fig, ax = plt.subplots(3, 2, figsize=(9, 6), sharex=True)
     if rows.n:
         life = np.bincount(rows.track)
         c = int(np.argmax(life))
         idx = np.flatnonzero(rows.track == c)
         idx = idx[np.argsort(rows.step[idx])]
-        th = t_s[idx] / H
+        th = t_s[idx] / tu
         sig = np.sqrt(np.clip(np.diagonal(rows.covariance_m2[idx], axis1=1, axis2=2), 0, None))
         for i, a in enumerate(ax.T.ravel()):
             a.plot(th, err.roe_err_m[idx, i], lw=0.8, color="C0")
@@ -472,7 +463,7 @@ def fig_one_track(t_s: np.ndarray, rows: TrackRows, err: NavErrors, path: Path) 
             a.set_ylabel(f"{ROE_COMPONENTS[i]} error [m]")
         fig.suptitle(f"Longest track {rows.track_names[c]}: ROE error and +-3 sigma")
     for a in ax[-1]:
-        a.set_xlabel("time [h]")
+        a.set_xlabel(xl)
     return _save(fig, path)
 
 
@@ -576,6 +567,28 @@ def analyse_run(run_dir: str | Path) -> RunNav:
     return RunNav(truth, rows, err, dec, derr, s)
 
 
+def nav_figures(nav: RunNav, out: Path, prefix: str = "") -> list[tuple[str, str]]:
+    """The navigation figures of a run written into out: (PNG name, caption) pairs."""
+    if not nav.rows.n:
+        return []
+    ok = nav.err.truth_row >= 0
+    t_s = np.where(ok, nav.truth.t_s[np.clip(nav.err.truth_row, 0, None)], np.nan)
+    figs = [
+        (fig_pairs(t_s, nav.rows, nav.err, out / f"{prefix}pairs.png"),
+         "Position error of each tracked pair (a track of observer j associated with the nearest true k)."),
+        (fig_error_time(t_s, nav.err, nav.rows.used, out / f"{prefix}error_time.png"),
+         "Median and 95th percentile, in 15-min bins, of the position and ROE errors; red: the tracks "
+         "the controller acted on."),
+        (fig_error_range(nav.err, out / f"{prefix}error_range.png"), "Errors against the true range."),
+        (fig_one_track(t_s, nav.rows, nav.err, out / f"{prefix}longest_track.png"),
+         "ROE error of the longest track and the +-3 sigma of its reported covariance."),
+    ]
+    if np.isfinite(nav.err.nees).any():
+        figs.append((fig_nees_time(t_s, nav.err, nav.rows.used, out / f"{prefix}nees_time.png"),
+                     "NEES of the ROE estimate (6 dof): mean 6 and median 5.35 when consistent."))
+    return figs
+
+
 def write_nav_report(run_dir: str | Path) -> Path:
     """Navigation error of a run against truth: run_dir/navreport/index.html (+ PNGs, nav_summary.json,
     nav_table.md). Returns the path of index.html."""
@@ -586,31 +599,12 @@ def write_nav_report(run_dir: str | Path) -> Path:
     (out / "nav_summary.json").write_text(json.dumps(nav.summary, indent=1))
     table = nav_table_rows(nav.summary)
     (out / "nav_table.md").write_text(_markdown(["quantity", "value"], [list(r) for r in table]))
-    figs: list[tuple[str, str]] = []
-    if nav.rows.n:
-        ok = nav.err.truth_row >= 0
-        t_s = np.where(ok, nav.truth.t_s[np.clip(nav.err.truth_row, 0, None)], np.nan)
-        figs = [
-            (fig_pairs(t_s, nav.rows, nav.err, out / "pairs.png"),
-             "Position error of each tracked pair (a track of observer j associated with the nearest true k)."),
-            (fig_error_time(t_s, nav.err, nav.rows.used, out / "error_time.png"),
-             "Median and 95th percentile, in 15-min bins, of the position and ROE errors; red: the tracks "
-             "the controller acted on."),
-            (fig_error_range(nav.err, out / "error_range.png"), "Errors against the true range."),
-            (fig_one_track(t_s, nav.rows, nav.err, out / "longest_track.png"),
-             "ROE error of the longest track and the +-3 sigma of its reported covariance."),
-        ]
-        if np.isfinite(nav.err.nees).any():
-            figs.append((fig_nees_time(t_s, nav.err, nav.rows.used, out / "nees_time.png"),
-                         "NEES of the ROE estimate (6 dof): mean 6 and median 5.35 when consistent."))
-    body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in table)
-    figs_html = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{html.escape(c)}</figcaption></figure>'
-                        for f, c in figs)
-    (out / "index.html").write_text(
-        f"<!doctype html><html><head><meta charset='utf-8'><title>navigation {html.escape(nav.truth.run)}</title>"
-        f"<style>{_CSS}</style></head><body><h1>Navigation error: {html.escape(nav.truth.run)}</h1>"
-        f"<table>{body}</table><p>Definitions: dashboards/navreport.py. Numbers: nav_summary.json.</p>{figs_html}"
-        "</body></html>")
+    figs = nav_figures(nav, out)
+    from dashboards.site import figures_of, render
+
+    render("page.html", out / "index.html", title=f"Navigation error: {nav.truth.run}",
+           head=[(k, html.escape(v)) for k, v in table],
+           figures=figures_of(out, figs), intro="<p>Definitions: dashboards/navreport.py. Numbers: nav_summary.json.</p>")
     return out / "index.html"
 
 
@@ -725,13 +719,11 @@ def write_comparison(run_dirs: Sequence[str | Path], out_dir: str | Path, labels
     (out / "comparison.json").write_text(json.dumps(rows, indent=1))
     th = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     tb = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in cells)
-    (out / "comparison.html").write_text(
-        f"<!doctype html><html><head><meta charset='utf-8'><title>navigation comparison</title><style>{_CSS}</style>"
-        f"</head><body><h1>Runs compared</h1><table><tr>{th}</tr>{tb}</table><p>Swarm metrics from truth "
-        "(dashboards/metrics.py), navigation error from telemetry against truth (dashboards/navreport.py). "
-        "Separations: closest visible neighbour; p05 over the steady window (last sixth of the run).</p></body></html>")
+    from dashboards.site import render
+
+    render("page.html", out / "comparison.html", title="Runs compared",
+           intro=f"<table><tr>{th}</tr>{tb}</table><p>Swarm metrics from truth (dashboards/metrics.py), navigation "
+                 "error from telemetry against truth (dashboards/navreport.py). Separations: closest visible "
+                 "neighbour; p05 over the steady window (last sixth of the run).</p>")
     return out / "comparison.md"
 
-
-_CSS = ("body{font-family:sans-serif;max-width:1300px;margin:1em auto}table{border-collapse:collapse;font-size:13px}"
-        "td,th{border:1px solid #ccc;padding:3px 7px;text-align:left}figure{margin:1em 0}img{max-width:100%}")

@@ -30,13 +30,12 @@ class ReplayError(RuntimeError):
     pass
 
 
-def _settings(mcap_path: Path) -> tuple[CameraRule, int | None, float | None]:
+def _settings(mcap_path: Path, cfg: dict[str, Any] | None) -> tuple[CameraRule, int | None, float | None]:
     """Camera rule, trail steps and step length: from a live bridge's summary.json next to the MCAP
     file, else from the configuration the recording itself carries (dashboards/run_config.py)."""
     try:
         s = json.loads((mcap_path.parent / "summary.json").read_text())
     except (OSError, ValueError):
-        cfg = config_from_mcap(mcap_path)
         if cfg is None:
             return CameraRule(), None, None
         c = cfg["camera"]
@@ -90,7 +89,8 @@ def replay(mcap_path: str | Path, rrd_out: str | Path | None = None, *, serve: b
     if rrd_out is None and not serve:
         raise ValueError("give an output .rrd, serve, or both")
     run = run_id_of(mcap_path)
-    camera, trail_steps, step_s = _settings(mcap_path)
+    config = config_from_mcap(mcap_path)
+    camera, trail_steps, step_s = _settings(mcap_path, config)
     disable_analytics()
     web = None
     if serve:
@@ -103,7 +103,7 @@ def replay(mcap_path: str | Path, rrd_out: str | Path | None = None, *, serve: b
     try:
         for topic, data in _messages(mcap_path):
             if logger is None:
-                logger = _logger_for(rec, run, mcap_path, camera, trail_steps, step_s)
+                logger = _logger_for(rec, run, mcap_path, camera, trail_steps, step_s, config)
             if logger.ingest(f"{base}/{topic}", data):
                 logger.flush()
         if logger is None:
@@ -130,7 +130,7 @@ def replay(mcap_path: str | Path, rrd_out: str | Path | None = None, *, serve: b
 
 
 def _logger_for(rec: Any, run: str, mcap_path: Path, camera: CameraRule, trail_steps: int | None,
-                step_s: float | None) -> SwarmLogger:
+                step_s: float | None, config: dict[str, Any] | None) -> SwarmLogger:
     """A logger whose trail defaults to one orbit of the recorded reference orbit."""
     n_radps, dt = None, step_s
     for topic, data in _messages(mcap_path):
@@ -143,7 +143,7 @@ def _logger_for(rec: Any, run: str, mcap_path: Path, camera: CameraRule, trail_s
                 break
     dt = dt or 10.0
     steps = trail_steps or (trail_steps_for(dt, n_radps) if n_radps else 570)
-    return SwarmLogger(rec, run, camera=camera, trail_steps=int(steps), step_s=dt)
+    return SwarmLogger(rec, run, camera=camera, trail_steps=int(steps), step_s=dt, config=config)
 
 
 def read_rrd(path: str | Path, timeline: str = "step") -> dict[str, dict[str, dict[int, Any]]]:

@@ -1,9 +1,12 @@
-"""HTML + PNG reports of a run and of a sweep, in the spirit of paper 002's Figs. 7-22 and 30-31.
+"""Reports of a run and of a sweep, in the spirit of paper 002's Figs. 7-22 and 30-31.
 
 `write_report(run_dir)` reads run_dir/run.mcap (truth only, dashboards/truth_io.py), computes the
-metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metrics" and writes
-run_dir/report/index.html with one PNG per figure. `write_sweep_report(sweep_dir, cases)` does the
-same for a parameter sweep (dV and connectivity against the parameter, Figs. 30-31).
+metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metrics" and writes the
+report site run_dir/report/ (dashboards/site.py): index.html with the headline metrics, paper 002's
+figures (many-line ones as LineFigure specs, drawn static by dashboards/figstyle.py and
+interactive by dashboards/interactive.py) and the mission sections, and the pages and tables the
+site links. `write_sweep_report(sweep_dir, cases)` does the same for a parameter sweep (dV and
+connectivity against the parameter, Figs. 30-31).
 """
 from __future__ import annotations
 
@@ -15,6 +18,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dashboards.figstyle import Line, LineFigure, Panel, integer_axis, legend, span_text, time_axis, time_unit, window_text
+from dashboards.figstyle import colors as _colors  # the names the mission sections import
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
 from dashboards.metrics import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN, SwarmMetrics, compute_metrics, relative_to_com
 from dashboards.run_config import camera_from_config, run_config
 from dashboards.truth_io import TruthArrays, read_truth
@@ -24,49 +31,32 @@ H = 3600.0
 SERIES = "metrics_series.npz"  # per-step series a sweep report overlays
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update({"figure.dpi": 100, "savefig.dpi": 100, "axes.grid": True, "grid.alpha": 0.3,
-                         "font.size": 9, "legend.fontsize": 7})
-    return plt
-
-
-def _colors(n: int) -> list:
-    plt = _plt()
-    cmap = plt.get_cmap("tab20")
-    return [cmap(i % 20) for i in range(n)]
-
-
-def _save(fig, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path)
-    _plt().close(fig)
-    return path.name
-
-
 # --- run figures --------------------------------------------------------------------------------------
-def fig_components(m: SwarmMetrics, n: int, path: Path, title: str = "") -> str:
+# Figures with one line per spacecraft are LineFigure specs (dashboards/figstyle.py): drawn static
+# (PNG, SVG, PDF) and interactive (Plotly, dashboards/interactive.py) from the same data.
+def _steady_span(m: SwarmMetrics, x: np.ndarray) -> tuple[float, float] | None:
+    return (float(x[np.argmax(m.steady)]), float(x[-1])) if m.steady.any() else None
+
+
+def _per_sc(x: np.ndarray, y: np.ndarray, ids: list[str], width: float = 0.8) -> list[Line]:
+    cols = _colors(len(ids))
+    return [Line(x, y[:, i], ids[i], cols[i], width) for i in range(len(ids))]
+
+
+def spec_components(m: SwarmMetrics, n: int, title: str = "") -> LineFigure:
     """Fig. 10 / 31: weakly connected components of the visibility digraph over time."""
-    plt = _plt()
-    fig, ax = plt.subplots(2, 1, figsize=(8, 4.5), sharex=True)
-    th = m.t_s / H
-    ax[0].step(th, m.n_components, where="post", color="C0", label="digraph of the step")
-    ax[0].step(th, m.n_components_orbit, where="post", color="C2", ls="--", lw=0.9,
-               label="union of the digraphs over the last orbit")
-    ax[0].legend(loc="upper left")
-    ax[0].set_ylabel("weakly connected\ncomponents")
-    ax[0].set_ylim(0, max(3, m.n_components.max() + 1))
-    ax[0].set_title(title or "Swarm integrity (paper 002 Figs. 10, 31)")
-    ax[1].step(th, m.largest, where="post", color="C1")
-    ax[1].axhline(n, color="k", lw=0.8, ls="--")
-    ax[1].set_ylabel("largest component\n(spacecraft)")
-    ax[1].set_ylim(0, n + 1)
-    ax[1].set_xlabel("time [h]")
-    return _save(fig, path)
+    x, xl = time_axis(m.t_s)
+    period = float(m.summary["connectivity"]["orbit_period_s"])
+    union = ("union of the digraphs over the last orbit" if m.t_s[-1] - m.t_s[0] >= period else
+             f"union of the digraphs since the start (run shorter than the {span_text(period)} orbit)")
+    return LineFigure([
+        Panel([Line(x, m.n_components, "digraph of the step", "C0", 1.0, step=True),
+               Line(x, m.n_components_orbit, union, "C2", 0.9, "--", step=True)],
+              "weakly connected components", title=title or "Swarm integrity (paper 002 Figs. 10, 31)",
+              ylim=(0, max(3, int(m.n_components.max()) + 1)), integer_y=True),
+        Panel([Line(x, m.largest, "largest component", "C1", 1.0, step=True)], "largest component [spacecraft]",
+              hlines=[(float(n), "k", f"all {n}")], ylim=(0, n + 1), integer_y=True, xlabel=xl),
+    ], panel_height_in=2.3)
 
 
 def _circle_layout(n: int) -> np.ndarray:
@@ -76,6 +66,11 @@ def _circle_layout(n: int) -> np.ndarray:
 
 def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label: str) -> str:
     """Figs. 8-9 / 11: the visibility digraph (j -> k: j sees k) in LVLH and as a graph plot."""
+    return _save(draw_digraph(truth, m, row, label), path)
+
+
+def draw_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, label: str):  # type: ignore[no-untyped-def]
+    """The matplotlib figure of fig_digraph (not saved)."""
     plt = _plt()
     vis = m.vis[row]
     pos = relative_to_com(truth.position_m[row:row + 1], truth.alive[row:row + 1])[0]
@@ -86,7 +81,7 @@ def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label
 
     _nc, labels = connected_components(vis, directed=True, connection="weak")
     node_c = [comp_colors[lab % len(comp_colors)] for lab in labels]
-    fig, ax = plt.subplots(1, 2, figsize=(12, 5), gridspec_kw={"width_ratios": [1.6, 1]})
+    fig, ax = plt.subplots(1, 2, figsize=(12, 5.4), gridspec_kw={"width_ratios": [1.6, 1]})
     a = ax[0]
     for j, k in zip(*np.nonzero(vis)):
         a.annotate("", xy=(pos[k, 1], pos[k, 0]), xytext=(pos[j, 1], pos[j, 0]),
@@ -96,7 +91,7 @@ def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label
         a.annotate(sid, (pos[i, 1], pos[i, 0]), fontsize=6, xytext=(2, 3), textcoords="offset points")
     a.set_xlabel("along-track y - y_com [m]")
     a.set_ylabel("radial x - x_com [m]")
-    a.set_title(f"{label}: positions (LVLH, centre of mass), arrows j -> k when j sees k")
+    a.set_title("positions (LVLH, centre of mass);\narrow j -> k when j sees k")
     b = ax[1]
     order = np.argsort(truth.position_m[row, :, 1])[::-1]  # leader at the top, then clockwise backwards
     xy = np.empty((n, 2))
@@ -111,177 +106,128 @@ def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label
     b.set_ylim(-1.3, 1.3)
     b.set_aspect("equal")
     b.axis("off")
-    b.set_title(f"{label}: {m.n_components[row]} weak component(s), {int(vis.sum())} edges\n"
-                "(nodes ordered by along-track position)")
-    return _save(fig, path)
+    b.set_title(f"{m.n_components[row]} weak component(s), {int(vis.sum())} edges;\n"
+                "nodes ordered by along-track position")
+    fig.suptitle(f"Visibility digraph at the {label} (t = {span_text(float(truth.t_s[row]))})")
+    fig.tight_layout()
+    return fig
 
 
 _ROE_NAMES = ["a da", "a dl", "a dex", "a dey", "a dix", "a diy"]
 
 
-def fig_roe_com(truth: TruthArrays, pair: tuple[int, int], path: Path, fig_no: str) -> str:
+def spec_roe_com(truth: TruthArrays, pair: tuple[int, int], fig_no: str) -> LineFigure:
     """Figs. 12-14: ROE of each spacecraft relative to the swarm centre of mass."""
-    plt = _plt()
     roe = relative_to_com(truth.roe_m, truth.alive)
-    th = truth.t_s / H
-    cols = _colors(truth.n_bodies)
-    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for a, c in zip(ax, pair):
-        for i in range(truth.n_bodies):
-            a.plot(th, roe[:, i, c], color=cols[i], lw=0.8)
-        a.set_ylabel(f"{_ROE_NAMES[c]} - com [m]")
-    ax[0].set_title(f"ROE relative to the swarm centre of mass (paper 002 Fig. {fig_no})")
-    ax[1].set_xlabel("time [h]")
-    return _save(fig, path)
+    x, xl = time_axis(truth.t_s)
+    return LineFigure([Panel(_per_sc(x, roe[:, :, c], truth.ids), f"{_ROE_NAMES[c]} - com [m]",
+                             title=f"ROE relative to the swarm centre of mass (paper 002 Fig. {fig_no})" if k == 0 else "",
+                             xlabel=xl if k == 1 else "")
+                       for k, c in enumerate(pair)])
 
 
-def fig_separation(m: SwarmMetrics, field: str, threshold: float, ylabel: str, title: str, path: Path,
-                   extra: str | None = None) -> str:
+def spec_separation(m: SwarmMetrics, ids: list[str], field: str, threshold: float, ylabel: str, title: str,
+                    extra: str | None = None) -> LineFigure:
     """Figs. 15-17: separation of each spacecraft from its closest visible neighbour."""
-    plt = _plt()
     y = getattr(m.closest, field)
-    th = m.t_s / H
-    cols = _colors(y.shape[1])
-    fig, ax = plt.subplots(figsize=(8, 3.8))
-    for i in range(y.shape[1]):
-        ax.plot(th, y[:, i], color=cols[i], lw=0.7)
+    x, xl = time_axis(m.t_s)
+    lines = _per_sc(x, y, ids, 0.7)
     lo = float(np.nanmin(y)) if np.isfinite(y).any() else 0.0
     if extra is not None:
         e = getattr(m.closest, extra)
         with np.errstate(all="ignore"):
             emin = np.where(np.isfinite(e).any(axis=1), np.nanmin(np.where(np.isfinite(e), e, np.inf), axis=1), np.nan)
-        ax.plot(th, emin, color="k", lw=0.8, ls=":", label="min over spacecraft of a(|dl|-2|de|)")
-        ax.legend(loc="upper right")
+        lines.append(Line(x, emin, "min over spacecraft of a(|dl|-2|de|)", "k", 0.9, ":"))
         if np.isfinite(emin).any():
             lo = min(lo, float(np.nanmin(emin)))
-    ax.axhline(threshold, color="r", ls="--", lw=1.0)
-    ax.axvspan(m.t_s[m.steady][0] / H, th[-1], color="0.9", zorder=0)
-    ax.set_ylim(bottom=min(0.0, lo))
-    ax.set_xlabel("time [h]")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    return _save(fig, path)
+    return LineFigure([Panel(lines, ylabel, title=title, hlines=[(threshold, "r", f"threshold {threshold:g} m")],
+                             ylim=(min(0.0, lo), None), shade=_steady_span(m, x), xlabel=xl)], panel_height_in=3.6)
 
 
-def fig_parallelism(m: SwarmMetrics, path: Path) -> str:
+def spec_parallelism(m: SwarmMetrics, ids: list[str]) -> LineFigure:
     """Fig. 18: parallelism |de.di|/(|de||di|) of visible pairs."""
-    plt = _plt()
-    th = m.t_s / H
-    cols = _colors(m.closest.parallelism.shape[1])
-    fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for i in range(m.closest.parallelism.shape[1]):
-        ax[0].plot(th, m.closest.parallelism[:, i], color=cols[i], lw=0.7)
-    ax[0].axhline(PARALLEL_MIN, color="r", ls="--", lw=1.0)
-    ax[0].set_ylabel("closest visible\nneighbour")
-    ax[0].set_title("Parallelism of de and di (paper 002 Fig. 18)")
+    x, xl = time_axis(m.t_s)
     pp = m.pair_parallelism.reshape(m.t_s.size, -1)
     with np.errstate(all="ignore"):
         has = np.isfinite(pp).any(axis=1)
         lo = np.where(has, np.nanmin(np.where(np.isfinite(pp), pp, np.inf), axis=1), np.nan)
         frac = np.where(has, np.nansum(pp >= PARALLEL_MIN, axis=1) / np.maximum(np.isfinite(pp).sum(axis=1), 1), np.nan)
-    ax[1].plot(th, lo, color="C3", lw=0.8, label="min over visible pairs")
-    ax[1].plot(th, frac, color="C0", lw=0.8, label=f"fraction of visible pairs >= {PARALLEL_MIN}")
-    ax[1].axhline(PARALLEL_MIN, color="r", ls="--", lw=1.0)
-    ax[1].set_ylim(-0.02, 1.02)
-    ax[1].legend(loc="lower right")
-    ax[1].set_xlabel("time [h]")
-    return _save(fig, path)
+    return LineFigure([
+        Panel(_per_sc(x, m.closest.parallelism, ids, 0.7), "closest visible neighbour",
+              title="Parallelism of de and di (paper 002 Fig. 18)", hlines=[(PARALLEL_MIN, "r", "")]),
+        Panel([Line(x, lo, "min over visible pairs", "C3"), Line(x, frac, f"fraction of visible pairs >= {PARALLEL_MIN}", "C0")],
+              "visible pairs", hlines=[(PARALLEL_MIN, "r", "")], ylim=(-0.02, 1.02), xlabel=xl),
+    ])
 
 
-def fig_accel(m: SwarmMetrics, ids: list[str], path: Path) -> str:
+def spec_accel(m: SwarmMetrics, ids: list[str]) -> LineFigure:
     """Fig. 19: control acceleration of each spacecraft."""
-    plt = _plt()
-    th = m.t_s / H
-    cols = _colors(len(ids))
-    fig, ax = plt.subplots(figsize=(8, 3.8))
-    for i in range(len(ids)):
-        ax.plot(th, m.accel_mps2[:, i] * 1e3, color=cols[i], lw=0.6)
-    ax.set_xlabel("time [h]")
-    ax.set_ylabel("|a| [mm/s^2]")
-    ax.set_title("Control acceleration of each spacecraft (paper 002 Fig. 19)")
-    return _save(fig, path)
+    x, xl = time_axis(m.t_s)
+    return LineFigure([Panel(_per_sc(x, m.accel_mps2 * 1e3, ids, 0.6), "|a| [mm/s^2]",
+                             title="Control acceleration of each spacecraft (paper 002 Fig. 19)", xlabel=xl)],
+                      panel_height_in=3.6)
 
 
-def fig_dv(m: SwarmMetrics, ids: list[str], path: Path) -> str:
+def spec_dv(m: SwarmMetrics, ids: list[str]) -> LineFigure:
     """Fig. 20: cumulative dV of each spacecraft and of the swarm."""
-    plt = _plt()
-    th = m.t_s / H
-    cols = _colors(len(ids))
-    fig, ax = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
-    for i, sid in enumerate(ids):
-        ax[0].plot(th, m.delta_v_mps[:, i], color=cols[i], lw=0.8, label=sid)
-    ax[0].set_ylabel("dV per spacecraft [m/s]")
-    ax[0].set_title("Cumulative dV (paper 002 Fig. 20)")
-    if len(ids) <= 20:
-        ax[0].legend(ncol=1, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=6)
-    ax[1].plot(th, m.delta_v_mps.sum(axis=1), color="k")
-    ax[1].axvspan(m.t_s[m.steady][0] / H, th[-1], color="0.9", zorder=0)
-    ax[1].set_ylabel("total dV [m/s]")
-    ax[1].set_xlabel("time [h]")
-    return _save(fig, path)
+    x, xl = time_axis(m.t_s)
+    return LineFigure([
+        Panel(_per_sc(x, m.delta_v_mps, ids), "dV per spacecraft [m/s]", title="Cumulative dV (paper 002 Fig. 20)"),
+        Panel([Line(x, m.delta_v_mps.sum(axis=1), "swarm total", "k", 1.0)], "total dV [m/s]",
+              shade=_steady_span(m, x), xlabel=xl),
+    ])
 
 
-def fig_along_track(truth: TruthArrays, path: Path, title: str) -> str:
+def spec_along_track(truth: TruthArrays, title: str) -> LineFigure:
     """Figs. 7 / 21: along-track position relative to the swarm centre of mass."""
-    plt = _plt()
     pos = relative_to_com(truth.position_m, truth.alive)
-    th = truth.t_s / H
-    cols = _colors(truth.n_bodies)
-    fig, ax = plt.subplots(figsize=(8, 3.8))
-    for i in range(truth.n_bodies):
-        ax.plot(th, pos[:, i, 1] / 1e3, color=cols[i], lw=0.8)
-    ax.set_xlabel("time [h]")
-    ax.set_ylabel("y - y_com [km]")
-    ax.set_title(title)
-    return _save(fig, path)
+    x, xl = time_axis(truth.t_s)
+    return LineFigure([Panel(_per_sc(x, pos[:, :, 1] / 1e3, truth.ids), "y - y_com [km]", title=title, xlabel=xl)],
+                      panel_height_in=3.6)
 
 
-def fig_projections(truth: TruthArrays, path: Path, last_s: float | None = None) -> str:
-    """Fig. 22: cross-track (x-z) and in-orbit (y-x) projections relative to the centre of mass."""
-    plt = _plt()
+def projection_window(truth: TruthArrays, orbits: float = 3.0) -> tuple[float, str]:
+    """The trailing window of Fig. 22 (the paper: the last orbits), clipped to the run: (s, label)."""
+    period = 2.0 * np.pi / truth.mean_motion_radps
+    run_s = float(truth.t_s[-1] - truth.t_s[0])
+    used, label = window_text(run_s, orbits * period)
+    return used, (label if used >= run_s else f"{label}, {orbits:g} orbits")
+
+
+def spec_projections(truth: TruthArrays, orbits: float | None = 3.0) -> LineFigure:
+    """Fig. 22: cross-track (x-z) and in-orbit (y-x) projections relative to the centre of mass, over
+    the last `orbits` orbits (None: the whole run); the window is clipped to the run and named in the titles."""
     pos = relative_to_com(truth.position_m, truth.alive)
-    sel = slice(None) if last_s is None else truth.t_s >= truth.t_s[-1] - last_s
-    p = pos[sel]
+    if orbits is None:
+        last_s, span = window_text(float(truth.t_s[-1] - truth.t_s[0]), None)
+    else:
+        last_s, span = projection_window(truth, orbits)
+    p = pos[truth.t_s >= truth.t_s[-1] - last_s - 1e-9]
     cols = _colors(truth.n_bodies)
-    fig, ax = plt.subplots(2, 1, figsize=(8, 8))
-    for i in range(truth.n_bodies):
-        ax[0].plot(p[:, i, 2], p[:, i, 0], color=cols[i], lw=0.6)
-        ax[1].plot(p[:, i, 1], p[:, i, 0], color=cols[i], lw=0.6)
-        ax[1].plot(p[-1, i, 1], p[-1, i, 0], "o", color=cols[i], ms=3)
-    span = "whole run" if last_s is None else f"last {last_s / H:.1f} h"
-    ax[0].set_xlabel("cross-track z - z_com [m]")
-    ax[0].set_ylabel("radial x - x_com [m]")
-    ax[0].set_aspect("equal", adjustable="datalim")
-    ax[0].set_title(f"Cross-track projection ({span}; paper 002 Fig. 22 upper)")
-    ax[1].set_xlabel("along-track y - y_com [m]")
-    ax[1].set_ylabel("radial x - x_com [m]")
-    ax[1].set_title(f"In-orbit projection ({span}; paper 002 Fig. 22 lower), dots at the end")
-    return _save(fig, path)
+    ids = truth.ids
+    cross = [Line(p[:, i, 2], p[:, i, 0], ids[i], cols[i], 0.6) for i in range(len(ids))]
+    inorb = [Line(p[:, i, 1], p[:, i, 0], ids[i], cols[i], 0.6, legend=False) for i in range(len(ids))]
+    inorb += [Line(p[-1:, i, 1], p[-1:, i, 0], ids[i], cols[i], marker=True, legend=False) for i in range(len(ids))]
+    return LineFigure([
+        Panel(cross, "radial x - x_com [m]", title=f"Cross-track projection ({span}; paper 002 Fig. 22 upper)",
+              xlabel="cross-track z - z_com [m]", equal=True),
+        Panel(inorb, "radial x - x_com [m]", title=f"In-orbit projection ({span}; paper 002 Fig. 22 lower), dots at the end",
+              xlabel="along-track y - y_com [m]"),
+    ], panel_height_in=3.8, sharex=False)
 
 
-def fig_closest_approach(m: SwarmMetrics, path: Path) -> str:
+def spec_closest_approach(m: SwarmMetrics) -> LineFigure:
     """Closest approach per step of pairs in visibility and of pairs not in visibility."""
-    plt = _plt()
     a = m.approach
-    th = m.t_s[:-1] / H
-    fig, ax = plt.subplots(figsize=(8, 3.8))
-    ax.semilogy(th, a["visible_distance_m"], lw=0.7, color="C0", label="pairs in visibility")
-    ax.semilogy(th, a["hidden_distance_m"], lw=0.7, color="C3", label="pairs not in visibility")
-    ax.axhline(D_MIN_TRANS_M, color="k", ls="--", lw=0.8, label=f"d_min_trans = {D_MIN_TRANS_M:g} m")
-    ax.set_xlabel("time [h]")
-    ax.set_ylabel("min pair distance [m]")
-    ax.set_title("Closest approach of any pair in each step (Hermite-interpolated)")
-    ax.legend(loc="upper right")
-    return _save(fig, path)
+    x, xl = time_axis(m.t_s[:-1])
+    return LineFigure([Panel([Line(x, a["visible_distance_m"], "pairs in visibility", "C0", 0.7),
+                              Line(x, a["hidden_distance_m"], "pairs not in visibility", "C3", 0.7)],
+                             "min pair distance [m]", title="Closest approach of any pair in each step (Hermite-interpolated)",
+                             hlines=[(D_MIN_TRANS_M, "k", f"d_min_trans = {D_MIN_TRANS_M:g} m")], log_y=True, xlabel=xl)],
+                      panel_height_in=3.6)
 
 
 # --- html -----------------------------------------------------------------------------------------------
-_CSS = ("body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}"
-        "table{border-collapse:collapse;margin:0.5em 0}td,th{border:1px solid #ccc;padding:2px 8px;font-size:13px}"
-        "th{background:#eee}figure{margin:1.5em 0}figcaption{font-size:13px;color:#333}img{max-width:100%}"
-        ".ok{color:#060}.bad{color:#a00}")
-
-
 def _fmt(v: Any, digits: int = 3) -> str:
     if v is None:
         return "n/a"
@@ -294,15 +240,6 @@ def _fmt(v: Any, digits: int = 3) -> str:
     return html.escape(str(v))
 
 
-def _page(title: str, head_rows: list[tuple[str, str]], figures: list[tuple[str, str]], extra: str = "") -> str:
-    rows = "".join(f"<tr><th>{html.escape(k)}</th><td>{v}</td></tr>" for k, v in head_rows)
-    figs = "".join(f'<figure><img src="{html.escape(f)}" alt="{html.escape(f)}"><figcaption>{c}</figcaption></figure>'
-                   for f, c in figures)
-    return (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1><table>{rows}</table>{extra}{figs}"
-            "</body></html>")
-
-
 def _pct(x: float | None) -> str:
     return "n/a" if x is None else f"{100.0 * x:.1f} %"
 
@@ -313,27 +250,30 @@ def _check(ok: bool) -> str:
 
 def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, str]]:
     c, cv, ctl, ca = met["connectivity"], met["closest_visible_steady"], met["control"], met["closest_approach"]
-    st = met["steady_from_s"] / H
+    run_s = met["t_end_s"] - met.get("t_start_s", 0.0)
+    _hour_s, hour = window_text(run_s, H)
 
     def mn(d: dict) -> str:
         return f"min {_fmt(d.get('min'))}, p05 {_fmt(d.get('p05'))}, median {_fmt(d.get('median'))}, " \
                f"{_fmt(100 * d.get('fraction_ge_threshold', float('nan')))} % >= {_fmt(d.get('threshold'))}"
 
     def ap(d: dict) -> str:
-        return "none" if d["distance_m"] is None else f"{_fmt(d['distance_m'])} m ({'-'.join(d['pair'])} at {_fmt(d['t_s'] / H)} h)"
+        if d["distance_m"] is None:
+            return "none"
+        return f"{_fmt(d['distance_m'])} m ({'-'.join(d['pair'])} at t = {span_text(d['t_s'])})"
 
     return [
         ("run", _fmt(summary.get("run"))),
         ("scenario / controller", f"{_fmt(summary.get('scenario'))} / {_fmt(summary.get('controller'))}"),
-        ("spacecraft, duration", f"{summary.get('agents', '?')} spacecraft, {_fmt(met['t_end_s'] / H)} h"),
+        ("spacecraft, duration", f"{summary.get('agents', '?')} spacecraft, {span_text(run_s)} ({met['steps']} steps)"),
         ("always weakly connected (every step)",
          f"{_check(c['always_weakly_connected'])} ({_pct(c['weakly_connected_fraction'])} of the steps; max "
          f"{c['max_components']} components, {c['components_end']} at the end (largest {c['largest_component_end']}); "
-         f"first split {'never' if c['first_split_t_s'] is None else _fmt(c['first_split_t_s'] / H) + ' h'})"),
+         f"first split {'never' if c['first_split_t_s'] is None else span_text(c['first_split_t_s'])})"),
         ("weakly connected over each orbit (union of the last orbit's digraphs)",
          f"{_pct(c.get('orbit_union_weakly_connected_fraction'))} of the steps after the first orbit; "
          f"max {c.get('orbit_union_max_components')} components"),
-        (f"along-track to closest visible, t >= {st:.1f} h [m]", mn(cv["along_track_m"])),
+        (f"along-track to closest visible, steady window t >= {span_text(met['steady_from_s'])} [m]", mn(cv["along_track_m"])),
         ("  orbit-minimum a(|dl|-2|de|) [m]", mn(cv["along_track_orbit_min_m"])),
         ("  radial a|de| [m]", mn(cv["radial_m"])),
         ("  cross-track a|di| [m]", mn(cv["cross_track_m"])),
@@ -341,8 +281,8 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
         ("parallelism, all visible pairs, steady", mn(met["visible_pairs_parallelism_steady"])),
         ("total dV [m/s]", f"{_fmt(ctl['delta_v_total_mps'], 4)} (max per spacecraft {_fmt(ctl['delta_v_max_spacecraft_mps'])}; "
                            f"{_fmt(ctl['delta_v_in_steady_window_mps'])} in the steady window, "
-                           f"{_fmt(ctl['delta_v_last_hour_mps'])} in the last hour; 95 % spent by "
-                           f"{_fmt(ctl['t_95pct_delta_v_s'] / H)} h)"),
+                           f"{_fmt(ctl['delta_v_last_hour_mps'])} over the {hour}; 95 % spent by "
+                           f"t = {span_text(ctl['t_95pct_delta_v_s'])})"),
         ("max |a| [m/s^2]", _fmt(ctl["accel_max_mps2"])),
         ("closest approach, all pairs", ap(ca["all_pairs"])),
         ("closest approach, pairs in visibility", ap(ca["visible_pairs"])),
@@ -381,10 +321,23 @@ def _camera_for(run_dir: Path, summary: dict[str, Any]) -> CameraGeometry:
 
 
 def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, steady_from_s: float | None = None,
-                 projection_last_s: float | None = 3 * 5677.0, figures: bool = True) -> Path:
+                 projection_orbits: float = 3.0, figures: bool = True, interactive: bool = True,
+                 export: tuple[str, ...] = ("svg", "pdf")) -> Path:
     """Metrics into run_dir/summary.json["metrics"] and their time series into
-    run_dir/metrics_series.npz; with `figures`, the PNGs and run_dir/report/index.html."""
-    run_dir = Path(run_dir)
+    run_dir/metrics_series.npz; with `figures`, the report site run_dir/report/ (dashboards/site.py):
+    index.html and its pages, the figures (PNG, SVG, PDF; Plotly where there are many lines when
+    `interactive`; the vector copies of `export`) and the tables of report/data/."""
+    from dashboards.figstyle import exporting
+
+    with exporting(export):
+        return _write_report(Path(run_dir), cam, steady_from_s, projection_orbits, figures, interactive)
+
+
+def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: float | None, projection_orbits: float,
+                  figures: bool, interactive: bool) -> Path:
+    from dashboards.frames import metrics_series_frame
+    from dashboards.site import figures_of, write_site
+
     spath = run_dir / "summary.json"
     summary = json.loads(spath.read_text()) if spath.is_file() else {}
     cam = cam or _camera_for(run_dir, summary)
@@ -402,55 +355,66 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
     summary.setdefault("config", run_config(run_dir) or {})
-    figs = _paper002_figures(truth, m, met, out, projection_last_s) if _is_paper002(summary) else []
+    figs = (_paper002_figures(truth, m, met, out, projection_orbits, interactive)
+            if _is_paper002(summary) else [])
     sections = _mission_sections(run_dir, out, summary, truth)
-    if sections:
-        spath.write_text(json.dumps(summary, indent=1))
+    for s in sections:
+        s["figures"] = figures_of(out, s["figures"])
+    spath.write_text(json.dumps(summary, indent=1))
     title = f"swarmhil report: {summary.get('scenario', truth.run)}"
-    page = _page(title, _headline(summary, met), figs,
-                 "<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
-                 "<code>summary.json</code> under <code>metrics</code>.</p>" + sections)
-    (out / "index.html").write_text(page)
-    return out / "index.html"
+    return write_site(run_dir, out, title, _headline(summary, met), figs, sections, metrics_series_frame(m),
+                      summary["metrics"],
+                      intro="<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
+                            "<code>summary.json</code> under <code>metrics</code> and in <a href=\"data.html\">the data "
+                            "tables</a>.</p>")
 
 
 def _paper002_figures(truth: TruthArrays, m: SwarmMetrics, met: dict[str, Any], out: Path,
-                      projection_last_s: float | None) -> list[tuple[str, str]]:
-    """The figures of paper 002 (Figs. 7-22), for runs of its controllers only."""
+                      projection_orbits: float | None, interactive: bool = True) -> list:
+    """The figures of paper 002 (Figs. 7-22), for runs of its controllers only: many-line figures
+    interactive (and static), the digraphs static."""
+    from dashboards.site import line_figure, static_figure
+
     ids = truth.ids
     controlled = met["control"]["delta_v_total_mps"] > 0
     last = len(truth.t_s) - 1
+
+    def lf(spec: LineFigure, png: str, caption: str, many: bool = True):  # noqa: ANN202
+        return line_figure(out, spec, png, caption, interactive and many)
+
     return [
-        (fig_components(m, len(ids), out / "components.png"),
-         "Weakly connected components of the visibility digraph and size of the largest (paper Figs. 10, 31)."),
-        (fig_digraph(truth, m, 0, out / "digraph_start.png", "start"), "Visibility digraph at the start (paper Figs. 8-9)."),
-        (fig_digraph(truth, m, last, out / "digraph_end.png", "end"), "Visibility digraph at the end (paper Fig. 11)."),
-        (fig_roe_com(truth, (0, 1), out / "roe_a_l.png", "12"), "a da and a dl relative to the centre of mass (paper Fig. 12)."),
-        (fig_roe_com(truth, (2, 3), out / "roe_e.png", "13"), "a dex, a dey relative to the centre of mass (paper Fig. 13)."),
-        (fig_roe_com(truth, (4, 5), out / "roe_i.png", "14"), "a dix, a diy relative to the centre of mass (paper Fig. 14)."),
-        (fig_separation(m, "along_track_m", D_MIN_M, "|y_k - y_j| [m]",
-                        "Along-track distance to the closest visible neighbour (paper Fig. 15)", out / "sep_along.png",
-                        extra="along_min_m"),
-         f"Instantaneous along-track separation from each spacecraft to its closest visible neighbour; red: d_min = "
-         f"{D_MIN_M:g} m; dotted: the smallest orbit-minimum a(|dl|-2|de|) of section 3.3. Grey: steady window."),
-        (fig_separation(m, "cross_m", D_MIN_TRANS_M, "a|di_jk| [m]",
-                        "Out-of-plane size of the relative ellipse, closest visible neighbour (paper Fig. 16)",
-                        out / "sep_cross.png"), f"Red: d_min_trans = {D_MIN_TRANS_M:g} m."),
-        (fig_separation(m, "radial_m", D_MIN_TRANS_M, "a|de_jk| [m]",
-                        "Radial size of the relative ellipse, closest visible neighbour (paper Fig. 17)",
-                        out / "sep_radial.png"), f"Red: d_min_trans = {D_MIN_TRANS_M:g} m."),
-        (fig_parallelism(m, out / "parallelism.png"), "Parallelism |de.di|/(|de||di|) (paper Fig. 18); red: 0.8."),
-        (fig_accel(m, ids, out / "accel.png"), "Commanded acceleration after the actuator limit (paper Fig. 19)."),
-        (fig_dv(m, ids, out / "dv.png"), "Cumulative dV (paper Fig. 20); grey: steady window."),
-        (fig_along_track(truth, out / "along_track.png",
-                         "Along-track position relative to the centre of mass (paper Fig. 21)" if controlled
-                         else "Along-track position of the uncontrolled swarm (paper Fig. 7)"),
-         "Along-track position relative to the swarm centre of mass."),
-        (fig_projections(truth, out / "projections.png", projection_last_s),
-         "Cross-track and in-orbit projections of the trajectories relative to the centre of mass (paper Fig. 22)."),
-        (fig_closest_approach(m, out / "closest_approach.png"),
-         "Minimum distance over each step of pairs in visibility (either direction) and of pairs not in "
-         "visibility: the paper's safety claim covers visible pairs only."),
+        lf(spec_components(m, len(ids)), "components.png",
+           "Weakly connected components of the visibility digraph and size of the largest (paper Figs. 10, 31).",
+           many=False),
+        static_figure(out, fig_digraph(truth, m, 0, out / "digraph_start.png", "start"),
+                      "Visibility digraph at the start (paper Figs. 8-9)."),
+        static_figure(out, fig_digraph(truth, m, last, out / "digraph_end.png", "end"),
+                      "Visibility digraph at the end (paper Fig. 11)."),
+        lf(spec_roe_com(truth, (0, 1), "12"), "roe_a_l.png", "a da and a dl relative to the centre of mass (paper Fig. 12)."),
+        lf(spec_roe_com(truth, (2, 3), "13"), "roe_e.png", "a dex, a dey relative to the centre of mass (paper Fig. 13)."),
+        lf(spec_roe_com(truth, (4, 5), "14"), "roe_i.png", "a dix, a diy relative to the centre of mass (paper Fig. 14)."),
+        lf(spec_separation(m, ids, "along_track_m", D_MIN_M, "|y_k - y_j| [m]",
+                           "Along-track distance to the closest visible neighbour (paper Fig. 15)", extra="along_min_m"),
+           "sep_along.png",
+           f"Instantaneous along-track separation from each spacecraft to its closest visible neighbour; red: d_min = "
+           f"{D_MIN_M:g} m; dotted: the smallest orbit-minimum a(|dl|-2|de|) of section 3.3. Grey: steady window."),
+        lf(spec_separation(m, ids, "cross_m", D_MIN_TRANS_M, "a|di_jk| [m]",
+                           "Out-of-plane size of the relative ellipse, closest visible neighbour (paper Fig. 16)"),
+           "sep_cross.png", f"Red: d_min_trans = {D_MIN_TRANS_M:g} m."),
+        lf(spec_separation(m, ids, "radial_m", D_MIN_TRANS_M, "a|de_jk| [m]",
+                           "Radial size of the relative ellipse, closest visible neighbour (paper Fig. 17)"),
+           "sep_radial.png", f"Red: d_min_trans = {D_MIN_TRANS_M:g} m."),
+        lf(spec_parallelism(m, ids), "parallelism.png", "Parallelism |de.di|/(|de||di|) (paper Fig. 18); red: 0.8."),
+        lf(spec_accel(m, ids), "accel.png", "Commanded acceleration after the actuator limit (paper Fig. 19)."),
+        lf(spec_dv(m, ids), "dv.png", "Cumulative dV (paper Fig. 20); grey: steady window."),
+        lf(spec_along_track(truth, "Along-track position relative to the centre of mass (paper Fig. 21)" if controlled
+                            else "Along-track position of the uncontrolled swarm (paper Fig. 7)"), "along_track.png",
+           "Along-track position relative to the swarm centre of mass."),
+        lf(spec_projections(truth, projection_orbits), "projections.png",
+           "Cross-track and in-orbit projections of the trajectories relative to the centre of mass (paper Fig. 22)."),
+        lf(spec_closest_approach(m), "closest_approach.png",
+           "Minimum distance over each step of pairs in visibility (either direction) and of pairs not in "
+           "visibility: the paper's safety claim covers visible pairs only.", many=False),
     ]
 
 
@@ -464,9 +428,9 @@ def _is_paper002(summary: dict[str, Any]) -> bool:
     return not cfg or controllers_of(cfg) <= PAPER002_CONTROLLERS
 
 
-def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: TruthArrays) -> str:
+def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: TruthArrays) -> list[dict[str, Any]]:
     """Run every registered report section that applies to this run (dashboards/sections/): metrics
-    into summary["metrics"][name], figures under their own heading. Returns the HTML."""
+    into summary["metrics"][name]; returns {anchor, title, html, figures: [(PNG, caption)]} per section."""
     from dashboards.sections import SectionContext, sections_for
 
     cfg = summary["config"]  # write_report filled it from the recording
@@ -474,10 +438,8 @@ def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: 
     for name, fn in sections_for(cfg):
         res = fn(SectionContext(run_dir, run_dir / "run.mcap", out, summary, cfg, truth))
         summary["metrics"][name] = res.metrics
-        figs = "".join(f'<figure><img src="{html.escape(f)}" alt="{html.escape(f)}"><figcaption>{c}</figcaption>'
-                       f'</figure>' for f, c in res.figures)
-        blocks.append(f"<h2>{html.escape(res.title)}</h2>{res.html}{figs}")
-    return "".join(blocks)
+        blocks.append({"anchor": name, "title": res.title, "html": res.html, "figures": list(res.figures)})
+    return blocks
 
 
 # --- sweep -------------------------------------------------------------------------------------------------
@@ -536,16 +498,19 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
         for i, r in enumerate(good):
             ser = np.load(Path(r["dir"]) / SERIES)
             lab = f"{param}={r['value']}" + (f" seed {r['seed']}" if r.get("seed") is not None else "")
-            ax[0].step(ser["t_s"] / H, ser["n_components"], where="post", lw=0.9, label=lab, color=f"C{i % 10}")
+            tu, xl = time_unit(ser["t_s"])
+            ax[0].step(ser["t_s"] / tu, ser["n_components"], where="post", lw=0.9, label=lab, color=f"C{i % 10}")
             if "n_components_orbit" in ser:
-                ax[1].step(ser["t_s"] / H, ser["n_components_orbit"], where="post", lw=0.9, color=f"C{i % 10}")
-            ax[2].plot(ser["t_s"] / H, ser["delta_v_total_mps"], lw=0.9, label=lab, color=f"C{i % 10}")
+                ax[1].step(ser["t_s"] / tu, ser["n_components_orbit"], where="post", lw=0.9, color=f"C{i % 10}")
+            ax[2].plot(ser["t_s"] / tu, ser["delta_v_total_mps"], lw=0.9, label=lab, color=f"C{i % 10}")
         ax[0].set_ylabel("weakly connected\ncomponents")
         ax[0].set_title("Connectedness per case (paper Fig. 31)")
-        ax[0].legend(fontsize=6, ncol=2)
+        legend(ax[0], len(good))
         ax[1].set_ylabel("components of the\nunion over the last orbit")
         ax[2].set_ylabel("total dV [m/s]")
-        ax[2].set_xlabel("time [h]")
+        ax[2].set_xlabel(xl)
+        integer_axis(ax[0].yaxis)
+        integer_axis(ax[1].yaxis)
         figs.append((_save(fig, out / "sweep_components_dv_time.png"), "Components and total dV over time, per case."))
     head = [("parameter", html.escape(param)), ("cases", str(len(rows)))]
     cols = ["value", "seed", "delta_v_total_mps", "delta_v_last_hour_mps", "weakly_connected_fraction",
@@ -562,7 +527,10 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
             link = html.escape(str(case_page))
         table += "<tr>" + "".join(f"<td>{_fmt(r.get(c))}</td>" for c in cols) + f"<td>{link}</td></tr>"
     table += "</table>"
-    (out / "index.html").write_text(_page(f"swarmhil sweep: {param}", head, figs, table))
+    from dashboards.site import figures_of, render
+
+    render("page.html", out / "index.html", title=f"swarmhil sweep: {param}", head=head,
+           figures=figures_of(out, figs), intro=table)
     return out / "index.html"
 
 

@@ -24,7 +24,16 @@ the reference orbit (x radial, y along-track, z cross-track):
                                   computed from truth (range <= 500 m, square FOV tan 0.54 about +y)
     world/links                   LineStrips3D, src -> dst of the ISL deliveries stamped with that step
                                   (an empty batch on steps without any, so they are short-lived)
-    world/targets/<id>            Points3D, bodies that are not spacecraft (target, debris, ...)
+    world/sc/<id>                 Transform3D per step: truth position and attitude (body -> LVLH;
+                                  identity where the plant flies no attitude) and body axes; under
+                                  it, static in the body frame (dashboards/rerun_bodies.py):
+      .../camera                  Pinhole of the paper-002 camera (frustum), .../camera/image the
+                                  agent's debug frames where they are on
+      .../sensor                  LineStrips3D, the paper-000 landmark sensor's cone (+x, R_l)
+      .../landmarks               Points3D, that step's landmark returns (outliers red)
+    world/thrust                  Arrows3D, the acceleration applied over the step, from each spacecraft
+    world/targets/<id>            Transform3D (position, attitude) and a label: bodies that are not
+                                  spacecraft (target, debris, ...); .../shape Ellipsoids3D of [[body]].shape
     world/estimates               Points3D, where each agent believes its neighbours are (its true
                                   position + estimated relative position: Telemetry.tracks, else the
                                   decisions' relative ROE through the linear ROE map), coloured by
@@ -32,28 +41,35 @@ the reference orbit (x radial, y along-track, z cross-track):
     world/estimates/error         LineStrips3D, estimate -> true position of that neighbour
     metrics/connectivity/weakly_connected_components   Scalars (alive spacecraft only)
     metrics/delta_v/total_mps     Scalars, sum of the cumulative dV of every spacecraft
+    metrics/delta_v_by_spacecraft/<id>  Scalars, cumulative dV of each spacecraft
     link/messages/{tx,rx}         Scalars, cumulative counts (LinkStats)
     link/bytes/{payload,wire}     Scalars, cumulative bytes over every link (LinkStats)
     link/dropped                  Scalars, cumulative drops of every cause (LinkStats)
-    cameras/<id>                  EncodedImage, foxglove CompressedImage frames on sc/<id>/tm/image
+    world/sc/<id>/camera/image    EncodedImage, foxglove CompressedImage frames on sc/<id>/tm/image
     events                        TextLog of Event messages (agent_dead, deadline_missed, ...)
+
+The blueprint is sent once, when the logger is made: its camera views come from the configuration.
 """
 from __future__ import annotations
 
 import math
-import zlib
 from collections import defaultdict
 from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import Rejections
+from bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # noqa: F401 (MODE_COLOURS: re-exported)
 from bus.keys import Keys
+from dashboards.rerun_bodies import (R_LVLH_FROM_CAM, SceneSpec, cone_strips, display_lengths, shape_ellipsoids,
+                                     wxyz_to_xyzw)
+from bus.optional import require
+
+rr = require("rerun", "the Rerun viewer (--viz, replay)")
+rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")
 
 APP_ID = "swarmhil"
 STEP = "step"
@@ -65,35 +81,18 @@ ESTIMATE_RADIUS_UI = -3.0
 TARGET_RADIUS_UI = -9.0
 LINE_RADIUS_UI = -0.75
 
-# Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
-MODE_COLOURS: dict[str, tuple[int, int, int]] = {
-    "collision_avoidance": (230, 57, 70),
-    "attraction": (244, 162, 37),
-    "alignment": (72, 191, 99),
-    "alignment_drift": (155, 214, 96),
-    "coast": (84, 140, 235),
-    "search": (176, 120, 230),
-    "drift-null": (40, 190, 205),
-    "idle": (150, 150, 150),
-    "none": (150, 150, 150),
-    "fault": (255, 0, 200),
-}
 DEAD_COLOUR = (64, 64, 64)
 TARGET_COLOUR = (255, 215, 0)
 VISIBILITY_COLOUR = (170, 170, 170)
 LINK_COLOUR = (0, 230, 255)
 ERROR_COLOUR = (255, 80, 80)
+THRUST_COLOUR = (255, 120, 0)
+CAMERA_COLOUR = (200, 200, 255)
+CONE_COLOUR = (120, 200, 255, 110)
+LANDMARK_COLOUR = (80, 255, 120)
+OUTLIER_COLOUR = (255, 60, 60)
+SHAPE_COLOUR = (255, 215, 0, 90)
 EVENT_LEVELS = {"agent_dead": "ERROR", "rejected_packet": "WARN", "deadline_missed": "WARN"}
-
-
-def mode_colour(name: str) -> tuple[int, int, int]:
-    """Colour of a mode or behaviour label; `x_disabled` is a dimmed `x`."""
-    if name in MODE_COLOURS:
-        return MODE_COLOURS[name]
-    if name.endswith("_disabled") and name[: -len("_disabled")] in MODE_COLOURS:
-        return tuple(int(c * 0.45) for c in MODE_COLOURS[name[: -len("_disabled")]])  # type: ignore[return-value]
-    h = zlib.crc32(name.encode())
-    return (64 + h % 160, 64 + (h >> 8) % 160, 64 + (h >> 16) % 160)
 
 
 def id_colours(n: int) -> np.ndarray:
@@ -180,6 +179,9 @@ class TruthFrame:
     delta_v_mps: np.ndarray       # (N,)
     target_ids: tuple[str, ...]
     target_pos_m: np.ndarray      # (T, 3)
+    att_xyzw: np.ndarray          # (N, 4) body -> LVLH (Rerun's xyzw), identity where not flown
+    accel_mps2: np.ndarray        # (N, 3) applied over the step that ended here
+    target_att_xyzw: np.ndarray   # (T, 4)
 
     _index: dict[str, int] | None = None
 
@@ -197,9 +199,25 @@ def truth_frame(msg: pb.Truth) -> TruthFrame:
     def xyz(bodies: list[pb.BodyState]) -> np.ndarray:
         return np.array([(b.position_m.x, b.position_m.y, b.position_m.z) for b in bodies], float).reshape(-1, 3)
 
-    return TruthFrame(int(msg.header.step), float(msg.header.t), float(msg.u_rad), float(msg.mean_motion_radps),
+    def att(bodies: list[pb.BodyState]) -> tuple[np.ndarray, np.ndarray]:
+        """(unit quaternions wxyz, where the truth has one): identity elsewhere."""
+        q = np.array([(b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z) if b.HasField("attitude") else (1.0, 0, 0, 0)
+                      for b in bodies], float).reshape(-1, 4)
+        norm = np.linalg.norm(q, axis=1, keepdims=True)
+        ok = np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
+        q[ok] /= norm[ok]
+        q[~ok] = (1.0, 0.0, 0.0, 0.0)
+        return q, ok & np.array([b.HasField("attitude") for b in bodies], bool)
+
+    n, t = float(msg.mean_motion_radps), float(msg.header.t)
+    q_sc, flown = att(sc)
+    q_sc[flown] = lvlh_attitude_wxyz(q_sc[flown], n, t)   # body -> inertial (t = 0 LVLH) -> body -> LVLH
+    return TruthFrame(int(msg.header.step), t, float(msg.u_rad), n,
                       tuple(b.id for b in sc), xyz(sc), np.array([b.alive for b in sc], bool),
-                      np.array([b.delta_v_mps for b in sc], float), tuple(b.id for b in tg), xyz(tg))
+                      np.array([b.delta_v_mps for b in sc], float), tuple(b.id for b in tg), xyz(tg),
+                      wxyz_to_xyzw(q_sc),
+                      np.array([(b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z) for b in sc], float).reshape(-1, 3),
+                      wxyz_to_xyzw(att(tg)[0]))
 
 
 class Paths:
@@ -220,13 +238,26 @@ class Paths:
     LINK_DROPPED = "link/dropped"
     EVENTS = "events"
 
+    THRUST = "world/thrust"
+    DV_BY_SC = "metrics/delta_v_by_spacecraft"
+
     @staticmethod
-    def target(tid: str) -> str:
-        return f"world/targets/{tid}"
+    def target(tid: str, part: str = "") -> str:
+        """world/targets/<id>, and its `shape`."""
+        return f"world/targets/{tid}/{part}".rstrip("/")
+
+    @staticmethod
+    def spacecraft(sid: str, part: str = "") -> str:
+        """world/sc/<id>, and its `camera` (pinhole), `camera/image`, `sensor`, `landmarks`."""
+        return f"world/sc/{sid}/{part}".rstrip("/")
 
     @staticmethod
     def camera(sid: str) -> str:
-        return f"cameras/{sid}"
+        return Paths.spacecraft(sid, "camera/image")
+
+    @staticmethod
+    def delta_v(sid: str) -> str:
+        return f"{Paths.DV_BY_SC}/{sid}"
 
 
 def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> rrb.Blueprint:
@@ -245,12 +276,13 @@ def blueprint(trail_steps: int, step_s: float, cameras: Iterable[str] = ()) -> r
     plots: list[Any] = [
         rrb.TimeSeriesView(origin="metrics/connectivity", name="weakly connected components"),
         rrb.TimeSeriesView(origin="metrics/delta_v", name="total ΔV (m/s)"),
+        rrb.TimeSeriesView(origin=Paths.DV_BY_SC, name="ΔV per spacecraft (m/s)"),
         rrb.TimeSeriesView(origin="link/messages", name="link messages"),
         rrb.TimeSeriesView(origin="link/bytes", name="link bytes"),
     ]
     cams = sorted(cameras)[:4]
     if cams:
-        plots.append(rrb.Grid(*[rrb.Spatial2DView(origin=Paths.camera(c), name=f"camera {c}") for c in cams]))
+        plots.append(rrb.Grid(*[rrb.Spatial2DView(origin=Paths.spacecraft(c, "camera"), name=f"camera {c}") for c in cams]))
     return rrb.Blueprint(
         rrb.Horizontal(left, rrb.Vertical(*plots), column_shares=[3, 2]),
         rrb.BlueprintPanel(state="collapsed"),
@@ -339,8 +371,14 @@ class SwarmLogger:
     HISTORY_STEPS = 600   # truth frames kept for late telemetry, link deliveries and images
 
     def __init__(self, rec: rr.RecordingStream, run: str, *, camera: CameraRule | None = None,
-                 trail_steps: int = 570, step_s: float = 10.0, auto_flush_steps: int = 256) -> None:
+                 trail_steps: int = 570, step_s: float = 10.0, auto_flush_steps: int = 256,
+                 config: dict[str, Any] | None = None) -> None:
+        """config: the run's resolved configuration (cameras, sensor cones, shapes, thrust scale:
+        dashboards/rerun_bodies.py SceneSpec); without it bodies get frames, axes and thrust only."""
         self.rec = rec
+        self.spec = SceneSpec.from_config(config)
+        self._lengths: dict[str, float] | None = None
+        self._thrust_scale: float | None = None
         self.run = run
         self.keys = Keys(run)
         self.camera = camera or CameraRule()
@@ -365,17 +403,20 @@ class SwarmLogger:
         self._cameras: set[str] = set()
         self.flushes = 0
         self.last_step = -1
+        self.blueprints_sent = 0
+        self.send_blueprint()
 
     # --- input ------------------------------------------------------------------------------
     def ingest(self, key: str, payload: bytes) -> bool:
         """Queue one sample; True when enough truth is queued that the caller should flush."""
         try:
-            kind, sid, _ = self.keys.parse(key)
+            kind, sid, sense_kind = self.keys.parse(key)
         except ValueError as exc:
             self.rejections.add(key, str(exc))
             return False
         if kind not in ("truth", "tm", "tm_image", "event", "link_stats", "isl_rx"):
-            return False
+            if kind != "sense" or self.spec.landmark_kind is None or sense_kind != self.spec.landmark_kind:
+                return False
         self.counts[kind] += 1
         self._raw[kind].append((sid, payload))
         if kind == "truth":
@@ -384,7 +425,9 @@ class SwarmLogger:
         return False
 
     def send_blueprint(self) -> None:
-        self.rec.send_blueprint(blueprint(self.trail_steps, self.step_s, self._cameras))
+        """The layout; the logger sends it once, when it is made (camera views from the configuration)."""
+        self.rec.send_blueprint(blueprint(self.trail_steps, self.step_s, self.spec.image_ids))
+        self.blueprints_sent += 1
 
     # --- output -----------------------------------------------------------------------------
     def flush(self, final: bool = False) -> None:
@@ -406,6 +449,7 @@ class SwarmLogger:
         self._log_events(raw.get("event", []))
         self._log_link_stats(raw.get("link_stats", []))
         self._log_images(raw.get("tm_image", []))
+        self._log_landmarks(raw.get("sense", []))
         self._prune()
         self.flushes += 1
 
@@ -448,13 +492,18 @@ class SwarmLogger:
                               columns=columns)
 
     def _log_static(self, f: TruthFrame) -> None:
+        if self._lengths is None:
+            self._lengths = display_lengths(np.concatenate([f.pos_m, f.target_pos_m]))
         if self._static_ids is None:
             self.rec.log(Paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_X_UP, static=True)
-            self.rec.log(Paths.AXES, rr.Arrows3D(vectors=np.eye(3) * 50.0, colors=[(230, 60, 60), (60, 200, 60), (70, 110, 255)],
+            self.rec.log(Paths.AXES, rr.Arrows3D(vectors=np.eye(3) * self._lengths["world_axes_m"], colors=[(230, 60, 60), (60, 200, 60), (70, 110, 255)],
                                                  labels=["x radial", "y along-track", "z cross-track"], show_labels=False,
                                                  radii=-1.0), static=True)
-            self.send_blueprint()
+            self.rec.log(Paths.THRUST, rr.Arrows3D.from_fields(colors=[THRUST_COLOUR], radii=[-1.5]), static=True)
         if f.ids != self._static_ids:
+            for sid in f.ids:
+                if self._static_ids is None or sid not in self._static_ids:
+                    self._log_body_static(sid)
             self.rec.log(Paths.SWARM, rr.Points3D.from_fields(labels=list(f.ids), radii=[SC_RADIUS_UI], show_labels=True),
                          static=True)
             self.rec.log(Paths.TRAILS, rr.Points3D.from_fields(colors=id_colours(len(f.ids)), radii=[TRAIL_RADIUS_UI]),
@@ -464,9 +513,26 @@ class SwarmLogger:
             self._colour_key = None
         for tid in f.target_ids:
             if tid not in self._static_targets:
-                self.rec.log(Paths.target(tid), rr.Points3D.from_fields(labels=[tid], radii=[TARGET_RADIUS_UI],
-                                                                      colors=[TARGET_COLOUR]), static=True)
+                self.rec.log(Paths.target(tid), rr.Points3D(positions=[[0.0, 0.0, 0.0]], labels=[tid], radii=[TARGET_RADIUS_UI],
+                                                            colors=[TARGET_COLOUR]), static=True)
+                shape = shape_ellipsoids(self.spec.shapes.get(tid))
+                if shape is not None:
+                    self.rec.log(Paths.target(tid, "shape"), rr.Ellipsoids3D(centers=shape[0], half_sizes=shape[1], colors=[SHAPE_COLOUR],
+                                                                          fill_mode="solid"), static=True)
                 self._static_targets.add(tid)
+
+    def _log_body_static(self, sid: str) -> None:
+        """Body axes, camera (pinhole on its mount) and sensor cone of one spacecraft, in its frame."""
+        L = self._lengths or display_lengths(np.zeros((1, 3)))
+        self.rec.log(Paths.spacecraft(sid), rr.TransformAxes3D(L["axes_m"]), static=True)
+        cam = self.spec.camera
+        if cam is not None:
+            self.rec.log(Paths.spacecraft(sid, "camera"), rr.Transform3D(mat3x3=R_LVLH_FROM_CAM),
+                         rr.Pinhole(focal_length=cam.focal_px, width=cam.width_px, height=cam.height_px,
+                                    image_plane_distance=L["frustum_m"], color=CAMERA_COLOUR), static=True)
+        if self.spec.cone is not None:
+            self.rec.log(Paths.spacecraft(sid, "sensor"), rr.LineStrips3D(cone_strips(*self.spec.cone), colors=[CONE_COLOUR],
+                                                            radii=[LINE_RADIUS_UI]), static=True)
 
     def _log_frames(self, frames: list[TruthFrame]) -> None:
         # runs of consecutive frames with the same bodies are logged as one batch per entity
@@ -498,8 +564,32 @@ class SwarmLogger:
         self._send(Paths.WCC, steps, t_s, rr.Scalars.columns(scalars=weak_components(vis, alive).astype(float)))
         self._send(Paths.DV_TOTAL, steps, t_s, rr.Scalars.columns(scalars=np.stack([f.delta_v_mps for f in frames]).sum(axis=1)))
         for ti, tid in enumerate(f0.target_ids):
-            self._send(Paths.target(tid), steps, t_s, rr.Points3D.columns(positions=np.stack([f.target_pos_m[ti] for f in frames])))
+            self._send(Paths.target(tid), steps, t_s,
+                       rr.Transform3D.columns(translation=np.stack([f.target_pos_m[ti] for f in frames]),
+                                              quaternion=np.stack([f.target_att_xyzw[ti] for f in frames])))
+        att = np.stack([f.att_xyzw for f in frames])          # (M, N, 4)
+        dv = np.stack([f.delta_v_mps for f in frames])        # (M, N)
+        for i, sid in enumerate(f0.ids):
+            self._send(Paths.spacecraft(sid), steps, t_s, rr.Transform3D.columns(translation=pos[:, i], quaternion=att[:, i]))
+            self._send(Paths.delta_v(sid), steps, t_s, rr.Scalars.columns(scalars=dv[:, i]))
+        acc = np.stack([f.accel_mps2 for f in frames])        # (M, N, 3)
+        self._send(Paths.THRUST, steps, t_s,
+                   rr.Arrows3D.columns(origins=pos.reshape(-1, 3), vectors=(acc * self._thrust_m_per_mps2(acc)).reshape(-1, 3))
+                   .partition(per_step))
         self._log_links([int(s) for s in steps])
+
+    def _thrust_m_per_mps2(self, acc: np.ndarray) -> float:
+        """Arrow length per m/s^2: the display length at the acceleration limit of the configuration,
+        else at the largest acceleration of the first batch that has one (then kept)."""
+        if self._thrust_scale is None:
+            ref = self.spec.accel_ref_mps2
+            if ref is None:
+                mags = np.linalg.norm(acc, axis=-1)
+                ref = float(mags[np.isfinite(mags)].max()) if np.isfinite(mags).any() else 0.0
+                if ref <= 0.0:
+                    return 0.0
+            self._thrust_scale = (self._lengths or display_lengths(np.zeros((1, 3))))["thrust_m"] / ref
+        return self._thrust_scale
 
     def _log_links(self, steps: list[int]) -> None:
         """ISL deliveries of each step as segments between the true positions (empty when none)."""
@@ -621,7 +711,6 @@ class SwarmLogger:
             return
         from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 
-        new_camera = False
         for sid, payload in items:
             try:
                 img = CompressedImage.FromString(payload)
@@ -634,11 +723,37 @@ class SwarmLogger:
             fmt = (img.format or "jpeg").lower()
             self._send(Paths.camera(sid), [self._step_at(t_s)], [t_s],
                        rr.EncodedImage.columns(blob=[img.data], media_type=[f"image/{fmt}"]))
-            if sid not in self._cameras:
-                self._cameras.add(sid)
-                new_camera = True
-        if new_camera:
-            self.send_blueprint()
+            self._cameras.add(sid)
+
+    def _log_landmarks(self, items: list[tuple[str | None, bytes]]) -> None:
+        """Landmark returns of each step in the body frame of the agent (empty when none), outliers red."""
+        if not items or self.spec.landmark_kind is None:
+            return
+        from dashboards.rerun_bodies import LANDMARK_KINDS
+
+        pts_name, ids_name = LANDMARK_KINDS[self.spec.landmark_kind]
+        per: dict[str, list[tuple[int, float, np.ndarray, np.ndarray]]] = defaultdict(list)
+        for sid, payload in items:
+            msg = self._decode(pb.Measurements, "sense", payload)
+            if msg is None or sid is None:
+                continue
+            pts, ids = np.zeros((0, 3)), np.zeros(0)
+            for it in msg.items:
+                if it.name == pts_name:
+                    pts = np.asarray(it.values, float).reshape(-1, 3)
+                elif it.name == ids_name:
+                    ids = np.asarray(it.values, float).reshape(-1)
+            if len(ids) != len(pts):
+                ids = np.zeros(len(pts))
+            per[sid].append((int(msg.header.step), float(msg.header.t), pts, ids))
+        for sid, rows in per.items():
+            rows.sort(key=lambda r: r[0])
+            pts = np.concatenate([r[2] for r in rows]).reshape(-1, 3)
+            out = np.concatenate([r[3] for r in rows]) < 0
+            colours = np.where(out[:, None], np.array(OUTLIER_COLOUR, np.uint8), np.array(LANDMARK_COLOUR, np.uint8)).astype(np.uint8)
+            self._send(Paths.spacecraft(sid, "landmarks"), [r[0] for r in rows], [r[1] for r in rows],
+                       rr.Points3D.columns(positions=pts, colors=colours.reshape(-1, 3),
+                                           radii=np.full(len(pts), -2.0, np.float32)).partition([len(r[2]) for r in rows]))
 
     def _step_at(self, t_s: float) -> int:
         """Step of the truth frame nearest in time (images carry a timestamp, not a step)."""

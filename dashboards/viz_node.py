@@ -1,7 +1,7 @@
-"""The viewer bridge companion "viz" (deploy/companions.py): the run's samples -> Rerun.
+"""The viewer bridge companion "viz" (deploy/companions.py): the run's samples -> Rerun (or Foxglove).
 
-Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries
-(over Zenoh: ring-channel subscribers drained every DRAIN_PERIOD_S, so no Python runs on Zenoh's
+Subscribes to truth, telemetry (and camera frames), events, link statistics and ISL deliveries,
+and for paper 000 the sensing stimuli that carry landmark returns (over Zenoh: ring-channel subscribers drained every DRAIN_PERIOD_S, so no Python runs on Zenoh's
 threads); the samples are only queued (dashboards/rerun_bridge.py), and a timer flushes them in
 column batches every FLUSH_PERIOD_S (0.5 s live, 2 s when only saving), so the bridge costs little
 and the plant never waits for it (LOCKSTEP_BARRIER = False: not a lockstep participant). When only
@@ -16,6 +16,8 @@ Modes (opts["viz"]):
              RUN_DIR/viewer_url.txt and the summary.
     connect  stream to a running viewer at opts["viz_url"] (default rerun+http://127.0.0.1:9876/proxy);
              also writes RUN_DIR/run.rrd.
+    foxglove a Foxglove WebSocket server on 127.0.0.1:opts["viz_port"] (default 8765) sending the
+             run as its recording holds it (dashboards/foxglove_live.py); no Rerun, no .rrd.
 Rerun servers bind 127.0.0.1 only (STACK-NOTES: rr.serve_grpc / serve_web_viewer bind 0.0.0.0).
 Rerun is imported only when a bridge starts: the launcher imports this module for every run.
 """
@@ -39,10 +41,10 @@ from bus.keys import Keys
 log = logging.getLogger("swarmhil.viz")
 
 LOCKSTEP_BARRIER = False
-MODES = ("save", "serve", "connect")
+MODES = ("save", "serve", "connect", "foxglove")
 LOOPBACK = "127.0.0.1"
 DEFAULT_CONNECT_URL = "rerun+http://127.0.0.1:9876/proxy"
-FLUSH_PERIOD_S = {"save": 2.0, "serve": 0.5, "connect": 0.5}   # batch more when nobody watches live
+FLUSH_PERIOD_S = {"save": 2.0, "serve": 0.5, "connect": 0.5, "foxglove": 0.5}   # batch more when nobody watches live
 DRAIN_PERIOD_S = 0.1
 RING_CAPACITY = 1 << 17   # samples per subscription held by Zenoh between drains (the oldest go first if full)
 NICE = 10   # as its own process the bridge yields the CPU to the plant and agents, and catches up in their gaps
@@ -166,9 +168,10 @@ class WebViewer:
 def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, viz_port: int | None = None,
                    viz_url: str | None = None) -> Any:
     """A RecordingStream with the sinks of a mode (rrd: also write this file)."""
-    import rerun as rr
-
+    from bus.optional import require
     from dashboards.rerun_bridge import APP_ID
+
+    rr = require("rerun", "the Rerun viewer (--viz)")
 
     rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
     sinks: list[Any] = []
@@ -184,7 +187,7 @@ def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, 
 
 class VizNode:
     def __init__(self, bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
-        from dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
+        from dashboards.rerun_bridge import CameraRule, trail_steps_for
 
         self.mode = opts.get("viz")
         if self.mode not in MODES:
@@ -197,10 +200,31 @@ class VizNode:
         self.nice = 0
         if self.mode == "save" and type(bus).__name__ != "MemoryBus":  # own process, nobody watching live
             self.nice = os.nice(NICE)
-        disable_analytics()
-        self.rrd = out / "run.rrd"
+        self.rrd: Path | None = None
+        self.rec: Any = None
         self.url: str | None = None
         self.web: WebViewer | None = None
+        self.camera = CameraRule.from_scenario(getattr(sc, "camera", None))
+        self.trail_steps = trail_steps_for(sc.step_s, sc.orbit.mean_motion_radps, getattr(sc, "sections", {}).get("viz"))
+        if self.mode == "foxglove":
+            from dashboards.foxglove_live import DEFAULT_PORT, FoxgloveLive
+
+            self.logger: Any = FoxgloveLive(run, sc.resolved(), port=int(opts.get("viz_port") or DEFAULT_PORT))
+            self.url = self.logger.url
+            (out / "viewer_url.txt").write_text(self.url + "\n")
+            log.warning("foxglove: %s", self.url)
+        else:
+            self._open_rerun(run, sc, out, opts)
+        self._lock = threading.Lock()
+        self._flush_s = 0.0
+        self._stop = threading.Event()
+        self._start_subscriptions(bus, run)
+
+    def _open_rerun(self, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
+        from dashboards.rerun_bridge import SwarmLogger
+
+        disable_analytics()
+        self.rrd = out / "run.rrd"
         if self.mode == "serve":
             self.viz_port = int(opts.get("viz_port") or free_port())
             self.web_port = int(opts.get("web_port") or free_port())
@@ -214,18 +238,18 @@ class VizNode:
             log.warning("viewer: %s", self.url)
         elif self.mode == "connect":
             self.url = opts.get("viz_url") or DEFAULT_CONNECT_URL
-        self.camera = CameraRule.from_scenario(getattr(sc, "camera", None))
-        self.trail_steps = trail_steps_for(sc.step_s, sc.orbit.mean_motion_radps, getattr(sc, "sections", {}).get("viz"))
-        self.logger = SwarmLogger(self.rec, run, camera=self.camera, trail_steps=self.trail_steps, step_s=sc.step_s)
-        self.logger.send_blueprint()
-        self._lock = threading.Lock()
-        self._flush_s = 0.0
-        self._stop = threading.Event()
+        self.logger = SwarmLogger(self.rec, run, camera=self.camera, trail_steps=self.trail_steps, step_s=sc.step_s,
+                                  config=sc.resolved())
+
+    def _start_subscriptions(self, bus: Any, run: str) -> None:
         keys = Keys(run)
         # truth first: the logger counts step k complete once truth k+2 is in, and every telemetry of
         # step k reaches Zenoh before that truth, so draining truth before the rest never splits a step
         key_exprs = (keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.link_stats,
                      f"{keys.base}/isl/rx/*")
+        landmark_kind = getattr(getattr(self.logger, "spec", None), "landmark_kind", None)
+        if landmark_kind:   # paper 000: the landmark returns in the sensing stimuli
+            key_exprs += (f"{keys.base}/sc/*/sense/{landmark_kind}",)
         self._rings: list[Any] = []
         self._subs: list[Any] = []
         session = getattr(bus, "session", None)
@@ -299,7 +323,8 @@ class VizNode:
             except Exception:
                 pass
         self.flush(final=True)
-        self.rec.flush()
+        if self.rec is not None:
+            self.rec.flush()
         close_s = time.monotonic() - t_close   # the launcher allows 10 s after SIGTERM
         if self.mode == "serve" and self.opts.get("viz_hold"):
             self._hold()
@@ -309,8 +334,11 @@ class VizNode:
             pass
         if self.web is not None:
             self.web.close()
-        self.rec.disconnect()
+        if self.rec is not None:
+            self.rec.disconnect()
+        else:
+            self.logger.close()   # the Foxglove server
         ru = resource.getrusage(resource.RUSAGE_SELF)
-        return {"mode": self.mode, "rrd": str(self.rrd), "url": self.url, "camera": self.camera.as_dict(),
+        return {"mode": self.mode, "rrd": str(self.rrd) if self.rrd else None, "url": self.url, "camera": self.camera.as_dict(),
                 "trail_steps": self.trail_steps, "flush_cpu_s": round(self._flush_s, 3),
                 "process_cpu_s": round(ru.ru_utime + ru.ru_stime, 3), "nice": self.nice, "close_s": round(close_s, 3), **self.logger.stats()}

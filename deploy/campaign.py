@@ -158,7 +158,10 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[Any, tuple], *, execu
             on_row(key, r)
 
     if executor == "dask":
-        from dask.distributed import Client, LocalCluster, as_completed
+        from bus.optional import require
+
+        dd = require("dask.distributed", "--executor dask")
+        Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
 
         cluster = None
         if scheduler:
@@ -224,8 +227,10 @@ def write_table(out: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
     """OUT/campaign.parquet and OUT/campaign.csv: one row per run, the same columns."""
     import csv
 
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    from bus.optional import require
+
+    pa = require("pyarrow", "the campaign table (Parquet)")
+    pq = require("pyarrow.parquet", "the campaign table (Parquet)")
 
     cols = _columns(rows)
     data = {c: _column_values(rows, c) for c in cols}
@@ -324,7 +329,11 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     meta_path = out / "campaign.json"
     meta = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
     if meta_path.is_file():  # resuming: it must be the same campaign
-        old = json.loads(meta_path.read_text())
+        try:
+            old = json.loads(meta_path.read_text())
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"{meta_path}: not a campaign's record ({' '.join(str(exc).split())[:100]}); "
+                             f"use another --out") from None
         for k in ("scenario", "sets", "duration_s"):
             if old.get(k) != meta[k]:
                 raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta[k]!r}; "

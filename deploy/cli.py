@@ -3,12 +3,14 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
+from bus.optional import MissingExtra
 from deploy.cli_viz import viz_option
 
 
@@ -21,20 +23,77 @@ def _bad_file_errors() -> tuple[type[BaseException], ...]:
     return (McapError, struct.error, EOFError, DecodeError, UnicodeDecodeError, json.JSONDecodeError, OSError)
 
 
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_MEMORY, EXIT_INTERNAL = 0, 1, 2, 3, 70  # docs/cli.md "Exit codes"
+_VERBOSE = 0
+
+
+def _fail(msg: str, code: int) -> None:
+    click.echo(f"error: {' '.join(msg.split())}", err=True)
+    sys.exit(code)
+
+
 class _Cli(click.Group):
     """Every command: a file that is not what it should be (garbage, a truncated recording, a
-    directory that cannot be written) ends in one line naming it and exit code 1, not a traceback."""
+    directory that cannot be written) ends in one line naming it and exit code 1, a bad option or
+    argument in one line and exit code 2, never a traceback (docs/cli.md)."""
 
     def invoke(self, ctx: click.Context) -> Any:
         args = [*getattr(ctx, "_protected_args", []), *ctx.args]  # invoke() empties them
         try:
             return super().invoke(ctx)
-        except _bad_file_errors() as exc:
+        except BrokenPipeError:  # `swarmhil mcap info F | head`: the reader left, not a bad file
+            raise
+        except _bad_file_errors() as exc:  # (recordings and run directories are checked up front: cli_inputs.py)
             files = [a for a in args if Path(a).exists()]
             what = f"{', '.join(files)}: " if files else ""
             detail = " ".join(f"{type(exc).__name__}: {exc}".split())
             hint = "; a recording whose writer was killed: `swarmhil mcap repair`" if "mcap" in type(exc).__module__ else ""
             raise click.ClickException(f"{what}cannot read or write this ({detail[:300]}){hint}") from None
+
+    def main(self, args: Any = None, prog_name: str | None = None, complete_var: str | None = None,
+             standalone_mode: bool = True, **extra: Any) -> Any:
+        """click's main, with every error on one line: `error: ...` and the exit code of docs/cli.md."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, False, **extra)
+        except click.UsageError as exc:  # bad option, missing argument, path that does not exist: 2
+            if type(exc).__name__ == "NoArgsIsHelpError" and exc.ctx is not None:  # `swarmhil`, `swarmhil mcap`
+                click.echo(exc.ctx.get_help(), err=True)
+                sys.exit(exc.exit_code)
+            hint = f" (see `{exc.ctx.command_path} --help`)" if exc.ctx is not None else ""
+            _fail(exc.format_message() + hint, exc.exit_code)
+        except click.ClickException as exc:  # a file that cannot be read or written: 1
+            _fail(exc.format_message(), exc.exit_code)
+        except MissingExtra as exc:  # an optional part not installed (bus/optional.py): 1
+            _fail(str(exc), EXIT_FAILED)
+        except BrokenPipeError:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+            sys.exit(EXIT_OK)
+        except click.Abort:
+            click.echo("aborted", err=True)
+            sys.exit(EXIT_FAILED)
+        except Exception as exc:  # noqa: BLE001 - a bug, not bad input: one line; -v shows the traceback
+            if _VERBOSE:
+                raise
+            _fail(f"internal error: {type(exc).__name__}: {exc} (a bug: `swarmhil -v ...` shows the traceback)"[:600],
+                  EXIT_INTERNAL)
+        sys.exit(rv if isinstance(rv, int) else EXIT_OK)
+
+
+def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    """--version: this package's version (package metadata) and the Zenoh it runs on."""
+    if not value or ctx.resilient_parsing:
+        return
+    from importlib.metadata import PackageNotFoundError, version
+
+    def ver(dist: str) -> str:
+        try:
+            return version(dist)
+        except PackageNotFoundError:
+            return "not installed"
+    click.echo(f"swarmhil {ver('swarmhil')} (eclipse-zenoh {ver('eclipse-zenoh')}, Python {sys.version.split()[0]})")
+    ctx.exit(0)
 
 
 def _clear_run(out: Path) -> None:
@@ -50,9 +109,13 @@ def _clear_run(out: Path) -> None:
 
 
 @click.group(cls=_Cli, context_settings={"help_option_names": ["-h", "--help"]})
-@click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug).")
+@click.option("-v", "--verbose", count=True, help="More log output (-v info, -vv debug); tracebacks of internal errors.")
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_print_version,
+              help="Print the versions of swarmhil and Zenoh and exit.")
 def main(verbose: int) -> None:
     """swarmhil: spacecraft-swarm flight software as processes over Eclipse Zenoh."""
+    global _VERBOSE
+    _VERBOSE = verbose
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
 
@@ -120,8 +183,13 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:
-        res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
-                              overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        from deploy.memory import NotEnoughMemory
+
+        try:
+            res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
+                                  overrides={"duration": duration, "seed": seed, "mode": mode, "speed": speed}).execute()
+        except NotEnoughMemory as exc:
+            _fail(str(exc), EXIT_MEMORY)
     s = res.summary
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
@@ -143,10 +211,11 @@ def mcap() -> None:
 def mcap_repair(src: str, dst: str) -> None:
     """Salvage every complete chunk of a recording whose writer was killed into DST."""
     from bus.mcap_tools import repair
+    from deploy.cli_inputs import recording_problem
 
-    with open(src, "rb") as f:
-        if f.read(8) != b"\x89MCAP0\r\n":
-            raise click.ClickException(f"{src}: not an MCAP recording (no MCAP magic at the start); nothing to repair")
+    problem = recording_problem(src)
+    if problem and not problem.startswith("is cut short"):
+        raise click.ClickException(f"{src}: {problem}; nothing to repair")
     stats = repair(src, dst)
     click.echo(json.dumps(stats))
     if not stats["messages"]:
@@ -158,7 +227,9 @@ def mcap_repair(src: str, dst: str) -> None:
 def mcap_info(src: str) -> None:
     """Message counts per topic of a recording."""
     from bus.mcap_tools import topic_counts
+    from deploy.cli_inputs import check_recording
 
+    check_recording(src)
     for topic, n in sorted(topic_counts(src).items()):
         click.echo(f"{n:8d}  {topic}")
 
@@ -170,6 +241,7 @@ def mcap_info(src: str) -> None:
 @click.option("--image", default="swarmhil:latest", show_default=True)
 def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
     """Write a compose file that starts the run's processes as containers, each agent its own."""
+    from deploy.agent_image import write_resolved_scenario
     from deploy.compose import write_compose
     from deploy.launcher import new_run_id
     from deploy.scenario import ScenarioError, load_scenario
@@ -177,9 +249,40 @@ def compose(scenario: str, out: str, run_id: str | None, image: str) -> None:
     try:
         sc = load_scenario(scenario)
     except ScenarioError as exc:
-        raise click.ClickException(str(exc)) from None
-    path = write_compose(sc, scenario, run_id or new_run_id(sc.name), Path(out), image=image)
-    click.echo(f"wrote {path} ({len(sc.ids)} agents)")
+        _fail(str(exc), EXIT_USAGE)
+    # the containers read the validated document and the agents their own configs, as in `run`
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    resolved = write_resolved_scenario(sc, Path(out).with_name(f"{Path(out).stem}.scenario.json"))
+    path = write_compose(sc, str(resolved), run_id or new_run_id(sc.name), Path(out), image=image)
+    click.echo(f"wrote {path} ({len(sc.ids)} agents) and {resolved}")
+
+
+@main.command()
+@click.option("--out", "out", type=click.Path(file_okay=False), default="runs/demo", show_default=True,
+              help="Output directory (replaced if it holds an earlier demo).")
+@click.option("--in-process", is_flag=True, help="Run in one process (default: one process per spacecraft).")
+@click.pass_context
+def demo(ctx: click.Context, out: str, in_process: bool) -> None:
+    """The first five minutes: run the demo scenario (6 spacecraft, 30 simulated minutes) with its 3D
+    views saved, write its report, and print where both are and the one command that opens each."""
+    from bus.optional import require
+
+    require("rerun", "swarmhil demo (its 3D views)")  # before the run, not after it
+    require("matplotlib", "swarmhil demo (its report)")
+    scenario = Path(__file__).resolve().parent / "scenarios" / "demo.toml"
+    ctx.invoke(run, scenario=str(scenario), out=out, overwrite=True, viz="save", in_process=in_process)
+    ctx.invoke(_report_cmd, run_dir=out)
+    out_dir = Path(out).resolve()
+    rrd, page = out_dir / "run.rrd", out_dir / "report" / "index.html"
+    for f in (rrd, page):
+        if not f.is_file():
+            raise click.ClickException(f"{f}: the demo did not write it")
+    viewer = Path(sys.executable).with_name("rerun")
+    click.echo("")
+    click.echo(f"the swarm in 3D (Rerun):  {rrd}")
+    click.echo(f"  open it with:           {viewer if viewer.exists() else 'rerun'} {rrd}")
+    click.echo(f"its report (figures):     {page}")
+    click.echo(f"  open it with:           python3 -m webbrowser {page.as_uri()}")
 
 
 from deploy.cli_report import report as _report_cmd; main.add_command(_report_cmd)  # noqa: E402,E702

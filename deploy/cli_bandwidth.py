@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -19,10 +20,19 @@ import click
               help="Output HTML (default RUN_DIR/report/bandwidth.html, or bandwidth_compare.html with --compare).")
 def report_bandwidth(run_dir: str, compare: str | None, out: str | None) -> None:
     """Bytes and messages per agent and per link, drops by cause, totals: from RUN_DIR/run.mcap alone,
-    checked against the channel's own counters (exit code 1 when they disagree)."""
+    checked against the channel's own counters (exit code 1 when they disagree). A run without a
+    link (no [link] in its scenario) gets an empty report that says so, exit code 0."""
     from dashboards.bandwidth import consistency, read_link_traffic, write_bandwidth_comparison, write_bandwidth_report
+    from deploy.cli_inputs import check_run_dir
 
+    for r in [run_dir, compare] if compare else [run_dir]:
+        check_run_dir(r)
     runs = {r: read_link_traffic(r) for r in ([run_dir, compare] if compare else [run_dir])}
+    if not compare and not runs[run_dir].has_link:
+        path = _write_no_link_report(runs[run_dir], Path(out) if out else Path(run_dir) / "report" / "bandwidth.html")
+        click.echo(f"{runs[run_dir].run}: no inter-satellite link in this run ([link] absent or disabled in its "
+                   f"scenario): nothing to count; wrote an empty report {path}")
+        return
     if compare:
         path = write_bandwidth_comparison(runs[run_dir], runs[compare],
                                           Path(out) if out else Path(run_dir) / "report" / "bandwidth_compare.html")
@@ -31,6 +41,9 @@ def report_bandwidth(run_dir: str, compare: str | None, out: str | None) -> None
     click.echo(f"wrote {path}")
     bad = False
     for r, lt in runs.items():
+        if not lt.has_link:
+            click.echo(f"{lt.run}: no inter-satellite link in this run: counted as zero traffic")
+            continue
         checks = consistency(lt)
         for name, rec, stats, summ, ok in checks:
             if not ok:
@@ -43,3 +56,16 @@ def report_bandwidth(run_dir: str, compare: str | None, out: str | None) -> None
                    f"rejected {rows['rejected_packets'][1]}, beyond range {lt.beyond_range}")
     if bad:
         sys.exit(1)
+
+
+def _write_no_link_report(lt: Any, path: Path) -> Path:
+    """The bandwidth page of a run without a link: it says so, and has no table or figure."""
+    import html
+
+    from dashboards.bandwidth import _page
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return _page(f"swarmhil bandwidth: {lt.run}",
+                 f"<p>Run <code>{html.escape(lt.run)}</code> has no inter-satellite link (no <code>[link]</code> "
+                 "table in its scenario, or it is disabled): no transmission, delivery or link counter was "
+                 "recorded, so there is nothing to count.</p>", path)

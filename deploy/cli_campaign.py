@@ -44,8 +44,13 @@ def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...]
              jobs: int | None, duration: float | None, out: str | None, metrics: bool, keep_recordings: bool,
              retry_failed: bool, record: str) -> None:
     """Run SCENARIO with N seeds (batch mode) and write a Parquet/CSV table and a report."""
+    from bus.optional import require
     from deploy.campaign import run_campaign
     from deploy.scenario import ScenarioError, load_scenario
+
+    require("pyarrow", "swarmhil campaign (its Parquet table)")  # before any run, not after them
+    if executor == "dask" or scheduler:
+        require("dask.distributed", "--executor dask")
 
     try:  # fail fast on a bad scenario or --set, before starting any worker
         sc = load_scenario(scenario, list(sets)).with_overrides(duration_s=duration)

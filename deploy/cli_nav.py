@@ -20,6 +20,12 @@ import click
 def report_nav(run_dirs: tuple[str, ...], out: str, labels: tuple[str, ...]) -> None:
     """Navigation error against truth per run, and a comparison table across the runs."""
     from dashboards.navreport import write_comparison, write_nav_report
+    from bus.optional import require
+    from deploy.cli_inputs import check_run_dir
+
+    require("matplotlib", "swarmhil report-nav (its figures)")
+    for d in run_dirs:
+        check_run_dir(d)
 
     if labels and len(labels) != len(run_dirs):
         raise click.BadParameter(f"{len(labels)} --label for {len(run_dirs)} RUN_DIRs", param_hint="--label")

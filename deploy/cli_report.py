@@ -65,8 +65,6 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
              out_dir: str, run_id: str, figures: bool = True, sets: tuple[str, ...] = (),
              record: str = "all") -> dict[str, Any]:
     """One sweep case (on a worker): in-process run, then its report. Errors are returned."""
-    import tomllib
-
     from dashboards.report import write_report
     from deploy.launcher import run_in_process
     from deploy.scenario import parse_scenario
@@ -76,8 +74,9 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
     t0 = time.monotonic()
     try:
         from deploy.overrides import apply_sets
+        from deploy.scenario import read_document
 
-        doc = set_param(apply_sets(tomllib.loads(Path(scenario_path).read_text()), list(sets)), param, value)
+        doc = set_param(apply_sets(read_document(scenario_path)[0], list(sets)), param, value)
         sc = parse_scenario(doc, Path(scenario_path).name).with_overrides(duration_s=duration_s, seed=seed)
         sc.sets = tuple(sets) + (f"{param}={json.dumps(value)}",)
         out = Path(out_dir)
@@ -98,14 +97,24 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
 @click.option("--steady-from-h", type=float, help="Start of the steady-state window [h] (default: last sixth of the run).")
 @click.option("--scenario", "scenario", type=click.Path(exists=True, dir_okay=False),
               help="Scenario file to take the camera from (default: the run's, else the paper's camera).")
-def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> None:
-    """Metrics (into RUN_DIR/summary.json) and RUN_DIR/report/index.html from RUN_DIR/run.mcap.
+@click.option("--vector/--no-vector", default=True, show_default=True,
+              help="Also save every figure as SVG and PDF (for papers) beside its PNG.")
+def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vector: bool) -> None:
+    """Metrics (into RUN_DIR/summary.json) and the report site RUN_DIR/report/index.html from RUN_DIR/run.mcap:
+    mission metrics and sections, navigation, bandwidth, events and the data tables (docs/analysis.md).
 
     For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
     """
+    from bus.optional import require
     from dashboards.report import write_report, write_sweep_report
+    from deploy.cli_inputs import check_run_dir
+
+    for mod in ("matplotlib", "jinja2", "plotly", "pandas", "pyarrow"):
+        require(mod, "swarmhil report (its site, figures and tables)")
     from plant.sensors import CameraGeometry
 
+    if not (Path(run_dir) / "sweep.json").is_file():
+        check_run_dir(run_dir)
     cam = None
     if scenario:
         from deploy.scenario import load_scenario
@@ -123,7 +132,7 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None) -> N
                     write_report(d, cam=cam, steady_from_s=steady_s, figures=(d / "report" / "index.html").is_file())
             click.echo(f"wrote {write_sweep_report(run_dir, sw['param'], sw['cases'])}")
             return
-        page = write_report(run_dir, cam=cam, steady_from_s=steady_s)
+        page = write_report(run_dir, cam=cam, steady_from_s=steady_s, export=("svg", "pdf") if vector else ())
     except (OSError, ValueError) as exc:
         raise click.ClickException(str(exc)) from None
     met = json.loads((Path(run_dir) / "summary.json").read_text())["metrics"]
@@ -156,22 +165,26 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
           executor: str, scheduler: str | None, record: str, duration: float | None, case_reports: bool,
           sets: tuple[str, ...]) -> None:
     """Run SCENARIO once per value of --param (in-process runs in parallel) and write one report."""
-    import tomllib
-
+    from bus.optional import require
     from dashboards.report import write_sweep_report
     from deploy.campaign import execute
     from deploy.launcher import new_run_id
-    from deploy.scenario import ScenarioError, parse_scenario
+
+    require("matplotlib", "swarmhil sweep (its report's figures)")  # before any case runs
+    from deploy.scenario import ScenarioError, parse_scenario, read_document
 
     values = parse_values(values_text)
-    seed_list: list[int | None] = [None] if not seeds else [int(s) for s in seeds.split(",")]
+    try:
+        seed_list: list[int | None] = [None] if not seeds else [int(s) for s in seeds.split(",")]
+    except ValueError:
+        raise click.BadParameter(f"{seeds!r}: comma-separated integers, e.g. 1,2,3", param_hint="--seeds") from None
     from deploy.overrides import OverrideError, apply_sets
 
     try:  # fail fast on a bad parameter or value, before starting anything
-        doc = apply_sets(tomllib.loads(Path(scenario).read_text()), list(sets))
+        doc = apply_sets(read_document(scenario)[0], list(sets))
         for v in values:
             parse_scenario(set_param(doc, param, v), Path(scenario).name)
-    except (ScenarioError, OverrideError, click.BadParameter, tomllib.TOMLDecodeError) as exc:
+    except (ScenarioError, OverrideError, click.BadParameter) as exc:
         msg = exc.format_message() if isinstance(exc, click.BadParameter) else str(exc)
         click.echo(f"error: {msg}", err=True)
         sys.exit(2)

@@ -9,7 +9,8 @@ from typing import Any, Callable
 
 import click
 
-VIZ_MODES = ("none", "save", "serve", "connect")
+VIZ_MODES = ("none", "save", "serve", "connect", "foxglove")
+FOXGLOVE_LAYOUT = "dashboards/foxglove/swarmhil-layout.json"
 
 
 def _check_viz(_ctx: click.Context, _param: click.Parameter, value: str) -> str:
@@ -21,11 +22,15 @@ def _check_viz(_ctx: click.Context, _param: click.Parameter, value: str) -> str:
 def viz_option(f: Callable[..., Any]) -> Callable[..., Any]:
     """--viz MODE|URL, --viz-url, --viz-port, --web-port on a click command."""
     opts = [
-        click.option("--viz", default="none", show_default=True, callback=_check_viz, metavar="save|serve|connect|none|URL",
+        click.option("--viz", default="none", show_default=True, callback=_check_viz,
+                     metavar="save|serve|connect|foxglove|none|URL",
                      help="Viewer bridge: save RUN_DIR/run.rrd; serve it live on 127.0.0.1 (web viewer, until Ctrl-C); "
-                          "connect to a running viewer (--viz-url, or give the URL itself)."),
+                          "connect to a running viewer (--viz-url, or give the URL itself); foxglove: a Foxglove "
+                          "WebSocket server on 127.0.0.1 during the run."),
         click.option("--viz-url", help="gRPC URL for --viz connect (default rerun+http://127.0.0.1:9876/proxy)."),
-        click.option("--viz-port", type=int, help="--viz serve: gRPC port on 127.0.0.1 (default: a free one)."),
+        click.option("--viz-port", type=click.IntRange(0, 65535),
+                     help="--viz serve: gRPC port on 127.0.0.1 (default: a free one); --viz foxglove: WebSocket port "
+                          "(default 8765, 0: a free one)."),
         click.option("--web-port", type=int, help="--viz serve: web viewer port on 127.0.0.1 (default: a free one)."),
     ]
     return functools.reduce(lambda acc, opt: opt(acc), reversed(opts), f)
@@ -38,9 +43,17 @@ def viz_opts(*, in_process: bool = False, viz: str = "none", viz_url: str | None
         viz, viz_url = "connect", viz
     if viz == "none":
         return {}
+    from bus.optional import require
+
+    # before the run starts, not in its viewer process
+    require("foxglove" if viz == "foxglove" else "rerun", f"--viz {viz}")
     opts: dict[str, Any] = {"viz": viz}
     if viz == "connect":
         opts["viz_url"] = viz_url or "rerun+http://127.0.0.1:9876/proxy"
+    if viz == "foxglove":
+        opts["viz_port"] = _free_or_exit(8765 if viz_port is None else viz_port)
+        click.echo(f"foxglove: ws://127.0.0.1:{opts['viz_port']}  (Foxglove: Open connection -> Foxglove WebSocket; "
+                   f"layout {FOXGLOVE_LAYOUT})", err=True)
     if viz == "serve":
         from dashboards.viz_node import disable_analytics, free_port, web_url
 
@@ -55,6 +68,19 @@ def viz_opts(*, in_process: bool = False, viz: str = "none", viz_url: str | None
     return opts
 
 
+def _free_or_exit(port: int) -> int:
+    """The port itself when 127.0.0.1:port can be bound now (0: a free one), else one line and exit 2."""
+    import socket
+
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError as exc:
+            raise click.BadParameter(f"127.0.0.1:{port} cannot be bound ({exc.strerror or exc}); give another --viz-port",
+                                     param_hint="--viz-port") from None
+        return int(s.getsockname()[1])
+
+
 @click.command()
 @click.argument("mcap_path", metavar="RUN_DIR/run.mcap", type=click.Path(exists=True, dir_okay=False))
 @click.option("--rrd", "rrd_out", type=click.Path(dir_okay=False), help="Write the views to this .rrd "
@@ -66,6 +92,11 @@ def replay(mcap_path: str, rrd_out: str | None, serve: bool, viz_port: int | Non
     """Build the viewer's views from a recording alone: RUN_DIR/run.mcap -> .rrd and/or web viewer."""
     from dashboards.replay import ReplayError
     from dashboards.replay import replay as do_replay
+    from bus.optional import require
+    from deploy.cli_inputs import check_recording
+
+    require("rerun", "swarmhil replay")
+    check_recording(mcap_path)
 
     if rrd_out is None and not serve:
         rrd_out = str(Path(mcap_path).with_name("replay.rrd"))

@@ -152,22 +152,11 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
 
 
 def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
-    """One spacecraft's flight software on a bus, configured from the scenario (both modes)."""
-    from agent.beacon import beacon_from_scenario
-    from agent.controller import OrbitInfo
-    from agent.node import AgentNode
+    """One spacecraft's flight software on a bus, configured from the scenario (both modes build it
+    from the same JSON config: deploy/agent_image.py)."""
+    from deploy.agent_image import agent_config, build_agent
 
-    orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
-    perception = None
-    if sc.sensing["kind"] == "scene":
-        from agent.perception import Perception, nav_config
-
-        perception = Perception(orbit.semi_major_axis_m, orbit.mean_motion_radps, nav_config(sc.sections.get("nav")),
-                                sc.camera)
-    controller, params = sc.controller_of(sid)
-    return AgentNode(bus, run, sid, controller=controller, orbit=orbit, params=params,
-                     sense_kind=sc.sensing["kind"], beacon=beacon_from_scenario(sc, sid), perception=perception,
-                     decision_period_steps=sc.decision_period_steps)
+    return build_agent(bus, run, agent_config(sc, sid))
 
 
 PR_SET_PDEATHSIG = 1
@@ -308,10 +297,16 @@ class MultiProcessRun:
         from bus.recorder import ack_key
         from bus.zenoh_bus import ZenohBus, open_loopback_router
 
+        from deploy.memory import check_memory
+
+        check_memory(self.sc, n_ground=2 + len(self.companions))  # plant, recorder, companions: refuse before any start
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
         # every child reads the one validated document (after --set), not the user's file
-        (self.out / "scenario.json").write_text(json.dumps(resolved_document(self.sc), indent=1))
+        # (and each agent only its own config: no scenario validation in an agent image)
+        from deploy.agent_image import write_resolved_scenario
+
+        write_resolved_scenario(self.sc, self.out / "scenario.json")
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()

@@ -14,6 +14,7 @@ import signal
 import sys
 import threading
 from pathlib import Path
+from typing import Any
 
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
@@ -73,6 +74,28 @@ def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
         os._exit(0)
 
 
+def _agent(args: argparse.Namespace, stop: threading.Event, cred: Any, out: Path) -> int:
+    """One spacecraft's flight software: its config from the launcher's DIR/scenario.json (no
+    pydantic, no launcher, no other mission imported), else validated from a TOML scenario."""
+    from deploy.agent_image import agent_config, build_agent, read_agent_config
+
+    cfg = read_agent_config(args.scenario, args.id)
+    if cfg is None:
+        sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode,
+                                                         speed=args.speed)
+        cfg = agent_config(sc, args.id)
+    bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred), f"agent-{args.id}")
+    node = build_agent(bus, args.run, cfg)
+    stop.wait()
+    (out / "agents").mkdir(exist_ok=True)
+    (out / "agents" / f"{args.id}.json").write_text(json.dumps(
+        {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total,
+         "faults": node.faults}))
+    write_import_audit(f"agent-{args.id}")
+    _close_within(bus)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
@@ -105,8 +128,10 @@ def main(argv: list[str] | None = None) -> int:
         from bus.acl import read_credential
 
         cred = read_credential(args.credentials)
-    sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     out = Path(args.out)
+    if args.role == "agent":  # before any scenario validation: an agent image reads its own config only
+        return _agent(args, stop, cred, out)
+    sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     if args.role == "plant":
         from plant.node import PlantNode
 
@@ -123,18 +148,7 @@ def main(argv: list[str] | None = None) -> int:
             os._exit(3)  # a Zenoh session thread must not keep a failed plant alive
         summary = node.run(should_stop=stop.is_set)
         (out / "plant_summary.json").write_text(json.dumps(summary, indent=1))
-        _close_within(bus)
-        return 0
-    if args.role == "agent":
-        from deploy.launcher import make_agent
-
-        bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred), f"agent-{args.id}")
-        node = make_agent(bus, args.run, sc, args.id)
-        stop.wait()
-        (out / "agents").mkdir(exist_ok=True)
-        (out / "agents" / f"{args.id}.json").write_text(json.dumps(
-            {"id": args.id, "pid": os.getpid(), "steps": node.steps, "rejected_packets": node.rejections.total,
-             "faults": node.faults}))
+        write_import_audit("plant")
         _close_within(bus)
         return 0
     if args.role == "recorder":
@@ -145,6 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         stop.wait()
         stats = node.close()
         (out / "recorder_summary.json").write_text(json.dumps(stats))
+        write_import_audit("recorder")
         _close_within(bus)
         return 0
     if args.role == "companion":
@@ -156,9 +171,24 @@ def main(argv: list[str] | None = None) -> int:
         stop.wait()
         stats = obj.close()
         (out / f"{args.name}_summary.json").write_text(json.dumps(stats or {}, indent=1))
+        write_import_audit(args.name)
         _close_within(bus)
         return 0
     return 2
+
+
+def write_import_audit(role: str) -> None:
+    """With SWARMHIL_IMPORT_AUDIT=DIR set: write DIR/<role>.json, the top-level packages this process
+    has imported and its peak and current RSS, for tests/test_imports.py and bench/agent_rss.py.
+    (The peak is /proc VmHWM, not getrusage's ru_maxrss, which keeps the launcher's RSS at the fork.)"""
+    where = os.environ.get("SWARMHIL_IMPORT_AUDIT")
+    if not where:
+        return
+    tops = sorted({m.split(".")[0] for m in list(sys.modules)})
+    status = dict(line.split(":", 1) for line in Path("/proc/self/status").read_text().splitlines() if ":" in line)
+    kb = {k: int(status[k].split()[0]) * 1024 for k in ("VmHWM", "VmRSS")}
+    Path(where, f"{role}.json").write_text(json.dumps({"role": role, "modules": tops, "peak_rss_bytes": kb["VmHWM"],
+                                                       "rss_bytes": kb["VmRSS"]}))
 
 
 if __name__ == "__main__":

@@ -236,14 +236,29 @@ def _roe6(src: str, where: str, value: Any) -> np.ndarray:
 def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> Scenario:
     """Read a scenario (TOML, or the JSON a launcher writes for its children: {"source", "doc",
     "sets"}), apply `--set` overrides, validate."""
-    import json
-
     from deploy.overrides import OverrideError, apply_sets
+
+    doc, src, applied = read_document(path)
+    try:
+        doc = apply_sets(doc, list(sets))
+    except OverrideError as exc:
+        raise ScenarioError(f"{src}: {exc}") from None
+    sc = parse_scenario(doc, src)
+    sc.sets = applied + tuple(sets)
+    return sc
+
+
+def read_document(path: str | Path) -> tuple[dict[str, Any], str, tuple[str, ...]]:
+    """(document, source name, --set already applied) of a scenario file, not yet validated; a file
+    that cannot be read, is not UTF-8 or not TOML is a ScenarioError naming it."""
+    import json
 
     p = Path(path)
     src = p.name
     try:
         text = p.read_text(encoding="utf-8")
+    except IsADirectoryError:
+        raise ScenarioError(f"{path}: is a directory, not a scenario file") from None
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read scenario ({exc.strerror})") from None
     except UnicodeDecodeError as exc:
@@ -260,13 +275,7 @@ def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> S
             doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ScenarioError(f"{src}: not valid TOML: {exc}") from None
-    try:
-        doc = apply_sets(doc, list(sets))
-    except OverrideError as exc:
-        raise ScenarioError(f"{src}: {exc}") from None
-    sc = parse_scenario(doc, src)
-    sc.sets = applied + tuple(sets)
-    return sc
+    return doc, src, applied
 
 
 def resolved_document(sc: Scenario) -> dict[str, Any]:

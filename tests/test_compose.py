@@ -9,6 +9,7 @@ provide one (it used to skip, so an offline machine silently never validated the
 """
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -100,3 +101,7 @@ def test_compose_file_validates_with_compose_v2(tmp_path: Path) -> None:
     assert v.returncode == 0, v.stderr
     full = subprocess.run([*exe, "-f", str(out), "config", "--services"], capture_output=True, text=True, cwd=tmp_path)
     assert len(full.stdout.split()) == 23  # router, recorder, plant, 20 agents
+    # every process reads the resolved document written beside it; each agent its own config there
+    resolved = json.loads((tmp_path / "compose.scenario.json").read_text())
+    assert sorted(resolved["agents"]) == [f"sc{i:02d}" for i in range(1, 21)] and resolved["doc"]["run"]["name"] == "drift-20"
+    assert "/scenarios/compose.scenario.json" in out.read_text()

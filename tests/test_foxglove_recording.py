@@ -188,3 +188,27 @@ def test_readers_accept_old_prefixed_topics(surround: Path, tmp_path: Path) -> N
     assert a.run == b.run == "fox-surround"
     assert a.ids == b.ids and (a.position_m == b.position_m).all() and (a.t_s == b.t_s).all()
     assert run_id_of(surround) == run_id_of(old) == "fox-surround"
+
+
+def test_spacecraft_spheres_take_their_agents_mode_colour(tmp_path: Path) -> None:
+    """The scene colours a spacecraft by the mode of its newest telemetry (the viewer's colours),
+    blue before any, grey once dead."""
+    from bus import swarmhil_pb2 as pb
+    from bus.foxglove_scene import MODE_COLOURS
+    from bus.recorder import McapRecorder
+
+    r = McapRecorder(tmp_path / "m.mcap", "mode")
+
+    def truth(step: int, alive: bool = True) -> bytes:
+        return pb.Truth(header=pb.Header(run="mode", source="plant", step=step, t=float(step)),
+                        bodies=[pb.BodyState(id="a", kind="spacecraft", alive=alive)]).SerializeToString()
+
+    r.write("swarm/mode/truth", truth(0))
+    r.write("swarm/mode/sc/a/tm", pb.Telemetry(header=pb.Header(run="mode", source="a", step=0), mode="chase").SerializeToString())
+    r.write("swarm/mode/truth", truth(1))
+    r.write("swarm/mode/truth", truth(2, alive=False))
+    r.close()
+    _meta, msgs = _decoded(tmp_path / "m.mcap")
+    colours = [next(e for e in d.entities if e.id == "a").spheres[0].color for t, _s, _l, _p, d in msgs if t == "foxglove/scene"]
+    rgb = [(round(c.r * 255), round(c.g * 255), round(c.b * 255)) for c in colours]
+    assert rgb[1] == MODE_COLOURS["chase"] and rgb[0] != rgb[1] and rgb[2] not in (rgb[0], rgb[1])

@@ -16,6 +16,8 @@ from click.testing import CliRunner
 from dashboards.replay import read_rrd
 from dashboards.viz_node import disable_analytics, rerun_exe
 from conftest import sigint_default
+from dashboards.rerun_bridge import MODE_COLOURS
+from test_viz_bridge import blueprints_in
 from deploy.cli import main as cli_main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -57,6 +59,34 @@ def check_positions_equal_truth(rrd: Path, mcap: Path, steps: list[int] | None =
     return len(truth)
 
 
+def replay_verified(mcap: Path, rrd: Path) -> Path:
+    """`swarmhil replay MCAP --rrd RRD`, which must succeed and pass `rerun rrd verify`."""
+    res = CliRunner().invoke(cli_main, ["replay", str(mcap), "--rrd", str(rrd)])
+    assert res.exit_code == 0, res.output
+    rrd_verify(rrd)
+    return rrd
+
+
+def check_scene(rrd: Path, mcap: Path, camera: bool = True) -> None:
+    """Issue 18: one blueprint; a frame per spacecraft at every step of the truth (position equal to
+    it); a camera frustum (Pinhole) per spacecraft where the scenario has the camera."""
+    assert blueprints_in(rrd) == 1
+    rows = read_rrd(rrd)
+    truth = mcap_truth(mcap)
+    ids = truth[min(truth)][0]
+    for i, sid in enumerate(ids):
+        tf = rows[f"/world/sc/{sid}"]
+        assert set(tf["Transform3D:translation"]) == set(truth), sid
+        for step, (_ids, pos) in truth.items():
+            np.testing.assert_array_equal(np.array(tf["Transform3D:translation"][step][0]), pos[i].astype(np.float32))
+        assert set(tf["Transform3D:quaternion"]) == set(truth)
+        assert (f"/world/sc/{sid}/camera" in rows) == camera
+        if camera:
+            assert rows[f"/world/sc/{sid}/camera"]["Pinhole:image_from_camera"][-1]
+        assert set(rows[f"/metrics/delta_v_by_spacecraft/{sid}"]["Scalars:scalars"]) == set(truth)
+    assert set(rows["/world/thrust"]["Arrows3D:vectors"]) == set(truth)
+
+
 def latest_at(rows: dict[int, object], t: int) -> object:
     ts = [s for s in rows if s <= t]
     return rows[max(ts)] if ts else None
@@ -89,14 +119,13 @@ def in_process_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_in_process_rrd_verifies_and_holds_the_truth(in_process_run: Path) -> None:
     rrd_verify(in_process_run / "run.rrd")
     assert check_positions_equal_truth(in_process_run / "run.rrd", in_process_run / "run.mcap") == 41
+    check_scene(in_process_run / "run.rrd", in_process_run / "run.mcap")
 
 
 def test_replay_gives_the_same_entities_and_values(in_process_run: Path, tmp_path: Path) -> None:
-    out = tmp_path / "replay.rrd"
-    res = CliRunner().invoke(cli_main, ["replay", str(in_process_run / "run.mcap"), "--rrd", str(out)])
-    assert res.exit_code == 0, res.output
-    rrd_verify(out)
+    out = replay_verified(in_process_run / "run.mcap", tmp_path / "replay.rrd")
     check_same_views(in_process_run / "run.rrd", out)
+    check_scene(out, in_process_run / "run.mcap")
 
 
 def test_replay_refuses_a_broken_recording(tmp_path: Path) -> None:
@@ -126,10 +155,74 @@ def test_multi_process_run_with_viz_save(tmp_path: Path) -> None:
     _cli_run(SCENARIOS / "demo.toml", out, 300.0)
     rrd_verify(out / "run.rrd")
     assert check_positions_equal_truth(out / "run.rrd", out / "run.mcap") == 31
-    rep = tmp_path / "replay.rrd"
-    res = CliRunner().invoke(cli_main, ["replay", str(out / "run.mcap"), "--rrd", str(rep)])
-    assert res.exit_code == 0, res.output
+    check_scene(out / "run.rrd", out / "run.mcap")
+    rep = replay_verified(out / "run.mcap", tmp_path / "replay.rrd")
     check_same_views(out / "run.rrd", rep)
+    check_scene(rep, out / "run.mcap")
+
+
+def test_p000_capture_with_viz_save_and_replay(tmp_path: Path) -> None:
+    """Paper 000 (capture-10 in-process for 3 s; agent a0 turned to face the target and the landmark
+    sensor's range R_l raised from 8.5 to 15 m, so that it sees the target from the start as agents
+    do from 21.7 s in the scenario): agents with attitude, the tumbling target, sensor cones,
+    landmark returns and the chase colour, in the live .rrd and in the replay of its recording."""
+    import re
+
+    from scipy.spatial.transform import Rotation
+
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    text = (SCENARIOS / "capture-10.toml").read_text()
+    a0 = np.array([float(v) for v in re.search(r'id = "a0".*?position_m = \[(.*?)\]', text, re.S).group(1).split(",")])
+    # body +x onto the line of sight a0 -> target (at the origin): the shortest rotation
+    look = -a0 / np.linalg.norm(a0)
+    axis = np.cross([1.0, 0.0, 0.0], look)
+    q = Rotation.from_rotvec(axis / np.linalg.norm(axis) * np.arccos(look[0])).as_quat(scalar_first=True)
+    text = re.sub(r'(id = "a0".*?attitude_q = )\[.*?\]', lambda m: m.group(1) + str(q.tolist()), text, count=1, flags=re.S)
+    (tmp_path / "capture.toml").write_text(text)
+    sc = load_scenario(tmp_path / "capture.toml", ("sensing.params.range_m=15.0",)).with_overrides(duration_s=3.0)
+    out = tmp_path / "p000"
+    run_in_process(sc, out, "viz-p000", opts={"viz": "save"})
+    rrd_verify(out / "run.rrd")
+    rep = replay_verified(out / "run.mcap", tmp_path / "replay.rrd")
+    for rrd in (out / "run.rrd", rep):
+        check_scene(rrd, out / "run.mcap", camera=False)
+        rows = read_rrd(rrd)
+        returns = [len(p) for sid in mcap_truth(out / "run.mcap")[0][0]
+                   for p in rows[f"/world/sc/{sid}/landmarks"]["Points3D:positions"].values()]
+        assert sum(returns) > 0                             # some agent sees the target
+        last = rows["/world/swarm"]["Points3D:colors"]
+        chase = MODE_COLOURS["chase"]
+        assert any(((c >> 24) & 255, (c >> 16) & 255, (c >> 8) & 255) == chase for c in last[max(last)])
+        assert rows["/world/sc/a0/sensor"]["LineStrips3D:strips"][-1]
+        q = rows["/world/targets/target"]["Transform3D:quaternion"]
+        assert q[max(q)] != q[min(q)]                      # the target tumbles
+        check_returns_on_the_surface(rows, "a0", semi_axes=(2.6, 1.9, 1.4))
+    check_same_views(out / "run.rrd", rep)
+
+
+def check_returns_on_the_surface(rows: dict, sid: str, semi_axes: tuple[float, float, float]) -> None:
+    """The inlier returns, drawn in the agent's frame, land on the target's ellipsoid placed by the
+    target's frame: the agent's and the target's drawn attitudes agree with the sensor's frames."""
+    from scipy.spatial.transform import Rotation
+
+    from dashboards.rerun_bridge import LANDMARK_COLOUR
+
+    sc_tf, tg_tf = rows[f"/world/sc/{sid}"], rows["/world/targets/target"]
+    lm = rows[f"/world/sc/{sid}/landmarks"]
+    green = (LANDMARK_COLOUR[0] << 24) | (LANDMARK_COLOUR[1] << 16) | (LANDMARK_COLOUR[2] << 8) | 255
+    checked = 0
+    for step, pts in lm["Points3D:positions"].items():
+        inl = np.array([p for p, c in zip(pts, lm["Points3D:colors"][step]) if c == green]).reshape(-1, 3)
+        if not len(inl):
+            continue
+        world = np.array(sc_tf["Transform3D:translation"][step][0]) + Rotation.from_quat(sc_tf["Transform3D:quaternion"][step][0]).apply(inl)
+        body = Rotation.from_quat(tg_tf["Transform3D:quaternion"][step][0]).inv().apply(world - np.array(tg_tf["Transform3D:translation"][step][0]))
+        f = np.sqrt(((body / np.array(semi_axes)) ** 2).sum(axis=1))
+        assert np.all(np.abs(f - 1.0) < 0.05), (step, f)    # 2 cm noise on a 1.4-2.6 m ellipsoid
+        checked += len(inl)
+    assert checked > 0
 
 
 @pytest.mark.system
@@ -142,10 +235,10 @@ def test_sabatini_20_with_viz_save(tmp_path: Path) -> None:
     assert n == 361
     rows = read_rrd(out / "run.rrd")
     assert len(rows["/world/estimates"]["Points3D:positions"]) > 300   # the agents' beliefs are drawn
-    rep = tmp_path / "replay.rrd"
-    res = CliRunner().invoke(cli_main, ["replay", str(out / "run.mcap"), "--rrd", str(rep)])
-    assert res.exit_code == 0, res.output
+    check_scene(out / "run.rrd", out / "run.mcap")
+    rep = replay_verified(out / "run.mcap", tmp_path / "replay.rrd")
     check_same_views(out / "run.rrd", rep)
+    check_scene(rep, out / "run.mcap")
 
 
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")

@@ -6,7 +6,10 @@ agent.camera.render is the reference, and tests/test_camera_render.py checks tha
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from bus.optional import require
+
+njit = require("numba", "[nav] backend = 'numba'").njit
 
 _Z_NEAR_M = 0.05
 _MAX_EDGES = 6

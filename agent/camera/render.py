@@ -367,12 +367,14 @@ def _pick_backend(backend: str) -> str:
         raise ValueError(f"unknown render backend {backend!r}; known: numpy, numba, auto")
     if backend == "numpy":
         return backend
+    from bus.optional import require
+
     try:
-        import numba  # noqa: F401
+        require("numba", f"[nav] backend = {backend!r}")
     except ImportError:
         if backend == "numba":
             raise
-        return "numpy"
+        return "numpy"  # "auto" without numba: the numpy reference, same equations
     return "numba"
 
 
