@@ -25,7 +25,7 @@ from bus.keys import Keys
 
 def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     """None when the scenario can run in batch mode, else the reason it cannot (one phrase)."""
-    from agent.beacon import beacon_from_scenario
+    from agent.beacon import beacon_from_config
     from deploy.companions import enabled_companions
     from plant.sensing import has_batch_form
 
@@ -33,7 +33,7 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
         return f"plant fidelity {sc.fidelity!r} (the mission world: attitude and bodies)"
     if not has_batch_form(sc.sensing["kind"]):
         return f"sensing kind {sc.sensing['kind']!r} has no batch form"
-    if any(beacon_from_scenario(sc, sid) is not None for sid in sc.ids):
+    if beacon_from_config(sc.sections.get("beacon"), "") is not None:
         return "beacons"
     comps = enabled_companions(sc, opts or {})
     if comps:
@@ -45,9 +45,15 @@ class BatchHook:
     """The plant's `local_agents`: arrays of stimuli in, the (N, 3) commands in force out."""
 
     def __init__(self, bus: Any, run: str, sc: Any) -> None:
-        orbit = OrbitInfo(sc.orbit.semi_major_axis_m, sc.orbit.mean_motion_radps)
+        from deploy.agent_image import agent_config
+
+        # each spacecraft's flight software from the config its agent process would get
+        cfgs = [agent_config(sc, s) for s in sc.ids]
+        o = cfgs[0]["orbit"]
+        orbit = OrbitInfo(o["semi_major_axis_m"], o["mean_motion_radps"])
         self.ids = list(sc.ids)
-        self.agents = BatchAgents(self.ids, [sc.controller_of(s) for s in self.ids], orbit, sc.decision_period_steps)
+        self.agents = BatchAgents(self.ids, [(c["controller"], c["params"]) for c in cfgs], orbit,
+                                  cfgs[0]["decision_period_steps"])
         keys = Keys(run)
         # the agents are up (the plant waits for their liveliness before step 0, as for processes)
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
