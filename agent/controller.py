@@ -7,7 +7,7 @@ could not have measured, and never touches the bus: the agent process loop does 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -74,9 +74,95 @@ class Command:
 
 
 class Controller(Protocol):
+    """Per spacecraft: `step(obs) -> Command`. A controller class may also define a classmethod
+    `step_batch(controllers, batch) -> CommandBatch` that decides for many spacecraft at once
+    (issue 16: N = 1 in an agent process, N = 20 in a batch run); `step_batch` below calls it, and
+    otherwise each controller's `step` in turn. A batch path must give each spacecraft the command
+    its own `step` gives, bit for bit (so batch and multi-process runs keep one truth)."""
+
     name: str
 
     def step(self, obs: Observation) -> Command: ...
+
+
+@dataclass
+class ObservationBatch:
+    """What N agents know at the same step: every observer's neighbours concatenated (CSR rows).
+
+    Observer i's neighbours are rows offsets[i]:offsets[i + 1] of `neighbour_ids`,
+    `rel_position_m` and `rel_velocity_mps` ((P, 3): r_k - r_j in LVLH, as in `Observation`).
+    """
+
+    step: int
+    t_s: float
+    u_rad: float
+    observers: list[str]
+    offsets: np.ndarray  # (N + 1,) int
+    neighbour_ids: list[str]
+    rel_position_m: np.ndarray
+    rel_velocity_mps: np.ndarray
+    extra: list[dict[str, Any]] | None = None  # per observer (None: all empty)
+    isl_rx: list[list[Any]] | None = None  # per observer (None: nothing received)
+
+    def __len__(self) -> int:
+        return len(self.observers)
+
+    def observation(self, i: int) -> Observation:
+        """Observer i's own Observation (views of the batch arrays)."""
+        a, b = int(self.offsets[i]), int(self.offsets[i + 1])
+        return Observation(step=self.step, t_s=self.t_s, u_rad=self.u_rad, neighbour_ids=self.neighbour_ids[a:b],
+                           rel_position_m=self.rel_position_m[a:b], rel_velocity_mps=self.rel_velocity_mps[a:b],
+                           extra=self.extra[i] if self.extra is not None else {},
+                           isl_rx=self.isl_rx[i] if self.isl_rx is not None else [])
+
+    @classmethod
+    def of(cls, observers: Sequence[str], observations: Sequence[Observation]) -> "ObservationBatch":
+        """The batch of per-spacecraft observations of one step (same step, t and u)."""
+        counts = [len(o.neighbour_ids) for o in observations]
+        o0 = observations[0]
+        return cls(step=o0.step, t_s=o0.t_s, u_rad=o0.u_rad, observers=list(observers),
+                   offsets=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+                   neighbour_ids=[s for o in observations for s in o.neighbour_ids],
+                   rel_position_m=np.concatenate([np.asarray(o.rel_position_m, float).reshape(-1, 3) for o in observations]),
+                   rel_velocity_mps=np.concatenate([np.asarray(o.rel_velocity_mps, float).reshape(-1, 3) for o in observations]),
+                   extra=[o.extra for o in observations], isl_rx=[o.isl_rx for o in observations])
+
+
+@dataclass
+class CommandBatch:
+    """The commands of the N observers of an ObservationBatch: accelerations (N, 3) and modes, and
+    each one's full `Command` (decisions, transmissions, torque) on demand (`command(i)`), which a
+    run that records no telemetry never builds."""
+
+    accel_mps2: np.ndarray  # (N, 3)
+    modes: list[str]
+    build: Callable[[int], Command] | None = None  # observer i -> its full Command
+
+    def command(self, i: int) -> Command:
+        if self.build is not None:
+            return self.build(i)
+        return Command(accel_mps2=self.accel_mps2[i].copy(), mode=self.modes[i])
+
+    @classmethod
+    def of(cls, commands: Sequence[Command]) -> "CommandBatch":
+        """From per-spacecraft commands; an acceleration that is not a 3-vector is a row of NaN."""
+        acc = np.full((len(commands), 3), np.nan)
+        for i, c in enumerate(commands):
+            a = np.asarray(c.accel_mps2, dtype=float)
+            if a.shape == (3,):
+                acc[i] = a
+        return cls(accel_mps2=acc, modes=[c.mode for c in commands], build=list(commands).__getitem__)
+
+
+def step_batch(controllers: Sequence[Controller], batch: ObservationBatch) -> CommandBatch:
+    """Commands of controllers[i] for batch.observation(i), all i: through the controllers' own
+    `step_batch` when they are all of one class that has one, else each `step` in turn."""
+    kinds = {type(c) for c in controllers}
+    if len(kinds) == 1:
+        fn = getattr(next(iter(kinds)), "step_batch", None)
+        if fn is not None:
+            return fn(controllers, batch)
+    return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
 
 
 ControllerFactory = Callable[[str, OrbitInfo, dict[str, Any]], Controller]

@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, register
+from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
 
 
 class NullController:
@@ -15,6 +15,11 @@ class NullController:
 
     def step(self, obs: Observation) -> Command:
         return Command(accel_mps2=np.zeros(3), mode="coast")
+
+    @classmethod
+    def step_batch(cls, controllers: list["NullController"], batch: ObservationBatch) -> CommandBatch:
+        """`step` of every spacecraft of a batch (agent/controller.py): zero thrust, coasting."""
+        return CommandBatch(accel_mps2=np.zeros((len(controllers), 3)), modes=["coast"] * len(controllers))
 
 
 class DriftNullController:

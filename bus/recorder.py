@@ -191,23 +191,34 @@ def ack_key(run: str) -> str:
     return Keys(run).recorder_ack
 
 
+RECORD_CHOICES = ("all", "truth")
+
+
 class RecorderNode:
-    """Subscribes to everything of the run and hands each sample to the MCAP writer."""
+    """Subscribes to everything of the run and hands each sample to the MCAP writer.
+
+    record="truth" (issue 16: a campaign row needs only the truth): only the `truth` and `event`
+    topics, without the Foxglove scene, transforms and log written alongside."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
-                 document: dict[str, Any] | None = None, segment: int = 0) -> None:
+                 document: dict[str, Any] | None = None, segment: int = 0, record: str = "all") -> None:
+        if record not in RECORD_CHOICES:
+            raise ValueError(f"unknown record {record!r}; known: {', '.join(RECORD_CHOICES)}")
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
         epoch = ((config or {}).get("run") or {}).get("epoch_utc")
-        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config)
+        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config, foxglove=record == "all")
         if config is not None:
             self.rec.describe_run(config, document)
         if segment:  # a restarted recorder: this file continues the run after a gap (bus/mcap_tools.merge)
             self.rec.add_metadata("swarmhil.segment", {"index": str(segment), "file": Path(path).name,
                                                        "started_wall_ns": str(time.time_ns())})
         self.run_end = False
-        self._sub = bus.subscribe(self.keys.all, self._on_sample)
+        if record == "all":
+            self._subs = [bus.subscribe(self.keys.all, self._on_sample)]
+        else:
+            self._subs = [bus.subscribe(k, self._on_sample) for k in (self.keys.truth, self.keys.event)]
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))
 
@@ -226,7 +237,7 @@ class RecorderNode:
         self.bus.publish(ack_key(self.run), json.dumps(ack).encode())
 
     def close(self) -> dict[str, int]:
-        for sub in (self._sub, self._flush_sub):
+        for sub in (*self._subs, self._flush_sub):
             try:
                 sub.undeclare()
             except Exception:

@@ -24,7 +24,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 ROW_DIR = "rows"
 RUN_DIR = "runs"
-FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "delta_v_total_mps", "steps", "dead_agents_count",
+FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "cpu_s", "delta_v_total_mps", "steps", "dead_agents_count",
                  "rejected_packets")
 
 
@@ -85,12 +85,14 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s: float | None = None,
-             metrics: bool = True, keep_recording: bool = True) -> dict[str, Any]:
-    """One campaign run (on a worker): the in-process run of SCENARIO with --set SETS and this seed,
-    then its metrics (dashboards/metrics.py, as `swarmhil report` computes them, without figures).
-    Writes and returns its row; never raises for a failed run (the row carries the error)."""
+             metrics: bool = True, keep_recording: bool = True, record: str = "truth") -> dict[str, Any]:
+    """One campaign run (on a worker): the in-process run of SCENARIO with --set SETS and this seed
+    (record="truth": the batch mode where the scenario allows it, deploy/batch.py; "all": every
+    message, one agent node per spacecraft), then its metrics (dashboards/metrics.py, as
+    `swarmhil report` computes them, without figures). Writes and returns its row; never raises
+    for a failed run (the row carries the error)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-    t0 = time.monotonic()
+    t0, c0 = time.monotonic(), time.thread_time()
     row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
     rdir = run_dir(Path(out), seed)
     try:
@@ -98,7 +100,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         from deploy.scenario import load_scenario
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
-        res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False)
+        res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record)
         summary = res.summary
         if metrics:
             from dashboards.report import write_report
@@ -115,6 +117,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         row["error"] = f"{type(exc).__name__}: {exc}"
     row["seed"] = int(seed)
     row["wall_s"] = time.monotonic() - t0
+    row["cpu_s"] = time.thread_time() - c0  # this run's CPU time (the worker thread's): the load-free cost
     _write_atomic(row_path(Path(out), seed), json.dumps(row, default=_json_default))
     return row
 
@@ -131,16 +134,29 @@ def _json_default(v: Any) -> Any:
 
 
 # --- executors ------------------------------------------------------------------------------------------
-def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, executor: str = "local", jobs: int = 2,
-            scheduler: str | None = None, on_row: Callable[[dict[str, Any]], None] | None = None) -> list[dict[str, Any]]:
-    """fn(*calls[seed]) for every seed on the executor (`local`: a process pool of `jobs`; `dask`: a
-    LocalCluster of `jobs` single-threaded workers on 127.0.0.1, or the cluster at `scheduler`).
-    Rows in completion order; a task that raised (or whose worker died) is a failed row."""
+def execute(fn: Callable[..., dict[str, Any]], calls: dict[Any, tuple], *, executor: str = "local", jobs: int = 2,
+            scheduler: str | None = None, on_row: Callable[[Any, dict[str, Any]], None] | None = None,
+            lost: Callable[[Any, str], dict[str, Any]] | None = None) -> list[dict[str, Any]]:
+    """fn(*calls[key]) for every key on the executor (`local`: a process pool of `jobs`; `dask`: a
+    LocalCluster of `jobs` single-threaded workers on 127.0.0.1, or the cluster at `scheduler`), for
+    `swarmhil campaign` (keys are seeds) and `swarmhil sweep` (keys are cases). Rows in completion
+    order, each also given to on_row(key, row); a task that raised (or whose worker died) is the
+    row lost(key, error) (default: a failed campaign row of seed `key`)."""
     rows: list[dict[str, Any]] = []
-    seeds = list(calls)
-    call_args = calls.__getitem__
-    if not seeds:
+    keys = list(calls)
+    lost = lost or (lambda k, err: {"seed": k, "status": "error", "error": err})
+    if not keys:
         return rows
+
+    def done(key: Any, get: Callable[[], dict[str, Any]]) -> None:
+        try:
+            r = get()
+        except Exception as exc:  # noqa: BLE001 - a worker lost: the task is a failed row
+            r = lost(key, f"{type(exc).__name__}: {exc}")
+        rows.append(r)
+        if on_row:
+            on_row(key, r)
+
     if executor == "dask":
         from bus.optional import require
 
@@ -158,15 +174,9 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, execu
                                    dashboard_address=None, protocol="tcp://", silence_logs=logging.WARNING)
             client = Client(cluster)
         try:
-            futs = {client.submit(fn, *call_args(s), pure=False): s for s in seeds}
+            futs = {client.submit(fn, *calls[k], pure=False): k for k in keys}
             for f in as_completed(futs):
-                try:
-                    r = f.result()
-                except Exception as exc:  # noqa: BLE001 - a worker lost: the seed is a failed row
-                    r = {"seed": futs[f], "status": "error", "error": f"{type(exc).__name__}: {exc}"}
-                rows.append(r)
-                if on_row:
-                    on_row(r)
+                done(futs[f], f.result)
         finally:
             client.close()
             if cluster is not None:
@@ -177,15 +187,9 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[int, tuple], *, execu
         from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
         with ProcessPoolExecutor(max_workers=max(1, jobs), mp_context=mp.get_context("spawn")) as pool:
-            futs = {pool.submit(fn, *call_args(s)): s for s in seeds}
+            futs = {pool.submit(fn, *calls[k]): k for k in keys}
             for f in cf_completed(futs):
-                try:
-                    r = f.result()
-                except Exception as exc:  # noqa: BLE001 - a worker died: the seed is a failed row
-                    r = {"seed": futs[f], "status": "error", "error": f"{type(exc).__name__}: {exc}"}
-                rows.append(r)
-                if on_row:
-                    on_row(r)
+                done(futs[f], f.result)
         return rows
     raise ValueError(f"unknown executor {executor!r}: local or dask")
 
@@ -266,6 +270,7 @@ REPORT_METRICS = (
     ("dead_agents_count", "dead agents"),
     ("rejected_packets", "rejected packets"),
     ("wall_s", "wall per run [s]"),
+    ("cpu_s", "CPU per run [s]"),
 )
 
 
@@ -315,7 +320,7 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
 def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequence[str] = (),
                  duration_s: float | None = None, executor: str = "local", jobs: int = 2, scheduler: str | None = None,
                  metrics: bool = True, keep_recording: bool = True, retry_failed: bool = False,
-                 on_row: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+                 on_row: Callable[[dict[str, Any]], None] | None = None, record: str = "truth") -> dict[str, Any]:
     """Run the seeds not finished yet in OUT, then write the table and the report of all of them.
     Returns {"ran": [seeds run now], "skipped": [seeds already finished], "rows", "table", "report"}."""
     out = Path(out)
@@ -336,12 +341,12 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     done = finished_seeds(out, retry_failed)
     todo = [int(s) for s in seeds if int(s) not in done]
     skipped = [int(s) for s in seeds if int(s) in done]
-    meta.update({"executor": executor, "seeds": [int(s) for s in seeds]})
+    meta.update({"executor": executor, "seeds": [int(s) for s in seeds], "record": record})
     _write_atomic(meta_path, json.dumps(meta, indent=1))
     t0 = time.monotonic()
-    calls = {s: (scenario, tuple(sets), s, str(out), duration_s, metrics, keep_recording) for s in todo}
+    calls = {s: (scenario, tuple(sets), s, str(out), duration_s, metrics, keep_recording, record) for s in todo}
 
-    def got(row: dict[str, Any]) -> None:
+    def got(_seed: int, row: dict[str, Any]) -> None:
         if not row_path(out, row["seed"]).is_file():  # the worker could not write it (died, other filesystem)
             _write_atomic(row_path(out, row["seed"]), json.dumps(row, default=_json_default))
         if on_row:

@@ -128,6 +128,9 @@ def main(verbose: int) -> None:
 @click.option("--mode", type=click.Choice(["lockstep", "realtime"]), help="Time mode (default: the scenario's).")
 @click.option("--speed", type=float, help="Real-time factor in realtime mode.")
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
+@click.option("--record", type=click.Choice(["all", "truth"]), default="all", show_default=True,
+              help="In-process runs: all: every message; truth: the truth and events only, the flight software of "
+                   "all spacecraft run as one batch where the scenario allows (same truth, several times faster).")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
 @click.option("--overwrite", is_flag=True, help="Replace the run already in --out (refused otherwise).")
@@ -139,13 +142,16 @@ def main(verbose: int) -> None:
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
-        speed: float | None, in_process: bool, run_id: str | None, no_progress: bool, overwrite: bool, insecure: bool,
-        tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
+        speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
+        insecure: bool, tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
     from deploy.scenario import ScenarioError, load_scenario
 
+    if record != "all" and not in_process:
+        click.echo("error: --record truth needs --in-process (multi-process runs record every message)", err=True)
+        sys.exit(2)
     try:
         sc = load_scenario(scenario, sets).with_overrides(duration_s=duration, seed=seed, mode=mode, speed=speed)
     except ScenarioError as exc:  # one line naming the field, exit code 2 (usage error), no traceback
@@ -182,7 +188,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if tls:
         opts["tls"] = True
     if in_process:
-        res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts)
+        res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:
         from deploy.launcher import RunFailed
         from deploy.memory import NotEnoughMemory

@@ -3,8 +3,8 @@
     swarmhil campaign deploy/scenarios/sabatini-20.toml --seeds 20 [--first-seed 0] [--set SECTION.KEY=VALUE]...
         [--executor local|dask] [--scheduler tcp://HOST:8786] [--jobs J] [--duration S] [--out DIR]
 
-Runs are in-process (the batch mode: the same node code as the processes, deploy/launcher.py
-run_in_process), seed s = first_seed .. first_seed + N - 1 (`[run].seed`: for a generated dispersion
+Runs are in-process (deploy/launcher.py run_in_process; by default `--record truth`: the batch mode
+of deploy/batch.py, the same flight-software and plant code and the same truth), seed s = first_seed .. first_seed + N - 1 (`[run].seed`: for a generated dispersion
 it draws new initial conditions). Writes DIR/campaign.parquet and .csv (one row per run: seed, wall,
 every scalar of its summary.json, metrics included), DIR/report.md and .html (mean and 95 %
 confidence interval of dV, connectivity, closest approach). Re-running the same command on the
@@ -37,9 +37,12 @@ import click
 @click.option("--keep-recordings/--no-keep-recordings", default=True, show_default=True,
               help="Keep each run's run.mcap (they are about 3 MB per simulated hour of sabatini-20).")
 @click.option("--retry-failed", is_flag=True, help="Also run again the seeds whose earlier run failed.")
+@click.option("--record", type=click.Choice(["truth", "all"]), default="truth", show_default=True,
+              help="truth: record the truth and events only, and run the flight software of all spacecraft as "
+                   "one batch where the scenario allows (same truth, several times faster); all: every message.")
 def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...], executor: str, scheduler: str | None,
              jobs: int | None, duration: float | None, out: str | None, metrics: bool, keep_recordings: bool,
-             retry_failed: bool) -> None:
+             retry_failed: bool, record: str) -> None:
     """Run SCENARIO with N seeds (batch mode) and write a Parquet/CSV table and a report."""
     from bus.optional import require
     from deploy.campaign import run_campaign
@@ -67,7 +70,7 @@ def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...]
     try:
         res = run_campaign(scenario, seeds, out_dir, sets=sets, duration_s=duration, executor=executor,
                            jobs=jobs or os.cpu_count() or 1, scheduler=scheduler, metrics=metrics,
-                           keep_recording=keep_recordings, retry_failed=retry_failed, on_row=show)
+                           keep_recording=keep_recordings, retry_failed=retry_failed, on_row=show, record=record)
     except ValueError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)

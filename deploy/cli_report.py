@@ -1,6 +1,7 @@
 """`swarmhil report RUN_DIR` and `swarmhil sweep SCENARIO --param P --values ...` (issue 3).
 
-The sweep runs one in-process (batch) run per value, `--jobs` at a time in a process pool, writes
+The sweep runs one in-process run per value, `--jobs` at a time on the executor of `swarmhil
+campaign` (a process pool, or Dask: deploy/campaign.py `execute`), writes
 each case's report, and one sweep report (dV and connectivity against the parameter, paper 002
 Figs. 30-31). `--param` is a dotted path into the scenario TOML (`sensing.roe_noise_fraction`,
 `controller.params.k_ecc`, `dispersion.along_track_spacing_m`, `run.seed`, ...); values are
@@ -61,8 +62,9 @@ def _label(param: str, value: Any, seed: int | None) -> str:
 
 
 def run_case(scenario_path: str, param: str, value: Any, seed: int | None, duration_s: float | None,
-             out_dir: str, run_id: str, figures: bool = True, sets: tuple[str, ...] = ()) -> dict[str, Any]:
-    """One sweep case (in a pool worker): in-process run, then its report. Errors are returned."""
+             out_dir: str, run_id: str, figures: bool = True, sets: tuple[str, ...] = (),
+             record: str = "all") -> dict[str, Any]:
+    """One sweep case (on a worker): in-process run, then its report. Errors are returned."""
     from dashboards.report import write_report
     from deploy.launcher import run_in_process
     from deploy.scenario import parse_scenario
@@ -80,7 +82,7 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         (out / "scenario_doc.json").write_text(json.dumps(doc, indent=1, default=str))
-        res = run_in_process(sc, out, run_id, progress=False)
+        res = run_in_process(sc, out, run_id, progress=False, record=record)
         cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
         write_report(out, cam=cam, figures=figures)
         case["delta_v_total_mps"] = res.summary["delta_v_total_mps"]
@@ -147,20 +149,25 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vect
 @click.option("--values", "values_text", required=True, help="Comma-separated values, e.g. 0,0.1,0.2,0.3,0.35.")
 @click.option("--seeds", help="Comma-separated [run].seed values; every value is run with each.")
 @click.option("--out", "out", type=click.Path(file_okay=False), help="Output directory (default runs/sweep-<scenario>-<time>).")
-@click.option("--jobs", type=int, default=2, show_default=True, help="Cases run at once (process pool).")
+@click.option("--jobs", type=int, default=2, show_default=True, help="Cases run at once on this machine.")
+@click.option("--executor", type=click.Choice(["local", "dask"]), default="local", show_default=True,
+              help="As `swarmhil campaign`: local: a process pool; dask: Dask distributed (a LocalCluster on 127.0.0.1, or --scheduler).")
+@click.option("--scheduler", metavar="ADDRESS", help="Dask scheduler of a running cluster (tcp://host:8786); implies dask.")
+@click.option("--record", type=click.Choice(["all", "truth"]), default="all", show_default=True,
+              help="all: every message; truth: the truth and events only, flight software run as one batch where "
+                   "the scenario allows (same truth; the case reports of paper 002 need only the truth).")
 @click.option("--duration", type=float, help="Simulated seconds (overrides [run].duration_s).")
 @click.option("--case-reports/--no-case-reports", default=True, show_default=True,
               help="Write each case's own report (figures); the metrics are always computed.")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override a scenario field for every case (repeatable; value parsed as TOML).")
 def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: str | None, jobs: int,
-          duration: float | None, case_reports: bool, sets: tuple[str, ...]) -> None:
-    """Run SCENARIO once per value of --param (in-process batch runs in parallel) and write one report."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
+          executor: str, scheduler: str | None, record: str, duration: float | None, case_reports: bool,
+          sets: tuple[str, ...]) -> None:
+    """Run SCENARIO once per value of --param (in-process runs in parallel) and write one report."""
     from bus.optional import require
     from dashboards.report import write_sweep_report
+    from deploy.campaign import execute
     from deploy.launcher import new_run_id
 
     require("matplotlib", "swarmhil sweep (its report's figures)")  # before any case runs
@@ -188,18 +195,21 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     results: list[dict[str, Any]] = [{} for _ in cases]
     t0 = time.monotonic()
-    with ProcessPoolExecutor(max_workers=max(1, jobs), mp_context=mp.get_context("spawn")) as pool:
-        futs = {}
-        for i, (v, s) in enumerate(cases):
-            d = out_dir / _label(param, v, s)
-            rid = f"{new_run_id(name)}-c{i:02d}"
-            futs[pool.submit(run_case, str(Path(scenario).resolve()), param, v, s, duration, str(d), rid,
-                             case_reports, tuple(sets))] = i
-        for f in as_completed(futs):
-            r = f.result()
-            results[futs[f]] = r
-            status = r.get("error") or f"total dV {r['delta_v_total_mps']:.4f} m/s"
-            click.echo(f"[{time.monotonic() - t0:7.0f} s] {param}={r['value']} seed={r['seed']}: {status}")
+    calls = {}
+    for i, (v, s) in enumerate(cases):
+        calls[i] = (str(Path(scenario).resolve()), param, v, s, duration, str(out_dir / _label(param, v, s)),
+                    f"{new_run_id(name)}-c{i:02d}", case_reports, tuple(sets), record)
+
+    def show(i: int, r: dict[str, Any]) -> None:
+        results[i] = r
+        status = r.get("error") or f"total dV {r['delta_v_total_mps']:.4f} m/s"
+        click.echo(f"[{time.monotonic() - t0:7.0f} s] {param}={r['value']} seed={r['seed']}: {status}")
+
+    def lost(i: int, err: str) -> dict[str, Any]:  # the worker died: the case is a failed one
+        return {"value": cases[i][0], "seed": cases[i][1], "dir": calls[i][5], "run": calls[i][6], "error": err}
+
+    execute(run_case, calls, executor="dask" if scheduler else executor, jobs=jobs, scheduler=scheduler,
+            on_row=show, lost=lost)
     page = write_sweep_report(out_dir, param, results)
     click.echo(f"wrote {page}")
     if any(r.get("error") for r in results):

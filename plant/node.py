@@ -39,7 +39,8 @@ class PlantNode:
     AGENT_PREFIX = "agent-"
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
-                 barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None) -> None:
+                 barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
+                 local_agents: Callable[[SensingContext, np.ndarray, Any], np.ndarray] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -69,6 +70,13 @@ class PlantNode:
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
+        # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
+        # process, called with the sensing kind's stimuli as arrays (`batch`) instead of one
+        # message per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
+        self.local_agents = local_agents
+        self._local_cmd: np.ndarray | None = None
+        if local_agents is not None and not hasattr(self.sensor, "batch"):
+            raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
             bus.subscribe(self.keys.sync_all, self._on_barrier)
@@ -191,11 +199,15 @@ class PlantNode:
                          mean_motion_radps=self.world.n_radps)
         P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
         A = self.world.last_accel_mps2.tolist()
-        for i, sid in enumerate(ids):
-            b = truth.bodies.add(id=sid, kind="spacecraft", delta_v_mps=DV[i], alive=alive[i], roe_m=R[i])
-            b.position_m.x, b.position_m.y, b.position_m.z = P[i]
-            b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = V[i]
-            b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z = A[i]
+        add = truth.bodies.add
+        for sid, dv, al, r, p, v, a in zip(ids, DV, alive, R, P, V, A):  # each sub-message looked up once
+            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
+            q = b.position_m
+            q.x, q.y, q.z = p
+            q = b.velocity_mps
+            q.x, q.y, q.z = v
+            q = b.accel_cmd_mps2
+            q.x, q.y, q.z = a
         if isinstance(self.world, MissionWorld):
             self._add_mission_truth(truth)
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is
@@ -205,6 +217,10 @@ class PlantNode:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
                              alive=self.world.alive, world=self.world)
+        if self.local_agents is not None:
+            rows = np.flatnonzero(self.world.alive)
+            self._local_cmd = self.local_agents(ctx, rows, self.sensor.batch(ctx, rows))
+            return
         for j, sid in enumerate(ids):
             if not alive[j]:
                 continue
@@ -236,6 +252,13 @@ class PlantNode:
         wait re-evaluates) or the stall timeout ends the wait; a stall is an error event and drops
         the agents it waited for. Real time: what missed the wall deadline is held."""
         k = self._step
+        if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
+            alive = self.world.alive
+            self.held[alive, :3] = self._local_cmd[alive]
+            self.held[alive, 3:] = 0.0
+            self._local_cmd = None
+            self._advance(k)
+            return
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
         lockstep = self.pacer.name == "lockstep"
@@ -258,6 +281,9 @@ class PlantNode:
                                          f"while its liveliness token was up")
                 else:
                     self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
+        self._advance(k)
+
+    def _advance(self, k: int) -> None:
         self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])

@@ -1,8 +1,11 @@
 """Issue 16: `swarmhil campaign` (deploy/campaign.py): seeded batch runs on Dask, one row per run,
-resumable.
+resumable; `swarmhil sweep` on the same executor.
 
-- a 4-seed, 10-minute sabatini-20 campaign on a Dask LocalCluster (127.0.0.1): each row's total dV
-  equals, exactly, the single in-process run of its seed; the Parquet and CSV tables hold the rows;
+- a 4-seed, 1-hour sabatini-20 campaign on a Dask LocalCluster (127.0.0.1), in the batch mode
+  (`--record truth`): each row equals the single in-process run of its seed made through the
+  message path (one agent node per spacecraft, every message recorded): total dV and every metric
+  (connectivity, closest approach), exactly; the Parquet and CSV tables hold the rows;
+- a sweep on Dask gives each case the dV of the local process pool's run;
 - a campaign killed (SIGKILL of its process group) after two finished seeds, run again on the same
   directory, runs only the other seeds and leaves the finished rows untouched;
 - a failed run is a row with its error, and the others still finish.
@@ -24,14 +27,21 @@ from conftest import ROOT, SCENARIOS
 
 SCENARIO = str(SCENARIOS / "sabatini-20.toml")
 DURATION_S = 600.0
+CAMPAIGN_S = 3600.0
 
 
-def _single_run_dv(seed: int, out: Path) -> float:
+def _single_run(seed: int, out: Path) -> dict:
+    """The run of one seed through the message path, with its metrics (`swarmhil run --in-process`
+    then `swarmhil report`), as the campaign's flattened row columns."""
+    from dashboards.report import write_report
+    from deploy.campaign import summary_row
     from deploy.launcher import run_in_process
     from deploy.scenario import load_scenario
 
-    sc = load_scenario(SCENARIO).with_overrides(seed=seed, duration_s=DURATION_S)
-    return run_in_process(sc, out, f"single-{seed}").summary["delta_v_total_mps"]
+    sc = load_scenario(SCENARIO).with_overrides(seed=seed, duration_s=CAMPAIGN_S)
+    run_in_process(sc, out, f"single-{seed}", record="all")
+    write_report(out, figures=False)
+    return summary_row(json.loads((out / "summary.json").read_text()))
 
 
 def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
@@ -41,15 +51,18 @@ def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
     from deploy.campaign import run_campaign
 
     seeds = [3, 4, 5, 6]
-    res = run_campaign(SCENARIO, seeds, tmp_path / "c", duration_s=DURATION_S, executor="dask", jobs=2)
+    res = run_campaign(SCENARIO, seeds, tmp_path / "c", duration_s=CAMPAIGN_S, executor="dask", jobs=2)
     assert sorted(res["ran"]) == seeds and res["skipped"] == []
     rows = {r["seed"]: r for r in res["rows"]}
     assert sorted(rows) == seeds
     for s in seeds:
         r = rows[s]
         assert r["status"] == "ok", r.get("error")
-        assert r["steps"] == int(DURATION_S / 10.0)
-        assert r["delta_v_total_mps"] == _single_run_dv(s, tmp_path / f"single{s}")  # exactly: same code, same seed
+        assert r["steps"] == int(CAMPAIGN_S / 10.0) and r["batch.used"] is True
+        single = _single_run(s, tmp_path / f"single{s}")
+        compared = [k for k in single if k.startswith(("metrics.", "delta_v")) and not k.startswith("metrics.camera")]
+        assert len(compared) > 30 and "metrics.closest_approach.all_pairs.distance_m" in compared
+        assert {k: r[k] for k in compared} == {k: single[k] for k in compared}  # exactly: same truth
         assert 0.0 <= r["metrics.connectivity.weakly_connected_fraction"] <= 1.0
     assert len({rows[s]["delta_v_total_mps"] for s in seeds}) == 4  # the seeds draw different swarms
     table = pq.read_table(tmp_path / "c" / "campaign.parquet").to_pylist()
@@ -99,3 +112,21 @@ def test_failed_run_is_a_row(tmp_path: Path) -> None:
     bad = run_seed(SCENARIO, ("run.step_s=-1",), 7, str(tmp_path), DURATION_S, False)
     assert bad["status"] == "error" and bad["error"] and bad["seed"] == 7
     assert load_rows(tmp_path) == [json.loads(json.dumps(bad))]
+
+
+def test_sweep_on_dask_equals_the_process_pool(tmp_path: Path) -> None:
+    pytest.importorskip("dask.distributed")
+    from click.testing import CliRunner
+
+    from deploy.cli import main
+
+    dv = {}
+    for ex in ("local", "dask"):
+        out = tmp_path / ex
+        res = CliRunner().invoke(main, ["sweep", SCENARIO, "--param", "controller.params.k_ecc", "--values", "1.1,1.5",
+                                        "--duration", "300", "--out", str(out), "--jobs", "2", "--executor", ex,
+                                        "--record", "truth", "--no-case-reports"])
+        assert res.exit_code == 0, res.output
+        cases = json.loads((out / "sweep.json").read_text())["cases"]
+        dv[ex] = [c["delta_v_total_mps"] for c in cases]
+    assert dv["local"] == dv["dask"] and dv["local"][0] != dv["local"][1]

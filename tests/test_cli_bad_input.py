@@ -128,6 +128,7 @@ CASES = [
     ("duration below a step", lambda f: ["run", DEMO, "--in-process", "--duration", "1", "--out", str(f["d"] / "x5")], "--duration", 2),
     ("endless duration", lambda f: ["run", DEMO, "--in-process", "--set", "run.duration_s=1e300", "--out", str(f["d"] / "x6")], "steps", 2),
     ("out holds a run", lambda f: ["run", DEMO, "--in-process", "--duration", "20", "--out", str(f["good"])], "already holds a run", 2),
+    ("record truth multi-process", lambda f: ["run", DEMO, "--record", "truth", "--out", str(f["d"] / "x7")], "--in-process", 2),
     ("mcap info garbage", lambda f: ["mcap", "info", str(f["garbage"])], "garbage.mcap", 1),
     ("mcap info truncated", lambda f: ["mcap", "info", str(f["truncated"])], "mcap repair", 1),
     ("report garbage", lambda f: ["report", str(f["garbage_dir"])], "garbage_run", 1),

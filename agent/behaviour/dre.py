@@ -53,14 +53,39 @@ class GainTable:
         u_last, g_last = self._last[0]
         if u_last == u:
             return g_last
-        n_table = self.u_grid_rad.size
-        x = (u % TWO_PI) / TWO_PI * n_table
-        i0 = int(np.floor(x)) % n_table
-        f = x - np.floor(x)
-        g = (1.0 - f) * self.gain_per_s2[i0] + f * self.gain_per_s2[(i0 + 1) % n_table]
+        g = interpolate_periodic(self.gain_per_s2, u)
         g.setflags(write=False)
         self._last[0] = (u, g)  # one assignment: a reader never sees a half-updated pair
         return g
+
+
+def interpolate_periodic(table: np.ndarray, u_rad: float, axis: int = 0) -> np.ndarray:
+    """Linear interpolation in u of a table over a uniform periodic grid of [0, 2 pi) along `axis`
+    (the gains of several tables stacked on axis 0 when axis = 1: the same values as one by one)."""
+    u = float(u_rad)
+    n_table = table.shape[axis]
+    x = (u % TWO_PI) / TWO_PI * n_table
+    i0 = int(np.floor(x)) % n_table
+    f = x - np.floor(x)
+    t0 = np.take(table, i0, axis=axis)
+    t1 = np.take(table, (i0 + 1) % n_table, axis=axis)
+    return (1.0 - f) * t0 + f * t1
+
+
+_STACKED: dict[tuple[int, ...], tuple[tuple[GainTable, ...], np.ndarray]] = {}
+
+
+def stacked_gains(tables: tuple[GainTable, ...]) -> np.ndarray:
+    """(len(tables), n_table, 3, 6) read-only: several gain tables of one grid side by side, to
+    interpolate all of them in one pass (`interpolate_periodic(..., axis=1)`); kept per set of
+    tables (the tables themselves are shared, `gain_table`'s cache)."""
+    key = tuple(id(t) for t in tables)
+    hit = _STACKED.get(key)
+    if hit is None:
+        out = np.stack([t.gain_per_s2 for t in tables])
+        out.setflags(write=False)
+        hit = _STACKED[key] = (tables, out)  # the tables kept alive: their ids stay theirs
+    return hit[1]
 
 
 def riccati_rate(t_s: float, p_flat: np.ndarray, a_mat: np.ndarray, q_mat: np.ndarray, r_inv: np.ndarray,

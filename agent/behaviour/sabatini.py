@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.behaviour.dre import GainTable, gain_table
-from agent.controller import Command, Decision, Observation, OrbitInfo
+from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
+from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
@@ -96,19 +96,23 @@ def decision_distance_m(roe_jk_m: np.ndarray) -> np.ndarray:
     return np.abs(roe_jk_m[..., 1]) - 2.0 * np.hypot(roe_jk_m[..., 2], roe_jk_m[..., 3])
 
 
-def parallelism(roe_jk_m: np.ndarray) -> np.ndarray:
-    """|de . di| / (|de| |di|), 0 when either vector vanishes (Algorithm 1, step 3)."""
+def parallelism(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.ndarray | None = None) -> np.ndarray:
+    """|de . di| / (|de| |di|), 0 when either vector vanishes (Algorithm 1, step 3); |de|, |di|
+    (np.hypot of the components) are computed unless given."""
     r = roe_jk_m
-    den = np.hypot(r[..., 2], r[..., 3]) * np.hypot(r[..., 4], r[..., 5])
+    de_m = np.hypot(r[..., 2], r[..., 3]) if de_m is None else de_m
+    di_m = np.hypot(r[..., 4], r[..., 5]) if di_m is None else di_m
+    den = de_m * di_m
     dot = np.abs(r[..., 2] * r[..., 4] + r[..., 3] * r[..., 5])
     return np.where(den > _TINY_M**2, dot / np.where(den > _TINY_M**2, den, 1.0), 0.0)
 
 
-def safe_direction(roe_jk_m: np.ndarray) -> np.ndarray:
-    """(N,2) unit vector along de (fallback di, then (1, 0)) for the de/di reference of sections 3.5-3.6."""
+def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.ndarray | None = None) -> np.ndarray:
+    """(N,2) unit vector along de (fallback di, then (1, 0)) for the de/di reference of sections 3.5-3.6;
+    |de|, |di| (N,) computed unless given."""
     de, di = roe_jk_m[:, 2:4], roe_jk_m[:, 4:6]
-    nde = np.hypot(de[:, :1], de[:, 1:])
-    ndi = np.hypot(di[:, :1], di[:, 1:])
+    nde = np.hypot(de[:, :1], de[:, 1:]) if de_m is None else de_m[:, None]
+    ndi = np.hypot(di[:, :1], di[:, 1:]) if di_m is None else di_m[:, None]
     out = np.zeros_like(de)
     out[:, 0] = 1.0
     out = np.where(ndi > _TINY_M, di / np.where(ndi > _TINY_M, ndi, 1.0), out)
@@ -133,6 +137,8 @@ class SabatiniController:
         }
         self._enabled = {CA: params.enable_collision_avoidance, ALIGN: params.enable_alignment,
                          ATTRACT: params.enable_attraction}
+        self._enabled_codes = np.array([self._enabled[b] for b in (CA, ALIGN, ATTRACT)])
+        self._gain_stack = stacked_gains(tuple(self.gains[b] for b in (CA, ALIGN, ATTRACT)))
         self._d_att_m = params.attraction_fraction * params.d_max_m
         self._span_m = params.attraction_fraction * params.d_max_m - params.d_min_m
 
@@ -153,18 +159,19 @@ class SabatiniController:
                                 decision_distance_m(roe_jk_m))
 
     def _references(self, roe_jk_m: np.ndarray, range_m: np.ndarray, is_ca: np.ndarray, is_al: np.ndarray,
-                    is_att: np.ndarray, d_min_jk_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                    is_att: np.ndarray, d_min_jk_m: np.ndarray, de_m: np.ndarray | None = None,
+                    di_m: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         p = self.p
         ref = roe_jk_m.copy()
-        de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
-        di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
+        de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3]) if de_m is None else de_m
+        di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5]) if di_m is None else di_m
         d_max_trans_m = p.fov_margin * range_m * self.tan_fov
         too_large = (di_m > d_max_trans_m) | (de_m > d_max_trans_m)
         too_small = (di_m < p.d_min_trans_m) | (de_m < p.d_min_trans_m)
-        not_parallel = parallelism(roe_jk_m) < p.parallel_min
+        not_parallel = parallelism(roe_jk_m, de_m, di_m) < p.parallel_min
         correct = is_ca | (is_al & (too_large | too_small | not_parallel))
         if correct.any():  # the safe direction only where it is used (elementwise: the same values)
-            safe = p.k_ecc * p.d_min_trans_m * safe_direction(roe_jk_m[correct])
+            safe = p.k_ecc * p.d_min_trans_m * safe_direction(roe_jk_m[correct], de_m[correct], di_m[correct])
             ref[correct, 2:4] = safe
             ref[correct, 4:6] = safe
         ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
@@ -174,48 +181,120 @@ class SabatiniController:
         return ref, weight, correct
 
     def step(self, obs: Observation) -> Command:
-        # issue 16: the same arithmetic as before (tests/test_truth_checksums.py), with the
-        # behaviour labels as Python strings, each mask and norm computed once, and the safe
-        # direction only for the pairs that use it
-        ids = list(obs.neighbour_ids)
-        if not ids:
-            return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
-        n = len(ids)
-        rel_pos = np.asarray(obs.rel_position_m, float).reshape(n, 3)
-        rel_vel = np.asarray(obs.rel_velocity_mps, float).reshape(n, 3)
-        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, obs.u_rad, self.n_radps)
-        d_min_jk_m = decision_distance_m(roe_jk_m)
-        d_list = d_min_jk_m.tolist()
-        labels = self._labels(d_list)
-        is_ca = np.array([b == CA for b in labels])
-        is_att = np.array([b == ATTRACT for b in labels])
+        """This spacecraft's command: the law of `step_batch` on a batch of one (one implementation,
+        so an agent process and a batch run give the same command, bit for bit)."""
+        n = len(obs.neighbour_ids)
+        batch = ObservationBatch(step=obs.step, t_s=obs.t_s, u_rad=obs.u_rad, observers=[self.sc_id],
+                                 offsets=np.array([0, n], dtype=np.int64), neighbour_ids=list(obs.neighbour_ids),
+                                 rel_position_m=np.asarray(obs.rel_position_m, float).reshape(n, 3),
+                                 rel_velocity_mps=np.asarray(obs.rel_velocity_mps, float).reshape(n, 3))
+        return self._step_pairs(batch).command(0)
+
+    @classmethod
+    def step_batch(cls, controllers: "list[SabatiniController]", batch: ObservationBatch) -> CommandBatch:
+        """The commands of many spacecraft at once (issue 16): every visible pair of the batch in
+        one pass of numpy. Each pair's arithmetic is elementwise (or a per-pair matrix-vector
+        product, the same BLAS call as `g @ err`), and each spacecraft's sum over its neighbours is
+        sequential in neighbour order from +0.0, so a spacecraft's command does not depend on the
+        batch it is in (tests/test_behaviour_batch.py); the truth checksums (tests/test_truth_checksums.py)
+        are those of the per-spacecraft code this replaced. Controllers with different parameters or
+        orbits are stepped one by one."""
+        if not controllers:
+            return CommandBatch(np.zeros((0, 3)), [])
+        if not _alike(controllers):
+            return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
+        return controllers[0]._step_pairs(batch)
+
+    def _step_pairs(self, batch: ObservationBatch) -> CommandBatch:
+        """Sections 3.3-3.8 for every pair (j observer, k neighbour) of the batch."""
+        n_obs = len(batch)
+        off = np.asarray(batch.offsets, dtype=np.int64)
+        counts = off[1:] - off[:-1]
+        n_pairs = int(off[-1]) if n_obs else 0
+        if n_pairs == 0:
+            return CommandBatch(np.zeros((n_obs, 3)), ["search"] * n_obs, build=_searching)
+        owner = np.repeat(np.arange(n_obs), counts)  # the observer of each pair
+        rel_pos = np.asarray(batch.rel_position_m, float).reshape(n_pairs, 3)
+        rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(n_pairs, 3)
+        u = batch.u_rad
+        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, u, self.n_radps)
+        de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
+        di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
+        d_min_jk_m = np.abs(roe_jk_m[:, 1]) - 2.0 * de_m  # decision_distance_m
+        # behaviour of each pair (section 3.3): CA below d_min, attraction above 0.6 d_max, else
+        # alignment (a NaN distance is alignment)
+        is_ca = d_min_jk_m < self.p.d_min_m
+        is_att = ~is_ca & (d_min_jk_m > self._d_att_m)
         is_al = ~(is_ca | is_att)
+        code = np.where(is_ca, 0, np.where(is_att, 2, 1))  # index into BEHAVIOURS
         range_m = np.sqrt(np.einsum("ij,ij->i", rel_pos, rel_pos))
-        ref, weight, correct = self._references(roe_jk_m, range_m, is_ca, is_al, is_att, d_min_jk_m)
-        enabled = self._enabled
-        gain_now = {b: self.gains[b].gain(obs.u_rad) for b in (CA, ALIGN, ATTRACT) if enabled[b]}
-        contrib = np.zeros((n, 3))
+        ref, weight, correct = self._references(roe_jk_m, range_m, is_ca, is_al, is_att, d_min_jk_m, de_m, di_m)
         err = roe_jk_m - ref
-        w = weight.tolist()
-        for i, b in enumerate(labels):
-            g = gain_now.get(b)
-            if g is not None:
-                contrib[i] = -w[i] * (g @ err[i])
-        total = contrib.sum(axis=0)
+        # u_c = -sum_k w_jk K_b(u) (dalpha_jk - dalpha_ref_jk), the gains of the enabled behaviours
+        on_b = self._enabled_codes
+        gains = interpolate_periodic(self._gain_stack, u, axis=1)  # (3 behaviours, 3, 6): GainTable.gain of each
+        contrib = np.zeros((n_pairs, 3))
+        if on_b.all():
+            contrib = -weight[:, None] * np.matmul(gains[code], err[:, :, None])[:, :, 0]
+            prio = code
+        else:
+            on = on_b[code]
+            if on.any():
+                contrib[on] = -weight[on][:, None] * np.matmul(gains[code[on]], err[on][:, :, None])[:, :, 0]
+            prio = np.where(on, code, len(BEHAVIOURS))
+        # each observer's sum over its neighbours, in order, from +0.0 (unbuffered, sequential)
+        total = np.zeros((n_obs, 3))
+        np.add.at(total, owner, contrib)
         accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
-        decisions = []
-        corr = correct.tolist()
-        for i, sid in enumerate(ids):
-            b = labels[i]
-            label = b if enabled[b] else f"{b}_disabled"
-            if b == ALIGN and not corr[i] and enabled[b]:
-                label = ALIGN_DRIFT
-            decisions.append(Decision(neighbour=sid, behaviour=label, d_min_m=d_list[i],
-                                      roe_rel_m=roe_jk_m[i].copy(), accel_mps2=contrib[i].copy()))
-        present = set(labels)
-        active = [b for b in (CA, ALIGN, ATTRACT) if enabled[b] and b in present]
-        mode = active[0] if active else "coast"
-        return Command(accel_mps2=accel, mode=mode, decisions=decisions)
+        # mode: the first enabled behaviour present (CA, alignment, attraction), else coast; search
+        # without neighbours
+        first = np.full(n_obs, len(BEHAVIOURS))
+        np.minimum.at(first, owner, prio)
+        modes = [_MODES[f] for f in first.tolist()]
+        for i in np.flatnonzero(counts == 0).tolist():
+            modes[i] = "search"
+        enabled = self._enabled
+
+        def build(i: int) -> Command:
+            """Observer i's full Command with its decisions (telemetry)."""
+            a, b_ = int(off[i]), int(off[i + 1])
+            if a == b_:
+                return _searching(i)
+            decisions = []
+            for r, c, ok in zip(range(a, b_), code[a:b_].tolist(), correct[a:b_].tolist()):
+                b = BEHAVIOURS[c]
+                label = b if enabled[b] else f"{b}_disabled"
+                if b == ALIGN and not ok and enabled[b]:
+                    label = ALIGN_DRIFT
+                decisions.append(Decision(neighbour=batch.neighbour_ids[r], behaviour=label,
+                                          d_min_m=float(d_min_jk_m[r]), roe_rel_m=roe_jk_m[r].copy(),
+                                          accel_mps2=contrib[r].copy()))
+            return Command(accel_mps2=accel[i].copy(), mode=modes[i], decisions=decisions)
+
+        return CommandBatch(accel_mps2=accel, modes=modes, build=build)
+
+
+BEHAVIOURS = (CA, ALIGN, ATTRACT)
+_MODES = (*BEHAVIOURS, "coast")
+
+
+def _searching(_i: int) -> Command:
+    return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
+
+
+_ALIKE: list = [((), False)]  # the last controllers checked (kept alive: identity means the same objects)
+
+
+def _alike(controllers: "list[SabatiniController]") -> bool:
+    """Same parameters and orbit for all (one vectorised law); the verdict of the last list is kept,
+    since a batch run asks about the same controllers every step."""
+    last, verdict = _ALIKE[0]
+    if len(last) == len(controllers) and all(a is b for a, b in zip(last, controllers)):
+        return verdict
+    c0 = controllers[0]
+    verdict = all(c.p == c0.p and c.a_m == c0.a_m and c.n_radps == c0.n_radps for c in controllers[1:])
+    _ALIKE[0] = (tuple(controllers), verdict)
+    return verdict
 
 
 def make_sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> SabatiniController:

@@ -14,6 +14,7 @@ by the kind's `validate`.
 """
 from plant.sensing.registry import (  # noqa: F401
     SensingContext,
+    has_batch_form,
     known_sensing,
     make_sensing,
     register_sensing,

@@ -9,6 +9,7 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,14 @@ class _SensorNoise:
         p, v = roe_to_lvlh(roe[None], u, self.n)
         return p[0], v[0]
 
+    def apply_rows(self, rp: np.ndarray, rv: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
+        """`apply` of P pairs in order, (P, 3) each: the same draws (6 per pair, in order) and values."""
+        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
+
+        roe = lvlh_to_roe(rp, rv, u, self.n)
+        roe = roe * (1.0 + self.frac * self.rng.standard_normal((len(rp), 6)))
+        return roe_to_lvlh(roe, u, self.n)
+
 
 @register_sensing("rel")
 class RelKind:
@@ -57,6 +66,33 @@ class RelKind:
             nb.position_m.x, nb.position_m.y, nb.position_m.z = rp.tolist()
             nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = rv.tolist()
         return stim
+
+
+    def batch(self, ctx: SensingContext, observers: np.ndarray) -> "RelBatch":
+        """What `stimulus` gives each of `observers`, for all of them at once as arrays (the batch
+        mode, issue 16): the same values (elementwise, the same pairs in the same order, the noise
+        drawn from the same generator in the same order)."""
+        vis = ctx.cached("visibility", lambda: visibility_matrix(ctx.position_m, self.cam, ctx.alive))
+        pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
+        obs = np.asarray(observers, dtype=np.int64)
+        jj, kk = np.nonzero(vis[obs])  # row by row, neighbours in index order: stimulus's order
+        j = obs[jj]
+        rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
+        if self.noise is not None and len(kk):
+            rp, rv = self.noise.apply_rows(rp, rv, u)
+        offsets = np.zeros(len(obs) + 1, dtype=np.int64)
+        np.cumsum(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        return RelBatch(offsets, kk, rp, rv)
+
+
+@dataclass(frozen=True)
+class RelBatch:
+    """The rel stimuli of many observers (CSR): observer r's neighbours are rows offsets[r]:offsets[r+1]."""
+
+    offsets: np.ndarray  # (R + 1,)
+    neighbour: np.ndarray  # (P,) index of each neighbour in ctx.ids
+    rel_position_m: np.ndarray  # (P, 3) r_k - r_j, LVLH
+    rel_velocity_mps: np.ndarray  # (P, 3)
 
 
 @register_sensing("scene")

@@ -94,3 +94,10 @@ def make_sensing(kind: str, scenario: Any) -> SensingKind:
     if kind not in _KINDS:
         raise ValueError(f"unknown sensing kind {kind!r}; known: {sorted(_KINDS)}")
     return _KINDS[kind](scenario)
+
+
+def has_batch_form(kind: str) -> bool:
+    """Whether the kind also gives every observer's stimulus at once as arrays (`batch(ctx, observers)`,
+    the batch mode of issue 16), without building one."""
+    _load()
+    return hasattr(_KINDS.get(kind), "batch")

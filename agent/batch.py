@@ -1,0 +1,84 @@
+"""The flight software of many spacecraft in one object: the batch mode's agents (issue 16).
+
+What N `AgentNode`s (agent/node.py) do with a relative-state stimulus, for all of them at once:
+each spacecraft has its own controller (made by the same registry, with its own parameters); at
+a decision step they are stepped together through `agent.controller.step_batch` (one vectorised
+pass where the controller class has one, each `step` in turn otherwise), and the command of each
+is checked as the agent node checks it (a controller that raises, or returns a non-finite or
+malformed acceleration, commands zero for that spacecraft and the fault is counted or logged).
+Between decision steps the previous command stays in force. No message is built: the observation
+arrives as arrays and the commands leave as an (N, 3) array (deploy/batch.py wires it to the plant).
+"""
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+import numpy as np
+
+from agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, make_controller, step_batch
+
+log = logging.getLogger("swarmhil.agent")
+
+
+class BatchAgents:
+    def __init__(self, ids: list[str], controllers: list[tuple[str, dict[str, Any]]], orbit: OrbitInfo,
+                 decision_period_steps: int = 1) -> None:
+        self.ids = list(ids)
+        self.controllers = [make_controller(name, sid, orbit, params) for sid, (name, params) in zip(self.ids, controllers)]
+        self.decision_period_steps = max(1, int(decision_period_steps))
+        self.accel_mps2 = np.zeros((len(self.ids), 3))  # the command in force, per spacecraft
+        self.modes = ["idle"] * len(self.ids)
+        self.faults: dict[str, dict[str, int]] = {}
+        self.steps = 0
+        self.last: CommandBatch | None = None  # the last decision's commands (full Commands on demand)
+
+    def _fault(self, i: int, step: int) -> None:
+        f = self.faults.setdefault(self.ids[i], {})
+        n = f["controller"] = f.get("controller", 0) + 1
+        if n == 1:
+            log.exception("%s: controller fault at step %d (handled; further ones are only counted)", self.ids[i], step)
+        else:
+            log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
+
+    def _decide(self, rows: np.ndarray, batch: ObservationBatch) -> CommandBatch:
+        if len(rows) == len(self.controllers):  # everyone alive (rows are sorted and unique)
+            ctrls = self.controllers
+        else:
+            ctrls = [self.controllers[i] for i in rows.tolist()]
+        try:
+            return step_batch(ctrls, batch)
+        except Exception:  # noqa: BLE001 - find the spacecraft whose software raised: each on its own
+            cmds = []
+            for r, (i, c) in enumerate(zip(rows.tolist(), ctrls)):
+                try:
+                    cmds.append(c.step(batch.observation(r)))
+                except Exception:  # noqa: BLE001 - as AgentNode: command zero this step, count, go on
+                    self._fault(i, batch.step)
+                    cmds.append(Command(accel_mps2=np.zeros(3), mode="fault"))
+            return CommandBatch.of(cmds)
+
+    def step(self, rows: np.ndarray, batch: ObservationBatch) -> np.ndarray:
+        """The observers `rows` (indices into ids) see `batch`; returns the (N, 3) commands in force."""
+        if batch.step % self.decision_period_steps == 0 and len(rows):
+            cb = self._decide(rows, batch)
+            acc = np.asarray(cb.accel_mps2, dtype=float)
+            bad = ~np.isfinite(acc).all(axis=1)
+            modes = list(cb.modes)
+            if bad.any():
+                acc = acc.copy()
+                for r in np.flatnonzero(bad).tolist():
+                    i = int(rows[r])
+                    log.error("%s: controller %s returned accel %r; commanding zero", self.ids[i],
+                              self.controllers[i].name, acc[r])
+                    acc[r] = 0.0
+                    modes[r] = "fault"
+            self.accel_mps2[rows] = acc
+            if len(rows) == len(self.ids):
+                self.modes = modes
+            else:
+                for r, i in enumerate(rows.tolist()):
+                    self.modes[i] = modes[r]
+            self.last = cb
+        self.steps += 1
+        return self.accel_mps2
