@@ -40,7 +40,10 @@ def initial_state(n: int, semi_axes_m, seed: int, r_buffer_m: float = 1.0,
 def seeded_scenario(text: str, seed: int) -> str:
     """The scenario TOML `text` with seed's initial state and `[run].seed = seed`."""
     doc = tomllib.loads(text)
-    (body,) = [b for b in doc.get("body", []) if b.get("kind") == "target"]
+    targets = [b for b in doc.get("body", []) if b.get("kind") == "target"]
+    if len(targets) != 1 or (targets[0].get("shape") or {}).get("kind") != "ellipsoid":
+        raise ValueError("the scenario needs exactly one [[body]] of kind 'target' with an ellipsoid shape")
+    body = targets[0]
     n = len(doc["spacecraft"])
     r, q = initial_state(n, body["shape"]["semi_axes_m"], seed)
     pos, att = iter(r.tolist()), iter(q.tolist())
