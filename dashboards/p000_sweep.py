@@ -8,6 +8,7 @@ own counters: `p000-state` tx packets and payload bytes), with mean ± sample st
 and the range over seeds.
 
     python -m dashboards.p000_sweep RUNS_PARENT_DIR
+    python -m dashboards.p000_sweep --closest RUN_DIR [RUN_DIR ...]   # what happened at the closest approach
 """
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ import statistics
 import sys
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 NAME = re.compile(r"^c(?P<n>\d+)-s(?P<seed>\d+)-(?P<policy>event|1hz|every|literal)(?P<mp>-mp)?$")
 
@@ -111,7 +114,63 @@ def reduction_table(rows: list[dict[str, Any]], case: int) -> str:
     return "\n".join(out)
 
 
+def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
+    """The closest approach to the TRUE surface over all agents and steps (every `every`-th step), and
+    what the agent believed then: its mode, its signed distance to its ESTIMATED surface (telemetry),
+    its centroid and worst sorted-axis errors, its speed toward the true surface (normal component,
+    relative to the target's motion) and its nearest neighbour; plus, over every chase step of every
+    agent, the error of the estimated distance (estimated − true) and the largest inward speed."""
+    from agent.missions.p000_capture.ellipsoid import Ellipsoid, surface_frame
+    from dashboards.sections.p000 import axes_error, centroid_error, pair_distance, read_capture, target_axes
+    from dashboards.truth_io import read_truth
+    from plant.sensing.p000 import dcm
+
+    run_dir = Path(run_dir)
+    summ = json.loads((run_dir / "summary.json").read_text())
+    tr = read_truth(run_dir / "run.mcap")
+    ids = list(tr.ids)
+    rec = read_capture(run_dir / "run.mcap", ids)
+    axes = target_axes(summ["config"])
+    tvel = np.gradient(rec.target_pos, tr.t_s, axis=0)
+    rows = np.arange(0, len(tr.t_s), every)
+    sd = np.empty((len(rows), len(ids)))
+    vn = np.empty_like(sd)  # outward normal speed relative to the surface's centre motion
+    for r, k in enumerate(rows):
+        ell = Ellipsoid(rec.target_pos[k], dcm(rec.target_q[k]), axes)
+        for i in range(len(ids)):
+            sd[r, i], _x, nrm = surface_frame(ell, tr.position_m[k, i])
+            vn[r, i] = float(nrm @ (tr.velocity_mps[k, i] - tvel[k]))
+    r0, i0 = np.unravel_index(int(np.argmin(sd)), sd.shape)
+    k0 = int(rows[r0])
+    est_sd = rec.est_surface[rows]
+    chase = np.array([[rec.modes.get(n, {}).get(int(tr.step[k]), "search") != "search" for n in ids] for k in rows])
+    err = (est_sd - sd)[chase & np.isfinite(est_sd)]
+    pair = pair_distance(tr.position_m[k0:k0 + 1])[0]
+    ax_e, c_e = axes_error(rec.est_axes, axes), centroid_error(rec.est_centre, rec.target_pos)
+    back = rows[max(0, r0 - int(round(30.0 / (tr.t_s[1] - tr.t_s[0]) / every))):r0 + 1]  # the 30 s before
+    return {
+        "run": run_dir.name, "agent": ids[i0], "t_s": float(tr.t_s[k0]), "true_sd_m": float(sd[r0, i0]),
+        "mode": rec.modes.get(ids[i0], {}).get(int(tr.step[k0])), "est_sd_m": float(rec.est_surface[k0, i0]),
+        "axes_err": float(ax_e[k0, i0]), "centroid_err_m": float(c_e[k0, i0]),
+        "inward_speed_mps": float(-vn[r0, i0]), "max_inward_speed_30s_mps": float(-vn[np.isin(rows, back), i0].min()),
+        "nearest_neighbour_m": float(pair[i0].min()),
+        "chase_est_minus_true_m": {"mean": float(err.mean()), "p1": float(np.percentile(err, 1)),
+                                   "p99": float(np.percentile(err, 99))} if len(err) else None,
+        "min_est_sd_m": float(np.nanmin(est_sd)) if np.isfinite(est_sd).any() else None,
+        "chase_max_inward_speed_mps": float(-vn[chase].min()) if chase.any() else None,
+        "agents_below_buffer": int(np.sum(sd.min(axis=0) < 1.0)),
+    }
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--closest"] and len(argv) > 1:
+        for d in argv[1:]:
+            try:
+                print(json.dumps(closest_approach(Path(d), every=2)))
+            except (OSError, ValueError, KeyError) as exc:
+                print(f"p000_sweep: {d}: {exc}", file=sys.stderr)
+                return 2
+        return 0
     if len(argv) != 1 or not Path(argv[0]).is_dir():
         print("usage: python -m dashboards.p000_sweep RUNS_PARENT_DIR", file=sys.stderr)
         return 2
