@@ -148,12 +148,25 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
     pair = pair_distance(tr.position_m[k0:k0 + 1])[0]
     ax_e, c_e = axes_error(rec.est_axes, axes), centroid_error(rec.est_centre, rec.target_pos)
     back = rows[max(0, r0 - int(round(30.0 / (tr.t_s[1] - tr.t_s[0]) / every))):r0 + 1]  # the 30 s before
+    # the agent's estimated target velocity (the derivative of its estimated centre, which it propagates
+    # with that velocity between fits; fit steps excluded) minus the truth, along its line of sight
+    ks = np.asarray(back)
+    ks = ks[(ks > 0) & (ks < len(tr.t_s) - 1)]
+    v_hat = (rec.est_centre[ks + 1, i0] - rec.est_centre[ks - 1, i0]) / (tr.t_s[ks + 1] - tr.t_s[ks - 1])[:, None]
+    los = rec.target_pos[ks] - tr.position_m[ks, i0]
+    los /= np.linalg.norm(los, axis=1, keepdims=True)
+    v_err = np.einsum("ki,ki->k", v_hat - tvel[ks], los)
+    v_err = v_err[np.isfinite(v_err) & (np.abs(v_err) < 0.5)]  # a jump at a fit is not a velocity
+    a_max = summ["config"]["spacecraft"][i0]["max_force_n"] / summ["config"]["spacecraft"][i0]["mass_kg"]
     return {
         "run": run_dir.name, "agent": ids[i0], "t_s": float(tr.t_s[k0]), "true_sd_m": float(sd[r0, i0]),
         "mode": rec.modes.get(ids[i0], {}).get(int(tr.step[k0])), "est_sd_m": float(rec.est_surface[k0, i0]),
         "axes_err": float(ax_e[k0, i0]), "centroid_err_m": float(c_e[k0, i0]),
         "inward_speed_mps": float(-vn[r0, i0]), "max_inward_speed_30s_mps": float(-vn[np.isin(rows, back), i0].min()),
         "nearest_neighbour_m": float(pair[i0].min()),
+        "vT_est_err_toward_agent_30s_mps": {"median": float(np.median(v_err)), "max": float(v_err.max())}
+        if len(v_err) else None,
+        "braking_distance_at_max_inward_speed_m": float((-vn[np.isin(rows, back), i0].min()) ** 2 / (2 * a_max)),
         "chase_est_minus_true_m": {"mean": float(err.mean()), "p1": float(np.percentile(err, 1)),
                                    "p99": float(np.percentile(err, 99))} if len(err) else None,
         "min_est_sd_m": float(np.nanmin(est_sd)) if np.isfinite(est_sd).any() else None,
