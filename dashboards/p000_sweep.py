@@ -149,7 +149,8 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
     ax_e, c_e = axes_error(rec.est_axes, axes), centroid_error(rec.est_centre, rec.target_pos)
     back = rows[max(0, r0 - int(round(30.0 / (tr.t_s[1] - tr.t_s[0]) / every))):r0 + 1]  # the 30 s before
     # the agent's estimated target velocity (the derivative of its estimated centre, which it propagates
-    # with that velocity between fits; fit steps excluded) minus the truth, along its line of sight
+    # with that velocity between fits; fit steps excluded) minus the truth, along its line of sight (positive: the estimated target recedes from the agent, so the PD,
+    # which tracks v_T + the capped approach speed, closes faster than the cap)
     ks = np.asarray(back)
     ks = ks[(ks > 0) & (ks < len(tr.t_s) - 1)]
     v_hat = (rec.est_centre[ks + 1, i0] - rec.est_centre[ks - 1, i0]) / (tr.t_s[ks + 1] - tr.t_s[ks - 1])[:, None]
@@ -164,7 +165,7 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
         "axes_err": float(ax_e[k0, i0]), "centroid_err_m": float(c_e[k0, i0]),
         "inward_speed_mps": float(-vn[r0, i0]), "max_inward_speed_30s_mps": float(-vn[np.isin(rows, back), i0].min()),
         "nearest_neighbour_m": float(pair[i0].min()),
-        "vT_est_err_toward_agent_30s_mps": {"median": float(np.median(v_err)), "max": float(v_err.max())}
+        "vT_est_err_receding_30s_mps": {"median": float(np.median(v_err)), "max": float(v_err.max())}
         if len(v_err) else None,
         "braking_distance_at_max_inward_speed_m": float((-vn[np.isin(rows, back), i0].min()) ** 2 / (2 * a_max)),
         "chase_est_minus_true_m": {"mean": float(err.mean()), "p1": float(np.percentile(err, 1)),
