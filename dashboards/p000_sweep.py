@@ -149,8 +149,9 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
     ax_e, c_e = axes_error(rec.est_axes, axes), centroid_error(rec.est_centre, rec.target_pos)
     back = rows[max(0, r0 - int(round(30.0 / (tr.t_s[1] - tr.t_s[0]) / every))):r0 + 1]  # the 30 s before
     # the agent's estimated target velocity (the derivative of its estimated centre, which it propagates
-    # with that velocity between fits; fit steps excluded) minus the truth, along its line of sight (positive: the estimated target recedes from the agent, so the PD,
-    # which tracks v_T + the capped approach speed, closes faster than the cap)
+    # with that velocity between fits; fit steps excluded) minus the truth, along its line of sight
+    # (positive: the estimated target recedes, so the PD, which tracks v_T + the capped approach
+    # speed, closes faster than the cap)
     ks = np.asarray(back)
     ks = ks[(ks > 0) & (ks < len(tr.t_s) - 1)]
     v_hat = (rec.est_centre[ks + 1, i0] - rec.est_centre[ks - 1, i0]) / (tr.t_s[ks + 1] - tr.t_s[ks - 1])[:, None]
