@@ -63,7 +63,7 @@ def spread(xs: list[float], fmt: str = "{:.3g}") -> str:
 def outcome_table(rows: list[dict[str, Any]]) -> str:
     head = ("| run | in chase at end | last chase entry [s] | min true signed distance [m] | min est. distance [m] "
             "| min pair [m] | axes err worst [%] (≤ 2 %) | centroid err worst [m] | pointing worst [deg] "
-            "| state tx (B) | landmark tx B | wall [s] |")
+            "| pointing < 1° after chase entry, worst [s] | max body rate [°/s] | state tx (B) | landmark tx B | wall [s] |")
     out = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         m = r["met"]
@@ -75,6 +75,8 @@ def outcome_table(rows: list[dict[str, Any]]) -> str:
             f"{m.get('min_surface_est_m', float('nan')):.2f} | {m['min_pair_m']:.2f} | "
             f"{'—' if ax is None else f'{100 * ax:.2f}'} ({m.get('axes_within_2pct', 0)}/{m.get('agents_with_estimate', 0)}) | "
             f"{m.get('centroid_final_err_max_m') or float('nan'):.3f} | {m.get('pointing_final_max_deg', float('nan')):.2f} | "
+            f"{max((m.get('pointing_settle_after_chase_s') or {'': float('nan')}).values()):.0f} | "
+            f"{m.get('max_body_rate_dps', float('nan')):.0f} | "
             f"{r['state_tx']} ({r['state_bytes']}) | {r['lm_bytes']} | {r['wall_s']:.0f} |")
     return "\n".join(out)
 

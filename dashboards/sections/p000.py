@@ -223,6 +223,15 @@ def last_finite(x: np.ndarray) -> np.ndarray:
     return out
 
 
+def settle_time(t: np.ndarray, err: np.ndarray, tol: float) -> list[float | None]:
+    """Per column: the first time after which err stays below tol to the end (None: never settles)."""
+    out: list[float | None] = []
+    for j in range(err.shape[1]):
+        above = np.flatnonzero(~(err[:, j] < tol))
+        out.append(float(t[0]) if not len(above) else (float(t[above[-1] + 1]) if above[-1] + 1 < len(t) else None))
+    return out
+
+
 def capture_params(cfg: dict[str, Any] | None, sid: str):
     from agent.missions.p000_capture.params import CaptureParams
 
@@ -490,6 +499,12 @@ def capture(ctx: SectionContext) -> SectionResult:
     if point is not None:
         met["pointing_final_deg"] = {n: float(point[-1, i]) for i, n in enumerate(ids)}
         met["pointing_final_max_deg"] = float(point[-1].max())
+        settle = settle_time(t, point, 1.0)
+        met["pointing_settled_1deg_s"] = {n: settle[i] for i, n in enumerate(ids)}
+        met["pointing_settle_after_chase_s"] = {n: round(settle[i] - entry[n], 2) for i, n in enumerate(ids)
+                                                if n in entry and settle[i] is not None}
+    if rate is not None:
+        met["max_body_rate_dps"] = float(np.degrees(np.linalg.norm(rate, axis=2).max()))
 
     out = ctx.out
     figs = [

@@ -43,3 +43,13 @@ def test_reduction_pairs_runs_by_seed_and_case(tmp_path: Path) -> None:
     p = subprocess.run([sys.executable, "-m", "dashboards.p000_sweep", str(tmp_path / "not-a-run")], cwd=ROOT,
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+def test_settle_time_is_the_last_crossing() -> None:
+    import numpy as np
+
+    from dashboards.sections.p000 import settle_time
+
+    t = np.arange(6.0)
+    err = np.array([[5, 0.1, 5], [2, 0.1, 5], [0.5, 0.1, 5], [3, 0.1, 5], [0.2, 0.1, 5], [0.1, np.nan, 0.5]])
+    assert settle_time(t, err, 1.0) == [4.0, None, 5.0]
