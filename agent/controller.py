@@ -64,6 +64,8 @@ class Command:
 
     `accel_mps2` is the LVLH acceleration; `torque_nm` the body-frame control torque, for
     controllers that fly attitude too (None: no attitude command, the plant holds none).
+    `extra` holds named arrays (e.g. the controller's estimates) that go out in the step's
+    telemetry as `Telemetry.items` (read back with `bus.codec.measurements_to_dict`).
     """
 
     accel_mps2: np.ndarray
@@ -71,6 +73,7 @@ class Command:
     decisions: list[Decision] = field(default_factory=list)
     transmissions: list[Transmission] = field(default_factory=list)
     torque_nm: np.ndarray | None = None  # body-frame torque, where the scenario flies attitude
+    extra: dict[str, np.ndarray] = field(default_factory=dict)  # named arrays for telemetry (Telemetry.items)
 
 
 class Controller(Protocol):

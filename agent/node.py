@@ -15,7 +15,8 @@ import numpy as np
 from agent.controller import Command, Observation, OrbitInfo, make_controller
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, decode, header, measurements_to_dict, sense_type, vec
+from bus.codec import (RejectedPacket, Rejections, add_measurement, decode, header, measurements_to_dict, sense_type,
+                       vec)
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.agent")
@@ -151,6 +152,8 @@ class AgentNode:
         tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
                           controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),
                           compute_s=compute_s, rejected_packets=self.rejections.total)
+        for name, values in self.command.extra.items():
+            add_measurement(tm, name, values)
         if self.perception is not None:
             tm.tracks.extend(self.perception.track_messages())
             png = self.perception.debug_image(t)

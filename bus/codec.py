@@ -69,8 +69,8 @@ def encoding_of_key(key: str) -> str | None:
     return None if cls is None else f"{PROTOBUF_ENCODING};{cls.DESCRIPTOR.full_name}"
 
 
-def measurements_to_dict(msg: "pb.Measurements") -> dict[str, np.ndarray]:
-    """Named arrays of a Measurements message: key `name`, or `name/subject` when it has a subject."""
+def measurements_to_dict(msg: "pb.Measurements | pb.Telemetry") -> dict[str, np.ndarray]:
+    """Named arrays (`items`) of a Measurements or Telemetry message: key `name`, or `name/subject`."""
     out: dict[str, np.ndarray] = {}
     for m in msg.items:
         a = np.asarray(m.values, dtype=float)
@@ -80,8 +80,9 @@ def measurements_to_dict(msg: "pb.Measurements") -> dict[str, np.ndarray]:
     return out
 
 
-def add_measurement(msg: "pb.Measurements", name: str, values: Sequence[float] | np.ndarray, subject: str = "") -> None:
-    """Append one named array (any shape) to a Measurements message."""
+def add_measurement(msg: "pb.Measurements | pb.Telemetry", name: str, values: Sequence[float] | np.ndarray,
+                    subject: str = "") -> None:
+    """Append one named array (any shape) to a Measurements or Telemetry message."""
     a = np.asarray(values, dtype=float)
     msg.items.add(name=name, subject=subject, values=a.ravel().tolist(), shape=list(a.shape) if a.ndim != 1 else [])
 

@@ -209,7 +209,7 @@ class TrackEstimate(_message.Message):
     def __init__(self, track: _Optional[str] = ..., truth_id: _Optional[str] = ..., roe_m: _Optional[_Iterable[float]] = ..., covariance_m2: _Optional[_Iterable[float]] = ..., position_m: _Optional[_Union[Vector3, _Mapping]] = ..., velocity_mps: _Optional[_Union[Vector3, _Mapping]] = ..., age_steps: _Optional[int] = ...) -> None: ...
 
 class Telemetry(_message.Message):
-    __slots__ = ("header", "mode", "controller", "decisions", "tracks", "accel_mps2", "compute_s", "rejected_packets", "missed_steps")
+    __slots__ = ("header", "mode", "controller", "decisions", "tracks", "accel_mps2", "compute_s", "rejected_packets", "missed_steps", "items")
     HEADER_FIELD_NUMBER: _ClassVar[int]
     MODE_FIELD_NUMBER: _ClassVar[int]
     CONTROLLER_FIELD_NUMBER: _ClassVar[int]
@@ -219,6 +219,7 @@ class Telemetry(_message.Message):
     COMPUTE_S_FIELD_NUMBER: _ClassVar[int]
     REJECTED_PACKETS_FIELD_NUMBER: _ClassVar[int]
     MISSED_STEPS_FIELD_NUMBER: _ClassVar[int]
+    ITEMS_FIELD_NUMBER: _ClassVar[int]
     header: Header
     mode: str
     controller: str
@@ -228,7 +229,8 @@ class Telemetry(_message.Message):
     compute_s: float
     rejected_packets: int
     missed_steps: int
-    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., mode: _Optional[str] = ..., controller: _Optional[str] = ..., decisions: _Optional[_Iterable[_Union[NeighbourDecision, _Mapping]]] = ..., tracks: _Optional[_Iterable[_Union[TrackEstimate, _Mapping]]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., compute_s: _Optional[float] = ..., rejected_packets: _Optional[int] = ..., missed_steps: _Optional[int] = ...) -> None: ...
+    items: _containers.RepeatedCompositeFieldContainer[Measurement]
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., mode: _Optional[str] = ..., controller: _Optional[str] = ..., decisions: _Optional[_Iterable[_Union[NeighbourDecision, _Mapping]]] = ..., tracks: _Optional[_Iterable[_Union[TrackEstimate, _Mapping]]] = ..., accel_mps2: _Optional[_Union[Vector3, _Mapping]] = ..., compute_s: _Optional[float] = ..., rejected_packets: _Optional[int] = ..., missed_steps: _Optional[int] = ..., items: _Optional[_Iterable[_Union[Measurement, _Mapping]]] = ...) -> None: ...
 
 class IslPacket(_message.Message):
     __slots__ = ("header", "src", "dst", "type", "payload", "sent_t")

@@ -40,12 +40,17 @@ class CaptureRecording:
     sc_q: np.ndarray             # (K, N, 4) body -> inertial frame aligned with CW at t = 0 (NaN if not flown)
     modes: dict[str, dict[int, str]]      # id -> step -> telemetry mode
     tx: list[tuple[str, str, int, int]]   # (src, type, payload bytes, step) of every isl/tx packet
+    sc_w: np.ndarray | None = None        # (K, N, 3) body rates [rad/s] (NaN if not flown)
+    est_axes: np.ndarray | None = None    # (K, N, 3) the agent's sorted semi-axes estimate (telemetry; NaN: none)
+    est_centre: np.ndarray | None = None  # (K, N, 3) its centroid estimate at that step (CW frame)
+    est_surface: np.ndarray | None = None  # (K, N) its signed distance to its ESTIMATED surface
 
 
 def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureRecording:
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
+    from bus.codec import measurements_to_dict
     from bus.keys import split_topic
     from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 
@@ -53,6 +58,8 @@ def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureR
     att: dict[int, np.ndarray] = {}
     modes: dict[str, dict[int, str]] = {}
     tx: list[tuple[str, str, int, int]] = []
+    rates: dict[int, np.ndarray] = {}
+    est: dict[tuple[int, int], dict[str, np.ndarray]] = {}  # (step, column) -> telemetry items
     tid = ""
     col = {s: j for j, s in enumerate(ids)}
     with open(mcap, "rb") as f:
@@ -70,6 +77,7 @@ def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureR
                 if schema is None or schema.name != TRUTH_SCHEMA or k in tgt:
                     continue
                 q = np.full((len(ids), 4), np.nan)
+                w = np.full((len(ids), 3), np.nan)
                 for b in m.bodies:
                     if b.kind == "target" and k not in tgt:
                         tid = b.id
@@ -77,18 +85,34 @@ def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureR
                                   (b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z))
                     elif b.kind == "spacecraft" and b.id in col and b.HasField("attitude"):
                         q[col[b.id]] = (b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z)
-                att[k] = q
+                        if b.HasField("angular_velocity_radps"):
+                            av = b.angular_velocity_radps
+                            w[col[b.id]] = (av.x, av.y, av.z)
+                att[k], rates[k] = q, w
             elif rel.startswith("sc/") and rel.endswith("/tm"):
-                modes.setdefault(m.header.source or rel.split("/")[1], {})[int(m.header.step)] = m.mode
+                sid = m.header.source or rel.split("/")[1]
+                modes.setdefault(sid, {})[int(m.header.step)] = m.mode
+                if len(m.items) and sid in col:
+                    est[(int(m.header.step), col[sid])] = measurements_to_dict(m)
             elif rel.startswith("isl/tx/"):
                 tx.append((m.src, m.type, len(m.payload), int(m.header.step)))
     if not tgt:
         raise ValueError(f"{mcap}: no body of kind 'target' in the truth")
     steps = np.array(sorted(tgt))
+    row = {int(k): r for r, k in enumerate(steps)}
+    e_axes = np.full((len(steps), len(ids), 3), np.nan)
+    e_centre, e_surf = e_axes.copy(), np.full((len(steps), len(ids)), np.nan)
+    for (k, j), items in est.items():
+        if k in row:
+            e_axes[row[k], j] = items.get("p000_axes_est_m", np.nan)
+            e_centre[row[k], j] = items.get("p000_centre_est_m", np.nan)
+            e_surf[row[k], j] = np.ravel(items.get("p000_surface_est_m", [np.nan]))[0]
     return CaptureRecording(
         steps=steps, target_id=tid, target_pos=np.array([tgt[k][0] for k in steps], dtype=float),
         target_q=np.array([tgt[k][1] for k in steps], dtype=float),
-        sc_q=np.array([att[k] for k in steps], dtype=float), modes=modes, tx=tx)
+        sc_q=np.array([att[k] for k in steps], dtype=float), modes=modes, tx=tx,
+        sc_w=np.array([rates[k] for k in steps], dtype=float), est_axes=e_axes, est_centre=e_centre,
+        est_surface=e_surf)
 
 
 # --- pure computations (shared with tests/missions/test_p000_stack.py) ----------------------------------
@@ -173,6 +197,39 @@ def pointing_error_deg(pos: np.ndarray, q_inertial: np.ndarray, target_pos: np.n
     los = target_pos[:, None, :] - pos
     cosang = np.einsum("kni,kni->kn", bore, los) / (np.linalg.norm(bore, axis=2) * np.linalg.norm(los, axis=2))
     return np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
+
+
+def axes_error(est_axes: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """(K, N) worst relative error of the agents' SORTED semi-axes estimates against the sorted truth
+    (the target's axes are body axes of a tumbling body: only the sorted set is comparable); NaN where
+    an agent had no estimate."""
+    a = np.sort(np.asarray(axes, dtype=float))
+    return np.max(np.abs(est_axes - a) / a, axis=-1)
+
+
+def centroid_error(est_centre: np.ndarray, target_pos: np.ndarray) -> np.ndarray:
+    """(K, N) distance of each agent's centroid estimate to the TRUE centre at the same step."""
+    return np.linalg.norm(est_centre - target_pos[:, None, :], axis=-1)
+
+
+def last_finite(x: np.ndarray) -> np.ndarray:
+    """(N, ...) each column's value at its last row where it is finite (NaN if never)."""
+    ok = np.isfinite(x.reshape(x.shape[0], x.shape[1], -1)).all(axis=-1)  # (K, N)
+    out = np.full(x.shape[1:], np.nan)
+    for j in range(x.shape[1]):
+        rows = np.flatnonzero(ok[:, j])
+        if len(rows):
+            out[j] = x[rows[-1], j]
+    return out
+
+
+def settle_time(t: np.ndarray, err: np.ndarray, tol: float) -> list[float | None]:
+    """Per column: the first time after which err stays below tol to the end (None: never settles)."""
+    out: list[float | None] = []
+    for j in range(err.shape[1]):
+        above = np.flatnonzero(~(err[:, j] < tol))
+        out.append(float(t[0]) if not len(above) else (float(t[above[-1] + 1]) if above[-1] + 1 < len(t) else None))
+    return out
 
 
 def capture_params(cfg: dict[str, Any] | None, sid: str):
@@ -281,7 +338,52 @@ def fig_messages(tx: list[tuple[str, str, int, int]], dt_s: float, t_end: float,
     return _save(fig, path)
 
 
-def fig_pointing(t: np.ndarray, err: np.ndarray, ids: list[str], run: str, path: Path) -> str:
+def fig_pointing(t: np.ndarray, err: np.ndarray, rate: np.ndarray | None, ids: list[str], run: str,
+                 path: Path) -> str:
+    """Attitude errors (Fig. 5): pointing error to the true centroid and, if flown, the body rate."""
+    from dashboards.report import _colors, _plt, _save
+
+    plt = _plt()
+    col = _colors(len(ids))
+    fig, axs = plt.subplots(2 if rate is not None else 1, 1, figsize=(8, 6.5 if rate is not None else 4),
+                            sharex=True, squeeze=False)
+    ax = axs[0, 0]
+    for i, n in enumerate(ids):
+        ax.plot(t, err[:, i], color=col[i], lw=0.8, label=n)
+    ax.set_yscale("log")
+    ax.set_ylabel("boresight to true centroid [deg]")
+    ax.set_title(f"{run}: attitude errors")
+    ax.legend(loc="upper right", fontsize=6, ncol=2)
+    if rate is not None:
+        for i, n in enumerate(ids):
+            axs[1, 0].plot(t, np.degrees(np.linalg.norm(rate[:, i], axis=1)), color=col[i], lw=0.8)
+        axs[1, 0].set_yscale("log")
+        axs[1, 0].set_ylabel("body rate |omega| [deg/s]")
+    axs[-1, 0].set_xlabel("t [s]")
+    return _save(fig, path)
+
+
+def fig_axes(t: np.ndarray, est_axes: np.ndarray, axes: np.ndarray, ids: list[str], run: str, path: Path) -> str:
+    """Figs. 7 and 12: each agent's sorted semi-axes estimate (telemetry) against the truth."""
+    from dashboards.report import _colors, _plt, _save
+
+    plt = _plt()
+    col = _colors(len(ids))
+    a = np.sort(axes)
+    fig, axs = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    for k, (ax, name) in enumerate(zip(axs[::-1], ("a (largest)", "b", "c (smallest)")[::-1])):
+        for i, n in enumerate(ids):
+            ax.plot(t, est_axes[:, i, k], color=col[i], lw=0.8, label=n)
+        ax.axhline(a[k], color="k", ls="--", lw=1.2, label=f"truth {a[k]:g} m")
+        ax.set_ylim(0.8 * a[k], 1.2 * a[k])
+        ax.set_ylabel(f"{name} [m]")
+    axs[0].set_title(f"{run}: estimated semi-axes (sorted) vs truth; y range truth ±20 %")
+    axs[0].legend(loc="upper right", fontsize=6, ncol=3)
+    axs[-1].set_xlabel("t [s]")
+    return _save(fig, path)
+
+
+def fig_centroid(t: np.ndarray, err: np.ndarray, ids: list[str], run: str, path: Path) -> str:
     from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
@@ -291,9 +393,27 @@ def fig_pointing(t: np.ndarray, err: np.ndarray, ids: list[str], run: str, path:
         ax.plot(t, err[:, i], color=col[i], lw=0.8, label=n)
     ax.set_yscale("log")
     ax.set_xlabel("t [s]")
-    ax.set_ylabel("boresight to true centroid [deg]")
-    ax.set_title(f"{run}: pointing error")
+    ax.set_ylabel("|estimated - true centre| [m]")
+    ax.set_title(f"{run}: centroid error of each agent's estimate")
     ax.legend(loc="upper right", fontsize=6, ncol=2)
+    return _save(fig, path)
+
+
+def fig_triggers(tx: list[tuple[str, str, int, int]], dt_s: float, t_end: float, ids: list[str], run: str,
+                 path: Path, typ: str = "p000-state") -> str:
+    """Trigger instants: one row per agent, a tick per state broadcast (isl/tx)."""
+    from dashboards.report import _colors, _plt, _save
+
+    plt = _plt()
+    col = _colors(len(ids))
+    fig, ax = plt.subplots(figsize=(8, 0.25 * len(ids) + 1.5))
+    for i, n in enumerate(ids):
+        ks = np.array([k for s, ty, _b, k in tx if s == n and ty == typ], dtype=float) * dt_s
+        ax.vlines(ks, i - 0.4, i + 0.4, color=col[i], lw=0.5)
+    ax.set_yticks(range(len(ids)), ids, fontsize=7)
+    ax.set_xlim(0.0, t_end)
+    ax.set_xlabel("t [s]")
+    ax.set_title(f"{run}: trigger instants ({typ} broadcasts)")
     return _save(fig, path)
 
 
@@ -331,6 +451,12 @@ def capture(ctx: SectionContext) -> SectionResult:
     if np.isfinite(rec.sc_q).all():
         point = pointing_error_deg(pos, rec.sc_q, rec.target_pos, t, tr.mean_motion_radps)
     dv = tr.delta_v_mps[-1]
+    rate = rec.sc_w if rec.sc_w is not None and np.isfinite(rec.sc_w).all() else None
+    est_axes = rec.est_axes if rec.est_axes is not None else np.full(pos.shape, np.nan)
+    est_centre = rec.est_centre if rec.est_centre is not None else np.full(pos.shape, np.nan)
+    ax_err, c_err = axes_error(est_axes, axes), centroid_error(est_centre, rec.target_pos)
+    ax_fin, c_fin = last_finite(ax_err), last_finite(c_err)
+    has_est = np.isfinite(ax_fin)
 
     met: dict[str, Any] = {
         "target": rec.target_id, "agents": ids, "window_s": [float(t[0]), float(t[-1])],
@@ -359,10 +485,26 @@ def capture(ctx: SectionContext) -> SectionResult:
         "every_step_ratio": state["tx_messages"] / max(chase_steps, 1),
         "hz1_ratio": state["tx_messages"] / max(hz1, 1e-9),
         "tx_recorded": len(rec.tx),
+        # the agents' own estimates (telemetry Telemetry.items) against the truth, at their last estimate
+        "agents_with_estimate": int(has_est.sum()),
+        "axes_final_m": {n: [float(x) for x in last_finite(est_axes)[i]] for i, n in enumerate(ids) if has_est[i]},
+        "axes_final_rel_err": {n: float(ax_fin[i]) for i, n in enumerate(ids) if has_est[i]},
+        "axes_final_rel_err_max": float(np.max(ax_fin[has_est])) if has_est.any() else None,
+        "axes_within_2pct": int(np.sum(ax_fin[has_est] <= 0.02)),
+        "centroid_final_err_m": {n: float(c_fin[i]) for i, n in enumerate(ids) if has_est[i]},
+        "centroid_final_err_max_m": float(np.max(c_fin[has_est])) if has_est.any() else None,
     }
+    if rec.est_surface is not None and np.isfinite(rec.est_surface).any():
+        met["min_surface_est_m"] = float(np.nanmin(rec.est_surface))  # what the agents believed
     if point is not None:
         met["pointing_final_deg"] = {n: float(point[-1, i]) for i, n in enumerate(ids)}
         met["pointing_final_max_deg"] = float(point[-1].max())
+        settle = settle_time(t, point, 1.0)
+        met["pointing_settled_1deg_s"] = {n: settle[i] for i, n in enumerate(ids)}
+        met["pointing_settle_after_chase_s"] = {n: round(settle[i] - entry[n], 2) for i, n in enumerate(ids)
+                                                if n in entry and settle[i] is not None}
+    if rate is not None:
+        met["max_body_rate_dps"] = float(np.degrees(np.linalg.norm(rate, axis=2).max()))
 
     out = ctx.out
     figs = [
@@ -377,10 +519,19 @@ def capture(ctx: SectionContext) -> SectionResult:
         (fig_messages(rec.tx, dt, float(t[-1]), ids, types, run, out / "p000_messages.png"),
          "Cumulative packets sent per agent and message type (the recorded isl/tx topics)."),
     ]
+    figs.append((fig_triggers(rec.tx, dt, float(t[-1]), ids, run, out / "p000_triggers.png"),
+                 "Trigger instants: each agent's p000-state broadcasts (event trigger eq. 28, forced events, or "
+                 "the baseline schedule)."))
     if point is not None:
-        figs.append((fig_pointing(t, point, ids, run, out / "p000_pointing.png"),
-                     "Angle between each agent's sensor boresight (body +x) and the line of sight to the TRUE "
-                     "centroid."))
+        figs.append((fig_pointing(t, point, rate, ids, run, out / "p000_pointing.png"),
+                     "Attitude errors: angle between each agent's sensor boresight (body +x) and the line of sight "
+                     "to the TRUE centroid; body rate magnitude."))
+    if has_est.any():
+        figs.append((fig_axes(t, est_axes, axes, ids, run, out / "p000_axes.png"),
+                     "Figs. 7/12: each agent's sorted semi-axes estimate (from its telemetry) against the truth "
+                     "(dashed)."))
+        figs.append((fig_centroid(t, c_err, ids, run, out / "p000_centroid.png"),
+                     "Distance of each agent's centroid estimate (telemetry) to the TRUE target centre."))
     lt = met["link"]["per_type"]
     table = _table([
         ("window", _window(t)),
@@ -398,6 +549,9 @@ def capture(ctx: SectionContext) -> SectionResult:
         ("state packets vs every step / vs 1 Hz of the chase time",
          f"{met['every_step_ratio']:.3g} / {met['hz1_ratio']:.3g}"),
         *([("final pointing error (worst)", f"{met['pointing_final_max_deg']:.3g} deg")] if point is not None else []),
+        *([("final sorted semi-axes error (worst) / within 2 %",
+            f"{100 * met['axes_final_rel_err_max']:.3g} % / {met['axes_within_2pct']} of {int(has_est.sum())}"),
+           ("final centroid error (worst)", f"{met['centroid_final_err_max_m']:.3g} m")] if has_est.any() else []),
     ])
     return SectionResult(title="Paper 000: event-triggered capture of a tumbling target", metrics=met,
                          figures=figs, html=table)

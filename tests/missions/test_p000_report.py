@@ -28,7 +28,8 @@ for p in (ROOT, ROOT / "tests", ROOT / "tests" / "missions"):
 from test_p000_stack import CASE_I, DT, swarmhil_run  # noqa: E402
 
 DURATION_S = 23.0
-FIGURES = ("p000_paths3d.png", "p000_surface.png", "p000_pairs.png", "p000_messages.png", "p000_pointing.png")
+FIGURES = ("p000_paths3d.png", "p000_surface.png", "p000_pairs.png", "p000_messages.png", "p000_pointing.png",
+           "p000_triggers.png", "p000_axes.png", "p000_centroid.png")
 
 
 def recompute(run: dict) -> dict:
@@ -63,7 +64,16 @@ def recompute(run: dict) -> dict:
         c = per_agent.setdefault(src, {}).setdefault(typ, [0, 0])
         c[0] += 1
         c[1] += nbytes
-    return {"sd": sd, "min_pair_m": min_pair, "entry": entry, "pointing": point, "dv": dv, "tx": per_agent}
+    # each agent's last estimate in its telemetry against the truth of that step (sorted axes; centre)
+    true_axes = sorted(axes.tolist())
+    axes_err, centre_err = {}, {}
+    for sid, by_step in run["est"].items():
+        k = max(by_step)
+        est = by_step[k]
+        axes_err[sid] = max(abs(e - a) / a for e, a in zip(est["p000_axes_est_m"], true_axes))
+        centre_err[sid] = math.dist(est["p000_centre_est_m"], run["target_pos"][k].tolist())
+    return {"sd": sd, "min_pair_m": min_pair, "entry": entry, "pointing": point, "dv": dv, "tx": per_agent,
+            "axes_err": axes_err, "centre_err": centre_err}
 
 
 @pytest.mark.timeout(300)
@@ -107,6 +117,12 @@ def test_report_has_the_capture_section(tmp_path: Path) -> None:
     assert sum(c["tx_messages"] for c in got["link"]["per_type"].values()) == tot["tx_messages"] == len(run["tx"])
     assert sum(c["rx_payload_bytes"] for c in got["link"]["per_type"].values()) == tot["rx_payload_bytes"]
     assert got["state_msgs"] == 3 and got["state_bytes"] == 3 * 84
+    # the estimates in telemetry: the three chasing agents have one; the section's errors = the recomputation
+    assert set(want["axes_err"]) == {"a1", "a2", "a8"} and got["agents_with_estimate"] == 3
+    for sid in want["axes_err"]:
+        assert close(got["axes_final_rel_err"][sid], want["axes_err"][sid]), sid
+        assert close(got["centroid_final_err_m"][sid], want["centre_err"][sid]), sid
+    assert got["axes_within_2pct"] == sum(e <= 0.02 for e in want["axes_err"].values())
 
     page = (run_dir / "report" / "index.html").read_text()
     assert "Paper 000: event-triggered capture of a tumbling target" in page

@@ -183,7 +183,11 @@ class CaptureController:
             torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, p.inertia,
                                      p.k_q * np.eye(3), p.k_w * np.eye(3), p.torque_max_nm)
         force = saturate_norm(force, p.force_max_n)
-        return Command(accel_mps2=force / p.mass_kg, mode=self.mode, transmissions=txs, torque_nm=torque)
+        extra = {} if ell is None else {  # what the agent believes, for the report (Figs. 7, 12)
+            "p000_axes_est_m": np.sort(ell.semi_axes_m), "p000_centre_est_m": ell.centre_m,
+            "p000_surface_est_m": np.array([sd])}
+        return Command(accel_mps2=force / p.mass_kg, mode=self.mode, transmissions=txs, torque_nm=torque,
+                       extra=extra)
 
 
 @register("p000-capture")
