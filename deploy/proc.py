@@ -273,17 +273,24 @@ def main(argv: list[str] | None = None) -> int:
 
 def write_import_audit(role: str) -> None:
     """With SWARMHIL_IMPORT_AUDIT=DIR set: write DIR/<role>.json, the top-level packages this process
-    has imported and its peak and current RSS, for tests/test_imports.py and bench/agent_rss.py.
+    has imported, its peak and current RSS, and its PSS and USS at exit (/proc smaps_rollup), for
+    tests/test_imports.py, tests/test_agents100.py and bench/agent_rss.py.
     (The peak is /proc VmHWM, not getrusage's ru_maxrss, which keeps the launcher's RSS at the fork.)"""
     where = os.environ.get("SWARMHIL_IMPORT_AUDIT")
     if not where:
         return
     tops = sorted({m.split(".")[0] for m in list(sys.modules)})
     status = dict(line.split(":", 1) for line in Path("/proc/self/status").read_text().splitlines() if ":" in line)
-    kb = {k: int(status[k].split()[0]) * 1024 for k in ("VmHWM", "VmRSS")}
-    Path(where, f"{role}.json").write_text(json.dumps({"role": role, "modules": tops, "peak_rss_bytes": kb["VmHWM"],
-                                                       "rss_bytes": kb["VmRSS"]}))
-
+    kb = {k: int(status[k].split()[0]) * 1024 for k in ("VmHWM", "VmRSS", "RssAnon", "RssFile")}
+    roll = dict(line.split(":", 1) for line in Path("/proc/self/smaps_rollup").read_text().splitlines()[1:] if ":" in line)
+    sm = {k: int(roll[k].split()[0]) * 1024 for k in ("Pss", "Private_Clean", "Private_Dirty")}
+    Path(where, f"{role}.json").write_text(json.dumps({
+        "role": role, "modules": tops, "peak_rss_bytes": kb["VmHWM"], "rss_bytes": kb["VmRSS"],
+        "rss_anon_bytes": kb["RssAnon"], "rss_file_bytes": kb["RssFile"],
+        # what N such processes add up to: shared library pages split among their sharers (PSS), and
+        # this process's own pages (USS); RSS counts every mapped page of shared files in full, and how
+        # many the kernel maps depends on the page cache (docs/performance.md "RSS, PSS and USS")
+        "pss_bytes": sm["Pss"], "uss_bytes": sm["Private_Clean"] + sm["Private_Dirty"]}))
 
 if __name__ == "__main__":
     code = main()
