@@ -162,6 +162,10 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if tls and (insecure or in_process):
         click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
         sys.exit(2)
+    if insecure and sc.tls and not in_process:
+        click.echo(f"error: --insecure conflicts with [security].tls = true of {scenario} "
+                   "(TLS names each process by its credential); add --set security.tls=false", err=True)
+        sys.exit(2)
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
     except ValueError as exc:

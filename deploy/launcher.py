@@ -221,9 +221,11 @@ class MultiProcessRun:
         self.opts = opts or {}
         self.companions = enabled_companions(sc, self.opts)
         # authentication and access control on the router (bus/acl.py); off only by explicit choice
-        self.secure = bool(self.opts.get("secure", True))
-        # mutual TLS on every link to the router, with per-run certificates (bus/tls.py)
-        self.tls = bool(self.opts.get("tls", False))
+        # ([security].auth of the scenario; `--insecure` turns it off)
+        self.secure = bool(self.opts.get("secure", sc.auth))
+        # mutual TLS on every link to the router, with per-run certificates (bus/tls.py):
+        # [security].tls of the scenario, or `--tls`
+        self.tls = bool(self.opts.get("tls", sc.tls))
         self.security: Any = None
         self.procs: dict[str, subprocess.Popen] = {}
         self.exited: dict[str, int] = {}

@@ -17,7 +17,7 @@ from bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
-    "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision",
+    "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision", "security",
 }
 RESTART_POLICIES = ("never", "on-failure")
 PROPAGATORS = ("linear", "j2", "cw", "inertial")  # plant/dynamics/propagator.py
@@ -65,6 +65,8 @@ class Scenario:
     stall_timeout_s: float = 120.0     # [supervision]: lockstep's one wall-time decision (a stall)
     restart: str = "never"            # [supervision]: what the launcher does with a dead agent
     max_restarts: int = 3             # [supervision]: restarts per agent
+    auth: bool = True                 # [security]: per-process credentials + ACL on the router (bus/acl.py)
+    tls: bool = False                 # [security]: mutual TLS to the router, per-run certificates (bus/tls.py)
     decision_period_steps: int = 1
     sections: dict[str, Any] = field(default_factory=dict)  # raw tables for link, beacon, nav, viz
     spacecraft: list[Any] = field(default_factory=list)     # plant.bodies.SpacecraftSpec, one per id
@@ -121,6 +123,7 @@ class Scenario:
             "sensing": dict(self.sensing),
             "supervision": {"stall_timeout_s": self.stall_timeout_s, "restart": self.restart,
                             "max_restarts": self.max_restarts},
+            "security": {"auth": self.auth, "tls": self.tls},
             "link": link,
             "beacon": self.sections.get("beacon"),
             "nav": self.sections.get("nav"),
@@ -373,6 +376,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         except ValueError as exc:
             raise ScenarioError(f"{src}: {exc}") from None
     stall, restart, max_restarts = _supervision(src, doc)
+    auth, tls = _security(src, doc)
 
     _beacon(src, doc)
     _viz(src, doc)
@@ -380,7 +384,8 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         name=name, source=src, duration_s=duration, step_s=step, seed=seed, mode=mode, speed=speed,
         orbit=orbit, fidelity=fidelity, drag=drag, camera=camera, max_accel_mps2=max_accel,
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
-        stall_timeout_s=stall, restart=restart, max_restarts=max_restarts, decision_period_steps=decision_steps,
+        stall_timeout_s=stall, restart=restart, max_restarts=max_restarts, auth=auth, tls=tls,
+        decision_period_steps=decision_steps,
         sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
@@ -437,6 +442,22 @@ def _supervision(src: str, doc: dict[str, Any]) -> tuple[float, str, int]:
     if isinstance(max_restarts, bool) or not isinstance(max_restarts, int) or not 0 <= max_restarts <= 1000:
         raise _err(src, "[supervision].max_restarts", "must be an integer in 0..1000", max_restarts)
     return float(stall), restart, max_restarts
+
+
+def _security(src: str, doc: dict[str, Any]) -> tuple[bool, bool]:
+    """[security] of a multi-process run (docs/reliability.md): `auth` (default true: one
+    credential per process, usrpwd authentication and the per-key ACL on the router) and `tls`
+    (default false: mutual TLS on every link to the router with the run's own CA). TLS names a
+    process by its credential's user, so `tls = true` needs `auth = true`. The command line's
+    `--insecure` / `--tls` override the file. An in-process run has no network: both are moot."""
+    sec = _table(src, doc, "security", {"auth", "tls"})
+    for key in ("auth", "tls"):
+        if key in sec and not isinstance(sec[key], bool):
+            raise _err(src, f"[security].{key}", "must be true or false", sec[key])
+    auth, tls = sec.get("auth", True), sec.get("tls", False)
+    if tls and not auth:
+        raise _err(src, "[security].tls", "needs [security].auth = true (TLS names each process by its credential)", tls)
+    return auth, tls
 
 
 def _import_plugins(src: str, plugins: Any) -> None:

@@ -108,11 +108,43 @@ def test_swarmhil_run_tls(tmp_path: Path) -> None:
     bad = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--tls", "--insecure", "--out",
                           str(tmp_path / "bad")], cwd=ROOT, capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
+    # the scenario's own [security].tls = true does what --tls does (and --insecure conflicts with it)
+    scen.write_text(SMALL + "\n[security]\ntls = true\n")
+    bad = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--insecure", "--out",
+                          str(tmp_path / "bad2")], cwd=ROOT, capture_output=True, text=True)
+    assert bad.returncode == 2 and "[security].tls" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--tls", "--no-progress", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--no-progress", "--out", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=240)
     assert r.returncode == 0, r.stderr
     s = json.loads((out / "summary.json").read_text())
     assert s["tls"] is True and s["router"].startswith("tls/127.0.0.1:") and s["steps"] == 3
     assert (out / "secrets" / "tls" / "agent-sc01.pem").is_file()
     assert sum(t == "truth" for t, *_ in read_mcap(out / "run.mcap")) == 4
+
+
+@pytest.mark.parametrize("table, says", [
+    ("[security]\ntls = true\nauth = false\n", "[security].tls needs [security].auth = true"),
+    ("[security]\ntls = \"yes\"\n", "[security].tls must be true or false"),
+    ("[security]\nauth = 1\n", "[security].auth must be true or false"),
+    ("[security]\ncert = \"x\"\n", "cert"),
+])
+def test_security_table_is_validated(tmp_path: Path, table: str, says: str) -> None:
+    from deploy.scenario import ScenarioError, load_scenario
+
+    scen = tmp_path / "s.toml"
+    scen.write_text(SMALL + "\n" + table)
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(scen)
+    assert says in str(exc.value), str(exc.value)
+
+
+def test_security_defaults_and_resolved_configuration(tmp_path: Path) -> None:
+    from deploy.scenario import load_scenario
+
+    scen = tmp_path / "s.toml"
+    scen.write_text(SMALL)
+    sc = load_scenario(scen)
+    assert (sc.auth, sc.tls) == (True, False) and sc.resolved()["security"] == {"auth": True, "tls": False}
+    sc = load_scenario(scen, ("security.tls=true",))
+    assert sc.tls is True and sc.resolved()["security"]["tls"] is True
