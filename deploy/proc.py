@@ -20,7 +20,7 @@ from typing import Any
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
 from deploy.scenario import load_scenario, resolved_document
-
+from deploy.stopping import Stop, stop_on_signals
 
 # An agent's Zenoh lease: a frozen (SIGSTOPped) agent's liveliness token goes after this long.
 # 2 s was too short on a loaded 2-core machine: an agent that was merely starved of CPU for 2 s
@@ -43,27 +43,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    "mutual TLS to a router on a tls/... endpoint; needs --credentials (the user names the certificate)")
 
 
-def _stop_event() -> threading.Event:
-    stop = threading.Event()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    _watch_parent(stop)
-    return stop
-
-
-def _watch_parent(stop: threading.Event) -> None:
-    """No orphans: stop when the launcher is gone. The launcher already asks the kernel for a
-    SIGTERM on its death (PR_SET_PDEATHSIG); this watchdog covers a platform without it."""
-    parent = int(os.environ.get("SWARMHIL_PARENT_PID", "0") or 0)
-    if not parent:
-        return
-
-    def watch() -> None:
-        while not stop.wait(0.5):
-            if os.getppid() != parent:
-                logging.getLogger("swarmhil.proc").warning("launcher (pid %d) is gone; stopping", parent)
-                stop.set()
-    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+def _stop_event() -> Stop:
+    """SIGTERM stops (deploy/stopping.py); Ctrl-C is the launcher's to handle."""
+    return stop_on_signals(signal.SIGTERM, ignore=(signal.SIGINT,))
 
 
 # A child whose session has had no router this long exits (the router is gone: no orphans). Longer
@@ -73,7 +55,7 @@ ROUTER_LOST_EXIT = 5  # exit code of a child that stopped because it lost the ro
 _router_lost = threading.Event()
 
 
-def _watch_router(bus: Any, stop: threading.Event, grace_s: float = ROUTER_GRACE_S) -> None:
+def _watch_router(bus: Any, stop: Stop, grace_s: float = ROUTER_GRACE_S) -> None:
     """Stop when the session has been without its router for `grace_s` (the router process was
     killed, or the launcher and the router with it): every child then ends as on SIGTERM."""
     log = logging.getLogger("swarmhil.proc")
@@ -112,7 +94,7 @@ def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
         os._exit(0)
 
 
-def _agent(args: argparse.Namespace, stop: threading.Event, cred: Any, out: Path) -> int:
+def _agent(args: argparse.Namespace, stop: Stop, cred: Any, out: Path) -> int:
     """One spacecraft's flight software: its config from the launcher's DIR/scenario.json (no
     pydantic, no launcher, no other mission imported), else validated from a TOML scenario."""
     from deploy.agent_image import agent_config, build_agent, read_agent_config

@@ -15,6 +15,8 @@ import signal
 import sys
 import threading
 
+from deploy.stopping import Stop, stop_on_signals
+
 
 def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | None = None, acl: str | None = None,
                      tls: str | None = None) -> dict | None:
@@ -44,7 +46,7 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
     return overrides or None
 
 
-def run_router(listen: str, overrides: dict | None, stop: threading.Event) -> int:
+def run_router(listen: str, overrides: dict | None, stop: Stop) -> int:
     import zenoh
 
     from bus.zenoh_bus import _address_in_use, open_router
@@ -65,18 +67,6 @@ def run_router(listen: str, overrides: dict | None, stop: threading.Event) -> in
     return 0
 
 
-def _watch_parent(stop: threading.Event) -> None:
-    parent = int(os.environ.get("SWARMHIL_PARENT_PID", "0") or 0)
-    if not parent:
-        return
-
-    def watch() -> None:
-        while not stop.wait(0.5):
-            if os.getppid() != parent:
-                stop.set()
-    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m deploy.router")
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
@@ -88,10 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    _watch_parent(stop)
+    stop = stop_on_signals(signal.SIGTERM, signal.SIGINT)
     return run_router(args.listen, overrides, stop)
 
 

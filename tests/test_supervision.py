@@ -161,3 +161,38 @@ def test_sigkilled_router_stops_every_process_and_leaves_a_readable_recording(tm
     assert "router" in s["failure"]
     steps = [m.header.step for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "truth"]
     assert steps[:5] == list(range(5))
+
+
+SIGNAL_ON_ANOTHER_THREAD = '''
+import signal, sys, threading, time
+{setup}
+def other():
+    time.sleep(0.3)
+    signal.pthread_kill(threading.get_ident(), signal.SIGTERM)  # the kernel may pick this thread
+    time.sleep(30)
+threading.Thread(target=other, daemon=True).start()
+t0 = time.monotonic()
+stop.wait()
+print(f"stopped {{time.monotonic() - t0:.2f}}", flush=True)
+'''
+
+
+@pytest.mark.parametrize("setup, stops", [
+    ("from deploy.stopping import stop_on_signals\nstop = stop_on_signals(signal.SIGTERM)", True),
+    # what the children did before: an untimed Event.wait() in the main thread is never woken
+    ("stop = threading.Event()\nsignal.signal(signal.SIGTERM, lambda *_: stop.set())", False),
+])
+def test_sigterm_taken_by_another_thread_still_stops_the_main_thread(setup: str, stops: bool) -> None:
+    """The kernel hands a process-directed SIGTERM (the launcher's, or PR_SET_PDEATHSIG) to any thread;
+    the child must stop anyway (deploy/stopping.py). Once in about a dozen SIGKILLed-launcher runs an
+    agent stayed until its 8 s router watchdog: this is that case made deterministic."""
+    p = subprocess.Popen([sys.executable, "-c", SIGNAL_ON_ANOTHER_THREAD.format(setup=setup)], cwd=ROOT,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = p.communicate(timeout=5)
+        assert stops and p.returncode == 0 and out.startswith("stopped"), (out, err)
+        assert float(out.split()[1]) < 2.0, out
+    except subprocess.TimeoutExpired:
+        p.kill()  # this test's own child, by its Popen
+        p.communicate()
+        assert not stops, "the main thread never woke up"
