@@ -209,7 +209,8 @@ def write_paired(base_dir: str | Path, other_dir: str | Path, out: str | Path, l
                   f"| {_f(s['min'], 3)} | {_f(s['max'], 3)} |")
     md += ["", f"Per-step weak connectivity within {tolerance_pp:g} pp of {la}: {st['seeds_within']} of "
                f"{st['seeds']} seeds; the 95 % CI of the mean difference is "
-               f"{'within' if st['ci_within'] else 'not within'} +-{tolerance_pp:g} pp.", ""]
+               f"{'undefined (one seed)' if st['metrics'][WCF]['ci95_low'] is None else 'within' if st['ci_within'] else 'not within'}"
+               f" +-{tolerance_pp:g} pp.", ""]
     win = [r for r in rows if "window_s" in r]
     if win:
         ws = win[0]["window_s"]
