@@ -260,15 +260,38 @@ def decision_roe_errors(dec: DecisionRows, rows: TrackRows, err: NavErrors, trut
     return out
 
 
-def coverage(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> float:
-    """Fraction of (step, j, k) with j seeing k (truth) that have a track of j associated with k."""
+def track_graph(rows: TrackRows, err: NavErrors, shape: tuple[int, ...], used_only: bool = False) -> np.ndarray:
+    """(T, N, N) bool: j has a track associated with k at that truth row (used_only: a track its
+    controller acted on at that step)."""
+    ok = (err.truth_row >= 0) & (rows.used if used_only else True)
+    hit = np.zeros(shape, dtype=bool)
+    hit[err.truth_row[ok], rows.observer[ok], err.neighbour[ok]] = True
+    return hit
+
+
+def coverage(rows: TrackRows, err: NavErrors, vis: np.ndarray, used_only: bool = False) -> float:
+    """Fraction of (step, j, k) with j seeing k (truth) that have a track of j associated with k
+    (used_only: a track the controller acted on; the rest were held back by [nav].control_max_sigma_m)."""
     total = int(vis.sum())
     if total == 0:
         return float("nan")
-    ok = err.truth_row >= 0
-    hit = np.zeros_like(vis)
-    hit[err.truth_row[ok], rows.observer[ok], err.neighbour[ok]] = True
-    return float((hit & vis).sum() / total)
+    return float((track_graph(rows, err, vis.shape, used_only) & vis).sum() / total)
+
+
+def control_graph_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> dict[str, Any]:
+    """What the controllers acted on against what the cameras saw (issue 16, camera connectivity):
+    the share of used track rows whose neighbour was not visible at that step (a track kept through
+    a few misses), and the per-step weak connectivity of the digraph j -> k of the tracks the
+    controllers used, beside that of the plant's visibility digraph (dashboards/metrics.py)."""
+    from dashboards.metrics import weak_components
+
+    u = rows.used & (err.truth_row >= 0)
+    seen = vis[err.truth_row[u], rows.observer[u], err.neighbour[u]]
+    n_used, _ = weak_components(track_graph(rows, err, vis.shape, used_only=True))
+    n_vis, _ = weak_components(vis)
+    return {"used_rows_not_visible_fraction": float(np.mean(~seen)) if seen.size else None,
+            "used_graph_weakly_connected_fraction": float(np.mean(n_used == 1)),
+            "visibility_weakly_connected_fraction": float(np.mean(n_vis == 1))}
 
 
 # --- summary ------------------------------------------------------------------------------------------
@@ -319,6 +342,8 @@ def nav_summary(rows: TrackRows, err: NavErrors, dec_err: np.ndarray, vis: np.nd
         s["used_fraction"] = float(np.mean(rows.used))
         if vis is not None:
             s["coverage_of_visible_pairs"] = coverage(rows, err, vis)
+            s["coverage_of_visible_pairs_used"] = coverage(rows, err, vis, used_only=True)
+            s.update(control_graph_summary(rows, err, vis))
     d_ok = np.isfinite(dec_err).all(axis=1)
     s["decision_roe_error"] = {k: _pct(v[d_ok]) for k, v in roe_error_magnitudes(dec_err).items()}
     s["decision_roe_error"]["resolved_fraction"] = float(d_ok.mean()) if d_ok.size else None
@@ -502,6 +527,12 @@ def nav_table_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
            ("ambiguous association (second candidate < 2x nearest)", f"{_fmt(100 * (s['ambiguous_association_fraction'] or 0))} %"),
            ("coverage of truly visible pairs", f"{_fmt(100 * s.get('coverage_of_visible_pairs', float('nan')))} %"),
            ("rows used by the controller", f"{_fmt(100 * s['used_fraction'])} %")]
+    if "coverage_of_visible_pairs_used" in s:
+        out += [("visible pairs with a track the controller used", f"{_fmt(100 * s['coverage_of_visible_pairs_used'])} %"),
+                ("used rows whose neighbour was not visible", f"{_fmt(100 * (s['used_rows_not_visible_fraction'] or 0))} %"),
+                ("weakly connected per step: graph of used tracks / visibility graph",
+                 f"{_fmt(100 * s['used_graph_weakly_connected_fraction'])} % / "
+                 f"{_fmt(100 * s['visibility_weakly_connected_fraction'])} %")]
     for label, key in (("all tracks", "all_tracks"), ("used by the controller", "tracks_used_by_controller")):
         b = s[key]
         out += [(f"{label}: position error [m] (median / 95 %)", _mp(b, "position_m")),
