@@ -294,6 +294,27 @@ def control_graph_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> d
             "visibility_weakly_connected_fraction": float(np.mean(n_vis == 1))}
 
 
+def held_back_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray, truth: TruthArrays, max_range_m: float,
+                      start_s: float = H) -> dict[str, Any]:
+    """Visible pairs whose observer had a track the controller did not use (held back by
+    [nav].control_max_sigma_m, or not confirmed yet), as a fraction of the visible pair-steps: over
+    the run, in the first `start_s` and after it (the start-up transient), and by true range in
+    bands of the detection range: [0, 0.6), [0.6, 0.9), [0.9, 1] (the far links decide connectivity)."""
+    held = vis & track_graph(rows, err, vis.shape) & ~track_graph(rows, err, vis.shape, used_only=True)
+    rel = truth.position_m[:, None, :, :] - truth.position_m[:, :, None, :]  # [t, j, k] = r_k - r_j
+    frac = np.linalg.norm(rel, axis=3) / max_range_m
+    early = (truth.t_s - truth.t_s[0] < start_s)[:, None, None]
+    f = lambda m: float(np.sum(held & m) / np.sum(vis & m)) if np.any(vis & m) else None  # noqa: E731
+    return {"held_back_fraction": f(np.ones_like(vis)), "held_back_start_s": float(start_s),
+            "held_back_fraction_start": f(np.broadcast_to(early, vis.shape)),
+            "held_back_fraction_after_start": f(np.broadcast_to(~early, vis.shape)),
+            "held_back_fraction_by_range": {"0-0.6": f(frac < 0.6), "0.6-0.9": f((frac >= 0.6) & (frac < 0.9)),
+                                            "0.9-1": f(frac >= 0.9)},
+            "visible_pair_steps_by_range": {"0-0.6": int(np.sum(vis & (frac < 0.6))),
+                                            "0.6-0.9": int(np.sum(vis & (frac >= 0.6) & (frac < 0.9))),
+                                            "0.9-1": int(np.sum(vis & (frac >= 0.9)))}}
+
+
 # --- summary ------------------------------------------------------------------------------------------
 def _pct(x: np.ndarray) -> dict[str, Any]:
     x = np.asarray(x, float)
@@ -533,6 +554,14 @@ def nav_table_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
                 ("weakly connected per step: graph of used tracks / visibility graph",
                  f"{_fmt(100 * s['used_graph_weakly_connected_fraction'])} % / "
                  f"{_fmt(100 * s['visibility_weakly_connected_fraction'])} %")]
+    if "held_back_fraction" in s:
+        p = lambda v: "-" if v is None else f"{_fmt(100 * v)} %"  # noqa: E731
+        b = s["held_back_fraction_by_range"]
+        out += [("visible pairs with a track the controller did not use: run / first "
+                 f"{_fmt(s['held_back_start_s'] / H)} h / after",
+                 f"{p(s['held_back_fraction'])} / {p(s['held_back_fraction_start'])} / {p(s['held_back_fraction_after_start'])}"),
+                ("... by true range / detection range 0-0.6 / 0.6-0.9 / 0.9-1",
+                 f"{p(b['0-0.6'])} / {p(b['0.6-0.9'])} / {p(b['0.9-1'])}")]
     for label, key in (("all tracks", "all_tracks"), ("used by the controller", "tracks_used_by_controller")):
         b = s[key]
         out += [(f"{label}: position error [m] (median / 95 %)", _mp(b, "position_m")),
@@ -592,8 +621,11 @@ def analyse_run(run_dir: str | Path) -> RunNav:
     rows, dec = read_tracks(run_dir / "run.mcap", truth.run, truth.ids)
     err = associate(rows, truth)
     derr = decision_roe_errors(dec, rows, err, truth)
-    vis = visibility_series(truth.position_m, _camera(run_dir, summary), truth.alive) if rows.n else None
+    cam = _camera(run_dir, summary)
+    vis = visibility_series(truth.position_m, cam, truth.alive) if rows.n else None
     s = nav_summary(rows, err, derr, vis)
+    if vis is not None:
+        s.update(held_back_summary(rows, err, vis, truth, cam.detection_range_m))
     s["run"] = truth.run
     return RunNav(truth, rows, err, dec, derr, s)
 

@@ -225,6 +225,15 @@ def test_reports_and_comparison_are_written(runs, tmp_path):
                                                            nav.rows.used) if u]
     assert s["used_rows_not_visible_fraction"] == pytest.approx(np.mean([x not in vis for x in used]), abs=1e-12)
     assert 0.0 <= s["used_graph_weakly_connected_fraction"] <= 1.0
+    # held back = visible with a track but none used: the two coverages' difference; the range bands
+    # and the start / after split partition the visible pair-steps (a 300 s run is all start)
+    assert s["held_back_fraction"] == pytest.approx(cov - cov_used, abs=1e-12)
+    assert s["held_back_fraction_start"] == pytest.approx(s["held_back_fraction"], abs=1e-12)
+    assert s["held_back_fraction_after_start"] is None
+    n = s["visible_pair_steps_by_range"]
+    assert sum(n.values()) == len(vis)
+    by = s["held_back_fraction_by_range"]
+    assert sum(n[b] * (by[b] or 0.0) for b in n) / len(vis) == pytest.approx(s["held_back_fraction"], abs=1e-12)
     assert {"pairs.png", "error_time.png", "nees_time.png"} <= {p.name for p in out.glob("*.png")}
     md = write_comparison([runs["ideal"], runs["filter"]], tmp_path / "cmp", labels=["ideal", "filter"])
     lines = md.read_text().splitlines()
