@@ -260,15 +260,59 @@ def decision_roe_errors(dec: DecisionRows, rows: TrackRows, err: NavErrors, trut
     return out
 
 
-def coverage(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> float:
-    """Fraction of (step, j, k) with j seeing k (truth) that have a track of j associated with k."""
+def track_graph(rows: TrackRows, err: NavErrors, shape: tuple[int, ...], used_only: bool = False) -> np.ndarray:
+    """(T, N, N) bool: j has a track associated with k at that truth row (used_only: a track its
+    controller acted on at that step)."""
+    ok = (err.truth_row >= 0) & (rows.used if used_only else True)
+    hit = np.zeros(shape, dtype=bool)
+    hit[err.truth_row[ok], rows.observer[ok], err.neighbour[ok]] = True
+    return hit
+
+
+def coverage(rows: TrackRows, err: NavErrors, vis: np.ndarray, used_only: bool = False) -> float:
+    """Fraction of (step, j, k) with j seeing k (truth) that have a track of j associated with k
+    (used_only: a track the controller acted on; the rest were held back by [nav].control_max_sigma_m)."""
     total = int(vis.sum())
     if total == 0:
         return float("nan")
-    ok = err.truth_row >= 0
-    hit = np.zeros_like(vis)
-    hit[err.truth_row[ok], rows.observer[ok], err.neighbour[ok]] = True
-    return float((hit & vis).sum() / total)
+    return float((track_graph(rows, err, vis.shape, used_only) & vis).sum() / total)
+
+
+def control_graph_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> dict[str, Any]:
+    """What the controllers acted on against what the cameras saw (issue 16, camera connectivity):
+    the share of used track rows whose neighbour was not visible at that step (a track kept through
+    a few misses), and the per-step weak connectivity of the digraph j -> k of the tracks the
+    controllers used, beside that of the plant's visibility digraph (dashboards/metrics.py)."""
+    from dashboards.metrics import weak_components
+
+    u = rows.used & (err.truth_row >= 0)
+    seen = vis[err.truth_row[u], rows.observer[u], err.neighbour[u]]
+    n_used, _ = weak_components(track_graph(rows, err, vis.shape, used_only=True))
+    n_vis, _ = weak_components(vis)
+    return {"used_rows_not_visible_fraction": float(np.mean(~seen)) if seen.size else None,
+            "used_graph_weakly_connected_fraction": float(np.mean(n_used == 1)),
+            "visibility_weakly_connected_fraction": float(np.mean(n_vis == 1))}
+
+
+def held_back_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray, truth: TruthArrays, max_range_m: float,
+                      start_s: float = H) -> dict[str, Any]:
+    """Visible pairs whose observer had a track the controller did not use (held back by
+    [nav].control_max_sigma_m, or not confirmed yet), as a fraction of the visible pair-steps: over
+    the run, in the first `start_s` and after it (the start-up transient), and by true range in
+    bands of the detection range: [0, 0.6), [0.6, 0.9), [0.9, 1] (the far links decide connectivity)."""
+    held = vis & track_graph(rows, err, vis.shape) & ~track_graph(rows, err, vis.shape, used_only=True)
+    rel = truth.position_m[:, None, :, :] - truth.position_m[:, :, None, :]  # [t, j, k] = r_k - r_j
+    frac = np.linalg.norm(rel, axis=3) / max_range_m
+    early = (truth.t_s - truth.t_s[0] < start_s)[:, None, None]
+    f = lambda m: float(np.sum(held & m) / np.sum(vis & m)) if np.any(vis & m) else None  # noqa: E731
+    return {"held_back_fraction": f(np.ones_like(vis)), "held_back_start_s": float(start_s),
+            "held_back_fraction_start": f(np.broadcast_to(early, vis.shape)),
+            "held_back_fraction_after_start": f(np.broadcast_to(~early, vis.shape)),
+            "held_back_fraction_by_range": {"0-0.6": f(frac < 0.6), "0.6-0.9": f((frac >= 0.6) & (frac < 0.9)),
+                                            "0.9-1": f(frac >= 0.9)},
+            "visible_pair_steps_by_range": {"0-0.6": int(np.sum(vis & (frac < 0.6))),
+                                            "0.6-0.9": int(np.sum(vis & (frac >= 0.6) & (frac < 0.9))),
+                                            "0.9-1": int(np.sum(vis & (frac >= 0.9)))}}
 
 
 # --- summary ------------------------------------------------------------------------------------------
@@ -319,6 +363,8 @@ def nav_summary(rows: TrackRows, err: NavErrors, dec_err: np.ndarray, vis: np.nd
         s["used_fraction"] = float(np.mean(rows.used))
         if vis is not None:
             s["coverage_of_visible_pairs"] = coverage(rows, err, vis)
+            s["coverage_of_visible_pairs_used"] = coverage(rows, err, vis, used_only=True)
+            s.update(control_graph_summary(rows, err, vis))
     d_ok = np.isfinite(dec_err).all(axis=1)
     s["decision_roe_error"] = {k: _pct(v[d_ok]) for k, v in roe_error_magnitudes(dec_err).items()}
     s["decision_roe_error"]["resolved_fraction"] = float(d_ok.mean()) if d_ok.size else None
@@ -502,6 +548,20 @@ def nav_table_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
            ("ambiguous association (second candidate < 2x nearest)", f"{_fmt(100 * (s['ambiguous_association_fraction'] or 0))} %"),
            ("coverage of truly visible pairs", f"{_fmt(100 * s.get('coverage_of_visible_pairs', float('nan')))} %"),
            ("rows used by the controller", f"{_fmt(100 * s['used_fraction'])} %")]
+    if "coverage_of_visible_pairs_used" in s:
+        out += [("visible pairs with a track the controller used", f"{_fmt(100 * s['coverage_of_visible_pairs_used'])} %"),
+                ("used rows whose neighbour was not visible", f"{_fmt(100 * (s['used_rows_not_visible_fraction'] or 0))} %"),
+                ("weakly connected per step: graph of used tracks / visibility graph",
+                 f"{_fmt(100 * s['used_graph_weakly_connected_fraction'])} % / "
+                 f"{_fmt(100 * s['visibility_weakly_connected_fraction'])} %")]
+    if "held_back_fraction" in s:
+        p = lambda v: "-" if v is None else f"{_fmt(100 * v)} %"  # noqa: E731
+        b = s["held_back_fraction_by_range"]
+        out += [("visible pairs with a track the controller did not use: run / first "
+                 f"{_fmt(s['held_back_start_s'] / H)} h / after",
+                 f"{p(s['held_back_fraction'])} / {p(s['held_back_fraction_start'])} / {p(s['held_back_fraction_after_start'])}"),
+                ("... by true range / detection range 0-0.6 / 0.6-0.9 / 0.9-1",
+                 f"{p(b['0-0.6'])} / {p(b['0.6-0.9'])} / {p(b['0.9-1'])}")]
     for label, key in (("all tracks", "all_tracks"), ("used by the controller", "tracks_used_by_controller")):
         b = s[key]
         out += [(f"{label}: position error [m] (median / 95 %)", _mp(b, "position_m")),
@@ -561,8 +621,11 @@ def analyse_run(run_dir: str | Path) -> RunNav:
     rows, dec = read_tracks(run_dir / "run.mcap", truth.run, truth.ids)
     err = associate(rows, truth)
     derr = decision_roe_errors(dec, rows, err, truth)
-    vis = visibility_series(truth.position_m, _camera(run_dir, summary), truth.alive) if rows.n else None
+    cam = _camera(run_dir, summary)
+    vis = visibility_series(truth.position_m, cam, truth.alive) if rows.n else None
     s = nav_summary(rows, err, derr, vis)
+    if vis is not None:
+        s.update(held_back_summary(rows, err, vis, truth, cam.detection_range_m))
     s["run"] = truth.run
     return RunNav(truth, rows, err, dec, derr, s)
 

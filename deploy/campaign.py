@@ -205,8 +205,8 @@ def load_rows(out: Path, seeds: Iterable[int] | None = None) -> list[dict[str, A
     return sorted(rows, key=lambda r: r["seed"])
 
 
-def _columns(rows: list[dict[str, Any]]) -> list[str]:
-    seen: dict[str, None] = {c: None for c in FIRST_COLUMNS}
+def _columns(rows: list[dict[str, Any]], first: Sequence[str] = FIRST_COLUMNS) -> list[str]:
+    seen: dict[str, None] = {c: None for c in first}
     for r in rows:
         for k in r:
             seen.setdefault(k, None)
@@ -223,8 +223,9 @@ def _column_values(rows: list[dict[str, Any]], col: str) -> list[Any]:
     return vals
 
 
-def write_table(out: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
-    """OUT/campaign.parquet and OUT/campaign.csv: one row per run, the same columns."""
+def write_table(out: Path, rows: list[dict[str, Any]], name: str = "campaign",
+                first: Sequence[str] = FIRST_COLUMNS) -> tuple[Path, Path]:
+    """OUT/<name>.parquet and OUT/<name>.csv: one row per run, the same columns (`first` first)."""
     import csv
 
     from bus.optional import require
@@ -232,16 +233,16 @@ def write_table(out: Path, rows: list[dict[str, Any]]) -> tuple[Path, Path]:
     pa = require("pyarrow", "the campaign table (Parquet)")
     pq = require("pyarrow.parquet", "the campaign table (Parquet)")
 
-    cols = _columns(rows)
+    cols = _columns(rows, first)
     data = {c: _column_values(rows, c) for c in cols}
     arrays = {c: pa.array(v, type=pa.string() if all(x is None for x in v) else None) for c, v in data.items()}
-    pq.write_table(pa.table(arrays), Path(out) / "campaign.parquet")
-    with open(Path(out) / "campaign.csv", "w", newline="") as f:
+    pq.write_table(pa.table(arrays), Path(out) / f"{name}.parquet")
+    with open(Path(out) / f"{name}.csv", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(cols)
         for i in range(len(rows)):
             w.writerow(["" if data[c][i] is None else data[c][i] for c in cols])
-    return Path(out) / "campaign.parquet", Path(out) / "campaign.csv"
+    return Path(out) / f"{name}.parquet", Path(out) / f"{name}.csv"
 
 
 def mean_ci95(x: Sequence[float]) -> dict[str, float | int | None]:

@@ -171,10 +171,11 @@ def test_nees_of_gaussian_errors_follows_chi_square_6():
     assert np.isnan(nees_of(e[:2], cov[:2])[0]) and np.isfinite(nees_of(e[:2], cov[:2])[1])
 
 
-def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None) -> tuple[float, float | None]:
+def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None, used_only: bool = False) -> tuple[float, float | None]:
     """Total dV (sum over bodies of the final cumulative |a| dt of the truth) and, given the track
     rows and their associations, the coverage of truly visible pairs by the plant's own rule
-    (plant.sensors.visibility_matrix per truth message, not dashboards.metrics)."""
+    (plant.sensors.visibility_matrix per truth message, not dashboards.metrics); used_only: by the
+    tracks the controller used."""
     from plant.sensors import CameraGeometry, visibility_matrix
 
     truth = [m for topic, _l, _p, m in read_mcap(run_dir / "run.mcap") if topic == "truth"]
@@ -183,7 +184,8 @@ def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None) -> tupl
         return dv, None
     cam = CameraGeometry(500.0, 1080, 1000.0)  # the filter scenario's [camera]
     ids = [b.id for b in truth[0].bodies]
-    hit = {(int(s), int(j), int(k)) for s, j, k in zip(rows.step, rows.observer, err.neighbour)}
+    hit = {(int(s), int(j), int(k)) for s, j, k, u in zip(rows.step, rows.observer, err.neighbour, rows.used)
+           if u or not used_only}
     total = covered = 0
     for m in truth:
         pos = np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in m.bodies])
@@ -193,6 +195,13 @@ def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None) -> tupl
             total += 1
             covered += (int(m.header.step), int(j), int(k)) in hit
     return dv, covered / total
+
+
+def _vis_of(truth_msg) -> np.ndarray:
+    from plant.sensors import CameraGeometry, visibility_matrix
+
+    pos = np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in truth_msg.bodies])
+    return visibility_matrix(pos, CameraGeometry(500.0, 1080, 1000.0), np.array([b.alive for b in truth_msg.bodies]))
 
 
 def test_reports_and_comparison_are_written(runs, tmp_path):
@@ -206,6 +215,25 @@ def test_reports_and_comparison_are_written(runs, tmp_path):
     # a track is output after confirm_hits = 3 frames, so the first 2 of a pair's ~28 visible steps
     # cannot be covered (<= 0.93); occlusion and range edge lose a few more. Measured 0.90.
     assert 0.8 < cov <= 0.93, cov
+    _dv, cov_used = _truth_dv_and_coverage(runs["filter"], "nr-filter", nav.rows, nav.err, used_only=True)
+    assert s["coverage_of_visible_pairs_used"] == pytest.approx(cov_used, abs=1e-12)
+    assert 0.0 < cov_used <= cov  # the controller acts on a subset of the tracks (control_max_sigma_m)
+    # used rows of a neighbour out of view, counted here from the rows and the plant's rule
+    vis = {(int(m.header.step), j, k) for topic, _l, _p, m in read_mcap(runs["filter"] / "run.mcap") if topic == "truth"
+           for j, k in zip(*np.nonzero(_vis_of(m)))}
+    used = [(int(st), int(j), int(k)) for st, j, k, u in zip(nav.rows.step, nav.rows.observer, nav.err.neighbour,
+                                                           nav.rows.used) if u]
+    assert s["used_rows_not_visible_fraction"] == pytest.approx(np.mean([x not in vis for x in used]), abs=1e-12)
+    assert 0.0 <= s["used_graph_weakly_connected_fraction"] <= 1.0
+    # held back = visible with a track but none used: the two coverages' difference; the range bands
+    # and the start / after split partition the visible pair-steps (a 300 s run is all start)
+    assert s["held_back_fraction"] == pytest.approx(cov - cov_used, abs=1e-12)
+    assert s["held_back_fraction_start"] == pytest.approx(s["held_back_fraction"], abs=1e-12)
+    assert s["held_back_fraction_after_start"] is None
+    n = s["visible_pair_steps_by_range"]
+    assert sum(n.values()) == len(vis)
+    by = s["held_back_fraction_by_range"]
+    assert sum(n[b] * (by[b] or 0.0) for b in n) / len(vis) == pytest.approx(s["held_back_fraction"], abs=1e-12)
     assert {"pairs.png", "error_time.png", "nees_time.png"} <= {p.name for p in out.glob("*.png")}
     md = write_comparison([runs["ideal"], runs["filter"]], tmp_path / "cmp", labels=["ideal", "filter"])
     lines = md.read_text().splitlines()
