@@ -16,8 +16,9 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header
+from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
+from bus.truth_wire import TruthEncoder, encode_header
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -77,6 +78,12 @@ class PlantNode:
         self._local_cmd: np.ndarray | None = None
         if local_agents is not None and not hasattr(self.sensor, "batch"):
             raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
+        # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
+        # same bytes); on an in-process bus, samples stamped with their simulation time, and the
+        # tick built only when someone receives it (bus/memory.py)
+        self._truth_wire = TruthEncoder(self.world.ids) if isinstance(self.world, World) else None
+        self._stamps = bool(getattr(bus, "stamps", False))
+        self._wants = getattr(bus, "wants", None)
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
             bus.subscribe(self.keys.sync_all, self._on_barrier)
@@ -131,10 +138,13 @@ class PlantNode:
         return self.live_ids() | {f"sync:{b}" for b in self.barriers if b in self.present}
 
     # --- helpers ----------------------------------------------------------------------------
-    def _hdr(self, key: str) -> pb.Header:
+    def _next_seq(self, key: str) -> int:
         seq = self._seq.get(key, 0)
         self._seq[key] = seq + 1
-        return header(self.run_id, "plant", self._step, self.world.t_s, seq)
+        return seq
+
+    def _hdr(self, key: str) -> pb.Header:
+        return header(self.run_id, "plant", self._step, self.world.t_s, self._next_seq(key))
 
     def _event(self, kind: str, subject: str, detail: str) -> None:
         ev = pb.Event(header=self._hdr(self.keys.event), kind=kind, subject=subject, detail=detail)
@@ -192,27 +202,24 @@ class PlantNode:
         pos, vel = self.world.lvlh()
         ids = self.world.ids
         alive = self.world.alive.tolist()
-        tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
-                       alive=[s for s, a in zip(ids, alive) if a], final=final)
-        self.bus.publish(self.keys.clock, tick.SerializeToString())
-        truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=u, semi_major_axis_m=self.world.a_m,
-                         mean_motion_radps=self.world.n_radps)
-        P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
-        A = self.world.last_accel_mps2.tolist()
-        add = truth.bodies.add
-        for sid, dv, al, r, p, v, a in zip(ids, DV, alive, R, P, V, A):  # each sub-message looked up once
-            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
-            q = b.position_m
-            q.x, q.y, q.z = p
-            q = b.velocity_mps
-            q.x, q.y, q.z = v
-            q = b.accel_cmd_mps2
-            q.x, q.y, q.z = a
-        if isinstance(self.world, MissionWorld):
-            self._add_mission_truth(truth)
+        if self._wants is None or self._wants(self.keys.clock):
+            tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
+                           alive=[s for s, a in zip(ids, alive) if a], final=final)
+            self.bus.publish(self.keys.clock, tick.SerializeToString())
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is
         # at the time agents transmit in step k
-        self.bus.publish(self.keys.truth, truth.SerializeToString())
+        t_s = self.world.t_s
+        if self._truth_wire is not None:
+            w = self.world
+            data = self._truth_wire.encode(encode_header(self.run_id, "plant", k, t_s, self._next_seq(self.keys.truth)),
+                                           u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
+                                           w.last_accel_mps2, w.roe_m())
+        else:
+            data = self._mission_truth(pos, vel, alive).SerializeToString()
+        if self._stamps:
+            self.bus.publish(self.keys.truth, data, sim_time_ns(t_s))
+        else:
+            self.bus.publish(self.keys.truth, data)
         if final:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
@@ -227,6 +234,25 @@ class PlantNode:
             key = self._sense_keys[j]
             stim = self.sensor.stimulus(ctx, j, self._hdr(key))
             self.bus.publish(key, stim.SerializeToString())
+
+    def _mission_truth(self, pos: np.ndarray, vel: np.ndarray, alive: list[bool]) -> pb.Truth:
+        """The truth message of the mission world (attitude, bodies): built field by field."""
+        w = self.world
+        truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=w.u_rad, semi_major_axis_m=w.a_m,
+                         mean_motion_radps=w.n_radps)
+        P, V, R, DV = pos.tolist(), vel.tolist(), w.roe_m().tolist(), w.delta_v_mps.tolist()
+        A = w.last_accel_mps2.tolist()
+        add = truth.bodies.add
+        for sid, dv, al, r, p, v, a in zip(w.ids, DV, alive, R, P, V, A):  # each sub-message looked up once
+            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
+            q = b.position_m
+            q.x, q.y, q.z = p
+            q = b.velocity_mps
+            q.x, q.y, q.z = v
+            q = b.accel_cmd_mps2
+            q.x, q.y, q.z = a
+        self._add_mission_truth(truth)
+        return truth
 
     def _add_mission_truth(self, truth: pb.Truth) -> None:
         """Attitude of the spacecraft that fly it, and every non-agent body (kind, pose)."""
