@@ -56,7 +56,7 @@ def encode_header(run: str, source: str, step: int, t: float, seq: int) -> bytes
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z
-_VEC_DOUBLES = [0, 1, 2, 3, 4, 5, 7, 8, 9]  # the optional doubles of position, velocity, accel_cmd
+MAX_PLANS = 1024  # patterns of present fields kept (TruthEncoder._plan)
 
 
 class TruthEncoder:
@@ -65,7 +65,11 @@ class TruthEncoder:
     `encode(header, u_rad, a_m, n_radps, position, velocity, delta_v, alive, accel, roe)` returns
     what `pb.Truth(header=..., u_rad=..., semi_major_axis_m=..., mean_motion_radps=...)` with one
     `bodies.add(id, kind, delta_v_mps, alive, roe_m)` per spacecraft and its position_m,
-    velocity_mps and accel_cmd_mps2 assigned serialises to. `header` is `encode_header(...)`."""
+    velocity_mps and accel_cmd_mps2 assigned serialises to. `header` is `encode_header(...)`.
+
+    The fields present (a double that is not +0.0, alive) change rarely from one step to the next:
+    the byte layout of each pattern seen is kept (`_plan`), and a step copies the values' bytes in.
+    """
 
     def __init__(self, ids: list[str], kinds: list[str] | str = "spacecraft") -> None:
         self.ids = list(ids)
@@ -132,20 +136,34 @@ class TruthEncoder:
                 tmpl[i, col:col + len(seg)] = np.frombuffer(seg, dtype=np.uint8)
             kmask[i, id_col:id_col + w_id] = np.arange(w_id) < len(id_seg[i])
             kmask[i, kind_col:kind_col + w_kind] = np.arange(w_kind) < len(kind_seg[i])
+        # per step, everything through flat indices into the (n, width) row buffer
+        rows = np.arange(n)[:, None] * width
+        self._tmpl, self._keep = tmpl.ravel(), kmask.ravel()
+        self._dbl = (rows + (np.array(dbl)[:, None] + np.arange(8)).ravel()).ravel()  # value bytes of the 16 doubles
+        slot = np.repeat(np.arange(10), 9)  # the double of each of the 90 optional-slot columns
+        self._opt = (rows + np.array(opt)).ravel()
+        self._opt_src = (np.arange(n)[:, None] * 11 + slot).ravel()  # into (n, 11): 10 doubles + alive
+        self._alive = (rows + np.array(alive_cols)).ravel()
+        self._alive_src = np.repeat(np.arange(n) * 11 + 10, 2)
+        self._sub = (rows + np.array(sub_len)).ravel()
+        self._len_lo, self._len_hi = rows[:, 0] + 1, rows[:, 0] + 2  # the two body-length bytes
+        # (n, 11) presence -> Vector3 lengths (x 9) and the optional bytes of the body
+        self._count = np.zeros((11, 4), dtype=np.int64)
+        for j, d in enumerate((range(0, 3), range(3, 6), range(7, 10))):
+            self._count[list(d), j] = 9
+        self._count[:10, 3], self._count[10, 3] = 9, 2
+        self._base = kmask[:, 3:].sum(axis=1) - 9 * 10 - 2  # body length without the optional fields
         if width - 3 >= 1 << 14:
             raise ValueError("ids or kinds too long for a two-byte body length")
-        self._tmpl, self._keep = tmpl, kmask
-        self._dbl = (np.array(dbl)[:, None] + np.arange(8)).ravel()  # (128,) value byte columns
-        self._opt = np.array(opt)  # (90,)
-        self._sub = np.array(sub_len)  # (3,)
-        self._alive = np.array(alive_cols)
         self._vals = np.empty((n, 16))
+        self._present = np.empty((n, 11), dtype=bool)
+        self._plans: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
                velocity_mps: np.ndarray, delta_v_mps: np.ndarray, alive: np.ndarray, accel_mps2: np.ndarray,
                roe_m: np.ndarray) -> bytes:
         """The serialised Truth (module docstring); arrays (N, 3), (N, 3), (N,), (N,) bool, (N, 3), (N, 6)."""
-        v = self._vals
+        v, pr = self._vals, self._present
         n = v.shape[0]
         head = b"\x0a" + varint(len(header)) + header
         tail = _double(0x19, float(u_rad)) + _double(0x21, float(a_m)) + _double(0x29, float(n_radps))
@@ -156,17 +174,34 @@ class TruthEncoder:
         v[:, 6] = delta_v_mps
         v[:, 7:10] = accel_mps2
         v[:, 10:16] = roe_m
-        buf = self._tmpl.copy()
-        buf[:, self._dbl] = v.view(np.uint8)
-        present = v.view(np.uint64)[:, :10] != 0  # implicit presence: any bit set (-0.0, NaN too)
-        keep = self._keep.copy()
-        keep[:, self._opt] = np.repeat(present, 9, axis=1)
-        keep[:, self._alive] = np.asarray(alive, dtype=bool)[:, None]
-        buf[:, self._sub] = 9 * present[:, _VEC_DOUBLES].reshape(n, 3, 3).sum(axis=2)  # Vector3 lengths
-        body = keep[:, 3:].sum(axis=1)  # the body's length
-        long = body >= 0x80
-        buf[:, 1] = (body & 0x7F) | (long * 0x80)
-        buf[:, 2] = body >> 7
-        keep[:, 2] = long
-        return head + buf[keep].tobytes() + tail
+        np.not_equal(v.view(np.uint64)[:, :10], 0, out=pr[:, :10])  # implicit presence: any bit set (-0.0, NaN)
+        pr[:, 10] = alive
+        key = pr.tobytes()
+        plan = self._plans.get(key)
+        if plan is None:  # a new pattern of present fields (a 24 h sabatini-20 run has about 120)
+            if len(self._plans) >= MAX_PLANS:
+                self._plans.clear()
+            plan = self._plans[key] = self._plan(pr)
+        out, dst, src = plan
+        out = out.copy()
+        out[dst] = v.view(np.uint8).ravel()[src]
+        return head + out.tobytes() + tail
 
+    def _plan(self, pr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For one pattern of present fields (n, 11): the body bytes without the double values,
+        where the values' bytes go in them, and which value bytes (of the (n, 16) doubles) go."""
+        buf = self._tmpl.copy()
+        keep = self._keep.copy()
+        flat = pr.ravel()
+        keep[self._opt] = flat[self._opt_src]
+        keep[self._alive] = flat[self._alive_src]
+        lens = pr.view(np.uint8) @ self._count  # (n, 4): position, velocity, accel_cmd lengths; optional bytes
+        buf[self._sub] = lens[:, :3].ravel()
+        body = self._base + lens[:, 3]  # the body's length, a one- or two-byte varint
+        long = body >= 0x80
+        buf[self._len_lo] = (body & 0x7F) | (long << 7)
+        buf[self._len_hi] = body >> 7
+        keep[self._len_hi] = long
+        at = np.cumsum(keep) - 1  # where each kept byte of the rows lands in the output
+        kept = keep[self._dbl]
+        return buf[keep], at[self._dbl][kept], np.flatnonzero(kept)

@@ -59,6 +59,27 @@ def test_random_truths_equal_protobuf() -> None:
         want2 = _protobuf(run, source, step + 1, t, seq + 1, u, a, nn, ids, kinds, pos2, vel, dv, ~alive, acc, roe)
         assert enc.encode(encode_header(run, source, step + 1, t, seq + 1), u, a, nn, pos2, vel, dv, ~alive, acc,
                           roe) == want2
+        # the same fields present, other values: the kept layout of the first pattern
+        pos3, vel3, dv3, acc3 = 3.0 * pos, -vel, 0.5 * dv, acc * 7.0
+        want3 = _protobuf(run, source, step, t, seq, u, a, nn, ids, kinds, pos3, vel3, dv3, alive, acc3, roe)
+        assert enc.encode(encode_header(run, source, step, t, seq), u, a, nn, pos3, vel3, dv3, alive, acc3, roe) == want3
+
+
+def test_more_patterns_than_kept(monkeypatch) -> None:
+    import bus.truth_wire as tw
+
+    monkeypatch.setattr(tw, "MAX_PLANS", 3)
+    rng = np.random.default_rng(3)
+    ids = [f"sc{i}" for i in range(6)]
+    enc = TruthEncoder(ids)
+    for step in range(40):
+        pos, vel, acc = (_values(rng, (6, 3), 0.4) for _ in range(3))
+        dv, roe, alive = _values(rng, (6,), 0.4), _values(rng, (6, 6), 0.1), rng.random(6) < 0.5
+        want = _protobuf("r", "plant", step, 1.0, step, 0.5, 7e6, 1e-3, ids, ["spacecraft"] * 6, pos, vel, dv, alive,
+                         acc, roe)
+        assert enc.encode(encode_header("r", "plant", step, 1.0, step), 0.5, 7e6, 1e-3, pos, vel, dv, alive, acc,
+                          roe) == want
+        assert len(enc._plans) <= 3
 
 
 def test_header_and_varint_equal_protobuf() -> None:
