@@ -32,6 +32,11 @@ class BatchAgents:
         self.faults: dict[str, dict[str, int]] = {}
         self.steps = 0
         self.last: CommandBatch | None = None  # the last decision's commands (full Commands on demand)
+        # does any controller read its observation (a class may declare `observes = False`)?
+        self.observes = any(getattr(c, "observes", True) for c in self.controllers)
+        kinds = {type(c) for c in self.controllers}
+        # the class's own batch path for all of them (what `step_batch` picks), looked up once
+        self._all = getattr(next(iter(kinds)), "step_batch", None) if len(kinds) == 1 else None
 
     def _fault(self, i: int, step: int) -> None:
         f = self.faults.setdefault(self.ids[i], {})
@@ -47,6 +52,8 @@ class BatchAgents:
         else:
             ctrls = [self.controllers[i] for i in rows.tolist()]
         try:
+            if self._all is not None and ctrls is self.controllers:
+                return self._all(ctrls, batch)
             return step_batch(ctrls, batch)
         except Exception:  # noqa: BLE001 - find the spacecraft whose software raised: each on its own
             cmds = []

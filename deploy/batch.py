@@ -14,7 +14,7 @@ channel, viewer), or a plant that flies attitude (torques).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -58,11 +58,20 @@ class BatchHook:
         # the agents are up (the plant waits for their liveliness before step 0, as for processes)
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
 
-    def __call__(self, ctx: Any, rows: np.ndarray, rel: Any) -> np.ndarray:
+    def __call__(self, ctx: Any, rows: np.ndarray, sense: Callable[[], Any]) -> np.ndarray:
+        """`sense()` gives the stimuli of the observers `rows` (RelBatch); not called when no
+        controller of the batch looks at its observation (`observes = False`, agent/controller.py)."""
         ids = self.ids
-        batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=[ids[i] for i in rows.tolist()],
-                                 offsets=rel.offsets, neighbour_ids=[ids[k] for k in rel.neighbour.tolist()],
-                                 rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+        observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
+        if self.agents.observes:
+            rel = sense()
+            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+                                     offsets=rel.offsets, neighbour_ids=[ids[k] for k in rel.neighbour.tolist()],
+                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+        else:
+            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+                                     offsets=np.zeros(len(rows) + 1, dtype=np.int64), neighbour_ids=[],
+                                     rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
         return self.agents.step(rows, batch)
 
     @property

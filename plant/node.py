@@ -41,7 +41,7 @@ class PlantNode:
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
                  barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
-                 local_agents: Callable[[SensingContext, np.ndarray, Any], np.ndarray] | None = None) -> None:
+                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -72,8 +72,9 @@ class PlantNode:
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
         # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
-        # process, called with the sensing kind's stimuli as arrays (`batch`) instead of one
-        # message per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
+        # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
+        # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
+        # stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
         if local_agents is not None and not hasattr(self.sensor, "batch"):
@@ -226,7 +227,7 @@ class PlantNode:
                              alive=self.world.alive, world=self.world)
         if self.local_agents is not None:
             rows = np.flatnonzero(self.world.alive)
-            self._local_cmd = self.local_agents(ctx, rows, self.sensor.batch(ctx, rows))
+            self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
             if not alive[j]:

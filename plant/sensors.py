@@ -35,14 +35,12 @@ def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray 
         raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
     rel = pos_m[None, :, :] - pos_m[:, None, :]
     ahead = rel[..., 1]
-    tan = cam.tan_half_fov
-    vis = (
-        (ahead > 0.0)
-        & (np.abs(rel[..., 0]) <= tan * ahead)
-        & (np.abs(rel[..., 2]) <= tan * ahead)
-        & (np.einsum("jki,jki->jk", rel, rel) <= cam.detection_range_m**2)
-    )
-    np.fill_diagonal(vis, False)
+    lim = cam.tan_half_fov * ahead
+    vis = ahead > 0.0
+    vis &= np.abs(rel[..., 0]) <= lim
+    vis &= np.abs(rel[..., 2]) <= lim
+    vis &= np.einsum("jki,jki->jk", rel, rel) <= cam.detection_range_m**2
+    vis.ravel()[:: vis.shape[0] + 1] = False  # nobody sees itself (np.fill_diagonal, without its Python)
     if alive is not None:
         vis &= alive[:, None]
     return vis

@@ -282,18 +282,18 @@ def _searching(_i: int) -> Command:
     return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
 
 
-_ALIKE: list = [((), False)]  # the last controllers checked (kept alive: identity means the same objects)
+_ALIKE: list = [([], False)]  # the last controllers checked (kept alive: identity means the same objects)
 
 
 def _alike(controllers: "list[SabatiniController]") -> bool:
     """Same parameters and orbit for all (one vectorised law); the verdict of the last list is kept,
     since a batch run asks about the same controllers every step."""
     last, verdict = _ALIKE[0]
-    if len(last) == len(controllers) and all(a is b for a, b in zip(last, controllers)):
+    if last == controllers:  # element by element, by identity (the controllers define no __eq__)
         return verdict
     c0 = controllers[0]
     verdict = all(c.p == c0.p and c.a_m == c0.a_m and c.n_radps == c0.n_radps for c in controllers[1:])
-    _ALIKE[0] = (tuple(controllers), verdict)
+    _ALIKE[0] = (list(controllers), verdict)
     return verdict
 
 
