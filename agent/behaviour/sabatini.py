@@ -30,7 +30,7 @@ import numpy as np
 
 from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
-from agent.roe import lvlh_to_roe
+from agent.roe import lvlh_to_roe, observer_roe_rows
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
@@ -217,7 +217,7 @@ class SabatiniController:
         rel_pos = np.asarray(batch.rel_position_m, float).reshape(n_pairs, 3)
         rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(n_pairs, 3)
         u = batch.u_rad
-        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, u, self.n_radps)
+        roe_jk_m = observer_roe_rows(rel_pos, rel_vel, u, self.n_radps)  # relative_roe_observer, bit for bit
         de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
         di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
         d_min_jk_m = np.abs(roe_jk_m[:, 1]) - 2.0 * de_m  # decision_distance_m
