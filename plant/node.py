@@ -41,7 +41,8 @@ class PlantNode:
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
                  barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
-                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None) -> None:
+                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None,
+                 on_truth: Callable[..., None] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -77,6 +78,10 @@ class PlantNode:
         # stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
+        # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
+        # of every truth the ROE plants publish, for a caller in this process that keeps them as
+        # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
+        self.on_truth = on_truth
         if local_agents is not None and not hasattr(self.sensor, "batch"):
             raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
         # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
@@ -212,9 +217,12 @@ class PlantNode:
         t_s = self.world.t_s
         if self._truth_wire is not None:
             w = self.world
+            roe = w.roe_m()
             data = self._truth_wire.encode(encode_header(self.run_id, "plant", k, t_s, self._next_seq(self.keys.truth)),
                                            u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
-                                           w.last_accel_mps2, w.roe_m())
+                                           w.last_accel_mps2, roe)
+            if self.on_truth is not None:
+                self.on_truth(k, t_s, u, pos, vel, w.delta_v_mps, w.alive, w.last_accel_mps2, roe)
         else:
             data = self._mission_truth(pos, vel, alive).SerializeToString()
         if self._stamps:

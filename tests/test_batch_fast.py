@@ -50,3 +50,25 @@ def test_memory_bus_stamps_and_wants() -> None:
     bus.publish("swarm/r/truth", b"y")
     assert got == [("plain", "swarm/r/truth", b"x"), ("stamped", "swarm/r/truth", b"x", 5),
                    ("plain", "swarm/r/truth", b"y"), ("stamped", "swarm/r/truth", b"y", None)]
+
+
+@pytest.mark.parametrize("sets", [(), ("sensing.roe_noise_fraction=0.1",)], ids=["ideal", "noisy"])
+def test_kept_truth_equals_the_recording_read_back(tmp_path: Path, sets: tuple[str, ...]) -> None:
+    """run_in_process(keep_truth=True) (a campaign's metrics without read-back): every array equal to
+    read_truth of the run's own recording, and so its metrics too."""
+    import numpy as np
+
+    from dashboards.metrics import compute_metrics
+    from dashboards.truth_io import read_truth
+
+    sc = load_scenario(SCENARIOS / "sabatini-20.toml", list(sets)).with_overrides(duration_s=1800.0, seed=5)
+    res = run_in_process(sc, tmp_path, "kept", record="truth", keep_truth=True)
+    kept, back = res.truth, read_truth(tmp_path / "run.mcap")
+    assert kept is not None and kept.n_steps == 181 and kept.ids == back.ids and kept.run == back.run
+    for f in ("step", "t_s", "u_rad", "position_m", "velocity_mps", "delta_v_mps", "alive", "accel_mps2", "roe_m"):
+        a, b = getattr(kept, f), getattr(back, f)
+        assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), f
+    assert (kept.semi_major_axis_m, kept.mean_motion_radps, kept.accel_recorded_as) == \
+        (back.semi_major_axis_m, back.mean_motion_radps, back.accel_recorded_as)
+    assert np.abs(kept.accel_mps2).max() > 0
+    assert compute_metrics(kept).summary == compute_metrics(back).summary
