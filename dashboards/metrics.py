@@ -35,11 +35,25 @@ PARALLEL_MIN = 0.8  # Algorithm 1
 
 # --- graph --------------------------------------------------------------------------------------
 def visibility_series(position_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
-    """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix)."""
+    """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix of each
+    step; here for many steps per numpy call, the same comparisons: tests/test_metrics.py)."""
+    if cam.boresight != (0.0, 1.0, 0.0):
+        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
     T, N, _ = position_m.shape
-    out = np.zeros((T, N, N), dtype=bool)
-    for t in range(T):
-        out[t] = visibility_matrix(position_m[t], cam, None if alive is None else alive[t])
+    out = np.empty((T, N, N), dtype=bool)
+    for t0 in range(0, T, 256):
+        p = position_m[t0:t0 + 256]
+        rel = p[:, None, :, :] - p[:, :, None, :]
+        ahead = rel[..., 1]
+        lim = cam.tan_half_fov * ahead
+        vis = out[t0:t0 + 256]
+        np.greater(ahead, 0.0, out=vis)
+        vis &= np.abs(rel[..., 0]) <= lim
+        vis &= np.abs(rel[..., 2]) <= lim
+        vis &= np.einsum("tjki,tjki->tjk", rel, rel) <= cam.detection_range_m**2
+    out[:, np.arange(N), np.arange(N)] = False
+    if alive is not None:
+        out &= np.asarray(alive, dtype=bool)[:, :, None]
     return out
 
 
@@ -136,12 +150,14 @@ def closest_visible(position_m: np.ndarray, roe_m: np.ndarray, vis: np.ndarray) 
 
 
 def visible_pair_parallelism(roe_m: np.ndarray, vis: np.ndarray) -> np.ndarray:
-    """(T, N, N) parallelism of dalpha_jk where j sees k, NaN elsewhere."""
+    """(T, N, N) parallelism of dalpha_jk where j sees k, NaN elsewhere (computed for the visible
+    pairs only: `parallelism` is elementwise, so the values are those of every pair's)."""
     out = np.full(vis.shape, np.nan)
-    for t0 in range(0, vis.shape[0], 512):
-        sl = slice(t0, t0 + 512)
-        pair = roe_m[sl, :, None, :] - roe_m[sl, None, :, :]
-        out[sl] = np.where(vis[sl], parallelism(pair[..., 2:4], pair[..., 4:6]), np.nan)
+    t, j, k = np.nonzero(vis)
+    for a in range(0, len(t), 1 << 18):
+        sl = slice(a, a + (1 << 18))
+        pair = roe_m[t[sl], j[sl]] - roe_m[t[sl], k[sl]]
+        out[t[sl], j[sl], k[sl]] = parallelism(pair[..., 2:4], pair[..., 4:6])
     return out
 
 

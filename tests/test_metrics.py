@@ -239,3 +239,24 @@ def test_pruned_closest_approach_equals_every_pair_evaluated():
     vis = np.stack([visibility_matrix(p, CameraGeometry()) for p in pos])
     _series_equal(closest_approach_series(pos, vel, u / n_radps, vis),
                   closest_approach_series_all(pos, vel, u / n_radps, vis))
+
+
+def test_series_over_many_steps_equal_the_per_step_functions():
+    """visibility_series (many steps per numpy call) and visible_pair_parallelism (visible pairs
+    only), issue 16: equal to plant/sensors.visibility_matrix step by step and to the parallelism
+    of every pair, on a ROE swarm with dead spacecraft."""
+    from dashboards.metrics import visible_pair_parallelism
+
+    rng = np.random.default_rng(7)
+    n_radps = mean_motion(6878137.0)
+    roe = rng.normal(scale=200.0, size=(20, 6))
+    u = np.arange(700) * 10.0 * n_radps
+    pos = np.stack([roe_to_lvlh(roe, ui, n_radps)[0] for ui in u])
+    alive = rng.random((700, 20)) < 0.9
+    cam = CameraGeometry()
+    vis = visibility_series(pos, cam, alive)
+    assert np.array_equal(vis, np.stack([visibility_matrix(p, cam, a) for p, a in zip(pos, alive)])) and vis.sum() > 1000
+    roe_t = np.broadcast_to(roe, (700, 20, 6)) + rng.normal(scale=5.0, size=(700, 20, 6))
+    pair = roe_t[:, :, None, :] - roe_t[:, None, :, :]
+    want = np.where(vis, parallelism(pair[..., 2:4], pair[..., 4:6]), np.nan)
+    assert visible_pair_parallelism(roe_t, vis).tobytes() == want.tobytes()
