@@ -90,44 +90,39 @@ class TruthEncoder:
             keep.append(kept)
             return len(cols) - 1
 
+        def double(tag: int, optional: bool = True) -> None:  # a 9-byte slot, or 8 bytes of a packed field
+            if optional:
+                opt.extend(range(len(cols), len(cols) + 9))
+            if tag:
+                put(tag)
+            dbl.append(len(cols))
+            for _ in range(8):
+                put(0)
+
+        def vector3(tag: int) -> None:  # a Vector3 sub-message: tag, length, x, y, z
+            put(tag)
+            sub_len.append(put(0))
+            for t in _VEC:
+                double(t)
+
         put(0x12)  # Truth.bodies (field 2, length-delimited)
         put(0)  # body length, varint low byte
         put(0, False)  # high byte, kept when the length is >= 128
         id_col = len(cols)
         for _ in range(w_id):
             put(0)
-        for tag in (0x12, 0x1A):  # position_m (2), velocity_mps (3)
-            put(tag)
-            sub_len.append(put(0))
-            for t in _VEC:
-                opt.extend(range(len(cols), len(cols) + 9))
-                put(t)
-                dbl.append(len(cols))
-                for _ in range(8):
-                    put(0)
-        opt.extend(range(len(cols), len(cols) + 9))  # delta_v_mps (4)
-        put(0x21)
-        dbl.append(len(cols))
-        for _ in range(8):
-            put(0)
+        vector3(0x12)  # position_m (2)
+        vector3(0x1A)  # velocity_mps (3)
+        double(0x21)  # delta_v_mps (4)
         alive_cols = [put(0x28), put(0x01)]  # alive (5)
-        put(0x42)  # accel_cmd_mps2 (8)
-        sub_len.append(put(0))
-        for t in _VEC:
-            opt.extend(range(len(cols), len(cols) + 9))
-            put(t)
-            dbl.append(len(cols))
-            for _ in range(8):
-                put(0)
+        vector3(0x42)  # accel_cmd_mps2 (8)
         kind_col = len(cols)
         for _ in range(w_kind):
             put(0)
         put(0x52)  # roe_m (10), packed: 6 doubles, always all written
         put(48)
         for _ in range(6):
-            dbl.append(len(cols))
-            for _ in range(8):
-                put(0)
+            double(0, optional=False)
         width = len(cols)
         tmpl = np.tile(np.array(cols, dtype=np.uint8), (n, 1))
         kmask = np.tile(np.array(keep, dtype=bool), (n, 1))
