@@ -67,3 +67,12 @@ def test_force_to_accel() -> None:
     np.testing.assert_array_equal(force_to_accel(f, 10.0), f / 10.0)
     with pytest.raises(ValueError, match="mass_kg must be > 0"):
         force_to_accel(f, np.array([1.0, 0.0]))
+
+
+def test_world_dv_norm_is_linalg_norm_bit_for_bit() -> None:
+    """plant/world.py sums |a| dt with np.sqrt(np.add.reduce(a * a, axis=1)), which is what
+    np.linalg.norm(a, axis=1) computes for real arrays (issue 16: without its Python)."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(0, 1e-4, (500, 3)) * 10.0 ** rng.integers(-200, 150, (500, 3))
+    a[rng.random((500, 3)) < 0.05] = 0.0
+    assert np.sqrt(np.add.reduce(a * a, axis=1)).tobytes() == np.linalg.norm(a, axis=1).tobytes()

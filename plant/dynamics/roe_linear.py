@@ -42,7 +42,7 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     c, s = np.cos(u_rad), np.sin(u_rad)
-    if np.ndim(u_rad):  # u broadcast against the rows (one u per sample): as written
+    if not isinstance(u_rad, float) and np.ndim(u_rad):  # one u per row (broadcast): as written
         da, dl, dex, dey, dix, diy = (roe[..., k] for k in range(6))
         pos = np.stack((da - dex * c - dey * s, dl + 2.0 * dex * s - 2.0 * dey * c, dix * s - diy * c), axis=-1)
         vel = n_radps * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s),
