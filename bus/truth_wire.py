@@ -53,6 +53,16 @@ def encode_header(run: str, source: str, step: int, t: float, seq: int) -> bytes
     return _string(0x0A, run) + _string(0x12, source) + _uint(0x18, step) + _double(0x21, t) + _uint(0x28, seq)
 
 
+class HeaderEncoder:
+    """`encode_header` of one publisher (run and source fixed): their bytes made once."""
+
+    def __init__(self, run: str, source: str) -> None:
+        self._prefix = _string(0x0A, run) + _string(0x12, source)
+
+    def __call__(self, step: int, t: float, seq: int) -> bytes:
+        return self._prefix + _uint(0x18, step) + _double(0x21, t) + _uint(0x28, seq)
+
+
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z

@@ -18,7 +18,7 @@ from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
-from bus.truth_wire import TruthEncoder, encode_header
+from bus.truth_wire import HeaderEncoder, TruthEncoder
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -88,6 +88,7 @@ class PlantNode:
         # same bytes); on an in-process bus, samples stamped with their simulation time, and the
         # tick built only when someone receives it (bus/memory.py)
         self._truth_wire = TruthEncoder(self.world.ids) if isinstance(self.world, World) else None
+        self._truth_header = HeaderEncoder(run, "plant")
         self._stamps = bool(getattr(bus, "stamps", False))
         self._wants = getattr(bus, "wants", None)
         bus.subscribe(self.keys.act_all, self._on_command)
@@ -218,7 +219,7 @@ class PlantNode:
         if self._truth_wire is not None:
             w = self.world
             roe = w.roe_m()
-            data = self._truth_wire.encode(encode_header(self.run_id, "plant", k, t_s, self._next_seq(self.keys.truth)),
+            data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self.keys.truth)),
                                            u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
                                            w.last_accel_mps2, roe)
             if self.on_truth is not None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bus import swarmhil_pb2 as pb
-from bus.truth_wire import TruthEncoder, encode_header, varint
+from bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
 
 
 def _protobuf(run, source, step, t, seq, u, a, n, ids, kinds, pos, vel, dv, alive, acc, roe) -> bytes:
@@ -86,7 +86,9 @@ def test_header_and_varint_equal_protobuf() -> None:
     for v in (0, 1, 127, 128, 300, 16383, 16384, 2**35, 2**64 - 1):
         assert varint(v) == pb.Header(step=v).SerializeToString()[1:] or v == 0
     for t in (0.0, -0.0, 1.5, np.nan, -np.inf):
-        assert encode_header("run", "plant", 3, t, 0) == pb.Header(run="run", source="plant", step=3, t=t).SerializeToString()
+        for run, source, step, seq in (("run", "plant", 3, 0), ("", "", 0, 7), ("rün", "p", 2**40, 128)):
+            want = pb.Header(run=run, source=source, step=step, t=t, seq=seq).SerializeToString()
+            assert encode_header(run, source, step, t, seq) == want == HeaderEncoder(run, source)(step, t, seq)
 
 
 @pytest.mark.parametrize("scenario", ["sabatini-20", "drift-20"])
