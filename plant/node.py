@@ -78,6 +78,7 @@ class PlantNode:
         # stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
+        self._local_all = False  # every spacecraft alive at the step of _local_cmd
         # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
@@ -236,6 +237,7 @@ class PlantNode:
                              alive=self.world.alive, world=self.world)
         if self.local_agents is not None:
             rows = np.flatnonzero(self.world.alive)
+            self._local_all = len(rows) == len(ids)
             self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
@@ -290,10 +292,14 @@ class PlantNode:
         k = self._step
         if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
             alive = self.world.alive
-            self.held[alive, :3] = self._local_cmd[alive]
-            self.held[alive, 3:] = 0.0
+            if self._local_all:  # everyone alive: the same assignments without the masks
+                self.held[:, :3] = self._local_cmd
+                self.held[:, 3:] = 0.0
+            else:
+                self.held[alive, :3] = self._local_cmd[alive]
+                self.held[alive, 3:] = 0.0
             self._local_cmd = None
-            self._advance(k)
+            self._advance(k, all_alive=self._local_all)
             return
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
@@ -319,8 +325,9 @@ class PlantNode:
                     self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
         self._advance(k)
 
-    def _advance(self, k: int) -> None:
-        self.held[~self.world.alive] = 0.0
+    def _advance(self, k: int, all_alive: bool = False) -> None:
+        if not all_alive:
+            self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
         else:

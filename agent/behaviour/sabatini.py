@@ -103,8 +103,10 @@ def parallelism(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.n
     de_m = np.hypot(r[..., 2], r[..., 3]) if de_m is None else de_m
     di_m = np.hypot(r[..., 4], r[..., 5]) if di_m is None else di_m
     den = de_m * di_m
-    dot = np.abs(r[..., 2] * r[..., 4] + r[..., 3] * r[..., 5])
-    return np.where(den > _TINY_M**2, dot / np.where(den > _TINY_M**2, den, 1.0), 0.0)
+    prod = r[..., 2:4] * r[..., 4:6]  # dex dix, dey diy
+    dot = np.abs(prod[..., 0] + prod[..., 1])
+    ok = den > _TINY_M**2
+    return np.where(ok, dot / np.where(ok, den, 1.0), 0.0)
 
 
 def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.ndarray | None = None) -> np.ndarray:
@@ -115,8 +117,10 @@ def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: n
     ndi = np.hypot(di[:, :1], di[:, 1:]) if di_m is None else di_m[:, None]
     out = np.zeros_like(de)
     out[:, 0] = 1.0
-    out = np.where(ndi > _TINY_M, di / np.where(ndi > _TINY_M, ndi, 1.0), out)
-    return np.where(nde > _TINY_M, de / np.where(nde > _TINY_M, nde, 1.0), out)
+    ok = ndi > _TINY_M
+    out = np.where(ok, di / np.where(ok, ndi, 1.0), out)
+    ok = nde > _TINY_M
+    return np.where(ok, de / np.where(ok, nde, 1.0), out)
 
 
 class SabatiniController:
