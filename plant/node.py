@@ -348,7 +348,8 @@ class PlantNode:
                 break
             if self._rejoin:
                 self._apply_rejoins()
-            self.box.open(k)
+            if self.local_agents is None:  # (the batch mode's commands come back from the hook)
+                self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()
             c1 = time.perf_counter()
