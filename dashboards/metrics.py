@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from plant.sensors import CameraGeometry, visibility_matrix
+from plant.sensors import CameraGeometry, in_view
 
 D_MIN_M = 100.0  # paper 002 section 3.2
 D_MIN_TRANS_M = 30.0
@@ -37,20 +37,11 @@ PARALLEL_MIN = 0.8  # Algorithm 1
 def visibility_series(position_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
     """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix of each
     step; here for many steps per numpy call, the same comparisons: tests/test_metrics.py)."""
-    if cam.boresight != (0.0, 1.0, 0.0):
-        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
     T, N, _ = position_m.shape
     out = np.empty((T, N, N), dtype=bool)
     for t0 in range(0, T, 256):
         p = position_m[t0:t0 + 256]
-        rel = p[:, None, :, :] - p[:, :, None, :]
-        ahead = rel[..., 1]
-        lim = cam.tan_half_fov * ahead
-        vis = out[t0:t0 + 256]
-        np.greater(ahead, 0.0, out=vis)
-        vis &= np.abs(rel[..., 0]) <= lim
-        vis &= np.abs(rel[..., 2]) <= lim
-        vis &= np.einsum("tjki,tjki->tjk", rel, rel) <= cam.detection_range_m**2
+        in_view(p[:, None, :, :] - p[:, :, None, :], cam, out[t0:t0 + 256])
     out[:, np.arange(N), np.arange(N)] = False
     if alive is not None:
         out &= np.asarray(alive, dtype=bool)[:, :, None]
