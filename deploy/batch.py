@@ -52,6 +52,7 @@ class BatchHook:
         o = cfgs[0]["orbit"]
         orbit = OrbitInfo(o["semi_major_axis_m"], o["mean_motion_radps"])
         self.ids = list(sc.ids)
+        self._ids = np.array(self.ids, dtype=object)  # ids of the pairs' neighbours by one gather
         self.agents = BatchAgents(self.ids, [(c["controller"], c["params"]) for c in cfgs], orbit,
                                   cfgs[0]["decision_period_steps"])
         keys = Keys(run)
@@ -66,7 +67,7 @@ class BatchHook:
         if self.agents.observes:
             rel = sense()
             batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
-                                     offsets=rel.offsets, neighbour_ids=[ids[k] for k in rel.neighbour.tolist()],
+                                     offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
                                      rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
         else:
             batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
