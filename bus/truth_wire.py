@@ -66,7 +66,7 @@ class HeaderEncoder:
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z
-MAX_PLANS = 1024  # patterns of present fields kept (TruthEncoder._plan)
+MAX_PLANS = 256  # patterns of present fields kept (TruthEncoder._plan; ~45 kB each for 20 bodies)
 
 
 class TruthEncoder:
