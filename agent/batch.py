@@ -12,6 +12,7 @@ arrives as arrays and the commands leave as an (N, 3) array (deploy/batch.py wir
 from __future__ import annotations
 
 import logging
+import math
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,11 @@ class BatchAgents:
         self.faults: dict[str, dict[str, int]] = {}
         self.steps = 0
         self.last: CommandBatch | None = None  # the last decision's commands (full Commands on demand)
+        # does any controller read its observation (a class may declare `observes = False`)?
+        self.observes = any(getattr(c, "observes", True) for c in self.controllers)
+        kinds = {type(c) for c in self.controllers}
+        # the class's own batch path for all of them (what `step_batch` picks), looked up once
+        self._all = getattr(next(iter(kinds)), "step_batch", None) if len(kinds) == 1 else None
 
     def _fault(self, i: int, step: int) -> None:
         f = self.faults.setdefault(self.ids[i], {})
@@ -47,6 +53,8 @@ class BatchAgents:
         else:
             ctrls = [self.controllers[i] for i in rows.tolist()]
         try:
+            if self._all is not None and ctrls is self.controllers:
+                return self._all(ctrls, batch)
             return step_batch(ctrls, batch)
         except Exception:  # noqa: BLE001 - find the spacecraft whose software raised: each on its own
             cmds = []
@@ -63,9 +71,10 @@ class BatchAgents:
         if batch.step % self.decision_period_steps == 0 and len(rows):
             cb = self._decide(rows, batch)
             acc = np.asarray(cb.accel_mps2, dtype=float)
-            bad = ~np.isfinite(acc).all(axis=1)
             modes = list(cb.modes)
-            if bad.any():
+            # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed)
+            bad = None if math.isfinite(np.add.reduce(acc, axis=None)) else ~np.isfinite(acc).all(axis=1)
+            if bad is not None and bad.any():
                 acc = acc.copy()
                 for r in np.flatnonzero(bad).tolist():
                     i = int(rows[r])
@@ -73,10 +82,11 @@ class BatchAgents:
                               self.controllers[i].name, acc[r])
                     acc[r] = 0.0
                     modes[r] = "fault"
-            self.accel_mps2[rows] = acc
             if len(rows) == len(self.ids):
+                self.accel_mps2[:] = acc
                 self.modes = modes
             else:
+                self.accel_mps2[rows] = acc
                 for r, i in enumerate(rows.tolist()):
                     self.modes[i] = modes[r]
             self.last = cb

@@ -81,7 +81,9 @@ class Controller(Protocol):
     `step_batch(controllers, batch) -> CommandBatch` that decides for many spacecraft at once
     (issue 16: N = 1 in an agent process, N = 20 in a batch run); `step_batch` below calls it, and
     otherwise each controller's `step` in turn. A batch path must give each spacecraft the command
-    its own `step` gives, bit for bit (so batch and multi-process runs keep one truth)."""
+    its own `step` gives, bit for bit (so batch and multi-process runs keep one truth). A class
+    whose command never depends on the observation may set `observes = False`: a batch run then
+    hands it observations without neighbours instead of computing the stimuli (deploy/batch.py)."""
 
     name: str
 

@@ -12,6 +12,7 @@ class NullController:
     """No thrust, ever: the uncontrolled swarm of paper 002 Fig. 7."""
 
     name = "null"
+    observes = False  # the command never depends on the observation (the batch mode skips the stimuli)
 
     def step(self, obs: Observation) -> Command:
         return Command(accel_mps2=np.zeros(3), mode="coast")

@@ -99,6 +99,12 @@ def arr(v: pb.Vector3) -> np.ndarray:
     return np.array([v.x, v.y, v.z])
 
 
+def sim_time_ns(t: float) -> int | None:
+    """A header time t [s] as the recorder's log time offset [ns]; None when it is not usable
+    (NaN, inf, beyond 1e12 s): such a sample keeps the last time (docs/architecture.md)."""
+    return int(round(t * 1e9)) if t == t and abs(t) < 1e12 else None
+
+
 def header(run: str, source: str, step: int, t: float, seq: int) -> pb.Header:
     return pb.Header(run=run, source=source, step=step, t=t, seq=seq)
 

@@ -3,6 +3,13 @@
 `publish` delivers synchronously to every matching subscriber, depth first, in subscription
 order. Deliveries triggered from inside a callback are queued and run after the current one, so
 the order is the same breadth-first order for every run (determinism) and callbacks never nest.
+
+Two things only a bus inside one process can offer (issue 16, the batch mode's per-step costs):
+`wants(key)` tells a publisher whether anyone would receive a sample (a message nobody receives
+need not be built), and a publisher may stamp a sample with its simulation time in ns
+(`publish(key, payload, t_ns)`), which subscribers declared with `stamped=True` receive as a third
+argument (None when the publisher gave none): the recorder then takes its log time from the stamp
+instead of decoding the message again.
 """
 from __future__ import annotations
 
@@ -21,6 +28,7 @@ class _Sub:
     key_expr: str
     callback: SampleCallback
     active: bool = True
+    stamped: bool = False  # callback(key, payload, t_ns)
 
     def undeclare(self) -> None:
         self.active = False
@@ -54,40 +62,54 @@ class _Watch:
 
 
 class MemoryBus:
+    stamps = True  # publish(key, payload, t_ns) reaches subscribe(..., stamped=True) callbacks
+
     def __init__(self) -> None:
         self._subs: list[_Sub] = []
         self._routes: dict[str, list[_Sub]] = {}  # key -> matching subscribers (cleared on (un)subscribe)
         self._watches: list[_Watch] = []
         self._tokens: set[str] = set()
-        self._queue: deque[tuple[str, bytes]] = deque()
+        self._queue: deque[tuple[str, bytes, int | None]] = deque()
         self._dispatching = False
         self.published = 0
         self.callback_errors = 0
 
-    def publish(self, key: str, payload: bytes) -> None:
+    def _route(self, key: str) -> list[_Sub]:
+        route = self._routes.get(key)
+        if route is None:
+            route = self._routes[key] = [s for s in self._subs if key_matches(s.key_expr, key)]
+        return route
+
+    def wants(self, key: str) -> bool:
+        """True when a sample on `key` would reach a subscriber."""
+        return any(s.active for s in self._route(key))
+
+    def publish(self, key: str, payload: bytes, t_ns: int | None = None) -> None:
+        """Deliver to every matching subscriber; `t_ns` (the sample's simulation time, ns) is passed
+        to the stamped ones."""
         self.published += 1
-        self._queue.append((key, bytes(payload)))
+        self._queue.append((key, bytes(payload), t_ns))
         if self._dispatching:
             return
         self._dispatching = True
         try:
             while self._queue:
-                k, p = self._queue.popleft()
-                route = self._routes.get(k)
-                if route is None:
-                    route = self._routes[k] = [s for s in self._subs if key_matches(s.key_expr, k)]
-                for sub in route:
+                k, p, t = self._queue.popleft()
+                for sub in self._route(k):
                     if sub.active:
                         try:
-                            sub.callback(k, p)
+                            if sub.stamped:
+                                sub.callback(k, p, t)  # type: ignore[call-arg]
+                            else:
+                                sub.callback(k, p)
                         except Exception:  # as the Zenoh dispatcher: one node's bug never stops the others
                             self.callback_errors += 1
                             log.exception("callback for %s failed", k)
         finally:
             self._dispatching = False
 
-    def subscribe(self, key_expr: str, callback: SampleCallback) -> _Sub:
-        sub = _Sub(self, key_expr, callback)
+    def subscribe(self, key_expr: str, callback: SampleCallback, stamped: bool = False) -> _Sub:
+        sub = _Sub(self, key_expr, callback, stamped=stamped)
         self._subs.append(sub)
         self._routes.clear()
         return sub

@@ -33,7 +33,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import message_type_of_topic
+from bus.codec import message_type_of_topic, sim_time_ns
 from bus.foxglove_scene import FoxgloveScene
 from bus.keys import Keys
 
@@ -74,9 +74,7 @@ def parse_sample(cls: type[Message] | None, payload: bytes) -> tuple[Message | N
         return None, None, f"does not parse as {cls.DESCRIPTOR.full_name}: {exc}"
     hdr = getattr(msg, "header", None)
     if hdr is not None and hasattr(hdr, "t") and msg.HasField("header"):
-        t = hdr.t
-        if t == t and abs(t) < 1e12:
-            return msg, int(round(t * 1e9)), ""
+        return msg, sim_time_ns(hdr.t), ""
     return msg, None, ""
 
 
@@ -130,8 +128,12 @@ class McapRecorder:
         self.by_topic[topic] = self.by_topic.get(topic, 0) + 1
         self.bytes_by_topic[topic] = self.bytes_by_topic.get(topic, 0) + len(payload)
 
-    def write(self, key: str, payload: bytes, wall_time_ns: int | None = None) -> None:
-        """One sample: log_time = epoch + its simulation time, publish_time = reception wall time."""
+    def write(self, key: str, payload: bytes, wall_time_ns: int | None = None, t_ns: int | None = None) -> None:
+        """One sample: log_time = epoch + its simulation time, publish_time = reception wall time.
+
+        `t_ns`: the simulation time the publisher stamped the sample with (bus/memory.py, a
+        publisher in this process that serialised a message of the key's type): the payload is
+        then not decoded again unless the Foxglove scene needs the message."""
         if self._closed:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
@@ -139,7 +141,10 @@ class McapRecorder:
         if known is None:  # a run has few distinct keys: parse each once
             known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
         cls, topic = known
-        msg, t, reason = parse_sample(cls, payload)
+        if t_ns is not None and self._scene is None and cls is not None:
+            msg, t, reason = None, t_ns, ""
+        else:
+            msg, t, reason = parse_sample(cls, payload)
         t_ns = self._last_t_ns if t is None else t
         if reason:
             self.undecodable += 1
@@ -215,15 +220,15 @@ class RecorderNode:
             self.rec.add_metadata("swarmhil.segment", {"index": str(segment), "file": Path(path).name,
                                                        "started_wall_ns": str(time.time_ns())})
         self.run_end = False
-        if record == "all":
-            self._subs = [bus.subscribe(self.keys.all, self._on_sample)]
-        else:
-            self._subs = [bus.subscribe(k, self._on_sample) for k in (self.keys.truth, self.keys.event)]
+        # on a bus that carries the publishers' simulation time (bus/memory.py), take it from there
+        stamped = {"stamped": True} if getattr(bus, "stamps", False) else {}
+        keys = (self.keys.all,) if record == "all" else (self.keys.truth, self.keys.event)
+        self._subs = [bus.subscribe(k, self._on_sample, **stamped) for k in keys]
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))
 
-    def _on_sample(self, key: str, payload: bytes) -> None:
-        self.rec.write(key, payload)
+    def _on_sample(self, key: str, payload: bytes, t_ns: int | None = None) -> None:
+        self.rec.write(key, payload, t_ns=t_ns)
         if key == self.keys.event and not self.run_end:
             try:
                 ev = pb.Event.FromString(payload)

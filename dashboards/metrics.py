@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from plant.sensors import CameraGeometry, visibility_matrix
+from plant.sensors import CameraGeometry, in_view
 
 D_MIN_M = 100.0  # paper 002 section 3.2
 D_MIN_TRANS_M = 30.0
@@ -35,11 +35,16 @@ PARALLEL_MIN = 0.8  # Algorithm 1
 
 # --- graph --------------------------------------------------------------------------------------
 def visibility_series(position_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
-    """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix)."""
+    """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix of each
+    step; here for many steps per numpy call, the same comparisons: tests/test_metrics.py)."""
     T, N, _ = position_m.shape
-    out = np.zeros((T, N, N), dtype=bool)
-    for t in range(T):
-        out[t] = visibility_matrix(position_m[t], cam, None if alive is None else alive[t])
+    out = np.empty((T, N, N), dtype=bool)
+    for t0 in range(0, T, 256):
+        p = position_m[t0:t0 + 256]
+        in_view(p[:, None, :, :] - p[:, :, None, :], cam, out[t0:t0 + 256])
+    out[:, np.arange(N), np.arange(N)] = False
+    if alive is not None:
+        out &= np.asarray(alive, dtype=bool)[:, :, None]
     return out
 
 
@@ -136,12 +141,14 @@ def closest_visible(position_m: np.ndarray, roe_m: np.ndarray, vis: np.ndarray) 
 
 
 def visible_pair_parallelism(roe_m: np.ndarray, vis: np.ndarray) -> np.ndarray:
-    """(T, N, N) parallelism of dalpha_jk where j sees k, NaN elsewhere."""
+    """(T, N, N) parallelism of dalpha_jk where j sees k, NaN elsewhere (computed for the visible
+    pairs only: `parallelism` is elementwise, so the values are those of every pair's)."""
     out = np.full(vis.shape, np.nan)
-    for t0 in range(0, vis.shape[0], 512):
-        sl = slice(t0, t0 + 512)
-        pair = roe_m[sl, :, None, :] - roe_m[sl, None, :, :]
-        out[sl] = np.where(vis[sl], parallelism(pair[..., 2:4], pair[..., 4:6]), np.nan)
+    t, j, k = np.nonzero(vis)
+    for a in range(0, len(t), 1 << 18):
+        sl = slice(a, a + (1 << 18))
+        pair = roe_m[t[sl], j[sl]] - roe_m[t[sl], k[sl]]
+        out[t[sl], j[sl], k[sl]] = parallelism(pair[..., 2:4], pair[..., 4:6])
     return out
 
 
@@ -208,7 +215,33 @@ def closest_approach_series(position_m: np.ndarray, velocity_mps: np.ndarray, t_
                             vis: np.ndarray | None = None, substeps: int = 8) -> dict[str, np.ndarray]:
     """Per interval [t_k, t_k+1): the minimum pair distance and its pair and time, for all pairs
     and, when `vis` is given, separately for pairs in visibility at t_k (either direction) and
-    pairs not in visibility. Returns arrays of length T-1 (NaN / -1 where no pair of that class)."""
+    pairs not in visibility. Returns arrays of length T-1 (NaN / -1 where no pair of that class).
+
+    The interpolated minimum (`_hermite_min`) is computed only for the pairs that can hold an
+    interval's minimum of a class (issue 16: about 1 in 20 pairs): a pair is left out when a
+    lower bound of its interpolated distance exceeds the smallest endpoint distance of the class
+    in that interval. The bound: on [0, 1] the Hermite weights give h00 + h01 = 1 (both in
+    [0, 1]) and |h10|, |h11| <= 4/27, so |p(s)| >= m = (|p0| + |p1| - |p1 - p0|) / 2 - 4/27 h
+    (|v0| + |v1|) and |p(s)| <= M = max(|p0|, |p1|) + 4/27 h (|v0| + |v1|); the sampled minimum of
+    the squared distance is >= m^2, and the parabolic refinement lowers it by at most a quarter of
+    the spread of the samples, so the result is >= sqrt(1.25 m^2 - 0.25 M^2) (with a margin for
+    rounding). A pair left out therefore never is the minimum nor ties it: the series is the one
+    of evaluating every pair (`closest_approach_series_all`), value for value
+    (tests/test_metrics.py)."""
+    return _closest_approach_series(position_m, velocity_mps, t_s, vis, substeps, prune=True)
+
+
+def closest_approach_series_all(position_m: np.ndarray, velocity_mps: np.ndarray, t_s: np.ndarray,
+                                vis: np.ndarray | None = None, substeps: int = 8) -> dict[str, np.ndarray]:
+    """`closest_approach_series` with every pair evaluated (the reference its pruning is tested against)."""
+    return _closest_approach_series(position_m, velocity_mps, t_s, vis, substeps, prune=False)
+
+
+_BOUND_REL = 1e-9  # relative rounding margin of the pruning bounds (double rounding errors are ~1e-15)
+
+
+def _closest_approach_series(position_m: np.ndarray, velocity_mps: np.ndarray, t_s: np.ndarray,
+                             vis: np.ndarray | None, substeps: int, prune: bool) -> dict[str, np.ndarray]:
     T, N, _ = position_m.shape
     jj, kk = np.triu_indices(N, 1)
     out = {f"{c}_{f}": np.full(T - 1, np.nan if f != "pair" else -1.0)
@@ -223,12 +256,18 @@ def closest_approach_series(position_m: np.ndarray, velocity_mps: np.ndarray, t_
         p1 = position_m[sl1][:, jj] - position_m[sl1][:, kk]
         v1 = velocity_mps[sl1][:, jj] - velocity_mps[sl1][:, kk]
         h = np.broadcast_to((t_s[sl1] - t_s[sl])[:, None], p0.shape[:2])
-        d, s = _hermite_min(p0, v0, p1, v1, h, substeps)  # (t, P)
-        tmin = t_s[sl][:, None] + s * h
-        classes = {"all": np.ones_like(d, dtype=bool)}
+        classes = {"all": np.ones(p0.shape[:2], dtype=bool)}
         if vis is not None:
             seen = vis[sl][:, jj, kk] | vis[sl][:, kk, jj]
             classes.update(visible=seen, hidden=~seen)
+        if prune:
+            d = np.full(p0.shape[:2], np.inf)
+            s = np.zeros(p0.shape[:2])
+            ti, pi = np.nonzero(_candidates(p0, v0, p1, v1, h, classes))
+            d[ti, pi], s[ti, pi] = _hermite_min(p0[ti, pi], v0[ti, pi], p1[ti, pi], v1[ti, pi], h[ti, pi], substeps)
+        else:
+            d, s = _hermite_min(p0, v0, p1, v1, h, substeps)  # (t, P)
+        tmin = t_s[sl][:, None] + s * h
         for c, mask in classes.items():
             dm = np.where(mask, d, np.inf)
             best = np.argmin(dm, axis=1)
@@ -238,6 +277,25 @@ def closest_approach_series(position_m: np.ndarray, velocity_mps: np.ndarray, t_
             out[f"{c}_t_s"][sl] = np.where(ok, np.take_along_axis(tmin, best[:, None], 1)[:, 0], np.nan)
             out[f"{c}_pair"][sl] = np.where(ok, best, -1)
     return out
+
+
+def _candidates(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray, h: np.ndarray,
+                classes: dict[str, np.ndarray]) -> np.ndarray:
+    """(t, P) bool: the pairs whose interpolated distance can be their class's minimum of the
+    interval (bounds in `closest_approach_series`); NaN anywhere makes a pair a candidate."""
+    norm = lambda a: np.sqrt(np.einsum("...i,...i->...", a, a))  # noqa: E731
+    r0, r1 = norm(p0), norm(p1)
+    wobble = (4.0 / 27.0) * h * (norm(v0) + norm(v1))
+    m = np.maximum(0.5 * (r0 + r1 - norm(p1 - p0)) - wobble, 0.0)
+    big = np.maximum(r0, r1) + wobble
+    lb2 = 1.25 * m * m - 0.25 * big * big - _BOUND_REL * big * big
+    lb = np.sqrt(np.maximum(lb2, 0.0))
+    ub = np.minimum(r0, r1) * (1.0 + _BOUND_REL)  # the interpolated minimum is at most an endpoint's distance
+    cand = np.zeros(p0.shape[:2], dtype=bool)
+    for mask in classes.values():
+        thr = np.fmin.reduce(np.where(mask, ub, np.inf), axis=1)  # NaN-ignoring
+        cand |= mask & ~(lb > thr[:, None])
+    return cand
 
 
 def closest_approach(series: dict[str, np.ndarray], n_bodies: int, cls: str = "all",

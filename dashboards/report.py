@@ -333,6 +333,30 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
         return _write_report(Path(run_dir), cam, steady_from_s, projection_orbits, figures, interactive)
 
 
+def write_metrics(run_dir: str | Path, truth: TruthArrays, cam: CameraGeometry,
+                  steady_from_s: float | None = None) -> Path:
+    """What `write_report(..., figures=False)` writes (the metrics into run_dir/summary.json and
+    run_dir/metrics_series.npz), from truth arrays the caller already holds (issue 16: a campaign's
+    batch run keeps them, deploy/batch.TruthLog) instead of reading run.mcap back."""
+    run_dir = Path(run_dir)
+    spath = run_dir / "summary.json"
+    _write_metrics(run_dir, json.loads(spath.read_text()) if spath.is_file() else {}, truth, cam, steady_from_s)
+    return spath
+
+
+def _write_metrics(run_dir: Path, summary: dict[str, Any], truth: TruthArrays, cam: CameraGeometry,
+                   steady_from_s: float | None) -> tuple[SwarmMetrics, dict[str, Any]]:
+    m = compute_metrics(truth, cam, steady_from_s)
+    met = m.summary
+    met["camera"] = {"detection_range_m": cam.detection_range_m, "image_px": cam.image_px, "focal_px": cam.focal_px}
+    summary["metrics"] = met
+    (run_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+    np.savez_compressed(run_dir / SERIES, t_s=m.t_s, n_components=m.n_components, largest=m.largest,
+                        n_components_orbit=m.n_components_orbit,
+                        delta_v_total_mps=m.delta_v_mps.sum(axis=1))
+    return m, met
+
+
 def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: float | None, projection_orbits: float,
                   figures: bool, interactive: bool) -> Path:
     from dashboards.frames import metrics_series_frame
@@ -342,14 +366,7 @@ def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: floa
     summary = json.loads(spath.read_text()) if spath.is_file() else {}
     cam = cam or _camera_for(run_dir, summary)
     truth = read_truth(run_dir / "run.mcap", summary.get("run"))
-    m = compute_metrics(truth, cam, steady_from_s)
-    met = m.summary
-    met["camera"] = {"detection_range_m": cam.detection_range_m, "image_px": cam.image_px, "focal_px": cam.focal_px}
-    summary["metrics"] = met
-    spath.write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(run_dir / SERIES, t_s=m.t_s, n_components=m.n_components, largest=m.largest,
-                        n_components_orbit=m.n_components_orbit,
-                        delta_v_total_mps=m.delta_v_mps.sum(axis=1))
+    m, met = _write_metrics(run_dir, summary, truth, cam, steady_from_s)
     if not figures:
         return spath
     out = run_dir / "report"

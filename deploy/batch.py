@@ -14,7 +14,7 @@ channel, viewer), or a plant that flies attitude (torques).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -52,19 +52,67 @@ class BatchHook:
         o = cfgs[0]["orbit"]
         orbit = OrbitInfo(o["semi_major_axis_m"], o["mean_motion_radps"])
         self.ids = list(sc.ids)
+        self._ids = np.array(self.ids, dtype=object)  # ids of the pairs' neighbours by one gather
         self.agents = BatchAgents(self.ids, [(c["controller"], c["params"]) for c in cfgs], orbit,
                                   cfgs[0]["decision_period_steps"])
         keys = Keys(run)
         # the agents are up (the plant waits for their liveliness before step 0, as for processes)
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
 
-    def __call__(self, ctx: Any, rows: np.ndarray, rel: Any) -> np.ndarray:
+    def __call__(self, ctx: Any, rows: np.ndarray, sense: Callable[[], Any]) -> np.ndarray:
+        """`sense()` gives the stimuli of the observers `rows` (RelBatch); not called when no
+        controller of the batch looks at its observation (`observes = False`, agent/controller.py)."""
         ids = self.ids
-        batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=[ids[i] for i in rows.tolist()],
-                                 offsets=rel.offsets, neighbour_ids=[ids[k] for k in rel.neighbour.tolist()],
-                                 rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+        observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
+        if self.agents.observes:
+            rel = sense()
+            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+                                     offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
+                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+        else:
+            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+                                     offsets=np.zeros(len(rows) + 1, dtype=np.int64), neighbour_ids=[],
+                                     rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
         return self.agents.step(rows, batch)
 
     @property
     def faults(self) -> dict[str, dict[str, int]]:
         return self.agents.faults
+
+
+class TruthLog:
+    """The plant's truth of every step as arrays, kept while the run goes (PlantNode `on_truth`):
+    what `dashboards.truth_io.read_truth` reads back from the recording, without reading it
+    (issue 16: a campaign computes each run's metrics from these). The values are the ones the
+    truth messages carry (protobuf doubles are float64), so `arrays()` equals `read_truth` of the
+    run's recording exactly (tests/test_campaign.py)."""
+
+    def __init__(self, ids: list[str], steps: int, a_m: float, n_radps: float) -> None:
+        n, t = len(ids), steps + 1
+        self.ids, self.a_m, self.n_radps = list(ids), float(a_m), float(n_radps)
+        self.k = 0
+        self.step = np.empty(t, dtype=np.int64)
+        self.t_s, self.u_rad = np.empty(t), np.empty(t)
+        self.pos, self.vel, self.acc = np.empty((t, n, 3)), np.empty((t, n, 3)), np.empty((t, n, 3))
+        self.dv, self.alive, self.roe = np.empty((t, n)), np.empty((t, n), dtype=bool), np.empty((t, n, 6))
+
+    def __call__(self, step: int, t_s: float, u_rad: float, pos: np.ndarray, vel: np.ndarray, dv: np.ndarray,
+                 alive: np.ndarray, acc: np.ndarray, roe: np.ndarray) -> None:
+        k = self.k
+        if k == len(self.t_s) or (k and step <= self.step[k - 1]):
+            return  # beyond the planned steps, or a repeated step (read_truth keeps the first)
+        self.step[k], self.t_s[k], self.u_rad[k] = step, t_s, u_rad
+        self.pos[k], self.vel[k], self.dv[k], self.alive[k], self.acc[k], self.roe[k] = pos, vel, dv, alive, acc, roe
+        self.k = k + 1
+
+    def arrays(self, run: str) -> Any:
+        """The TruthArrays of the steps so far (dashboards/truth_io.py)."""
+        from dashboards.truth_io import TruthArrays, align_accel
+
+        k = self.k
+        acc, recorded_as = align_accel(self.acc[:k].copy(), self.dv[:k], self.t_s[:k])
+        return TruthArrays(run=run, ids=list(self.ids), step=self.step[:k].copy(), t_s=self.t_s[:k].copy(),
+                           u_rad=self.u_rad[:k].copy(), semi_major_axis_m=self.a_m, mean_motion_radps=self.n_radps,
+                           position_m=self.pos[:k].copy(), velocity_mps=self.vel[:k].copy(),
+                           delta_v_mps=self.dv[:k].copy(), alive=self.alive[:k].copy(), accel_mps2=acc,
+                           roe_m=self.roe[:k].copy(), accel_recorded_as=recorded_as)

@@ -100,14 +100,18 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         from deploy.scenario import load_scenario
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
-        res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record)
+        res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record,
+                             keep_truth=metrics)
         summary = res.summary
         if metrics:
-            from dashboards.report import write_report
+            from dashboards.report import write_metrics, write_report
             from plant.sensors import CameraGeometry
 
             cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
-            write_report(rdir, cam=cam, figures=False)
+            if res.truth is not None:  # the arrays the run kept: no read-back of the recording
+                write_metrics(rdir, res.truth, cam)
+            else:
+                write_report(rdir, cam=cam, figures=False)
             summary = json.loads((rdir / "summary.json").read_text())
         row.update(summary_row(summary))
         if not keep_recording:

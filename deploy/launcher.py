@@ -46,6 +46,7 @@ class RunResult:
     exit_code: int = 0
     reason: str = ""
     pids: dict[str, int] = field(default_factory=dict)
+    truth: Any = None  # the truth as arrays (dashboards.truth_io.TruthArrays), when run_in_process kept it
 
 
 def _base_summary(sc: Scenario, run: str, mode_label: str) -> dict[str, Any]:
@@ -104,7 +105,7 @@ class _Progress:
 
 
 def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bool = False,
-                   opts: dict[str, Any] | None = None, record: str = "all") -> RunResult:
+                   opts: dict[str, Any] | None = None, record: str = "all", keep_truth: bool = False) -> RunResult:
     """Same plant, agents and recorder code in one process over the in-memory bus.
 
     record="all": every message, one agent node per spacecraft (as the processes). record="truth"
@@ -114,6 +115,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     from bus.memory import MemoryBus
     from bus.recorder import RecorderNode
     from plant.node import PlantNode
+    from plant.world import World
 
     run = run or new_run_id(sc.name)
     out.mkdir(parents=True, exist_ok=True)
@@ -136,6 +138,11 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     plant = PlantNode(bus, run, sc, expect_processes=("recorder", *[c.name for c in comps]),
                       barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update if progress else None,
                       local_agents=hook)
+    log = None
+    if keep_truth and isinstance(plant.world, World):
+        from deploy.batch import TruthLog
+
+        log = plant.on_truth = TruthLog(plant.world.ids, sc.steps, plant.world.a_m, plant.world.n_radps)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
     agents = [make_agent(bus, run, sc, sid) for sid in sc.ids] if hook is None else []
     plant.wait_ready(timeout_s=1.0)
@@ -148,7 +155,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     summary["agent_faults"] = hook.faults if hook is not None else {a.id: a.faults for a in agents if a.faults}
     _finish_summary(summary, plant_summary, rec_stats, {a.id: a.rejections.total for a in agents})
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    return RunResult(summary, out)
+    return RunResult(summary, out, truth=None if log is None else log.arrays(run))
 
 
 def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:

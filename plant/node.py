@@ -16,8 +16,9 @@ import numpy as np
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header
+from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
+from bus.truth_wire import HeaderEncoder, TruthEncoder
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -40,7 +41,8 @@ class PlantNode:
 
     def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
                  barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
-                 local_agents: Callable[[SensingContext, np.ndarray, Any], np.ndarray] | None = None) -> None:
+                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None,
+                 on_truth: Callable[..., None] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
         self.run_id = run
@@ -71,12 +73,25 @@ class PlantNode:
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
         # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
-        # process, called with the sensing kind's stimuli as arrays (`batch`) instead of one
-        # message per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
+        # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
+        # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
+        # stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
+        self._local_all = False  # every spacecraft alive at the step of _local_cmd
+        # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
+        # of every truth the ROE plants publish, for a caller in this process that keeps them as
+        # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
+        self.on_truth = on_truth
         if local_agents is not None and not hasattr(self.sensor, "batch"):
             raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
+        # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
+        # same bytes); on an in-process bus, samples stamped with their simulation time, and the
+        # tick built only when someone receives it (bus/memory.py)
+        self._truth_wire = TruthEncoder(self.world.ids) if isinstance(self.world, World) else None
+        self._truth_header = HeaderEncoder(run, "plant")
+        self._stamps = bool(getattr(bus, "stamps", False))
+        self._wants = getattr(bus, "wants", None)
         bus.subscribe(self.keys.act_all, self._on_command)
         if self.barriers:
             bus.subscribe(self.keys.sync_all, self._on_barrier)
@@ -131,10 +146,13 @@ class PlantNode:
         return self.live_ids() | {f"sync:{b}" for b in self.barriers if b in self.present}
 
     # --- helpers ----------------------------------------------------------------------------
-    def _hdr(self, key: str) -> pb.Header:
+    def _next_seq(self, key: str) -> int:
         seq = self._seq.get(key, 0)
         self._seq[key] = seq + 1
-        return header(self.run_id, "plant", self._step, self.world.t_s, seq)
+        return seq
+
+    def _hdr(self, key: str) -> pb.Header:
+        return header(self.run_id, "plant", self._step, self.world.t_s, self._next_seq(key))
 
     def _event(self, kind: str, subject: str, detail: str) -> None:
         ev = pb.Event(header=self._hdr(self.keys.event), kind=kind, subject=subject, detail=detail)
@@ -192,34 +210,35 @@ class PlantNode:
         pos, vel = self.world.lvlh()
         ids = self.world.ids
         alive = self.world.alive.tolist()
-        tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
-                       alive=[s for s, a in zip(ids, alive) if a], final=final)
-        self.bus.publish(self.keys.clock, tick.SerializeToString())
-        truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=u, semi_major_axis_m=self.world.a_m,
-                         mean_motion_radps=self.world.n_radps)
-        P, V, R, DV = pos.tolist(), vel.tolist(), self.world.roe_m().tolist(), self.world.delta_v_mps.tolist()
-        A = self.world.last_accel_mps2.tolist()
-        add = truth.bodies.add
-        for sid, dv, al, r, p, v, a in zip(ids, DV, alive, R, P, V, A):  # each sub-message looked up once
-            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
-            q = b.position_m
-            q.x, q.y, q.z = p
-            q = b.velocity_mps
-            q.x, q.y, q.z = v
-            q = b.accel_cmd_mps2
-            q.x, q.y, q.z = a
-        if isinstance(self.world, MissionWorld):
-            self._add_mission_truth(truth)
+        if self._wants is None or self._wants(self.keys.clock):
+            tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
+                           alive=[s for s, a in zip(ids, alive) if a], final=final)
+            self.bus.publish(self.keys.clock, tick.SerializeToString())
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is
         # at the time agents transmit in step k
-        self.bus.publish(self.keys.truth, truth.SerializeToString())
+        t_s = self.world.t_s
+        if self._truth_wire is not None:
+            w = self.world
+            roe = w.roe_m()
+            data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self.keys.truth)),
+                                           u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
+                                           w.last_accel_mps2, roe)
+            if self.on_truth is not None:
+                self.on_truth(k, t_s, u, pos, vel, w.delta_v_mps, w.alive, w.last_accel_mps2, roe)
+        else:
+            data = self._mission_truth(pos, vel, alive).SerializeToString()
+        if self._stamps:
+            self.bus.publish(self.keys.truth, data, sim_time_ns(t_s))
+        else:
+            self.bus.publish(self.keys.truth, data)
         if final:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
                              alive=self.world.alive, world=self.world)
         if self.local_agents is not None:
             rows = np.flatnonzero(self.world.alive)
-            self._local_cmd = self.local_agents(ctx, rows, self.sensor.batch(ctx, rows))
+            self._local_all = len(rows) == len(ids)
+            self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
             if not alive[j]:
@@ -227,6 +246,25 @@ class PlantNode:
             key = self._sense_keys[j]
             stim = self.sensor.stimulus(ctx, j, self._hdr(key))
             self.bus.publish(key, stim.SerializeToString())
+
+    def _mission_truth(self, pos: np.ndarray, vel: np.ndarray, alive: list[bool]) -> pb.Truth:
+        """The truth message of the mission world (attitude, bodies): built field by field."""
+        w = self.world
+        truth = pb.Truth(header=self._hdr(self.keys.truth), u_rad=w.u_rad, semi_major_axis_m=w.a_m,
+                         mean_motion_radps=w.n_radps)
+        P, V, R, DV = pos.tolist(), vel.tolist(), w.roe_m().tolist(), w.delta_v_mps.tolist()
+        A = w.last_accel_mps2.tolist()
+        add = truth.bodies.add
+        for sid, dv, al, r, p, v, a in zip(w.ids, DV, alive, R, P, V, A):  # each sub-message looked up once
+            b = add(id=sid, kind="spacecraft", delta_v_mps=dv, alive=al, roe_m=r)
+            q = b.position_m
+            q.x, q.y, q.z = p
+            q = b.velocity_mps
+            q.x, q.y, q.z = v
+            q = b.accel_cmd_mps2
+            q.x, q.y, q.z = a
+        self._add_mission_truth(truth)
+        return truth
 
     def _add_mission_truth(self, truth: pb.Truth) -> None:
         """Attitude of the spacecraft that fly it, and every non-agent body (kind, pose)."""
@@ -254,10 +292,14 @@ class PlantNode:
         k = self._step
         if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
             alive = self.world.alive
-            self.held[alive, :3] = self._local_cmd[alive]
-            self.held[alive, 3:] = 0.0
+            if self._local_all:  # everyone alive: the same assignments without the masks
+                self.held[:, :3] = self._local_cmd
+                self.held[:, 3:] = 0.0
+            else:
+                self.held[alive, :3] = self._local_cmd[alive]
+                self.held[alive, 3:] = 0.0
             self._local_cmd = None
-            self._advance(k)
+            self._advance(k, all_alive=self._local_all)
             return
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
@@ -283,8 +325,9 @@ class PlantNode:
                     self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
         self._advance(k)
 
-    def _advance(self, k: int) -> None:
-        self.held[~self.world.alive] = 0.0
+    def _advance(self, k: int, all_alive: bool = False) -> None:
+        if not all_alive:
+            self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
         else:
@@ -305,7 +348,8 @@ class PlantNode:
                 break
             if self._rejoin:
                 self._apply_rejoins()
-            self.box.open(k)
+            if self.local_agents is None:  # (the batch mode's commands come back from the hook)
+                self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()
             c1 = time.perf_counter()

@@ -31,21 +31,27 @@ def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray 
     |rel_z| <= tan * rel_y and |rel| <= detection range. Dead spacecraft still reflect light, so
     they stay visible; a dead observer sees nothing (its camera is off).
     """
-    if cam.boresight != (0.0, 1.0, 0.0):
-        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
-    rel = pos_m[None, :, :] - pos_m[:, None, :]
-    ahead = rel[..., 1]
-    tan = cam.tan_half_fov
-    vis = (
-        (ahead > 0.0)
-        & (np.abs(rel[..., 0]) <= tan * ahead)
-        & (np.abs(rel[..., 2]) <= tan * ahead)
-        & (np.einsum("jki,jki->jk", rel, rel) <= cam.detection_range_m**2)
-    )
-    np.fill_diagonal(vis, False)
+    vis = np.empty((len(pos_m), len(pos_m)), dtype=bool)
+    in_view(pos_m[None, :, :] - pos_m[:, None, :], cam, vis)
+    vis.ravel()[:: vis.shape[0] + 1] = False  # nobody sees itself (np.fill_diagonal, without its Python)
     if alive is not None:
         vis &= alive[:, None]
     return vis
+
+
+def in_view(rel: np.ndarray, cam: CameraGeometry, out: np.ndarray) -> np.ndarray:
+    """out[..., j, k] = r_k - r_j (rel[..., j, k, :]) is within range and inside j's square FOV
+    (`visibility_matrix`'s rule, for any leading axes: dashboards/metrics.py evaluates many steps
+    at once)."""
+    if cam.boresight != (0.0, 1.0, 0.0):
+        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
+    ahead = rel[..., 1]
+    lim = cam.tan_half_fov * ahead
+    np.greater(ahead, 0.0, out=out)
+    out &= np.abs(rel[..., 0]) <= lim
+    out &= np.abs(rel[..., 2]) <= lim
+    out &= np.einsum("...i,...i->...", rel, rel) <= cam.detection_range_m**2
+    return out
 
 
 def weakly_connected(vis: np.ndarray) -> bool:

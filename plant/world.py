@@ -72,7 +72,7 @@ class World:
         c0 = time.perf_counter()
         a = self.limit(accel_mps2)
         self.last_accel_mps2 = a
-        self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
+        self.delta_v_mps += np.sqrt(np.add.reduce(a * a, axis=1)) * dt_s  # np.linalg.norm(a, axis=1), its arithmetic
         self.propagator.step(a, dt_s)
         self.steps_done += 1
         self.t_s = self.steps_done * dt_s

@@ -7,6 +7,7 @@ propagation (a finite difference over a short step), so a sign error in either s
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from agent import roe as fsw
 from plant.dynamics import roe_linear as truth
@@ -44,3 +45,19 @@ def test_input_matrix_matches_plant_zoh_propagation():
         numeric = moved.T / (1e-4 * dt_s)
         np.testing.assert_allclose(A_M * fsw.input_matrix(u, A_M, N_RADPS), numeric, rtol=1e-6, atol=1e-2)  # O(dt) terms ~1.5e-3
         np.testing.assert_allclose(fsw.state_matrix(N_RADPS), truth.state_matrix(N_RADPS), atol=0)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
+def test_observer_roe_rows_is_lvlh_to_roe_of_the_negated_rows_bit_for_bit() -> None:
+    """agent/roe.observer_roe_rows (issue 16: the controller's per-pair map, fewer numpy calls)."""
+    rng = np.random.default_rng(16)
+    for p_ in (0, 1, 7, 120):
+        for _ in range(100):
+            rp = rng.normal(scale=300.0, size=(p_, 3)) * 10.0 ** rng.integers(-4, 3)
+            rv = rng.normal(scale=0.3, size=(p_, 3)) * 10.0 ** rng.integers(-4, 3)
+            for a in (rp, rv):
+                a[rng.random(a.shape) < 0.03] = rng.choice([0.0, -0.0, np.nan, np.inf, 1e-320], size=1)
+            u = float(rng.uniform(-1.0, 1000.0))
+            want = fsw.lvlh_to_roe(-rp, -rv, u, N_RADPS)
+            got = fsw.observer_roe_rows(rp, rv, u, N_RADPS)
+            assert got.shape == want.shape and got.tobytes() == want.tobytes()

@@ -21,6 +21,23 @@ def test_per_axis_equals_worlds_clip() -> None:
     assert np.array_equal(limit_per_axis(a, 1e-3), np.clip(a, -1e-3, 1e-3))
 
 
+def test_per_axis_equals_np_clip_bit_for_bit() -> None:
+    """np.clip's bits (NaN, -0.0, +-inf, subnormals, a zero limit) for scalar, per-craft and per-axis
+    limits, with a scalar limit checked without numpy (issue 16: once per step of a batch run)."""
+    rng = np.random.default_rng(16)
+    a = rng.normal(0, 2e-3, (400, 3)) * 10.0 ** rng.integers(-310, 3, (400, 3))
+    a[rng.random((400, 3)) < 0.1] = rng.choice([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324], size=1)
+    for m in (1e-3, 0.0, np.float64(2e-3).item(), rng.random(400) * 1e-3, rng.random((400, 3)) * 1e-3):
+        mm = m[:, None] if isinstance(m, np.ndarray) and m.ndim == 1 else m
+        want = np.clip(a, -mm, mm)
+        got = limit_per_axis(a, m)
+        assert got.tobytes() == want.tobytes()
+    with pytest.raises(ValueError):
+        limit_per_axis(a, float("nan"))
+    with pytest.raises(ValueError):
+        limit_per_axis(a, -1.0)
+
+
 def test_norm_keeps_direction_and_caps_magnitude() -> None:
     u = np.array([[3.0, -4.0, 0.0], [0.1, 0.2, -0.2], [0.0, 0.0, 0.0]])
     out = limit_norm(u, 1.0)
@@ -50,3 +67,12 @@ def test_force_to_accel() -> None:
     np.testing.assert_array_equal(force_to_accel(f, 10.0), f / 10.0)
     with pytest.raises(ValueError, match="mass_kg must be > 0"):
         force_to_accel(f, np.array([1.0, 0.0]))
+
+
+def test_world_dv_norm_is_linalg_norm_bit_for_bit() -> None:
+    """plant/world.py sums |a| dt with np.sqrt(np.add.reduce(a * a, axis=1)), which is what
+    np.linalg.norm(a, axis=1) computes for real arrays (issue 16: without its Python)."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(0, 1e-4, (500, 3)) * 10.0 ** rng.integers(-200, 150, (500, 3))
+    a[rng.random((500, 3)) < 0.05] = 0.0
+    assert np.sqrt(np.add.reduce(a * a, axis=1)).tobytes() == np.linalg.norm(a, axis=1).tobytes()

@@ -149,3 +149,25 @@ def test_linear_plant_interface() -> None:
     assert plant.reference_u() == pytest.approx((6.0 + 10.0 * N_RADPS) % (2 * np.pi))
     with pytest.raises(ValueError):
         plant.step(np.zeros((2, 3)), 10.0)
+
+
+def _roe_to_lvlh_as_written(roe: np.ndarray, u: float, n: float) -> tuple[np.ndarray, np.ndarray]:
+    """The map as it was written before issue 16 made it cheaper: the reference for bit equality."""
+    c, s = np.cos(u), np.sin(u)
+    da, dl, dex, dey, dix, diy = (roe[..., k] for k in range(6))
+    pos = np.stack((da - dex * c - dey * s, dl + 2.0 * dex * s - 2.0 * dey * c, dix * s - diy * c), axis=-1)
+    vel = n * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s), axis=-1)
+    return pos, vel
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf - inf on purpose
+def test_roe_to_lvlh_is_bit_identical_to_the_formula_as_written() -> None:
+    rng = np.random.default_rng(16)
+    for shape in ((20, 6), (6,), (3, 5, 6), (0, 6)):
+        for _ in range(200):
+            roe = rng.normal(size=shape) * 10.0 ** rng.integers(-3, 5)
+            roe[rng.random(shape) < 0.05] = rng.choice([0.0, -0.0, np.nan, np.inf, 1e-310], size=1)
+            u = float(rng.uniform(-10, 1000)) if rng.random() < 0.9 else float(rng.choice([0.0, np.pi / 2, -0.0]))
+            got, want = roe_to_lvlh(roe, u, N_RADPS), _roe_to_lvlh_as_written(roe, u, N_RADPS)
+            assert got[0].shape == want[0].shape and got[1].shape == want[1].shape
+            assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()

@@ -9,7 +9,7 @@ from dashboards.metrics import (
     relative_to_com, visibility_series, visible_pair_parallelism, weak_components,
 )
 from plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
-from plant.sensors import CameraGeometry
+from plant.sensors import CameraGeometry, visibility_matrix
 
 CAM = CameraGeometry()  # paper 002: 500 m, square FOV tan = 0.54, boresight +y
 A_M = 6878137.0
@@ -197,3 +197,66 @@ def test_weak_components_equal_scipy_per_step():
         for t in range(T):
             n0, l0 = connected_components(vis[t], directed=True, connection="weak")
             assert n[t] == n0 and np.array_equal(labels[t], l0)
+
+
+def _series_equal(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].tobytes() == b[k].tobytes(), k
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
+def test_pruned_closest_approach_equals_every_pair_evaluated():
+    """Issue 16: the series with the pairs that cannot be an interval's minimum left out is the one
+    of evaluating every pair, value for value (random swarms with fast close passes, ties of
+    coincident pairs, NaN and dead spacecraft, and the relative orbits of a ROE swarm)."""
+    from dashboards.metrics import closest_approach_series, closest_approach_series_all
+
+    rng = np.random.default_rng(16)
+    for case in range(60):
+        T, N = int(rng.integers(2, 40)), int(rng.integers(2, 12))
+        pos = rng.normal(scale=float(rng.choice([5.0, 100.0, 400.0])), size=(T, N, 3))
+        vel = rng.normal(scale=float(rng.choice([0.01, 1.0, 30.0])), size=(T, N, 3))
+        if case % 3 == 0:  # straight-line fly-bys: positions consistent with the velocities
+            t = np.arange(T) * 10.0
+            p0, v = rng.normal(scale=200.0, size=(N, 3)), rng.normal(scale=5.0, size=(N, 3))
+            pos, vel = p0[None] + t[:, None, None] * v[None], np.broadcast_to(v, (T, N, 3)).copy()
+        if case % 4 == 1 and N > 3:
+            pos[:, 3] = pos[:, 2]  # a coincident pair: ties at zero distance
+            vel[:, 3] = vel[:, 2]
+        if case % 7 == 2:
+            pos[rng.integers(T), rng.integers(N), 0] = np.nan
+        t_s = np.cumsum(rng.uniform(1.0, 20.0, T))
+        vis = rng.random((T, N, N)) < 0.2 if case % 2 else None
+        for sub in (4, 8):
+            _series_equal(closest_approach_series(pos, vel, t_s, vis, sub),
+                          closest_approach_series_all(pos, vel, t_s, vis, sub))
+    # a ROE swarm over three orbits, with its visibility
+    n_radps = mean_motion(6878137.0)
+    roe = rng.normal(scale=150.0, size=(20, 6))
+    u = np.arange(1500) * 10.0 * n_radps
+    pos, vel = (np.stack(x) for x in zip(*[roe_to_lvlh(roe, ui, n_radps) for ui in u]))
+    vis = np.stack([visibility_matrix(p, CameraGeometry()) for p in pos])
+    _series_equal(closest_approach_series(pos, vel, u / n_radps, vis),
+                  closest_approach_series_all(pos, vel, u / n_radps, vis))
+
+
+def test_series_over_many_steps_equal_the_per_step_functions():
+    """visibility_series (many steps per numpy call) and visible_pair_parallelism (visible pairs
+    only), issue 16: equal to plant/sensors.visibility_matrix step by step and to the parallelism
+    of every pair, on a ROE swarm with dead spacecraft."""
+    from dashboards.metrics import visible_pair_parallelism
+
+    rng = np.random.default_rng(7)
+    n_radps = mean_motion(6878137.0)
+    roe = rng.normal(scale=200.0, size=(20, 6))
+    u = np.arange(700) * 10.0 * n_radps
+    pos = np.stack([roe_to_lvlh(roe, ui, n_radps)[0] for ui in u])
+    alive = rng.random((700, 20)) < 0.9
+    cam = CameraGeometry()
+    vis = visibility_series(pos, cam, alive)
+    assert np.array_equal(vis, np.stack([visibility_matrix(p, cam, a) for p, a in zip(pos, alive)])) and vis.sum() > 1000
+    roe_t = np.broadcast_to(roe, (700, 20, 6)) + rng.normal(scale=5.0, size=(700, 20, 6))
+    pair = roe_t[:, :, None, :] - roe_t[:, None, :, :]
+    want = np.where(vis, parallelism(pair[..., 2:4], pair[..., 4:6]), np.nan)
+    assert visible_pair_parallelism(roe_t, vis).tobytes() == want.tobytes()

@@ -30,7 +30,7 @@ import numpy as np
 
 from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
-from agent.roe import lvlh_to_roe
+from agent.roe import lvlh_to_roe, observer_roe_rows
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
@@ -103,8 +103,10 @@ def parallelism(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.n
     de_m = np.hypot(r[..., 2], r[..., 3]) if de_m is None else de_m
     di_m = np.hypot(r[..., 4], r[..., 5]) if di_m is None else di_m
     den = de_m * di_m
-    dot = np.abs(r[..., 2] * r[..., 4] + r[..., 3] * r[..., 5])
-    return np.where(den > _TINY_M**2, dot / np.where(den > _TINY_M**2, den, 1.0), 0.0)
+    prod = r[..., 2:4] * r[..., 4:6]  # dex dix, dey diy
+    dot = np.abs(prod[..., 0] + prod[..., 1])
+    ok = den > _TINY_M**2
+    return np.where(ok, dot / np.where(ok, den, 1.0), 0.0)
 
 
 def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: np.ndarray | None = None) -> np.ndarray:
@@ -115,8 +117,10 @@ def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: n
     ndi = np.hypot(di[:, :1], di[:, 1:]) if di_m is None else di_m[:, None]
     out = np.zeros_like(de)
     out[:, 0] = 1.0
-    out = np.where(ndi > _TINY_M, di / np.where(ndi > _TINY_M, ndi, 1.0), out)
-    return np.where(nde > _TINY_M, de / np.where(nde > _TINY_M, nde, 1.0), out)
+    ok = ndi > _TINY_M
+    out = np.where(ok, di / np.where(ok, ndi, 1.0), out)
+    ok = nde > _TINY_M
+    return np.where(ok, de / np.where(ok, nde, 1.0), out)
 
 
 class SabatiniController:
@@ -217,7 +221,7 @@ class SabatiniController:
         rel_pos = np.asarray(batch.rel_position_m, float).reshape(n_pairs, 3)
         rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(n_pairs, 3)
         u = batch.u_rad
-        roe_jk_m = relative_roe_observer(rel_pos, rel_vel, u, self.n_radps)
+        roe_jk_m = observer_roe_rows(rel_pos, rel_vel, u, self.n_radps)  # relative_roe_observer, bit for bit
         de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
         di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
         d_min_jk_m = np.abs(roe_jk_m[:, 1]) - 2.0 * de_m  # decision_distance_m
@@ -282,18 +286,18 @@ def _searching(_i: int) -> Command:
     return Command(accel_mps2=np.zeros(3), mode="search", decisions=[])
 
 
-_ALIKE: list = [((), False)]  # the last controllers checked (kept alive: identity means the same objects)
+_ALIKE: list = [([], False)]  # the last controllers checked (kept alive: identity means the same objects)
 
 
 def _alike(controllers: "list[SabatiniController]") -> bool:
     """Same parameters and orbit for all (one vectorised law); the verdict of the last list is kept,
     since a batch run asks about the same controllers every step."""
     last, verdict = _ALIKE[0]
-    if len(last) == len(controllers) and all(a is b for a, b in zip(last, controllers)):
+    if last == controllers:  # element by element, by identity (the controllers define no __eq__)
         return verdict
     c0 = controllers[0]
     verdict = all(c.p == c0.p and c.a_m == c0.a_m and c.n_radps == c0.n_radps for c in controllers[1:])
-    _ALIKE[0] = (tuple(controllers), verdict)
+    _ALIKE[0] = (list(controllers), verdict)
     return verdict
 
 

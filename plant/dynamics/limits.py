@@ -9,6 +9,7 @@ Two models (issue 11, per-spacecraft actuator limits):
 """
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -17,7 +18,11 @@ LimitMode = Literal["per_axis", "norm"]
 LIMIT_MODES: tuple[str, ...] = ("per_axis", "norm")
 
 
-def _check_max(max_value: float | np.ndarray) -> np.ndarray:
+def _check_max(max_value: float | np.ndarray) -> np.ndarray | float:
+    if isinstance(max_value, float):  # the common case, checked without numpy (a step of a batch run)
+        if not (math.isfinite(max_value) and max_value >= 0.0):
+            raise ValueError(f"actuator limit must be finite and >= 0, got {max_value!r}")
+        return max_value
     m = np.asarray(max_value, dtype=float)
     if np.any(~np.isfinite(m)) or np.any(m < 0.0):
         raise ValueError(f"actuator limit must be finite and >= 0, got {max_value!r}")
@@ -28,7 +33,7 @@ def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.nda
     """Saturate each axis: clip(u, -max, max); max scalar, (N,) or (N, 3). Returns a new (N, 3) array."""
     u = np.asarray(command, dtype=float)
     m = _check_max(max_value)
-    if m.ndim == 1:
+    if isinstance(m, np.ndarray) and m.ndim == 1:
         m = m[:, None]
     return np.clip(u, -m, m)
 
@@ -36,7 +41,7 @@ def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.nda
 def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray:
     """Scale each row into the ball |u| <= max, direction kept; max scalar or (N,). Returns a new array."""
     u = np.asarray(command, dtype=float)
-    m = _check_max(max_value)
+    m = np.asarray(_check_max(max_value))
     if m.ndim > 1:
         raise ValueError(f"a norm limit is one value per craft, got shape {m.shape}")
     norm = np.linalg.norm(u, axis=-1)

@@ -36,17 +36,36 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
     x = da - dex cos u - dey sin u        vx = n (dex sin u - dey cos u)
     y = dl + 2 dex sin u - 2 dey cos u    vy = n (-3/2 da + 2 dex cos u + 2 dey sin u)
     z = dix sin u - diy cos u             vz = n (dix cos u + diy sin u)
+
+    Evaluated in exactly this order (each product, then the sums left to right), with the products
+    of a kind in one numpy call (issue 16: this runs every step of a batch run).
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     c, s = np.cos(u_rad), np.sin(u_rad)
-    da, dl, dex, dey, dix, diy = (roe[..., k] for k in range(6))
-    pos = np.stack(
-        (da - dex * c - dey * s, dl + 2.0 * dex * s - 2.0 * dey * c, dix * s - diy * c), axis=-1
-    )
-    vel = n_radps * np.stack(
-        (dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s), axis=-1
-    )
+    if not isinstance(u_rad, float) and np.ndim(u_rad):  # one u per row (broadcast): as written
+        da, dl, dex, dey, dix, diy = (roe[..., k] for k in range(6))
+        pos = np.stack((da - dex * c - dey * s, dl + 2.0 * dex * s - 2.0 * dey * c, dix * s - diy * c), axis=-1)
+        vel = n_radps * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s),
+                                 axis=-1)
+        return pos, vel
+    k = np.array((c, s, s, c, s, c, c, s))
+    p = roe[..., _U] * k[:4]  # dex c, dex s, dix s, dix c
+    q = roe[..., _V] * k[4:]  # dey s, dey c, diy c, diy s
+    w = (2.0 * roe[..., _W]) * k[4:]  # (2 dex) s, (2 dey) c, (2 dex) c, (2 dey) s
+    pos = np.empty(roe.shape[:-1] + (3,))
+    vel = np.empty(roe.shape[:-1] + (3,))
+    da = roe[..., DA]
+    np.subtract(da - p[..., 0], q[..., 0], out=pos[..., 0])
+    np.subtract(roe[..., DL] + w[..., 0], w[..., 1], out=pos[..., 1])
+    np.subtract(p[..., 2], q[..., 2], out=pos[..., 2])
+    np.subtract(p[..., 1], q[..., 1], out=vel[..., 0])
+    np.add(-1.5 * da + w[..., 2], w[..., 3], out=vel[..., 1])
+    np.add(p[..., 3], q[..., 3], out=vel[..., 2])
+    vel *= n_radps
     return pos, vel
+
+
+_U, _V, _W = np.array([DEX, DEX, DIX, DIX]), np.array([DEY, DEY, DIY, DIY]), np.array([DEX, DEY, DEX, DEY])
 
 
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:

@@ -69,14 +69,19 @@ class RelKind:
 
 
     def batch(self, ctx: SensingContext, observers: np.ndarray) -> "RelBatch":
-        """What `stimulus` gives each of `observers`, for all of them at once as arrays (the batch
-        mode, issue 16): the same values (elementwise, the same pairs in the same order, the noise
-        drawn from the same generator in the same order)."""
+        """What `stimulus` gives each of `observers` (distinct indices into ctx.ids, in increasing
+        order), for all of them at once as arrays (the batch mode, issue 16): the same values
+        (elementwise, the same pairs in the same order, the noise drawn from the same generator in
+        the same order)."""
         vis = ctx.cached("visibility", lambda: visibility_matrix(ctx.position_m, self.cam, ctx.alive))
         pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
         obs = np.asarray(observers, dtype=np.int64)
-        jj, kk = np.nonzero(vis[obs])  # row by row, neighbours in index order: stimulus's order
-        j = obs[jj]
+        if len(obs) == len(vis):  # every spacecraft observes (observers are distinct): vis's own rows
+            jj, kk = np.nonzero(vis)
+            j = jj
+        else:
+            jj, kk = np.nonzero(vis[obs])  # row by row, neighbours in index order: stimulus's order
+            j = obs[jj]
         rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
         if self.noise is not None and len(kk):
             rp, rv = self.noise.apply_rows(rp, rv, u)

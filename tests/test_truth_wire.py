@@ -1,0 +1,120 @@
+"""Issue 16: bus/truth_wire.py writes the plant's Truth byte for byte as protobuf's SerializeToString,
+on random truths (zeros, -0.0, NaN, inf, dead bodies, ids of every length) and on recorded ones."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bus import swarmhil_pb2 as pb
+from bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
+
+
+def _protobuf(run, source, step, t, seq, u, a, n, ids, kinds, pos, vel, dv, alive, acc, roe) -> bytes:
+    """The message as plant/node.py built it before the encoder (each field assigned)."""
+    truth = pb.Truth(header=pb.Header(run=run, source=source, step=step, t=t, seq=seq), u_rad=u,
+                     semi_major_axis_m=a, mean_motion_radps=n)
+    for sid, kind, d, al, r, p, v, c in zip(ids, kinds, dv.tolist(), alive.tolist(), roe.tolist(), pos.tolist(),
+                                            vel.tolist(), acc.tolist()):
+        b = truth.bodies.add(id=sid, kind=kind, delta_v_mps=d, alive=al, roe_m=r)
+        b.position_m.x, b.position_m.y, b.position_m.z = p
+        b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = v
+        b.accel_cmd_mps2.x, b.accel_cmd_mps2.y, b.accel_cmd_mps2.z = c
+    return truth.SerializeToString()
+
+
+SPECIAL = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, -1.0, 1e300])
+
+
+def _values(rng: np.random.Generator, shape: tuple[int, ...], p_special: float) -> np.ndarray:
+    x = rng.normal(scale=10.0 ** rng.integers(-8, 6), size=shape)
+    pick = rng.random(shape) < p_special
+    x[pick] = rng.choice(SPECIAL, size=int(pick.sum()))
+    return x
+
+
+def test_random_truths_equal_protobuf() -> None:
+    rng = np.random.default_rng(16)
+    for case in range(600):
+        n = int(rng.integers(0, 25))
+        if case % 7 == 0:  # ids and kinds of every length, incl. empty, non-ASCII and a 2-byte body length
+            ids = ["".join(rng.choice(list("abcé01_"), size=int(rng.integers(0, 140)))) for _ in range(n)]
+            kinds = [str(rng.choice(["", "spacecraft", "target", "ü" * 3])) for _ in range(n)]
+        else:
+            ids, kinds = [f"sc{i + 1:02d}" for i in range(n)], ["spacecraft"] * n
+        p_special = float(rng.choice([0.0, 0.05, 0.5, 1.0]))
+        pos, vel, acc = (_values(rng, (n, 3), p_special) for _ in range(3))
+        if case % 5 == 0:
+            acc[:] = 0.0  # no command (drift)
+        dv, roe = _values(rng, (n,), p_special), _values(rng, (n, 6), p_special)
+        alive = rng.random(n) < 0.8
+        run, source = str(rng.choice(["", "r", "sabatini-20-20261201T000000-ab12"])), str(rng.choice(["", "plant"]))
+        step, seq = int(rng.choice([0, 1, 127, 128, 8640, 2**40])), int(rng.choice([0, 5, 300]))
+        t, u, a, nn = (float(x) for x in _values(rng, (4,), p_special))
+        want = _protobuf(run, source, step, t, seq, u, a, nn, ids, kinds, pos, vel, dv, alive, acc, roe)
+        enc = TruthEncoder(ids, kinds)
+        got = enc.encode(encode_header(run, source, step, t, seq), u, a, nn, pos, vel, dv, alive, acc, roe)
+        assert got == want, f"case {case}"
+        # the encoder is reused step after step: a second truth through the same object
+        pos2 = _values(rng, (n, 3), 0.3)
+        want2 = _protobuf(run, source, step + 1, t, seq + 1, u, a, nn, ids, kinds, pos2, vel, dv, ~alive, acc, roe)
+        assert enc.encode(encode_header(run, source, step + 1, t, seq + 1), u, a, nn, pos2, vel, dv, ~alive, acc,
+                          roe) == want2
+        # the same fields present, other values: the kept layout of the first pattern
+        pos3, vel3, dv3, acc3 = 3.0 * pos, -vel, 0.5 * dv, acc * 7.0
+        want3 = _protobuf(run, source, step, t, seq, u, a, nn, ids, kinds, pos3, vel3, dv3, alive, acc3, roe)
+        assert enc.encode(encode_header(run, source, step, t, seq), u, a, nn, pos3, vel3, dv3, alive, acc3, roe) == want3
+
+
+def test_more_patterns_than_kept(monkeypatch) -> None:
+    import bus.truth_wire as tw
+
+    monkeypatch.setattr(tw, "MAX_PLANS", 3)
+    rng = np.random.default_rng(3)
+    ids = [f"sc{i}" for i in range(6)]
+    enc = TruthEncoder(ids)
+    for step in range(40):
+        pos, vel, acc = (_values(rng, (6, 3), 0.4) for _ in range(3))
+        dv, roe, alive = _values(rng, (6,), 0.4), _values(rng, (6, 6), 0.1), rng.random(6) < 0.5
+        want = _protobuf("r", "plant", step, 1.0, step, 0.5, 7e6, 1e-3, ids, ["spacecraft"] * 6, pos, vel, dv, alive,
+                         acc, roe)
+        assert enc.encode(encode_header("r", "plant", step, 1.0, step), 0.5, 7e6, 1e-3, pos, vel, dv, alive, acc,
+                          roe) == want
+        assert len(enc._plans) <= 3
+
+
+def test_header_and_varint_equal_protobuf() -> None:
+    for v in (0, 1, 127, 128, 300, 16383, 16384, 2**35, 2**64 - 1):
+        assert varint(v) == pb.Header(step=v).SerializeToString()[1:] or v == 0
+    for t in (0.0, -0.0, 1.5, np.nan, -np.inf):
+        for run, source, step, seq in (("run", "plant", 3, 0), ("", "", 0, 7), ("rün", "p", 2**40, 128)):
+            want = pb.Header(run=run, source=source, step=step, t=t, seq=seq).SerializeToString()
+            assert encode_header(run, source, step, t, seq) == want == HeaderEncoder(run, source)(step, t, seq)
+
+
+@pytest.mark.parametrize("scenario", ["sabatini-20", "drift-20"])
+def test_recorded_truths_equal_protobuf(tmp_path, scenario) -> None:
+    """Every truth of a run (written by the encoder) is what protobuf makes of its own values."""
+    from mcap.reader import make_reader
+
+    from conftest import SCENARIOS
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    sc = load_scenario(SCENARIOS / f"{scenario}.toml").with_overrides(duration_s=300.0)
+    run_in_process(sc, tmp_path, "wire", record="truth")
+    with open(tmp_path / "run.mcap", "rb") as f:
+        truths = [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
+    assert len(truths) == 31
+    for data in truths:
+        m = pb.Truth.FromString(data)
+        h, bs = m.header, list(m.bodies)
+        arr = lambda f: np.array([f(b) for b in bs], dtype=float).reshape(len(bs), -1)  # noqa: E731
+        vec = lambda name: arr(lambda b: [getattr(getattr(b, name), c) for c in "xyz"])  # noqa: E731
+        pos, vel, acc = vec("position_m"), vec("velocity_mps"), vec("accel_cmd_mps2")
+        dv, roe = arr(lambda b: b.delta_v_mps)[:, 0], arr(lambda b: list(b.roe_m))
+        alive = np.array([b.alive for b in bs])
+        ids, kinds = [b.id for b in bs], [b.kind for b in bs]
+        args = (m.u_rad, m.semi_major_axis_m, m.mean_motion_radps)
+        assert _protobuf(h.run, h.source, h.step, h.t, h.seq, *args, ids, kinds, pos, vel, dv, alive, acc, roe) == data
+        assert TruthEncoder(ids, kinds).encode(encode_header(h.run, h.source, h.step, h.t, h.seq), *args, pos, vel,
+                                               dv, alive, acc, roe) == data
