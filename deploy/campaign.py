@@ -293,9 +293,12 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
     lines = [f"| {label} | {s['n']} | {f(s['mean'])} | "
              f"{ci(s)} | "
              f"{f(s['std'])} | {f(s['min'])} | {f(s['max'])} |" for label, s in stats.values()]
+    durations = sorted({r["duration_s"] for r in ok if isinstance(r.get("duration_s"), (int, float))})
+    duration = (f(float(meta["duration_s"])) if meta.get("duration_s") is not None
+                else (f(durations[0]) if len(durations) == 1 else ", ".join(map(f, durations)) or "the scenario's"))
     md = [f"# Campaign: {meta.get('scenario')}", "",
           f"{len(rows)} runs ({len(ok)} ok, {len(bad)} failed); seeds {meta.get('seeds_text')}; "
-          f"duration {meta.get('duration_s')} s; --set {list(meta.get('sets') or []) or 'none'}; "
+          f"duration {duration} s; --set {list(meta.get('sets') or []) or 'none'}; "
           f"executor {meta.get('executor')}; campaign wall {f(meta.get('wall_s'))} s.", "",
           *head, *lines, ""]
     if bad:
@@ -314,7 +317,7 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
     page = (f"<!doctype html><meta charset=utf-8><title>campaign {html.escape(str(meta.get('scenario')))}</title>"
             f"<style>body{{font-family:sans-serif}}td,th{{padding:2px 8px;text-align:right}}</style>"
             f"<h1>Campaign: {html.escape(str(meta.get('scenario')))}</h1><p>{len(rows)} runs ({len(ok)} ok, {len(bad)} failed), "
-            f"seeds {html.escape(str(meta.get('seeds_text')))}, duration {meta.get('duration_s')} s.</p>"
+            f"seeds {html.escape(str(meta.get('seeds_text')))}, duration {html.escape(str(duration))} s.</p>"
             f"<table><tr><th>metric</th><th>n</th><th>mean</th><th>95 % CI</th><th>std</th><th>min</th><th>max</th></tr>"
             f"{rows_html}</table>" + (f"<h2>Failed runs</h2><table>{bad_html}</table>" if bad else "") +
             "<p>Table: campaign.parquet / campaign.csv.</p>")

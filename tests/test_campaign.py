@@ -73,6 +73,7 @@ def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
     assert [float(r["delta_v_total_mps"]) for r in csv_rows] == [rows[s]["delta_v_total_mps"] for s in seeds]
     report = (tmp_path / "c" / "report.md").read_text()
     assert "total dV [m/s] | 4 |" in report and "95 %" in report
+    assert f"duration {CAMPAIGN_S:g} s;" in report, report.splitlines()[2]
 
 
 def test_killed_campaign_resumes_with_the_remaining_seeds(tmp_path: Path) -> None:
