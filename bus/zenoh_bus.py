@@ -112,11 +112,20 @@ class ZenohBus:
     window without it). The enqueue callbacks here are declared `indirect=False`: they run on
     the network thread that received the samples, in the order the link delivered them, and do
     nothing but a queue put, so they never block that thread.
+
+    `direct=True` (issue 16, the lockstep's critical path): the node callbacks run on that network
+    thread themselves, in the same arrival order, without the hop through the queue and the
+    dispatcher thread (a wake-up and a GIL hand-over per sample). For a process whose callbacks are
+    its whole work and short (an agent: one stimulus in, its command and telemetry out; the
+    plant's commands): a slow callback there only delays that process's own next samples. Not
+    for the recorder (its writes would back-pressure the router).
     """
 
-    def __init__(self, connect: str, *, lease_ms: int | None = None, credential: Any = None) -> None:
+    def __init__(self, connect: str, *, lease_ms: int | None = None, credential: Any = None,
+                 direct: bool = False) -> None:
         overrides = {"transport/link/tx/lease": lease_ms} if lease_ms else None
         self.session = open_client(connect, overrides, credential)
+        self.direct = direct
         self._queue: queue.SimpleQueue[tuple[Any, ...] | None] = queue.SimpleQueue()
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._handles: list[Any] = []
@@ -146,11 +155,22 @@ class ZenohBus:
             self._publishers[key] = pub
         pub.put(payload)
 
+    def _run_direct(self, fn: Any, *args: Any) -> None:
+        try:
+            fn(*args)
+        except Exception:  # as in the dispatcher: a node bug must not kill the network thread's callback
+            log.exception("callback %r failed", fn)
+
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Any:
         q = self._queue
+        if self.direct:
+            run = self._run_direct
 
-        def on_sample(sample: zenoh.Sample) -> None:
-            q.put((callback, str(sample.key_expr), sample.payload.to_bytes()))
+            def on_sample(sample: zenoh.Sample) -> None:
+                run(callback, str(sample.key_expr), sample.payload.to_bytes())
+        else:
+            def on_sample(sample: zenoh.Sample) -> None:
+                q.put((callback, str(sample.key_expr), sample.payload.to_bytes()))
 
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.Callback(on_sample, indirect=False))
         self._handles.append(sub)
@@ -164,8 +184,14 @@ class ZenohBus:
     def watch_liveliness(self, key_expr: str, callback: LivelinessCallback) -> Any:
         q = self._queue
 
-        def on_change(sample: zenoh.Sample) -> None:
-            q.put((callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        if self.direct:
+            run = self._run_direct
+
+            def on_change(sample: zenoh.Sample) -> None:
+                run(callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
+        else:
+            def on_change(sample: zenoh.Sample) -> None:
+                q.put((callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
         sub = self.session.liveliness().declare_subscriber(key_expr, zenoh.handlers.Callback(on_change, indirect=False),
                                                            history=True)
