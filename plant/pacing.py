@@ -19,7 +19,6 @@ class CommandBox:
         self._cv = threading.Condition()
         self._step = -1
         self._cmds: dict[str, object] = {}
-        self._want: set[str] | None = None  # what the waiter waits for: put wakes it only once all is there
 
     def open(self, step: int) -> None:
         with self._cv:
@@ -32,8 +31,7 @@ class CommandBox:
             if step != self._step:
                 return False
             self._cmds[sc] = cmd
-            if self._want is None or self._want <= self._cmds.keys():  # not 20 wake-ups a step
-                self._cv.notify_all()
+            self._cv.notify_all()
             return True
 
     def wake(self) -> None:
@@ -41,13 +39,10 @@ class CommandBox:
             self._cv.notify_all()
 
     def wait(self, expected: "callable", deadline_wall: float) -> dict[str, object]:  # type: ignore[valid-type]
-        """Wait until expected() (a set of ids) is a subset of what arrived, or the deadline.
-        expected() is re-evaluated on every wake-up: `wake()` (a liveliness change) and the
-        put that completes the current expectation."""
+        """Wait until expected() (a set of ids) is a subset of what arrived, or the deadline."""
         with self._cv:
             while True:
-                want = self._want = set(expected())
-                if want <= self._cmds.keys():
+                if expected() <= self._cmds.keys():
                     break
                 remaining = deadline_wall - time.monotonic()
                 if remaining <= 0:
@@ -55,7 +50,6 @@ class CommandBox:
                 self._cv.wait(remaining)
             got = dict(self._cmds)
             self._step = -1
-            self._want = None
             return got
 
 
