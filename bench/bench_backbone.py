@@ -73,6 +73,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="in-process batch / vectorised floor alternations")
     ap.add_argument("--scenarios", default=",".join((*IDEAL, CAMERA)))
     ap.add_argument("--no-multi-process", action="store_true", help="only the in-process ratios")
+    ap.add_argument("--no-in-process", action="store_true", help="only the multi-process ratios (and the bus floor)")
     a = ap.parse_args()
     from deploy.scenario import load_scenario
     from vectorised_floor import floor_run
@@ -98,8 +99,9 @@ def main() -> None:
                 r["bus_floor_s"] = bus_floor(n, steps)
                 r["multi_process_over_bus_floor"] = r["multi_process"]["loop_s"] / r["bus_floor_s"]
                 r["multi_process_launcher_over_bus_floor"] = r["multi_process"]["launcher_s"] / r["bus_floor_s"]
-        r["in_process_messages"] = in_process(sc, out / f"ipm-{name}", "all")
-        if name in IDEAL:
+        if a.no_in_process:
+            pass
+        elif name in IDEAL:
             pairs = []
             for k in range(a.repeats):
                 f = floor_run(sc)
@@ -121,6 +123,8 @@ def main() -> None:
             r["dv_equal_to_floor"] = True
         else:
             r["in_process_batch"] = [in_process(sc, out / f"ipb-{name}", "truth")]
+        if not a.no_in_process:
+            r["in_process_messages"] = in_process(sc, out / f"ipm-{name}", "all")
         result["scenarios"][name] = r
         print_scenario(name, r)
     result["load_end"] = load()
@@ -148,11 +152,11 @@ def print_scenario(name: str, r: dict) -> None:
         print(f"{'':62s} {'':8s} {'':8s} {q['median']:7.2f}")
         row("in-process batch, whole run incl. start-up (÷ floor, min)", best["wall_s"],
             f"{r['in_process_run_over_vectorised_floor']['min']:.2f}")
-    else:
+    elif "in_process_batch" in r:
         b = r["in_process_batch"][0]
         row(f"in-process, record truth (batch mode used: {b['batch']})", b["loop_s"])
-    m = r["in_process_messages"]
-    row("in-process, every message recorded (one agent node per spacecraft)", m["loop_s"])
+    if "in_process_messages" in r:
+        row("in-process, every message recorded (one agent node per spacecraft)", r["in_process_messages"]["loop_s"])
 
 
 if __name__ == "__main__":

@@ -1,7 +1,15 @@
 """The bus floor: N worker processes exchanging empty ticks and replies with a coordinator over a
 Python Zenoh router, in lockstep, for a given number of steps (no physics, no flight software).
 
-    python bench/bus_floor.py --workers 20 --steps 8640
+    python bench/bus_floor.py --workers 20 --steps 8640 [--cpu] [--contract]
+
+`--contract` (issue 16): the *message floor of the bus contract* instead: per step the coordinator
+publishes what the plant does (a clock tick, a truth, one stimulus per worker on the worker's own
+key, with the sizes of drift-20's messages), each worker answers with two messages (a command the
+coordinator waits for, and a telemetry), and one more process subscribes to everything (the
+recorder's traffic) and only counts. Still no physics, no flight software, no decoding, no
+recording: what the run's Zenoh traffic costs by itself on this machine. `--cpu`: CPU ms per step
+of each process kind (stderr).
 """
 from __future__ import annotations
 
@@ -14,6 +22,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bus.zenoh_bus import endpoint, free_loopback_port, open_client, open_router  # noqa: E402
 
@@ -27,12 +36,44 @@ def worker(router: str, i: int) -> None:
     threading.Event().wait()
 
 
-def coordinator(workers: int, steps: int) -> float:
+# drift-20's message sizes (bytes; measured from a recording): clock, truth, stimulus, command, telemetry
+SIZES = {"clock": 178, "truth": 2727, "sense": 160, "act": 47, "tm": 63}
+
+
+def contract_worker(router: str, i: int) -> None:
+    s = open_client(router)
+    act = s.declare_publisher(f"floor/sc/{i}/act")
+    tm = s.declare_publisher(f"floor/sc/{i}/tm")
+    a, t = bytes(SIZES["act"]), bytes(SIZES["tm"])
+
+    def on_sense(_sample) -> None:
+        act.put(a)
+        tm.put(t)
+    s.declare_subscriber(f"floor/sc/{i}/sense", on_sense)
+    s.liveliness().declare_token(f"floor/alive/{i}")
+    threading.Event().wait()
+
+
+def contract_listener(router: str) -> None:
+    s = open_client(router)
+    n = [0]
+
+    def on_any(_sample) -> None:
+        n[0] += 1
+    s.declare_subscriber("floor/**", on_any)
+    s.liveliness().declare_token("floor/alive/listener")
+    threading.Event().wait()
+
+
+def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = False) -> float:
     router_ep = endpoint(free_loopback_port())
     router = open_router(router_ep)
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    procs = [subprocess.Popen([sys.executable, __file__, "--worker", str(i), "--router", router_ep], env=env)
+    role = ["--contract"] if contract else []
+    procs = [subprocess.Popen([sys.executable, __file__, "--worker", str(i), "--router", router_ep, *role], env=env)
              for i in range(workers)]
+    if contract:
+        procs.append(subprocess.Popen([sys.executable, __file__, "--worker", "-1", "--router", router_ep, *role], env=env))
     s = open_client(router_ep)
     cv = threading.Condition()
     state = {"step": -1, "n": 0, "alive": 0}
@@ -47,20 +88,58 @@ def coordinator(workers: int, steps: int) -> float:
             state["alive"] += 1
             cv.notify()
 
-    s.declare_subscriber("floor/rep/*", on_rep)
+    s.declare_subscriber("floor/sc/*/act" if contract else "floor/rep/*", on_rep)
     s.liveliness().declare_subscriber("floor/alive/*", on_alive, history=True)
     with cv:
-        cv.wait_for(lambda: state["alive"] >= workers, timeout=120)
+        cv.wait_for(lambda: state["alive"] >= len(procs), timeout=120)
     pub = s.declare_publisher("floor/tick")
     tick = bytes(64)
+    if contract:
+        clock, truth = s.declare_publisher("floor/clock"), s.declare_publisher("floor/truth")
+        senses = [s.declare_publisher(f"floor/sc/{i}/sense") for i in range(workers)]
+        c_msg, t_msg, s_msg = bytes(SIZES["clock"]), bytes(SIZES["truth"]), bytes(SIZES["sense"])
+
+        def put_step() -> None:
+            clock.put(c_msg)
+            truth.put(t_msg)
+            for p in senses:
+                p.put(s_msg)
+    else:
+        def put_step() -> None:
+            pub.put(tick)
+    # untimed warm-up: the first tick right after the workers' tokens reaches only some of them
+    # (measured: 13-14 of 20), and the timed loop then stalled 10 s at step 0; rounds until one
+    # is answered by every worker (as the run's plant loop, which starts once all are up)
+    for _ in range(120):
+        with cv:
+            state["n"] = 0
+        put_step()
+        with cv:
+            if cv.wait_for(lambda: state["n"] >= workers, timeout=0.5):
+                break
+        time.sleep(0.2)  # let a late answer land before the next round counts
+    else:
+        raise SystemExit("error: bus floor: the workers never all answered one tick")
+    if cpu:
+        from mp_cpu import cpu_s
+
+        c0 = [cpu_s(p.pid) for p in procs], time.process_time()
+    lost = 0
     t0 = time.perf_counter()
     for k in range(steps):
         with cv:
             state["n"] = 0
-        pub.put(tick)
+        put_step()
         with cv:
-            cv.wait_for(lambda: state["n"] >= workers, timeout=10)
+            lost += not cv.wait_for(lambda: state["n"] >= workers, timeout=10)
     wall = time.perf_counter() - t0
+    if lost:
+        print(f"warning: bus floor: {lost} steps waited 10 s for a lost reply", file=sys.stderr)
+    if cpu:  # CPU ms per step: each worker, and the coordinator with the router (one process)
+        w = [(cpu_s(p.pid) - c) / steps * 1e3 for p, c in zip(procs, c0[0])]
+        listener = f", listener {w.pop():.3f}" if contract else ""
+        print(f"bus floor CPU: workers {sum(w):.3f} ms/step (each {sum(w) / len(w):.3f}){listener}, coordinator + router "
+              f"{(time.process_time() - c0[1]) / steps * 1e3:.3f} ms/step", file=sys.stderr)
     for p in procs:
         p.kill()  # our own children, by PID
         p.wait()
@@ -75,12 +154,17 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=8640)
     ap.add_argument("--worker", type=int)
     ap.add_argument("--router")
+    ap.add_argument("--cpu", action="store_true", help="also print CPU ms per step (stderr)")
+    ap.add_argument("--contract", action="store_true", help="the bus contract's messages per step (module docstring)")
     a = ap.parse_args()
     if a.worker is not None:
-        worker(a.router, a.worker)
+        if a.contract:
+            (contract_listener(a.router) if a.worker < 0 else contract_worker(a.router, a.worker))
+        else:
+            worker(a.router, a.worker)
         return
-    wall = coordinator(a.workers, a.steps)
-    print(f"bus floor: {a.workers} workers, {a.steps} steps, {wall:.2f} s, {wall / a.steps * 1e3:.3f} ms/step")
+    wall = coordinator(a.workers, a.steps, a.cpu, a.contract)
+    print(f"{'contract' if a.contract else 'bus'} floor: {a.workers} workers, {a.steps} steps, {wall:.2f} s, {wall / a.steps * 1e3:.3f} ms/step")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bus.faults import faults_for
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
 from deploy.scenario import load_scenario, resolved_document
@@ -104,7 +105,8 @@ def _agent(args: argparse.Namespace, stop: Stop, cred: Any, out: Path) -> int:
         sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode,
                                                          speed=args.speed)
         cfg = agent_config(sc, args.id)
-    bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred), f"agent-{args.id}")
+    name = f"agent-{args.id}"  # callbacks on the network thread (issue 16), unless a fault delay line calls them too
+    bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred, direct=faults_for(name) is None), name)
     _watch_router(bus, stop)
     node = build_agent(bus, args.run, cfg)
     stop.wait()
@@ -204,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "plant":
         from plant.node import PlantNode
 
-        bus = with_faults(ZenohBus(args.router, credential=cred), "plant")
+        bus = with_faults(ZenohBus(args.router, credential=cred, direct=faults_for("plant") is None), "plant")
         _watch_router(bus, stop)
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),

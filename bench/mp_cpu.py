@@ -1,0 +1,107 @@
+"""Where the CPU of a multi-process lockstep run goes (issue 16): CPU seconds per step of each
+process (utime + stime from /proc/PID/stat), over the plant's loop only.
+
+    python bench/mp_cpu.py deploy/scenarios/drift-20.toml --duration 3600 [--out DIR] [--insecure]
+
+Runs the scenario with the launcher (deploy/launcher.py), reads the PIDs from DIR/run.json, and
+samples every process's CPU time when the plant's clock passes step 1 and again at the last step
+(the launcher's progress hook), so start-up and shutdown are left out. Prints one row per process
+kind (plant, agent: mean / max over the agents, recorder, router, link channel, launcher) with
+CPU ms per step and the share of the total, the loop wall per step, and the load average. The
+last line is the result as JSON.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+TICK_S = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_s(pid: int) -> float | None:
+    """utime + stime of a process (all its threads), seconds; None once it is gone."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / TICK_S  # fields 14 and 15 of proc(5), after "pid (comm)"
+
+
+def snapshot(pids: dict[str, int]) -> dict[str, float]:
+    out = {n: cpu_s(p) for n, p in pids.items()}
+    out["launcher"] = time.process_time()
+    return {n: v for n, v in out.items() if v is not None}
+
+
+def kind(name: str) -> str:
+    return "agent" if name.startswith("agent-") else name
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("scenario")
+    ap.add_argument("--duration", type=float, default=3600.0)
+    ap.add_argument("--out")
+    ap.add_argument("--insecure", action="store_true", help="no authentication / ACL on the router")
+    a = ap.parse_args()
+    import deploy.launcher as L
+    from deploy.scenario import load_scenario
+
+    sc = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
+    out = Path(a.out or tempfile.mkdtemp(prefix="swarmhil-mpcpu-"))
+    marks: dict[str, tuple[int, float, dict[str, float]]] = {}
+    lock = threading.Lock()
+
+    def pids() -> dict[str, int]:
+        try:
+            return {n: int(p) for n, p in json.loads((out / "run.json").read_text())["pids"].items()}
+        except (OSError, ValueError, KeyError):
+            return {}
+
+    update = L._Progress.update
+
+    def hooked(self, step: int, _wall: float | None = None) -> None:  # the launcher's dispatcher thread
+        with lock:
+            if step >= 1 and "start" not in marks:
+                marks["start"] = (step, time.monotonic(), snapshot(pids()))
+            elif step >= sc.steps - 1 and "end" not in marks:
+                marks["end"] = (step, time.monotonic(), snapshot(pids()))
+        update(self, step, _wall)
+
+    L._Progress.update = hooked
+    load0 = " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    res = L.MultiProcessRun(a.scenario, sc, out, f"mpcpu-{sc.name}", progress=False, overrides={"duration": a.duration},
+                            opts={"secure": not a.insecure}).execute()
+    if res.exit_code:
+        sys.exit(f"error: the run failed: {res.reason}")
+    (k0, t0, c0), (k1, t1, c1) = marks["start"], marks["end"]
+    steps = k1 - k0
+    per = {n: (c1[n] - c0[n]) / steps for n in c1 if n in c0}
+    rows: dict[str, list[float]] = {}
+    for n, v in per.items():
+        rows.setdefault(kind(n), []).append(v)
+    total = sum(per.values())
+    wall = (t1 - t0) / steps
+    print(f"{sc.name}: {len(sc.ids)} agents, steps {k0}..{k1} ({steps}), loop wall {wall * 1e3:.2f} ms/step, "
+          f"load {load0} -> {' '.join(Path('/proc/loadavg').read_text().split()[:3])}")
+    print(f"{'process kind':14s} {'n':>3s} {'CPU ms/step (sum)':>18s} {'per process':>12s} {'max':>8s} {'share':>7s}")
+    for k, vs in sorted(rows.items(), key=lambda kv: -sum(kv[1])):
+        print(f"{k:14s} {len(vs):3d} {sum(vs) * 1e3:18.3f} {sum(vs) / len(vs) * 1e3:12.3f} {max(vs) * 1e3:8.3f} "
+              f"{sum(vs) / total:7.1%}")
+    print(f"{'total':14s} {len(per):3d} {total * 1e3:18.3f}   (2 cores: {total / wall / 2:.0%} of the wall)")
+    print(json.dumps({"scenario": sc.name, "steps": steps, "wall_ms_per_step": wall * 1e3,
+                      "cpu_ms_per_step": {n: v * 1e3 for n, v in per.items()}, "load_start": load0,
+                      "loop_wall_s": res.summary.get("loop_wall_s"), "out": str(out)}))
+
+
+if __name__ == "__main__":
+    main()
