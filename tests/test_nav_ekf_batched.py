@@ -118,3 +118,29 @@ def test_batched_filter_equals_the_per_track_filter_bit_for_bit(n: int, params: 
         confirmed |= {t.track_id for t in out}
     assert len(confirmed) >= n and len(seen) > len(confirmed)  # every neighbour confirmed; tentative tracks born and dropped too
     assert vis.navigator.faults == ref.faults
+
+
+def test_a_singular_s_skips_only_that_tracks_update_and_counts_a_fault() -> None:
+    """One matched track with a singular innovation covariance (zero P and R): its prediction is
+    kept and a fault counted; the other matched track is updated exactly as by the per-track filter."""
+    vis = VisionNav(A_M, N_RADPS, imaging="exact", navigator="ekf", nav_params=IMM)
+    nav = vis.navigator
+    ref = PerTrackEkf(vis.renderer.camera, vis.renderer.shape, A_M, N_RADPS, EkfConfig(**IMM))
+    roe = np.array([[1.0, 200.0, 10.0, 0.0, 10.0, 0.0], [-1.0, 300.0, 0.0, 15.0, 0.0, 15.0]])
+    for nv in (nav, ref):
+        nv.tracks = [nv._new_track(0.0, np.array([540.0, 540.0]), 10.0, 0.5) for _ in range(2)]
+        for tr, x in zip(nv.tracks, roe):
+            tr.xm[:] = x
+            tr.combine()
+        nv.tracks[0].pm[:] = 0.0
+    from agent.nav.measure import camera_position_matrix
+
+    t_cam = camera_position_matrix(0.3, N_RADPS)
+    z, r = np.array([[500.0, 520.0, 3.0], [560.0, 530.0, 2.0]]), np.stack([np.zeros((3, 3)), 0.01 * np.eye(3)])
+    before = nav.tracks[0].xm.copy()
+    nav._update([0, 1], z, r, t_cam)
+    ref._update([1], z[1:], r[1:], t_cam)
+    assert nav.faults == 1
+    assert np.array_equal(nav.tracks[0].xm, before) and not nav.tracks[0].pm.any()
+    for f in ("x", "p", "xm", "pm", "mu"):
+        assert np.array_equal(getattr(nav.tracks[1], f), getattr(ref.tracks[1], f))
