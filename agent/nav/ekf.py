@@ -351,9 +351,9 @@ class EkfNavigator:
                 tr.blob_index = j
                 tr.last_hit_t_s = t_s
                 self.tracks.append(tr)
-        return [self._output(tr, u_rad) for tr in self.tracks
-                if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
-
-    def _output(self, tr: _EkfTrack, u_rad: float) -> Track:
-        pos, vel = roe_to_lvlh(tr.x, u_rad, self.n)
-        return Track(tr.track_id, tr.x.copy(), pos, vel, tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+        out = [tr for tr in self.tracks if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
+        if not out:
+            return []
+        pos, vel = roe_to_lvlh(np.stack([tr.x for tr in out]), u_rad, self.n)  # elementwise: per row as for one
+        return [Track(tr.track_id, tr.x.copy(), pos[k], vel[k], tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+                for k, tr in enumerate(out)]
