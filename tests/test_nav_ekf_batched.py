@@ -12,8 +12,8 @@ import tomllib
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
+
 from agent.camera.model import R_CAM_FROM_LVLH
 from agent.nav import EkfConfig, EkfNavigator
 from agent.nav.measure import noise_cov, predict
@@ -21,7 +21,7 @@ from agent.nav.pipeline import VisionNav
 from agent.roe import roe_to_lvlh
 
 sys.path.insert(0, str(ROOT / "bench"))
-from bench_camera_pipeline import A_M, N_RADPS, SCENARIO, neighbours  # noqa: E402
+from bench_camera_pipeline import A_M, N_RADPS, SCENARIO, neighbours
 
 IMM = tomllib.loads(SCENARIO.read_text())["nav"]["params"]  # the shipped camera + filter scenario
 

@@ -48,7 +48,13 @@ from agent.camera.model import R_LVLH_FROM_CAM, Camera
 from agent.camera.shape import SpacecraftShape
 from agent.nav.associate import assign
 from agent.nav.base import Track
-from agent.nav.measure import MeasurementModel, camera_position_matrix, noise_cov, noise_cov_many, predict, predict_many
+from agent.nav.measure import (
+    MeasurementModel,
+    camera_position_matrix,
+    noise_cov,
+    noise_cov_many,
+    predict_many,
+)
 from agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
 
 
@@ -293,9 +299,9 @@ class EkfNavigator:
         self._next_id += 1
         return tr
 
-    def _in_view(self, tr: _EkfTrack, u_rad: float, fov_margin: float, range_margin: float) -> bool:
+    def _in_view(self, tr: _EkfTrack, t_cam: np.ndarray, fov_margin: float, range_margin: float) -> bool:
         """The track's predicted position lies within fov_margin * the half FOV and range_margin * the range."""
-        _, _, p = predict(self.model, tr.x, u_rad, self.n)
+        p = t_cam @ tr.x  # camera-frame position, as in predict
         tan_x, tan_y = (np.tan(a) for a in self.camera.half_fov_rad)
         return bool(
             p[2] > 0
@@ -304,15 +310,15 @@ class EkfNavigator:
             and np.linalg.norm(p) <= range_margin * self.camera.max_range_m
         )
 
-    def _alive(self, tr: _EkfTrack, t_s: float, u_rad: float) -> bool:
+    def _alive(self, tr: _EkfTrack, t_s: float, t_cam: np.ndarray) -> bool:
         cfg = self.cfg
         if tr.misses == 0:
             return True
         if tr.hits < cfg.confirm_hits:
             return False
-        if cfg.max_coast_s > 0.0 and not self._in_view(tr, u_rad, 1.0, 1.0):
+        if cfg.max_coast_s > 0.0 and not self._in_view(tr, t_cam, 1.0, 1.0):
             return t_s - tr.last_hit_t_s <= cfg.max_coast_s  # out of view, not gone: coast
-        return tr.misses <= cfg.max_misses and self._in_view(tr, u_rad, cfg.fov_margin, cfg.range_margin)
+        return tr.misses <= cfg.max_misses and self._in_view(tr, t_cam, cfg.fov_margin, cfg.range_margin)
 
     # -- the Navigator interface --------------------------------------------------------------
     def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
@@ -343,7 +349,7 @@ class EkfNavigator:
                 tr.misses += 1
         finite = [bool(np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.p))) for tr in self.tracks]
         self.faults += finite.count(False)
-        self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, u_rad)]
+        self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, t_cam)]
         matched_b = {j for _, j in pairs}
         for j in range(len(blobs)):
             if j not in matched_b:
