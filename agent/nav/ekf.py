@@ -36,6 +36,12 @@ the blob back through the same gate when the relative orbit brings the neighbour
 (the ROE hardly change meanwhile, so the converged estimate is kept instead of restarting from a
 0.2 m/s velocity prior); predicted in view and not seen for max_misses frames, it is deleted.
 Output: confirmed tracks with at most max_misses consecutive misses.
+
+Implementation (issue 16): each frame's predict with the IMM mixing, the innovations of every
+(track, blob) pair and the update of every matched track run over the track axis at once (means
+(T, M, 6), covariances (T, M, 6, 6)), each stacked product the same 2-D product per track and
+model that the per-track filter computed: the estimates are bit-identical to it
+(tests/test_nav_ekf_batched.py keeps that filter as the reference).
 """
 from __future__ import annotations
 
