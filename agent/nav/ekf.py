@@ -151,6 +151,10 @@ def gated_distances(nu: np.ndarray, s: np.ndarray, depth_m: np.ndarray) -> tuple
     ok = (depth_m > MIN_DEPTH_M) & np.all(np.isfinite(s), axis=(2, 3)).all(axis=1) & np.all(np.isfinite(nu), axis=(1, 2))
     if not ok.any():
         return d2, logdet
+    if ok.all():  # the usual frame: no masking copies (the same solve per pair)
+        sign, ld = np.linalg.slogdet(s)
+        if (sign > 0).all():
+            return np.einsum("tmi,tmi->tm", nu, np.linalg.solve(s, nu[..., None])[..., 0]), ld
     sign, ld = np.linalg.slogdet(s[ok])
     good = sign > 0
     sol = np.zeros_like(nu[ok])
