@@ -205,17 +205,23 @@ class EkfNavigator:
         trs = self.tracks
         return np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
 
-    def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
-        """IMM interaction (mixing) then each model's prediction, for all tracks at once; one model:
-        the plain EKF step."""
-        if dt <= 0.0 or not self.tracks:
-            return
+    def _predict_terms(self, dt: float, u0: float, own_accel: np.ndarray | None):
+        """Phi, the models' process noises Q (M, 6, 6), the own-thrust shift Gamma a_j and the
+        Markov switch matrix over dt (module docstring)."""
         phi = transition(self.n, dt)
         gam = input_gamma(u0, self.a_m, self.n, dt)
         gg = gam @ gam.T
         qs = np.array([s**2 * gg for s in self.cfg.sigmas_mps2()])
         shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
         pi = self.cfg.switch_matrix(dt)
+        return phi, qs, shift, pi
+
+    def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
+        """IMM interaction (mixing) then each model's prediction, for all tracks at once; one model:
+        the plain EKF step."""
+        if dt <= 0.0 or not self.tracks:
+            return
+        phi, qs, shift, pi = self._predict_terms(dt, u0, own_accel)
         xm, pm, mu = self._stack()
         c = np.matmul(pi.T, mu[:, :, None])[:, :, 0]  # predicted mode probabilities (T, M)
         w = pi * mu[:, :, None] / np.maximum(c[:, None, :], 1e-300)  # w[t, i, j] = P(i before | j now)
