@@ -6,9 +6,11 @@ agents x 8640 frames it is the floor of a 24 h run's CPU time. Neighbours: rando
 within +-2 m, 120-480 m ahead, a*de and a*di 10-40 m), propagated with the flight ROE model; the
 navigator keeps its tracks from frame to frame as in a run. Times are medians over frames of this
 thread's CPU time (time.thread_time), reported for both render backends and both navigators, with
-the EKF as configured in deploy/scenarios/sabatini-20-camera-filter.toml.
+the EKF as configured in deploy/scenarios/sabatini-20-camera-filter.toml; "nav" is the navigator's
+update alone. The code measured is the `agent` package Python imports (printed): with
+PYTHONPATH=<another checkout> the same script times that code (before/after, docs/benchmarks.md).
 
-    .venv/bin/python bench/bench_camera_pipeline.py [--frames 120]
+    .venv/bin/python bench/bench_camera_pipeline.py [--frames 120] [--ekf-only]
 """
 from __future__ import annotations
 
@@ -38,13 +40,23 @@ def neighbours(rng: np.random.Generator, n: int) -> np.ndarray:
     return roe
 
 
-def time_pipeline(n: int, frames: int, imaging: str, navigator: str, backend: str, params: dict) -> float:
+def time_pipeline(n: int, frames: int, imaging: str, navigator: str, backend: str, params: dict) -> tuple[float, float]:
+    """Median CPU seconds per frame of the whole step and of the navigator's update alone."""
     rng = np.random.default_rng(n)
     roe = neighbours(rng, n)
     vis = VisionNav(A_M, N_RADPS, imaging=imaging, navigator=navigator, backend=backend,
                     nav_params=params if navigator == "ekf" else None)
     rot = np.broadcast_to(np.eye(3), (n, 3, 3))
-    cpu = []
+    cpu, nav_cpu = [], []
+    update = vis.navigator.update
+
+    def timed_update(*args):
+        t = time.thread_time()
+        out = update(*args)
+        nav_cpu.append(time.thread_time() - t)
+        return out
+
+    vis.navigator.update = timed_update
     for k in range(frames):
         u = N_RADPS * 10.0 * k
         roe[:, 1] -= 1.5 * N_RADPS * roe[:, 0] * 10.0
@@ -52,12 +64,13 @@ def time_pipeline(n: int, frames: int, imaging: str, navigator: str, backend: st
         t0 = time.thread_time()
         vis.step(10.0 * k, u, pos @ R_CAM_FROM_LVLH.T, rot, k, np.zeros(3))
         cpu.append(time.thread_time() - t0)
-    return float(np.median(cpu[5:]))  # after the first frames (track creation, JIT)
+    return float(np.median(cpu[5:])), float(np.median(nav_cpu[5:]))  # after the first frames (track creation, JIT)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=120)
+    ap.add_argument("--ekf-only", action="store_true", help="only the rendered EKF rows")
     args = ap.parse_args()
     params = tomllib.loads(SCENARIO.read_text()).get("nav", {}).get("params", {})
     backends = ["numpy"]
@@ -68,12 +81,16 @@ def main() -> None:
     except ImportError:
         print("numba not installed: numpy backend only")
     print(f"EKF parameters from {SCENARIO.name}: {params}")
-    print(" imaging  navigator  backend  in view  ms/frame")
-    for imaging, navigator in (("render", "ekf"), ("render", "rough"), ("exact", "rough")):
+    import agent.nav.ekf
+
+    print(f"navigator code: {agent.nav.ekf.__file__}")
+    print(" imaging  navigator  backend  in view  ms/frame  nav ms/frame")
+    rows = (("render", "ekf"),) if args.ekf_only else (("render", "ekf"), ("render", "rough"), ("exact", "rough"))
+    for imaging, navigator in rows:
         for backend in (backends if imaging == "render" else ["numpy"]):
             for n in (1, 3, 6, 12):
-                ms = 1e3 * time_pipeline(n, args.frames, imaging, navigator, backend, params)
-                print(f"{imaging:>8} {navigator:>10} {backend:>8} {n:8d} {ms:9.3f}")
+                ms, nav_ms = (1e3 * t for t in time_pipeline(n, args.frames, imaging, navigator, backend, params))
+                print(f"{imaging:>8} {navigator:>10} {backend:>8} {n:8d} {ms:9.3f} {nav_ms:13.3f}")
 
 
 if __name__ == "__main__":

@@ -36,6 +36,12 @@ the blob back through the same gate when the relative orbit brings the neighbour
 (the ROE hardly change meanwhile, so the converged estimate is kept instead of restarting from a
 0.2 m/s velocity prior); predicted in view and not seen for max_misses frames, it is deleted.
 Output: confirmed tracks with at most max_misses consecutive misses.
+
+Implementation (issue 16): each frame's predict with the IMM mixing, the innovations of every
+(track, blob) pair and the update of every matched track run over the track axis at once (means
+(T, M, 6), covariances (T, M, 6, 6)), each stacked product the same 2-D product per track and
+model that the per-track filter computed: the estimates are bit-identical to it
+(tests/test_nav_ekf_batched.py keeps that filter as the reference).
 """
 from __future__ import annotations
 
@@ -48,7 +54,13 @@ from agent.camera.model import R_LVLH_FROM_CAM, Camera
 from agent.camera.shape import SpacecraftShape
 from agent.nav.associate import assign
 from agent.nav.base import Track
-from agent.nav.measure import MeasurementModel, camera_position_matrix, noise_cov, predict
+from agent.nav.measure import (
+    MeasurementModel,
+    camera_position_matrix,
+    noise_cov,
+    noise_cov_many,
+    predict_many,
+)
 from agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
 
 
@@ -139,6 +151,10 @@ def gated_distances(nu: np.ndarray, s: np.ndarray, depth_m: np.ndarray) -> tuple
     ok = (depth_m > MIN_DEPTH_M) & np.all(np.isfinite(s), axis=(2, 3)).all(axis=1) & np.all(np.isfinite(nu), axis=(1, 2))
     if not ok.any():
         return d2, logdet
+    if ok.all():  # the usual frame: no masking copies (the same solve per pair)
+        sign, ld = np.linalg.slogdet(s)
+        if (sign > 0).all():
+            return np.einsum("tmi,tmi->tm", nu, np.linalg.solve(s, nu[..., None])[..., 0]), ld
     sign, ld = np.linalg.slogdet(s[ok])
     good = sign > 0
     sol = np.zeros_like(nu[ok])
@@ -182,73 +198,102 @@ class EkfNavigator:
         self._next_id = 0
         self.faults = 0  # updates skipped (singular or non-finite S) + tracks dropped as non-finite
 
-    # -- filter steps -------------------------------------------------------------------------
-    def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
-        """IMM interaction (mixing) then each model's prediction; one model: the plain EKF step."""
-        if dt <= 0.0:
-            return
+    # -- filter steps (issue 16: every track, model and matched pair at once; numpy over the
+    #    track axis, each product the same 2-D product per track as the per-track filter had) ---
+    def _stack(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-model means (T, M, 6), covariances (T, M, 6, 6) and mode probabilities (T, M)."""
+        trs = self.tracks
+        return np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
+
+    def _predict_terms(self, dt: float, u0: float, own_accel: np.ndarray | None):
+        """Phi, the models' process noises Q (M, 6, 6), the own-thrust shift Gamma a_j and the
+        Markov switch matrix over dt (module docstring)."""
         phi = transition(self.n, dt)
         gam = input_gamma(u0, self.a_m, self.n, dt)
         gg = gam @ gam.T
         qs = np.array([s**2 * gg for s in self.cfg.sigmas_mps2()])
         shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
         pi = self.cfg.switch_matrix(dt)
-        for tr in self.tracks:
-            c = pi.T @ tr.mu  # predicted mode probabilities
-            w = pi * tr.mu[:, None] / np.maximum(c[None, :], 1e-300)  # w[i, j] = P(i before | j now)
-            x0 = w.T @ tr.xm
-            d = tr.xm[:, None, :] - x0[None, :, :]  # (i, j, 6)
-            p0 = np.einsum("ij,ikl->jkl", w, tr.pm) + np.einsum("ij,ijk,ijl->jkl", w, d, d)
-            tr.xm = x0 @ phi.T - shift
-            pm = phi @ p0 @ phi.T + qs
-            tr.pm = 0.5 * (pm + pm.transpose(0, 2, 1))
-            tr.mu = c
-            tr.combine()
+        return phi, qs, shift, pi
 
-    def _innovations(self, u_rad: float, blobs: Blobs):
-        """Per track: h, H, and per (track, blob): innovation nu (T, M, 3), S (T, M, 3, 3)."""
-        t, m = len(self.tracks), len(blobs)
+    def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
+        """IMM interaction (mixing) then each model's prediction, for all tracks at once; one model:
+        the plain EKF step."""
+        if dt <= 0.0 or not self.tracks:
+            return
+        phi, qs, shift, pi = self._predict_terms(dt, u0, own_accel)
+        xm, pm, mu = self._stack()
+        c = np.matmul(pi.T, mu[:, :, None])[:, :, 0]  # predicted mode probabilities (T, M)
+        w = pi * mu[:, :, None] / np.maximum(c[:, None, :], 1e-300)  # w[t, i, j] = P(i before | j now)
+        x0 = np.matmul(w.transpose(0, 2, 1), xm)
+        d = xm[:, :, None, :] - x0[:, None, :, :]  # (t, i, j, 6)
+        p0 = np.einsum("tij,tikl->tjkl", w, pm) + np.einsum("tij,tijk,tijl->tjkl", w, d, d)
+        xm = x0 @ phi.T - shift
+        pm = phi @ p0 @ phi.T + qs
+        pm = 0.5 * (pm + pm.transpose(0, 1, 3, 2))
+        self._store(range(len(self.tracks)), xm, pm, c)
+
+    def _store(self, rows, xm: np.ndarray, pm: np.ndarray, mu: np.ndarray) -> None:
+        """Write per-model states back to the tracks `rows` and form each one's mixture (combine)."""
+        x = np.matmul(mu[:, None, :], xm)[:, 0]
+        d = xm - x[:, None, :]
+        p = np.einsum("tm,tmij->tij", mu, pm) + np.einsum("tm,tmi,tmj->tij", mu, d, d)
+        for k, i in enumerate(rows):
+            tr = self.tracks[i]
+            tr.xm, tr.pm, tr.mu, tr.x, tr.p = xm[k], pm[k], mu[k], x[k], p[k]
+
+    def _innovations(self, t_cam: np.ndarray, blobs: Blobs):
+        """Per track: h, H, H P H^T and depth; per (track, blob): innovation nu (T, B, 3), S (T, B, 3, 3)."""
         zs = np.stack((blobs.centroid_px[:, 0], blobs.centroid_px[:, 1], np.sqrt(np.maximum(blobs.area_px, 1e-12))), axis=1)
-        hs, jacs, depth = [], [], []
-        t_cam = camera_position_matrix(u_rad, self.n)
-        for tr in self.tracks:
-            h, jac, p = predict(self.model, tr.x, u_rad, self.n, t_cam)
-            hs.append(h)
-            jacs.append(jac)
-            depth.append(p[2])
-        nu = zs[None, :, :] - np.array(hs).reshape(t, 1, 3)
-        s = np.empty((t, m, 3, 3))
-        for i, tr in enumerate(self.tracks):
-            hph = jacs[i] @ tr.p @ jacs[i].T
-            for j in range(m):
-                s[i, j] = hph + noise_cov(self.model, depth[i], blobs.area_px[j], blobs.area_sigma_px[j])
-        return zs, hs, jacs, depth, nu, s
+        x = np.stack([tr.x for tr in self.tracks])
+        p = np.stack([tr.p for tr in self.tracks])
+        hs, jacs, pcam = predict_many(self.model, x, t_cam)
+        depth = pcam[:, 2]
+        nu = zs[None, :, :] - hs[:, None, :]
+        hph = jacs @ p @ jacs.transpose(0, 2, 1)
+        s = hph[:, None] + noise_cov_many(self.model, depth, blobs.area_px, blobs.area_sigma_px)
+        return zs, hph, depth, nu, s
 
-    def _update(self, tr: _EkfTrack, z: np.ndarray, r: np.ndarray, u_rad: float) -> None:
-        """Each model's EKF update (Joseph form) with measurement z, noise R; mode probabilities
-        from the innovation likelihoods N(nu; 0, S) (IMM); then the mixture."""
-        loglik = np.zeros(len(tr.mu))
-        t_cam = camera_position_matrix(u_rad, self.n)
-        for m in range(len(tr.mu)):
-            h, jac, _ = predict(self.model, tr.xm[m], u_rad, self.n, t_cam)
-            sm = jac @ tr.pm[m] @ jac.T + r
-            nu = z - h
-            try:
-                sinv = np.linalg.inv(sm)
-            except np.linalg.LinAlgError:
-                self.faults += 1  # S singular: skip this frame's update of the track, keep the prediction
+    def _update(self, rows: list[int], z: np.ndarray, r: np.ndarray, t_cam: np.ndarray) -> None:
+        """Each model's EKF update (Joseph form) of the tracks `rows` with measurements z (K, 3),
+        noises R (K, 3, 3); mode probabilities from the innovation likelihoods N(nu; 0, S) (IMM);
+        then the mixture. A track whose S is singular in any model keeps its prediction (a fault)."""
+        trs = [self.tracks[i] for i in rows]
+        xm, pm, mu = np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
+        k_, m_ = mu.shape
+        h, jac, _ = predict_many(self.model, xm.reshape(k_ * m_, 6), t_cam)
+        h, jac = h.reshape(k_, m_, 3), jac.reshape(k_, m_, 3, 6)
+        jt = jac.transpose(0, 1, 3, 2)
+        r = r[:, None]
+        sm = jac @ pm @ jt + r
+        nu = z[:, None, :] - h
+        try:
+            sinv = np.linalg.inv(sm)
+            ok = np.ones(k_, bool)
+        except np.linalg.LinAlgError:  # one singular S: invert one by one, skip the tracks concerned
+            sinv, ok = np.zeros_like(sm), np.ones(k_, bool)
+            for k in range(k_):
+                try:
+                    sinv[k] = np.linalg.inv(sm[k])
+                except np.linalg.LinAlgError:
+                    ok[k] = False
+            self.faults += int((~ok).sum())
+            if not ok.any():
                 return
-            gain = tr.pm[m] @ jac.T @ sinv
-            ikh = np.eye(6) - gain @ jac
-            tr.xm[m] = tr.xm[m] + gain @ nu
-            pm = ikh @ tr.pm[m] @ ikh.T + gain @ r @ gain.T
-            tr.pm[m] = 0.5 * (pm + pm.T)  # round-off: P spans ~1e-5 to ~1e5 m^2 while the velocity prior is forgotten
-            loglik[m] = -0.5 * (nu @ sinv @ nu + np.linalg.slogdet(2.0 * np.pi * sm)[1])
-        if len(tr.mu) > 1:
-            w = np.log(np.maximum(tr.mu, 1e-300)) + loglik
-            w = np.exp(w - w.max())
-            tr.mu = w / w.sum()
-        tr.combine()
+            rows = [i for i, good in zip(rows, ok) if good]
+            xm, pm, mu, jac, jt, r, sm, nu, sinv = (a[ok] for a in (xm, pm, mu, jac, jt, r, sm, nu, sinv))
+        gain = pm @ jt @ sinv
+        ikh = np.eye(6) - gain @ jac
+        xm = xm + np.matmul(gain, nu[..., None])[..., 0]
+        pm = ikh @ pm @ ikh.transpose(0, 1, 3, 2) + gain @ r @ gain.transpose(0, 1, 3, 2)
+        pm = 0.5 * (pm + pm.transpose(0, 1, 3, 2))  # round-off: P spans ~1e-5 to ~1e5 m^2 while the velocity prior is forgotten
+        if m_ > 1:
+            maha = np.matmul(np.matmul(nu[..., None, :], sinv), nu[..., :, None])[..., 0, 0]
+            loglik = -0.5 * (maha + np.linalg.slogdet(2.0 * np.pi * sm)[1])
+            w = np.log(np.maximum(mu, 1e-300)) + loglik
+            w = np.exp(w - w.max(axis=1, keepdims=True))
+            mu = w / w.sum(axis=1, keepdims=True)
+        self._store(rows, xm, pm, mu)
 
     def _new_track(self, u_rad: float, centroid: np.ndarray, area: float, area_sigma: float) -> _EkfTrack:
         cam, mdl, cfg = self.camera, self.model, self.cfg
@@ -270,9 +315,9 @@ class EkfNavigator:
         self._next_id += 1
         return tr
 
-    def _in_view(self, tr: _EkfTrack, u_rad: float, fov_margin: float, range_margin: float) -> bool:
+    def _in_view(self, tr: _EkfTrack, t_cam: np.ndarray, fov_margin: float, range_margin: float) -> bool:
         """The track's predicted position lies within fov_margin * the half FOV and range_margin * the range."""
-        _, _, p = predict(self.model, tr.x, u_rad, self.n)
+        p = t_cam @ tr.x  # camera-frame position, as in predict
         tan_x, tan_y = (np.tan(a) for a in self.camera.half_fov_rad)
         return bool(
             p[2] > 0
@@ -281,15 +326,15 @@ class EkfNavigator:
             and np.linalg.norm(p) <= range_margin * self.camera.max_range_m
         )
 
-    def _alive(self, tr: _EkfTrack, t_s: float, u_rad: float) -> bool:
+    def _alive(self, tr: _EkfTrack, t_s: float, t_cam: np.ndarray) -> bool:
         cfg = self.cfg
         if tr.misses == 0:
             return True
         if tr.hits < cfg.confirm_hits:
             return False
-        if cfg.max_coast_s > 0.0 and not self._in_view(tr, u_rad, 1.0, 1.0):
+        if cfg.max_coast_s > 0.0 and not self._in_view(tr, t_cam, 1.0, 1.0):
             return t_s - tr.last_hit_t_s <= cfg.max_coast_s  # out of view, not gone: coast
-        return tr.misses <= cfg.max_misses and self._in_view(tr, u_rad, cfg.fov_margin, cfg.range_margin)
+        return tr.misses <= cfg.max_misses and self._in_view(tr, t_cam, cfg.fov_margin, cfg.range_margin)
 
     # -- the Navigator interface --------------------------------------------------------------
     def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
@@ -300,14 +345,16 @@ class EkfNavigator:
             tr.age += 1
             tr.blob_index = -1
         pairs: list[tuple[int, int]] = []
+        t_cam = camera_position_matrix(u_rad, self.n)
         if self.tracks and len(blobs):
-            zs, hs, jacs, depth, nu, s = self._innovations(u_rad, blobs)
-            d2, logdet = gated_distances(nu, s, np.asarray(depth))
+            zs, hph, depth, nu, s = self._innovations(t_cam, blobs)
+            d2, logdet = gated_distances(nu, s, depth)
             pairs = assign_likelihood(d2, logdet, self.cfg.gate_chi2)
+            if pairs:
+                rows, cols = [i for i, _ in pairs], [j for _, j in pairs]
+                self._update(rows, zs[cols], s[rows, cols] - hph[rows], t_cam)
             for i, j in pairs:
                 tr = self.tracks[i]
-                r = s[i, j] - jacs[i] @ tr.p @ jacs[i].T
-                self._update(tr, zs[j], r, u_rad)
                 tr.hits += 1
                 tr.misses = 0
                 tr.last_hit_t_s = t_s
@@ -318,7 +365,7 @@ class EkfNavigator:
                 tr.misses += 1
         finite = [bool(np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.p))) for tr in self.tracks]
         self.faults += finite.count(False)
-        self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, u_rad)]
+        self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, t_cam)]
         matched_b = {j for _, j in pairs}
         for j in range(len(blobs)):
             if j not in matched_b:
@@ -326,9 +373,9 @@ class EkfNavigator:
                 tr.blob_index = j
                 tr.last_hit_t_s = t_s
                 self.tracks.append(tr)
-        return [self._output(tr, u_rad) for tr in self.tracks
-                if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
-
-    def _output(self, tr: _EkfTrack, u_rad: float) -> Track:
-        pos, vel = roe_to_lvlh(tr.x, u_rad, self.n)
-        return Track(tr.track_id, tr.x.copy(), pos, vel, tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+        out = [tr for tr in self.tracks if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
+        if not out:
+            return []
+        pos, vel = roe_to_lvlh(np.stack([tr.x for tr in out]), u_rad, self.n)  # elementwise: per row as for one
+        return [Track(tr.track_id, tr.x.copy(), pos[k], vel[k], tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+                for k, tr in enumerate(out)]

@@ -99,3 +99,49 @@ def noise_cov(model: MeasurementModel, z_m: float, area_px: float, area_sigma_px
     s = np.sqrt(max(area_px, 1e-12))
     ss2 = (area_sigma_px / (2.0 * s)) ** 2 + (model.area_rel_sigma * s) ** 2
     return np.diag([su2, sv2, ss2])
+
+
+def _pow2(a: np.ndarray) -> np.ndarray:
+    """a**2 through libm pow, as `**2` of a numpy float64 scalar in `predict` and `noise_cov` (an
+    array's `**2` is a*a, which differs in the last bit now and then)."""
+    return np.float_power(a, 2.0)
+
+
+def predict_many(model: MeasurementModel, roe_m: np.ndarray, t_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`predict` for K states at once (issue 16): roe_m (K, 6) -> h (K, 3), H (K, 3, 6), camera-frame
+    position (K, 3). The same products and sums in the same order as `predict`, elementwise over K,
+    so each row equals `predict` of that state bit for bit (tests/test_nav_ekf_batched.py)."""
+    cam = model.camera
+    k_ = len(roe_m)
+    p = np.matmul(t_cam, roe_m[:, :, None])[:, :, 0]
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    f = cam.focal_px
+    ax, ay, az = model.areas_m2
+    z2 = _pow2(z)
+    k = az + (ax * np.abs(x) + ay * np.abs(y)) / z
+    sk = np.sqrt(np.maximum(k, 1e-12))
+    h = np.stack((cam.cx + f * x / z, cam.cy + f * y / z, f * sk / z), axis=1)
+    jp = np.zeros((k_, 3, 3))
+    jp[:, 0, 0] = f / z
+    jp[:, 0, 2] = -f * x / z2
+    jp[:, 1, 1] = f / z
+    jp[:, 1, 2] = -f * y / z2
+    jp[:, 2, 0] = f / z * ax * np.sign(x) / (2.0 * sk * z)
+    jp[:, 2, 1] = f / z * ay * np.sign(y) / (2.0 * sk * z)
+    jp[:, 2, 2] = -f * sk / z2 - f / z * (ax * np.abs(x) + ay * np.abs(y)) / (2.0 * sk * z2)
+    return h, jp @ t_cam, p
+
+
+def noise_cov_many(model: MeasurementModel, z_m: np.ndarray, area_px: np.ndarray, area_sigma_px: np.ndarray) -> np.ndarray:
+    """`noise_cov` for every (depth, blob) pair: z_m (T,), area_px and area_sigma_px (B,) -> R (T, B, 3, 3),
+    elementwise the same arithmetic as `noise_cov`."""
+    f = model.camera.focal_px
+    z = np.maximum(np.asarray(z_m, dtype=float), 1e-3)
+    su2, sv2 = (_pow2(np.maximum(0.0, 1.0 - f * ext / z)) / 12.0 + model.centroid_floor_px**2 for ext in model.extent_m)
+    s = np.sqrt(np.maximum(area_px, 1e-12))
+    ss2 = _pow2(area_sigma_px / (2.0 * s)) + _pow2(model.area_rel_sigma * s)
+    r = np.zeros((len(z), len(s), 3, 3))
+    r[:, :, 0, 0] = su2[:, None]
+    r[:, :, 1, 1] = sv2[:, None]
+    r[:, :, 2, 2] = ss2[None, :]
+    return r
