@@ -52,6 +52,7 @@ def _stop_event() -> Stop:
 # A child whose session has had no router this long exits (the router is gone: no orphans). Longer
 # than a client's reconnection after a pause (SIGSTOP, then SIGCONT) so a resumed agent rejoins.
 ROUTER_GRACE_S = 8.0
+RECORDER_NICE_REALTIME = int(os.environ.get("SWARMHIL_RECORDER_NICE", "10"))  # real-time runs: the recorder yields the CPU
 ROUTER_LOST_EXIT = 5  # exit code of a child that stopped because it lost the router (a failure: restartable)
 _router_lost = threading.Event()
 
@@ -226,6 +227,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.role == "recorder":
         from bus.recorder import RecorderNode
 
+        if sc.mode == "realtime" and RECORDER_NICE_REALTIME:
+            # off the step's critical path: it only has to keep up on average (Zenoh buffers), while
+            # a plant or agent scheduled late misses the wall deadline (docs/benchmarks.md, soak)
+            os.nice(RECORDER_NICE_REALTIME)
         bus = ZenohBus(args.router, credential=cred)
         _watch_router(bus, stop)
         from bus.mcap_tools import segment_name

@@ -94,6 +94,9 @@ def test_sigterm_stops_the_run_like_ctrl_c(tmp_path: Path) -> None:
     p = _launch(out, "st")
     info = _wait_for(out / "run.json")
     _wait_steps(out, info, 5)
+    # real time: the recorder runs 10 nicer than the plant and agents (off the step's critical path)
+    nice = {n: int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16]) for n, pid in info["pids"].items()}
+    assert nice["recorder"] - nice["plant"] == 10 and nice["agent-sc01"] == nice["plant"], nice
     p.send_signal(signal.SIGTERM)
     _stdout, stderr = p.communicate(timeout=90)
     assert p.returncode == 143, stderr
