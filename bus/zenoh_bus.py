@@ -176,6 +176,15 @@ class ZenohBus:
             self._publishers[key] = pub
         pub.put(payload)
 
+    @property
+    def _deliver(self) -> Any:
+        """Where a sample's callback runs: here on the network thread (`direct`), or on the
+        dispatcher thread through the queue (chosen once per subscription)."""
+        if self.direct:
+            return self._run_direct
+        q = self._queue
+        return lambda fn, *args: q.put((fn, *args))
+
     def _run_direct(self, fn: Any, *args: Any) -> None:
         try:
             fn(*args)
@@ -183,17 +192,11 @@ class ZenohBus:
             log.exception("callback %r failed", fn)
 
     def subscribe(self, key_expr: str, callback: SampleCallback) -> Any:
-        q = self._queue
-        if self.direct:
-            run = self._run_direct
+        deliver = self._deliver
 
-            def on_sample(sample: zenoh.Sample) -> None:
-                _pin_thread_state()
-                run(callback, str(sample.key_expr), sample.payload.to_bytes())
-        else:
-            def on_sample(sample: zenoh.Sample) -> None:
-                _pin_thread_state()
-                q.put((callback, str(sample.key_expr), sample.payload.to_bytes()))
+        def on_sample(sample: zenoh.Sample) -> None:
+            _pin_thread_state()
+            deliver(callback, str(sample.key_expr), sample.payload.to_bytes())
 
         sub = self.session.declare_subscriber(key_expr, zenoh.handlers.Callback(on_sample, indirect=False))
         self._handles.append(sub)
@@ -205,18 +208,11 @@ class ZenohBus:
         return tok
 
     def watch_liveliness(self, key_expr: str, callback: LivelinessCallback) -> Any:
-        q = self._queue
+        deliver = self._deliver
 
-        if self.direct:
-            run = self._run_direct
-
-            def on_change(sample: zenoh.Sample) -> None:
-                _pin_thread_state()
-                run(callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
-        else:
-            def on_change(sample: zenoh.Sample) -> None:
-                _pin_thread_state()
-                q.put((callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        def on_change(sample: zenoh.Sample) -> None:
+            _pin_thread_state()
+            deliver(callback, str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)
 
         sub = self.session.liveliness().declare_subscriber(key_expr, zenoh.handlers.Callback(on_change, indirect=False),
                                                            history=True)

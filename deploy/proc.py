@@ -52,9 +52,11 @@ def _stop_event() -> Stop:
 # A child whose session has had no router this long exits (the router is gone: no orphans). Longer
 # than a client's reconnection after a pause (SIGSTOP, then SIGCONT) so a resumed agent rejoins.
 ROUTER_GRACE_S = 8.0
-RECORDER_NICE_REALTIME = int(os.environ.get("SWARMHIL_RECORDER_NICE", "10"))  # real-time runs: the recorder yields the CPU
 ROUTER_LOST_EXIT = 5  # exit code of a child that stopped because it lost the router (a failure: restartable)
 _router_lost = threading.Event()
+# Real-time runs: the recorder lowers its priority by this much (SWARMHIL_RECORDER_NICE; 0 keeps it).
+_nice = os.environ.get("SWARMHIL_RECORDER_NICE", "10")
+RECORDER_NICE_REALTIME = int(_nice) if _nice.strip().lstrip("-").isdigit() else 10
 
 
 def _watch_router(bus: Any, stop: Stop, grace_s: float = ROUTER_GRACE_S) -> None:

@@ -96,7 +96,7 @@ def test_sigterm_stops_the_run_like_ctrl_c(tmp_path: Path) -> None:
     _wait_steps(out, info, 5)
     # real time: the recorder runs 10 nicer than the plant and agents (off the step's critical path)
     nice = {n: int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16]) for n, pid in info["pids"].items()}
-    assert nice["recorder"] - nice["plant"] == 10 and nice["agent-sc01"] == nice["plant"], nice
+    assert nice["recorder"] == min(19, nice["plant"] + 10) and nice["agent-sc01"] == nice["plant"], nice  # 19: the cap
     p.send_signal(signal.SIGTERM)
     _stdout, stderr = p.communicate(timeout=90)
     assert p.returncode == 143, stderr
