@@ -131,3 +131,24 @@ def test_sweep_on_dask_equals_the_process_pool(tmp_path: Path) -> None:
         cases = json.loads((out / "sweep.json").read_text())["cases"]
         dv[ex] = [c["delta_v_total_mps"] for c in cases]
     assert dv["local"] == dv["dask"] and dv["local"][0] != dv["local"][1]
+
+
+def _worker_env() -> dict:
+    return {k: os.environ.get(k) for k in ("MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS")}
+
+
+def test_local_dask_workers_keep_glibc_malloc_defaults() -> None:
+    """Dask's nanny would start each worker with MALLOC_TRIM_THRESHOLD_=65536, which pins glibc's
+    mmap threshold at 128 KiB: every numpy temporary above it was an mmap + munmap, 408 k page
+    faults per 24 h run (deploy/campaign.LOCAL_WORKER_ENV). The campaign's LocalCluster unsets it
+    and keeps dask's one BLAS thread per worker."""
+    pytest.importorskip("dask.distributed")
+    from deploy.campaign import execute
+
+    saved = os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)  # the nanny runs in this process
+    try:
+        rows = execute(_worker_env, {0: ()}, executor="dask", jobs=1)
+    finally:
+        if saved is not None:
+            os.environ["MALLOC_TRIM_THRESHOLD_"] = saved
+    assert rows == [{"MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"}]
