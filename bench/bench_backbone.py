@@ -6,6 +6,10 @@ For drift-20 and sabatini-20 (ideal sensing) and sabatini-20-camera-filter (rend
 
 - multi-process lockstep (20 agent processes over Zenoh): plant loop and launcher wall, against the
   bus floor of the same number of processes and steps (bench/bus_floor.py: empty tick and reply);
+  for the ideal scenarios also the *contract floor* (`bus_floor.py --contract`: the run's own
+  messages per step, a clock, the truth, 20 stimuli, 20 commands, 20 telemetry, one listener, with
+  no decoding and no work), and for the camera scenario the *compute floor* (the CPU of its
+  in-process run spread over every core: no multi-process run can beat it on this machine);
 - in-process batch mode (`run_in_process(record="truth")`, deploy/batch.py), against the
   vectorised floor (bench/vectorised_floor.py: the same plant and control law in one numpy loop,
   written independently of the node code) for the ideal-sensing scenarios, alternated `--repeats`
@@ -21,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -34,15 +39,17 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 IDEAL = ("drift-20", "sabatini-20")
 CAMERA = "sabatini-20-camera-filter"
+CORES = len(os.sched_getaffinity(0))
 
 
 def load() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
 
-def bus_floor(n: int, steps: int) -> float:
-    fl = subprocess.run([sys.executable, str(ROOT / "bench/bus_floor.py"), "--workers", str(n), "--steps", str(steps)],
-                        capture_output=True, text=True, check=True)
+def bus_floor(n: int, steps: int, contract: bool = False) -> float:
+    """Wall seconds of bench/bus_floor.py (`contract`: the bus contract's own messages per step)."""
+    fl = subprocess.run([sys.executable, str(ROOT / "bench/bus_floor.py"), "--workers", str(n), "--steps", str(steps),
+                         *(["--contract"] if contract else [])], capture_output=True, text=True, check=True)
     return float(fl.stdout.split(",")[2].split()[0])
 
 
@@ -99,6 +106,9 @@ def main() -> None:
                 r["bus_floor_s"] = bus_floor(n, steps)
                 r["multi_process_over_bus_floor"] = r["multi_process"]["loop_s"] / r["bus_floor_s"]
                 r["multi_process_launcher_over_bus_floor"] = r["multi_process"]["launcher_s"] / r["bus_floor_s"]
+                if name in IDEAL:  # what the contract's traffic alone costs (no decoding, no work, no recording)
+                    r["contract_floor_s"] = bus_floor(n, steps, contract=True)
+                    r["contract_floor_over_bus_floor"] = r["contract_floor_s"] / r["bus_floor_s"]
         if a.no_in_process:
             pass
         elif name in IDEAL:
@@ -123,6 +133,9 @@ def main() -> None:
             r["dv_equal_to_floor"] = True
         else:
             r["in_process_batch"] = [in_process(sc, out / f"ipb-{name}", "truth")]
+            if "bus_floor_s" in r:  # the same flight software and plant in one process, spread over every core
+                r["compute_floor_s"] = r["in_process_batch"][0]["cpu_s"] / CORES
+                r["compute_floor_over_bus_floor"] = r["compute_floor_s"] / r["bus_floor_s"]
         if not a.no_in_process:
             r["in_process_messages"] = in_process(sc, out / f"ipm-{name}", "all")
         result["scenarios"][name] = r
@@ -143,6 +156,12 @@ def print_scenario(name: str, r: dict) -> None:
         row("multi-process lockstep, plant loop  (÷ bus floor)", r["multi_process"]["loop_s"], f"{r['multi_process_over_bus_floor']:.2f}")
         row("multi-process lockstep, launcher wall incl. start-up (÷ bus floor)", r["multi_process"]["launcher_s"],
             f"{r['multi_process_launcher_over_bus_floor']:.2f}")
+        if "contract_floor_s" in r:
+            row("contract floor (the run's messages per step, no work) (÷ bus floor)", r["contract_floor_s"],
+                f"{r['contract_floor_over_bus_floor']:.2f}")
+        if "compute_floor_s" in r:
+            row(f"compute floor: in-process CPU ÷ {CORES} cores (÷ bus floor)", r["compute_floor_s"],
+                f"{r['compute_floor_over_bus_floor']:.2f}")
     if "vectorised_floor_s" in r:
         fl = min(r["vectorised_floor_s"])
         row("vectorised floor (numpy, one loop; min of the repeats)", fl, "1.00")
