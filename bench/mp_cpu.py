@@ -1,7 +1,7 @@
 """Where the CPU of a multi-process lockstep run goes (issue 16): CPU seconds per step of each
 process (utime + stime from /proc/PID/stat), over the plant's loop only.
 
-    python bench/mp_cpu.py deploy/scenarios/drift-20.toml --duration 3600 [--out DIR] [--insecure]
+    python bench/mp_cpu.py deploy/scenarios/drift-20.toml --duration 3600 [--out DIR] [--insecure] [--every STEPS]
 
 Runs the scenario with the launcher (deploy/launcher.py), reads the PIDs from DIR/run.json, and
 samples every process's CPU time when the plant's clock passes step 1 and again at the last step
@@ -52,6 +52,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=3600.0)
     ap.add_argument("--out")
     ap.add_argument("--insecure", action="store_true", help="no authentication / ACL on the router")
+    ap.add_argument("--every", type=int, default=0, help="also a row per window of this many steps (where CPU grows)")
     a = ap.parse_args()
     import deploy.launcher as L
     from deploy.scenario import load_scenario
@@ -59,6 +60,7 @@ def main() -> None:
     sc = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
     out = Path(a.out or tempfile.mkdtemp(prefix="swarmhil-mpcpu-"))
     marks: dict[str, tuple[int, float, dict[str, float]]] = {}
+    windows: list[tuple[int, float, dict[str, float]]] = []
     lock = threading.Lock()
 
     def pids() -> dict[str, int]:
@@ -75,6 +77,8 @@ def main() -> None:
                 marks["start"] = (step, time.monotonic(), snapshot(pids()))
             elif step >= sc.steps - 1 and "end" not in marks:
                 marks["end"] = (step, time.monotonic(), snapshot(pids()))
+            if a.every and step >= 1 and (not windows or step >= windows[-1][0] + a.every):
+                windows.append((step, time.monotonic(), snapshot(pids())))
         update(self, step, _wall)
 
     L._Progress.update = hooked
@@ -98,6 +102,15 @@ def main() -> None:
         print(f"{k:14s} {len(vs):3d} {sum(vs) * 1e3:18.3f} {sum(vs) / len(vs) * 1e3:12.3f} {max(vs) * 1e3:8.3f} "
               f"{sum(vs) / total:7.1%}")
     print(f"{'total':14s} {len(per):3d} {total * 1e3:18.3f}   (2 cores: {total / wall / 2:.0%} of the wall)")
+    if len(windows) > 1:
+        print(f"{'window (steps)':16s} {'wall ms/step':>12s} " + " ".join(f"{k:>9s}" for k in sorted(rows)) + "   (CPU ms/step, sum per kind)")
+        for (ka, ta, ca), (kb, tb, cb) in zip(windows, windows[1:]):
+            per_kind: dict[str, float] = {}
+            for n in cb:
+                if n in ca:
+                    per_kind[kind(n)] = per_kind.get(kind(n), 0.0) + (cb[n] - ca[n]) / (kb - ka)
+            print(f"{ka:6d}..{kb:<8d} {(tb - ta) / (kb - ka) * 1e3:12.2f} "
+                  + " ".join(f"{per_kind.get(k, 0.0) * 1e3:9.2f}" for k in sorted(rows)))
     print(json.dumps({"scenario": sc.name, "steps": steps, "wall_ms_per_step": wall * 1e3,
                       "cpu_ms_per_step": {n: v * 1e3 for n, v in per.items()}, "load_start": load0,
                       "loop_wall_s": res.summary.get("loop_wall_s"), "out": str(out)}))
