@@ -160,7 +160,7 @@ def print_scenario(name: str, r: dict) -> None:
             row("contract floor (the run's messages per step, no work) (÷ bus floor)", r["contract_floor_s"],
                 f"{r['contract_floor_over_bus_floor']:.2f}")
         if "compute_floor_s" in r:
-            row(f"compute floor: in-process CPU ÷ {CORES} cores (÷ bus floor)", r["compute_floor_s"],
+            row(f"compute floor: in-process CPU (with start-up) ÷ {CORES} cores (÷ bus floor)", r["compute_floor_s"],
                 f"{r['compute_floor_over_bus_floor']:.2f}")
     if "vectorised_floor_s" in r:
         fl = min(r["vectorised_floor_s"])
