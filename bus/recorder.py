@@ -28,13 +28,13 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
-from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import message_type_of_topic, sim_time_ns
 from bus.foxglove_scene import FoxgloveScene
+from bus.mcap_writer import RecorderWriter
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -91,7 +91,7 @@ class McapRecorder:
         self._scene = FoxgloveScene(config) if foxglove else None
         self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._f: BinaryIO = open(self.path, "wb")
-        self._w = Writer(self._f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._w = RecorderWriter(self._f, chunk_size=chunk_size)  # zstd chunks (bus/mcap_writer.py)
         self._w.start(profile="", library="swarmhil")
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}

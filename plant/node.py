@@ -331,7 +331,7 @@ class PlantNode:
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
         else:
-            self.world.step(self.held[:, :3], self.step_s)
+            self.world.step(self.held[:, :3], self.step_s, all_alive=all_alive)
         self.pacer.after_step(k)
         self._step += 1
         self.stats.steps = self._step

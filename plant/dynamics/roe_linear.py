@@ -11,6 +11,8 @@ and mapping to LVLH reproduces HCW (tests/test_dynamics_linear.py).
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from plant.dynamics.constants import MU_EARTH_M3PS2
@@ -37,8 +39,10 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
     y = dl + 2 dex sin u - 2 dey cos u    vy = n (-3/2 da + 2 dex cos u + 2 dey sin u)
     z = dix sin u - diy cos u             vz = n (dix cos u + diy sin u)
 
-    Evaluated in exactly this order (each product, then the sums left to right), with the products
-    of a kind in one numpy call (issue 16: this runs every step of a batch run).
+    Evaluated in exactly this order (each product, then the sums left to right), in few numpy
+    calls (issue 16: this runs every step of a batch run): every component is (A + B) + C with
+    a - b written as a + (-b) (the same IEEE result) and -0.0 for a missing A (-0.0 + b == b,
+    bit for bit): the six B and six C products are one gather and two multiplications.
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     c, s = np.cos(u_rad), np.sin(u_rad)
@@ -48,24 +52,24 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
         vel = n_radps * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s),
                                  axis=-1)
         return pos, vel
-    k = np.array((c, s, s, c, s, c, c, s))
-    p = roe[..., _U] * k[:4]  # dex c, dex s, dix s, dix c
-    q = roe[..., _V] * k[4:]  # dey s, dey c, diy c, diy s
-    w = (2.0 * roe[..., _W]) * k[4:]  # (2 dex) s, (2 dey) c, (2 dex) c, (2 dey) s
-    pos = np.empty(roe.shape[:-1] + (3,))
-    vel = np.empty(roe.shape[:-1] + (3,))
-    da = roe[..., DA]
-    np.subtract(da - p[..., 0], q[..., 0], out=pos[..., 0])
-    np.subtract(roe[..., DL] + w[..., 0], w[..., 1], out=pos[..., 1])
-    np.subtract(p[..., 2], q[..., 2], out=pos[..., 2])
-    np.subtract(p[..., 1], q[..., 1], out=vel[..., 0])
-    np.add(-1.5 * da + w[..., 2], w[..., 3], out=vel[..., 1])
-    np.add(p[..., 3], q[..., 3], out=vel[..., 2])
-    vel *= n_radps
-    return pos, vel
+    c, s = float(c), float(s)
+    # B: dex (-c), (2 dex) s, dix s, dex s, (2 dex) c, dix c;  C: dey (-s), (2 dey) (-c), diy (-c), dey (-c), (2 dey) s, diy s
+    bc = roe.take(_BC, axis=-1)
+    np.multiply(bc, _BC_SCALE, out=bc)  # (x 1 and x 2: exact, the same 2.0 * dex as written)
+    np.multiply(bc, np.array((-c, s, s, s, c, c, -s, -c, -c, -c, s, s)), out=bc)
+    out = roe.take(_A, axis=-1)  # A: da, dl, -, -, -1.5 da, -
+    out[..., 4] *= -1.5
+    out[..., 2:4] = -0.0
+    out[..., 5] = -0.0
+    np.add(out, bc[..., :6], out=out)
+    np.add(out, bc[..., 6:], out=out)
+    out[..., 3:] *= n_radps
+    return out[..., :3], out[..., 3:]
 
 
-_U, _V, _W = np.array([DEX, DEX, DIX, DIX]), np.array([DEY, DEY, DIY, DIY]), np.array([DEX, DEY, DEX, DEY])
+_BC = np.array([DEX, DEX, DIX, DEX, DEX, DIX, DEY, DEY, DIY, DEY, DEY, DIY])
+_BC_SCALE = np.array([1.0, 2.0, 1.0, 1.0, 2.0, 1.0] * 2)
+_A = np.array([DA, DL, DA, DA, DA, DA])
 
 
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
@@ -138,19 +142,22 @@ def zoh_input_matrix(u0_rad: float, n_radps: float, dt_s: float) -> np.ndarray:
     """
     n = n_radps
     um = u0_rad + 0.5 * n * dt_s
-    h = np.sin(0.5 * n * dt_s)
-    dcos = 2.0 * np.sin(um) * h / n**2  # (cos u0 - cos u1) / n^2
-    dsin = 2.0 * np.cos(um) * h / n**2  # (sin u1 - sin u0) / n^2
-    return np.array(
-        [
-            [0.0, 2.0 * dt_s / n, 0.0],
-            [-2.0 * dt_s / n, -1.5 * dt_s**2, 0.0],
-            [dcos, 2.0 * dsin, 0.0],
-            [-dsin, 2.0 * dcos, 0.0],
-            [0.0, 0.0, dsin],
-            [0.0, 0.0, dcos],
-        ]
-    )
+    h = _half_step_sin(n, dt_s)
+    dcos = 2.0 * float(np.sin(um)) * h / n**2  # (cos u0 - cos u1) / n^2
+    dsin = 2.0 * float(np.cos(um)) * h / n**2  # (sin u1 - sin u0) / n^2
+    # one flat tuple of Python floats (the same IEEE products as with numpy scalars), one array call
+    return np.array((0.0, 2.0 * dt_s / n, 0.0,
+                     -2.0 * dt_s / n, -1.5 * dt_s**2, 0.0,
+                     dcos, 2.0 * dsin, 0.0,
+                     -dsin, 2.0 * dcos, 0.0,
+                     0.0, 0.0, dsin,
+                     0.0, 0.0, dcos)).reshape(6, 3)
+
+
+@functools.lru_cache(maxsize=64)
+def _half_step_sin(n_radps: float, dt_s: float) -> float:
+    """sin(n dt / 2) of `zoh_input_matrix`: the same for every step of a run."""
+    return float(np.sin(0.5 * n_radps * dt_s))
 
 
 def propagate_roe(
