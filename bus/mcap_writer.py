@@ -6,7 +6,12 @@ level 3 were a quarter of a drift-20 batch step. This writer produces the same r
 Message record's bytes are one `struct.pack` of the same fields, the chunk's message index and
 the file's statistics are updated as mcap's own code does) and compresses each chunk with zstd at
 `ZSTD_LEVEL` (1: on a 24 h drift-20 recording the same size as level 3 within 2 %, 40 % less CPU;
-the level is not part of the MCAP contract, the readers decompress any level).
+the level is not part of the MCAP contract, the readers decompress any level). With
+`background=True` (the in-process runs, deploy/launcher.py) a closed chunk is compressed on a
+worker thread (zstd releases the GIL) while the run goes on, and its records are written at the
+next write to the stream, before anything added after it: the records' order in the file is the
+same. (The recorder process of a multi-process run keeps compressing in place: what a SIGKILL can
+lose stays the open chunk.)
 
 It works on the internals of the pinned mcap (`mcap==1.6.0`: `_Writer__statistics`,
 `_Writer__chunk_builder`, `_Writer__finalize_chunk`); with another mcap whose internals differ it
@@ -17,6 +22,7 @@ from __future__ import annotations
 
 import struct
 import zlib
+from concurrent.futures import ThreadPoolExecutor
 from typing import IO, Any
 
 import zstandard
@@ -32,7 +38,9 @@ _MESSAGE_FIXED = 2 + 4 + 8 + 8  # the record's bytes before its data
 class RecorderWriter(Writer):
     """`mcap.writer.Writer` (chunked, zstd, every index) with the fast paths above."""
 
-    def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL) -> None:
+    def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL, background: bool = False) -> None:
+        self._pending: tuple | None = None  # the last chunk, compressing: (future, start, end, size, message indexes)
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-zstd") if background else None
         super().__init__(output, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
         self._fast_chunk_size = chunk_size
@@ -72,34 +80,73 @@ class RecorderWriter(Writer):
 
     def _Writer__finalize_chunk(self) -> None:  # noqa: N802 - overrides mcap's private __finalize_chunk
         """mcap 1.6's `Writer.__finalize_chunk` (ZSTD, enable_crcs as given), compressing with this
-        writer's zstd compressor instead of `zstandard.compress` at its default level."""
+        writer's zstd compressor instead of `zstandard.compress` at its default level, on a worker
+        thread (zstd releases the GIL): the chunk's records go to the stream at the next write to
+        the stream (`_Writer__flush`), so every record keeps its place in the file."""
         if not self._fast:
             return Writer._Writer__finalize_chunk(self)  # type: ignore[attr-defined]
         cb = self._chunk
         if cb.num_messages == 0:
             return
+        self._Writer__flush()  # what precedes the chunk (and the previous chunk) goes out first
         self._stats.chunk_count += 1
-        chunk_data = cb.end()
-        compressed = self._zstd.compress(chunk_data)
-        chunk = Chunk(compression="zstd", data=compressed, message_start_time=cb.message_start_time,
-                      message_end_time=cb.message_end_time,
-                      uncompressed_crc=zlib.crc32(chunk_data) if self._Writer__enable_crcs else 0,
-                      uncompressed_size=len(chunk_data))
+        indices, cb.message_indices = cb.message_indices, {}
+        data = cb.end()
+        crc = self._Writer__enable_crcs
+        pending = (cb.message_start_time, cb.message_end_time, len(data), indices)
+        if self._pool is not None:
+            self._pending = (self._pool.submit(_compress, self._zstd, data, crc), *pending)
+        else:
+            self._pending = (_Done(_compress(self._zstd, data, crc)), *pending)
+        cb.reset()
+
+    def _Writer__flush(self) -> None:  # noqa: N802 - overrides mcap's private __flush
+        """Write the pending chunk (if any) before what the record builder holds."""
+        if self._pending is not None:
+            self._write_pending()
+        Writer._Writer__flush(self)  # type: ignore[attr-defined]
+
+    def _write_pending(self) -> None:
+        future, t0, t1, size, indices = self._pending
+        self._pending = None
+        compressed, crc = future.result()
+        chunk = Chunk(compression="zstd", data=compressed, message_start_time=t0, message_end_time=t1,
+                      uncompressed_crc=crc, uncompressed_size=size)
         rb, stream = self._Writer__record_builder, self._Writer__stream
-        self._Writer__flush()
+        later = rb.end()  # records added since the chunk was closed: they follow it
         start = stream.tell()
         chunk.write(rb)
-        index = ChunkIndex(message_start_time=chunk.message_start_time, message_end_time=chunk.message_end_time,
-                           chunk_start_offset=start, chunk_length=rb.count, message_index_offsets={},
-                           message_index_length=0, compression=chunk.compression, compressed_size=len(compressed),
-                           uncompressed_size=chunk.uncompressed_size)
-        self._Writer__flush()
+        index = ChunkIndex(message_start_time=t0, message_end_time=t1, chunk_start_offset=start, chunk_length=rb.count,
+                           message_index_offsets={}, message_index_length=0, compression="zstd",
+                           compressed_size=len(compressed), uncompressed_size=size)
+        Writer._Writer__flush(self)  # type: ignore[attr-defined]
         index_start = stream.tell()
         if self._Writer__index_types & IndexType.MESSAGE:
-            for cid, mi in cb.message_indices.items():
+            for cid, mi in indices.items():
                 index.message_index_offsets[cid] = index_start + rb.count
                 mi.write(rb)
         index.message_index_length = rb.count
-        self._Writer__flush()
+        Writer._Writer__flush(self)  # type: ignore[attr-defined]
         self._Writer__chunk_indices.append(index)
-        cb.reset()
+        rb.write(later)
+
+    def finish(self) -> None:
+        try:
+            super().finish()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=False)
+
+
+def _compress(zstd: zstandard.ZstdCompressor, data: bytes, crc: bool) -> tuple[bytes, int]:
+    return zstd.compress(data), (zlib.crc32(data) if crc else 0)
+
+
+class _Done:
+    """A result already there (no worker thread): what the pending chunk's future gives."""
+
+    def __init__(self, value: Any) -> None:
+        self._value = value
+
+    def result(self) -> Any:
+        return self._value

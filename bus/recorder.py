@@ -83,7 +83,7 @@ class McapRecorder:
 
     def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE, epoch_utc: str | None = None,
                  config: dict[str, Any] | None = None, foxglove: bool = True,
-                 flush_period_s: float | None = FLUSH_PERIOD_S) -> None:
+                 flush_period_s: float | None = FLUSH_PERIOD_S, background: bool = False) -> None:
         self.path = Path(path)
         self.keys = Keys(run)
         self.run = run
@@ -91,7 +91,8 @@ class McapRecorder:
         self._scene = FoxgloveScene(config) if foxglove else None
         self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._f: BinaryIO = open(self.path, "wb")
-        self._w = RecorderWriter(self._f, chunk_size=chunk_size)  # zstd chunks (bus/mcap_writer.py)
+        # zstd chunks (bus/mcap_writer.py), compressed on a worker thread when `background`
+        self._w = RecorderWriter(self._f, chunk_size=chunk_size, background=background)
         self._w.start(profile="", library="swarmhil")
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
@@ -203,17 +204,20 @@ class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer.
 
     record="truth" (issue 16: a campaign row needs only the truth): only the `truth` and `event`
-    topics, without the Foxglove scene, transforms and log written alongside."""
+    topics, without the Foxglove scene, transforms and log written alongside. `background`: the
+    chunks are compressed on a worker thread (an in-process run: bus/mcap_writer.py)."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
-                 document: dict[str, Any] | None = None, segment: int = 0, record: str = "all") -> None:
+                 document: dict[str, Any] | None = None, segment: int = 0, record: str = "all",
+                 background: bool = False) -> None:
         if record not in RECORD_CHOICES:
             raise ValueError(f"unknown record {record!r}; known: {', '.join(RECORD_CHOICES)}")
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
         epoch = ((config or {}).get("run") or {}).get("epoch_utc")
-        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config, foxglove=record == "all")
+        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config, foxglove=record == "all",
+                                background=background)
         if config is not None:
             self.rec.describe_run(config, document)
         if segment:  # a restarted recorder: this file continues the run after a gap (bus/mcap_tools.merge)

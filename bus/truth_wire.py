@@ -22,10 +22,15 @@ import struct
 import numpy as np
 
 _D = struct.Struct("<d")
+_SMALL = [bytes((i,)) for i in range(0x80)]
 
 
 def varint(n: int) -> bytes:
     """Base-128 varint of a non-negative integer (protobuf wire type 0 and lengths)."""
+    if n < 0x80:
+        return _SMALL[n]
+    if n < 0x4000:  # (steps, sequence numbers and lengths of a run: no loop)
+        return bytes(((n & 0x7F) | 0x80, n >> 7))
     out = bytearray()
     while n >= 0x80:
         out.append((n & 0x7F) | 0x80)

@@ -79,6 +79,8 @@ class PlantNode:
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
         self._local_all = False  # every spacecraft alive at the step of _local_cmd
+        self._all_rows = np.arange(len(scenario.ids))  # the observers when all are alive
+        self._all_rows.setflags(write=False)
         # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
@@ -236,8 +238,8 @@ class PlantNode:
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
                              alive=self.world.alive, world=self.world)
         if self.local_agents is not None:
-            rows = np.flatnonzero(self.world.alive)
-            self._local_all = len(rows) == len(ids)
+            self._local_all = all(alive)
+            rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
             self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):

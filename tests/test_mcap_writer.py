@@ -35,16 +35,18 @@ def _write(w: Writer, rng: np.random.Generator, n: int) -> None:
 
 @pytest.mark.parametrize("chunk_size", [1, 4096, 256 * 1024])
 def test_same_file_as_mcaps_writer_at_the_same_level(chunk_size: int) -> None:
-    """At zstd level 3 (mcap's default) the file is byte for byte the one mcap's Writer writes."""
+    """At zstd level 3 (mcap's default) the file is byte for byte the one mcap's Writer writes, also
+    with the chunks compressed on a worker thread (their records written later, in their place)."""
     files = []
     for make in (lambda f: Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD),
-                 lambda f: RecorderWriter(f, chunk_size=chunk_size, zstd_level=3)):
+                 lambda f: RecorderWriter(f, chunk_size=chunk_size, zstd_level=3),
+                 lambda f: RecorderWriter(f, chunk_size=chunk_size, zstd_level=3, background=True)):
         f = io.BytesIO()
         w = make(f)
         _write(w, np.random.default_rng(chunk_size), 300)
         files.append(f.getvalue())
     assert isinstance(RecorderWriter(io.BytesIO(), 1), Writer) and RecorderWriter(io.BytesIO(), 1)._fast
-    assert files[0] == files[1]
+    assert files[0] == files[1] == files[2]
 
 
 def test_its_own_level_reads_back_with_the_standard_readers() -> None:
@@ -52,11 +54,12 @@ def test_its_own_level_reads_back_with_the_standard_readers() -> None:
     in order with their channel, times, sequence and bytes, the summary, indexes and statistics."""
     out = {}
     for name, make in (("mcap", lambda f: Writer(f, chunk_size=8192, compression=CompressionType.ZSTD)),
-                       ("fast", lambda f: RecorderWriter(f, chunk_size=8192))):
+                       ("fast", lambda f: RecorderWriter(f, chunk_size=8192)),
+                       ("background", lambda f: RecorderWriter(f, chunk_size=8192, background=True))):
         f = io.BytesIO()
         _write(make(f), np.random.default_rng(7), 400)
         out[name] = f.getvalue()
-    assert ZSTD_LEVEL != 3 and out["mcap"] != out["fast"]
+    assert ZSTD_LEVEL != 3 and out["mcap"] != out["fast"] == out["background"]
     seen = {}
     for name, data in out.items():
         r = make_reader(io.BytesIO(data))
@@ -68,4 +71,4 @@ def test_its_own_level_reads_back_with_the_standard_readers() -> None:
         seen[name] = (msgs, in_time, one, summ.statistics, len(summ.chunk_indexes), recs,
                       [m.name for m in r.iter_metadata()], [a.name for a in r.iter_attachments()])
     assert len(seen["fast"][0]) == 400 and seen["fast"][2]
-    assert seen["fast"] == seen["mcap"]
+    assert seen["fast"] == seen["mcap"] == seen["background"]
