@@ -69,7 +69,8 @@ class BatchHook:
             rel = sense()
             batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
                                      offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
-                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps,
+                                     owner=rel.owner)
         else:
             offsets, none = self._empty.get(len(rows), (None, None))
             if offsets is None:  # no neighbours for anyone: the same read-only arrays every step
