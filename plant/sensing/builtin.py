@@ -77,10 +77,10 @@ class RelKind:
         pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
         obs = np.asarray(observers, dtype=np.int64)
         if len(obs) == len(vis):  # every spacecraft observes (observers are distinct): vis's own rows
-            jj, kk = np.nonzero(vis)
+            jj, kk = vis.nonzero()
             j = jj
         else:
-            jj, kk = np.nonzero(vis[obs])  # row by row, neighbours in index order: stimulus's order
+            jj, kk = vis[obs].nonzero()  # row by row, neighbours in index order: stimulus's order
             j = obs[jj]
         state = np.concatenate((pos, vel), axis=1)  # position and velocity differences in one gather
         d = state[kk] - state[j]
@@ -88,7 +88,7 @@ class RelKind:
         if self.noise is not None and len(kk):
             rp, rv = self.noise.apply_rows(rp, rv, u)
         offsets = np.zeros(len(obs) + 1, dtype=np.int64)
-        np.cumsum(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])  # (np.cumsum)
         return RelBatch(offsets, kk, rp, rv, jj)
 
 
