@@ -26,12 +26,13 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import IO, Any
 
 import zstandard
-from mcap.records import Chunk, ChunkIndex, MessageIndex
+from mcap.records import Chunk, ChunkIndex
 from mcap.writer import CompressionType, IndexType, Writer
 
 ZSTD_LEVEL = 1
 _MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel id, sequence, log time, publish time
 _OP_MESSAGE = 0x05
+_OP_MESSAGE_INDEX = 0x07
 _MESSAGE_FIXED = 2 + 4 + 8 + 8  # the record's bytes before its data
 
 
@@ -68,10 +69,10 @@ class RecorderWriter(Writer):
         if log_time > cb.message_end_time:
             cb.message_end_time = log_time
         buf = cb.record_writer._buffer  # (a new BytesIO after each chunk)
-        index = cb.message_indices.get(channel_id)
+        index = cb.message_indices.get(channel_id)  # here: the flat (log time, offset) list of the channel
         if index is None:
-            index = cb.message_indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
-        index.records.append((log_time, buf.tell()))
+            index = cb.message_indices[channel_id] = []
+        index += (log_time, buf.tell())
         cb.num_messages += 1
         buf.write(_MESSAGE.pack(_OP_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence, log_time, publish_time))
         buf.write(data)
@@ -122,9 +123,10 @@ class RecorderWriter(Writer):
         Writer._Writer__flush(self)  # type: ignore[attr-defined]
         index_start = stream.tell()
         if self._Writer__index_types & IndexType.MESSAGE:
-            for cid, mi in indices.items():
+            for cid, flat in indices.items():  # MessageIndex records (mcap's MessageIndex.write), one pack each
                 index.message_index_offsets[cid] = index_start + rb.count
-                mi.write(rb)
+                n = len(flat)
+                rb.write(struct.pack(f"<BQHI{n}Q", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n, *flat))
         index.message_index_length = rb.count
         Writer._Writer__flush(self)  # type: ignore[attr-defined]
         self._Writer__chunk_indices.append(index)

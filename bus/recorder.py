@@ -226,6 +226,7 @@ class RecorderNode:
         self.run_end = False
         # on a bus that carries the publishers' simulation time (bus/memory.py), take it from there
         stamped = {"stamped": True} if getattr(bus, "stamps", False) else {}
+        self._k_event = self.keys.event
         keys = (self.keys.all,) if record == "all" else (self.keys.truth, self.keys.event)
         self._subs = [bus.subscribe(k, self._on_sample, **stamped) for k in keys]
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
@@ -233,7 +234,7 @@ class RecorderNode:
 
     def _on_sample(self, key: str, payload: bytes, t_ns: int | None = None) -> None:
         self.rec.write(key, payload, t_ns=t_ns)
-        if key == self.keys.event and not self.run_end:
+        if key == self._k_event and not self.run_end:
             try:
                 ev = pb.Event.FromString(payload)
             except (DecodeError, RuntimeWarning, ValueError):

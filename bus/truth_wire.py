@@ -166,7 +166,7 @@ class TruthEncoder:
         self._base = kmask[:, 3:].sum(axis=1) - 9 * 10 - 2  # body length without the optional fields
         if width - 3 >= 1 << 14:
             raise ValueError("ids or kinds too long for a two-byte body length")
-        self._present = np.empty((n, 11), dtype=bool)
+        self._present = np.empty((n, 16), dtype=bool)  # of each double (the 6 of roe_m are not optional)
         # the values' bytes (n, 16 doubles) followed by the fixed bytes of every pattern seen: a
         # step writes the values in and takes the truth's bytes out in one gather (`_plans` maps
         # a pattern of present fields to its byte indices into this buffer)
@@ -189,20 +189,18 @@ class TruthEncoder:
         tail = _double(0x19, float(u_rad)) + fixed[2]
         if n == 0:
             return head + tail
-        v[:, 0:3] = position_m
-        v[:, 3:6] = velocity_mps
-        v[:, 6] = delta_v_mps
-        v[:, 7:10] = accel_mps2
-        v[:, 10:16] = roe_m
-        np.not_equal(v.view(np.uint64)[:, :10], 0, out=pr[:, :10])  # implicit presence: any bit set (-0.0, NaN)
-        pr[:, 10] = alive
-        key = pr.tobytes()
+        np.concatenate((position_m, velocity_mps, delta_v_mps[:, None], accel_mps2, roe_m), axis=1, out=v)
+        np.not_equal(v.view(np.uint64), 0, out=pr)  # implicit presence: any bit set (-0.0, NaN); roe_m is packed
+        key = pr.tobytes() + np.asarray(alive, dtype=bool).tobytes()
         take = self._plans.get(key)
         if take is None:  # a new pattern of present fields (a 24 h sabatini-20 run has about 120)
             if len(self._plans) >= MAX_PLANS:
                 self._plans.clear()
                 self._grow(self._buf[:self._nv])
-            take = self._plans[key] = self._plan(pr)
+            present = np.empty((n, 11), dtype=bool)
+            present[:, :10] = pr[:, :10]
+            present[:, 10] = alive
+            take = self._plans[key] = self._plan(present)
         return head + self._buf[take].tobytes() + tail
 
     def _grow(self, buf: np.ndarray) -> None:

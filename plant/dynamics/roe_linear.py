@@ -12,6 +12,7 @@ and mapping to LVLH reproduces HCW (tests/test_dynamics_linear.py).
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -40,9 +41,11 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
     z = dix sin u - diy cos u             vz = n (dix cos u + diy sin u)
 
     Evaluated in exactly this order (each product, then the sums left to right), in few numpy
-    calls (issue 16: this runs every step of a batch run): every component is (A + B) + C with
-    a - b written as a + (-b) (the same IEEE result) and -0.0 for a missing A (-0.0 + b == b,
-    bit for bit): the six B and six C products are one gather and two multiplications.
+    calls on whole contiguous arrays (issue 16: this runs every step of a batch run): every
+    component is (A + B) + C with a - b written as a + (-b) (the same IEEE result) and -0.0 for
+    a missing A or C (-0.0 + b == b, bit for bit); A, B and C of every row are one gather, their
+    scale factors (x 1, x 2, x -1.5: the same products as written) one multiplication, the
+    trigonometric factors of B and C another.
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     c, s = np.cos(u_rad), np.sin(u_rad)
@@ -52,24 +55,42 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
         vel = n_radps * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s),
                                  axis=-1)
         return pos, vel
-    c, s = float(c), float(s)
-    # B: dex (-c), (2 dex) s, dix s, dex s, (2 dex) c, dix c;  C: dey (-s), (2 dey) (-c), diy (-c), dey (-c), (2 dey) s, diy s
-    bc = roe.take(_BC, axis=-1)
-    np.multiply(bc, _BC_SCALE, out=bc)  # (x 1 and x 2: exact, the same 2.0 * dex as written)
-    np.multiply(bc, np.array((-c, s, s, s, c, c, -s, -c, -c, -c, s, s)), out=bc)
-    out = roe.take(_A, axis=-1)  # A: da, dl, -, -, -1.5 da, -
-    out[..., 4] *= -1.5
-    out[..., 2:4] = -0.0
-    out[..., 5] = -0.0
-    np.add(out, bc[..., :6], out=out)
-    np.add(out, bc[..., 6:], out=out)
-    out[..., 3:] *= n_radps
+    lead = roe.shape[:-1]
+    take, scale, trig, speed = _lvlh_plan(math.prod(lead), float(n_radps))
+    g = np.concatenate((roe.reshape(-1), _NEG_ZERO)).take(take)  # (3, rows, 6): A, B, C (-0.0: the last)
+    g *= scale
+    g[1:] *= np.array((float(c), float(s), -float(c), -float(s))).take(trig)
+    out = np.add(g[0], g[1])
+    out += g[2]
+    out *= speed  # x 1.0 for the positions (exact), x n for the velocities
+    out = out.reshape(lead + (6,))
     return out[..., :3], out[..., 3:]
 
 
-_BC = np.array([DEX, DEX, DIX, DEX, DEX, DIX, DEY, DEY, DIY, DEY, DEY, DIY])
-_BC_SCALE = np.array([1.0, 2.0, 1.0, 1.0, 2.0, 1.0] * 2)
-_A = np.array([DA, DL, DA, DA, DA, DA])
+# per output (x, y, z, vx, vy, vz): A (column, scale), B (column, scale, trig), C (column, scale, trig);
+# trig 0: c, 1: s, 2: -c, 3: -s; None: -0.0
+_LVLH_A = ((DA, 1.0), (DL, 1.0), None, None, (DA, -1.5), None)
+_LVLH_B = ((DEX, 1.0, 2), (DEX, 2.0, 1), (DIX, 1.0, 1), (DEX, 1.0, 1), (DEX, 2.0, 0), (DIX, 1.0, 0))
+_LVLH_C = ((DEY, 1.0, 3), (DEY, 2.0, 2), (DIY, 1.0, 2), (DEY, 1.0, 2), (DEY, 2.0, 1), (DIY, 1.0, 1))
+
+
+_NEG_ZERO = np.array([-0.0])
+
+
+@functools.lru_cache(maxsize=16)
+def _lvlh_plan(rows: int, n_radps: float) -> tuple[np.ndarray, ...]:
+    """`roe_to_lvlh`'s gather indices (3, rows, 6) into the flat ROE followed by -0.0, scale
+    factors, trigonometric indices (2, rows, 6) and the speed factors (rows, 6) of `rows` rows."""
+    col = np.array([[a[0] if a else -1 for a in _LVLH_A], [b[0] for b in _LVLH_B], [c[0] for c in _LVLH_C]])
+    sc = np.array([[a[1] if a else 1.0 for a in _LVLH_A], [b[1] for b in _LVLH_B], [c[1] for c in _LVLH_C]])
+    tr = np.array([[b[2] for b in _LVLH_B], [c[2] for c in _LVLH_C]])
+    take = np.arange(rows)[None, :, None] * 6 + col[:, None, :]
+    take[0][:, col[0] < 0] = rows * 6  # the missing A: the -0.0 after the ROE
+    out = (take, np.broadcast_to(sc[:, None, :], (3, rows, 6)).copy(), np.broadcast_to(tr[:, None, :], (2, rows, 6)).copy(),
+           np.broadcast_to(np.array([1.0, 1.0, 1.0, n_radps, n_radps, n_radps]), (rows, 6)).copy())
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
