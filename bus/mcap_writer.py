@@ -8,9 +8,9 @@ the file's statistics are updated as mcap's own code does) and compresses each c
 `ZSTD_LEVEL` (1: on a 24 h drift-20 recording the same size as level 3 within 2 %, 40 % less CPU;
 the level is not part of the MCAP contract, the readers decompress any level). With
 `background=True` (the in-process runs, deploy/launcher.py) a closed chunk is compressed on a
-worker thread (zstd releases the GIL) while the run goes on, and its records are written at the
-next write to the stream, before anything added after it: the records' order in the file is the
-same. (The recorder process of a multi-process run keeps compressing in place: what a SIGKILL can
+worker thread (zstd releases the GIL) while the run goes on, and its records are written once
+it is compressed (or at the next other write to the stream, waiting for it), before anything added
+after it: the records' order in the file is the same. (The recorder process of a multi-process run keeps compressing in place: what a SIGKILL can
 lose stays the open chunk.)
 
 It works on the internals of the pinned mcap (`mcap==1.6.0`: `_Writer__statistics`,
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import IO, Any
 
@@ -40,7 +41,7 @@ class RecorderWriter(Writer):
     """`mcap.writer.Writer` (chunked, zstd, every index) with the fast paths above."""
 
     def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL, background: bool = False) -> None:
-        self._pending: tuple | None = None  # the last chunk, compressing: (future, start, end, size, message indexes)
+        self._pending: deque[tuple] = deque()  # closed chunks, in order: (future, start, end, size, message indexes)
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-zstd") if background else None
         super().__init__(output, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
@@ -82,34 +83,40 @@ class RecorderWriter(Writer):
     def _Writer__finalize_chunk(self) -> None:  # noqa: N802 - overrides mcap's private __finalize_chunk
         """mcap 1.6's `Writer.__finalize_chunk` (ZSTD, enable_crcs as given), compressing with this
         writer's zstd compressor instead of `zstandard.compress` at its default level, on a worker
-        thread (zstd releases the GIL): the chunk's records go to the stream at the next write to
-        the stream (`_Writer__flush`), so every record keeps its place in the file."""
+        thread when `background` (zstd releases the GIL): closed chunks wait in order in `_pending`
+        and go to the stream when compressed (checked at each new chunk, without waiting) or at the
+        next other write to the stream (`_Writer__flush`, waiting), so every record keeps its place
+        in the file."""
         if not self._fast:
             return Writer._Writer__finalize_chunk(self)  # type: ignore[attr-defined]
         cb = self._chunk
         if cb.num_messages == 0:
             return
-        self._Writer__flush()  # what precedes the chunk (and the previous chunk) goes out first
+        if self._Writer__record_builder.count:  # records written since the last chunk go before this one
+            self._Writer__flush()
+        else:
+            while self._pending and self._pending[0][0].done():
+                self._write_pending()
         self._stats.chunk_count += 1
         indices, cb.message_indices = cb.message_indices, {}
         data = cb.end()
         crc = self._Writer__enable_crcs
         pending = (cb.message_start_time, cb.message_end_time, len(data), indices)
         if self._pool is not None:
-            self._pending = (self._pool.submit(_compress, self._zstd, data, crc), *pending)
+            self._pending.append((self._pool.submit(_compress, self._zstd, data, crc), *pending))
         else:
-            self._pending = (_Done(_compress(self._zstd, data, crc)), *pending)
+            self._pending.append((_Done(_compress(self._zstd, data, crc)), *pending))
         cb.reset()
 
     def _Writer__flush(self) -> None:  # noqa: N802 - overrides mcap's private __flush
-        """Write the pending chunk (if any) before what the record builder holds."""
-        if self._pending is not None:
+        """Write the pending chunks (waiting for their compression) before what the record builder holds."""
+        while self._pending:
             self._write_pending()
         Writer._Writer__flush(self)  # type: ignore[attr-defined]
 
     def _write_pending(self) -> None:
-        future, t0, t1, size, indices = self._pending
-        self._pending = None
+        """The oldest pending chunk's records: Chunk, then its MessageIndex records."""
+        future, t0, t1, size, indices = self._pending.popleft()
         compressed, crc = future.result()
         chunk = Chunk(compression="zstd", data=compressed, message_start_time=t0, message_end_time=t1,
                       uncompressed_crc=crc, uncompressed_size=size)
@@ -152,3 +159,6 @@ class _Done:
 
     def result(self) -> Any:
         return self._value
+
+    def done(self) -> bool:
+        return True

@@ -96,6 +96,7 @@ class McapRecorder:
         self._w.start(profile="", library="swarmhil")
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
+        self._topic_channel: dict[str, tuple[type[Message], int]] = {}  # topic -> (type, channel) of its last sample
         self.count = 0
         self.undecodable = 0
         self.by_topic: dict[str, int] = {}
@@ -123,8 +124,10 @@ class McapRecorder:
         return cid
 
     def _add(self, topic: str, cls: type[Message], payload: bytes, t_ns: int, wall_ns: int) -> None:
-        self._w.add_message(channel_id=self._channel_id(topic, cls), log_time=self.epoch_ns + max(t_ns, 0),
-                            data=payload, publish_time=wall_ns, sequence=self.count)
+        cid = self._topic_channel.get(topic)  # (the channel of a topic's usual type, looked up once)
+        if cid is None or cid[0] is not cls:
+            cid = self._topic_channel[topic] = (cls, self._channel_id(topic, cls))
+        self._w.add_message(cid[1], self.epoch_ns + max(t_ns, 0), payload, wall_ns, self.count)
         self.count += 1
         self.by_topic[topic] = self.by_topic.get(topic, 0) + 1
         self.bytes_by_topic[topic] = self.bytes_by_topic.get(topic, 0) + len(payload)
