@@ -190,26 +190,9 @@ def propagate_roe(
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     accel = _as_rows(accel_mps2, 3, "accel_mps2")
-    lead = roe.shape[:-1]
-    take, scale = _drift_plan(math.prod(lead), -1.5 * n_radps * dt_s)
-    # Phi roe = roe + (0, (-3/2 n dt) da, 0, 0, 0, 0): whole rows, the other columns + -0.0 (exact)
-    drift = np.concatenate((roe.reshape(-1), _NEG_ZERO)).take(take)
-    drift *= scale
-    out = np.add(roe, drift.reshape(roe.shape))
+    out = roe.copy()
+    out[..., DL] += -1.5 * n_radps * dt_s * roe[..., DA]
     return out + accel @ zoh_input_matrix(u0_rad, n_radps, dt_s).T
-
-
-@functools.lru_cache(maxsize=16)
-def _drift_plan(rows: int, rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """`propagate_roe`'s gather indices (rows, 6) into the flat ROE followed by -0.0 (da in the dl
-    column, -0.0 elsewhere) and their factors (rate = -3/2 n dt, and 1.0)."""
-    take = np.full((rows, 6), rows * 6)
-    take[:, DL] = np.arange(rows) * 6 + DA
-    scale = np.ones((rows, 6))
-    scale[:, DL] = rate
-    take.setflags(write=False)
-    scale.setflags(write=False)
-    return take, scale
 
 
 class LinearRoePlant:
