@@ -108,6 +108,14 @@ class ObservationBatch:
     rel_velocity_mps: np.ndarray
     extra: list[dict[str, Any]] | None = None  # per observer (None: all empty)
     isl_rx: list[list[Any]] | None = None  # per observer (None: nothing received)
+    owner: np.ndarray | None = None  # (P,) the observer (row) of each neighbour row, when the maker has it
+
+    def owners(self) -> np.ndarray:
+        """(P,) the observer of each neighbour row: `owner`, else from `offsets`."""
+        if self.owner is not None:
+            return self.owner
+        off = np.asarray(self.offsets, dtype=np.int64)
+        return np.repeat(np.arange(len(self.observers)), off[1:] - off[:-1])
 
     def __len__(self) -> int:
         return len(self.observers)

@@ -52,28 +52,27 @@ def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: f
 def observer_roe_rows(rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray, u_rad: float,
                       n_radps: float) -> np.ndarray:
     """`lvlh_to_roe(-rel_position_m, -rel_velocity_mps, u, n)` of (P, 3) rows, bit for bit: the same
-    products and sums in the same order, the products in two numpy calls (issue 16: a batch run
-    does this for every visible pair every step)."""
+    products and sums in the same order, in few numpy calls (issue 16: a batch run does this for
+    every visible pair every step). Each ROE is (A + B) [+ C] with a - b written as a + (-b) (the
+    same IEEE result; -b is a product with a negated factor, or the negated column itself): one
+    gather of the operands, their scale factors, then their trigonometric factors."""
     p_ = len(rel_position_m)
-    x = np.empty((p_, 11))  # x, y, z, vx, vy, vz (observer relative to neighbour, v / n), 4x, 3x, 2vy, 2vx, -z
+    x = np.empty((p_, 7))  # x, y, z, vx, vy, vz (observer relative to neighbour, v / n), -z
     np.negative(rel_position_m, out=x[:, 0:3])
     np.divide(np.negative(rel_velocity_mps), n_radps, out=x[:, 3:6])
-    np.multiply(x[:, _SCALED], _SCALES, out=x[:, 6:10])
-    np.negative(x[:, 2], out=x[:, 10])
-    c, s = np.cos(u_rad), np.sin(u_rad)
-    g = x[:, _TRIG] * np.array((c, s, s, c, c, s, s, c, c, s))  # 3x c, 3x s, vx s, vx c, 2vy c, 2vy s, z s, vz c, -z c, vz s
-    out = np.empty((p_, 6))
-    np.add(x[:, 6], x[:, 8], out=out[:, 0])  # 4x + 2vy
-    np.subtract(x[:, 1], x[:, 9], out=out[:, 1])  # y - 2vx
-    np.add(g[:, 0] + g[:, 2], g[:, 4], out=out[:, 2])
-    np.add(g[:, 1] - g[:, 3], g[:, 5], out=out[:, 3])
-    np.add(g[:, 6], g[:, 7], out=out[:, 4])
-    np.add(g[:, 8], g[:, 9], out=out[:, 5])
+    x[:, 6] = rel_position_m[:, 2]  # -z: the sign bit flipped twice, as np.negative(-z) (NaN too)
+    c, s = float(np.cos(u_rad)), float(np.sin(u_rad))
+    t = x.take(_OPS, axis=1)
+    t *= _OP_SCALES
+    t *= np.array((1.0, 1.0, c, s, s, c, 1.0, 1.0, s, -c, c, s, c, s))
+    out = np.add(t[:, 0:6], t[:, 6:12])
+    out[:, 2:4] += t[:, 12:14]
     return out
 
 
-_SCALED, _SCALES = np.array([0, 0, 4, 3]), np.array([4.0, 3.0, 2.0, 2.0])
-_TRIG = np.array([7, 7, 3, 3, 8, 8, 2, 5, 10, 5])
+# A: 4x, y, (3x) c, (3x) s, z s, (-z) c;  B: 2vy, (-2) vx, vx s, vx (-c), vz c, vz s;  C (ROE 2, 3): (2vy) c, (2vy) s
+_OPS = np.array([0, 1, 0, 0, 2, 6, 4, 3, 3, 3, 5, 5, 4, 4])
+_OP_SCALES = np.array([4.0, 1.0, 3.0, 3.0, 1.0, 1.0, 2.0, -2.0, 1.0, 1.0, 1.0, 1.0, 2.0, 2.0])
 
 
 def state_matrix(n_radps: float) -> np.ndarray:

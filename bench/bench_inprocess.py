@@ -1,11 +1,12 @@
 """In-process wall time of a scenario from two source trees, interleaved in one invocation (issue 16).
 
-    python bench/bench_inprocess.py --base /tmp/base [--tree .] [--duration 7200] [--repeats 2] [SCENARIO]
+    python bench/bench_inprocess.py --base /tmp/base [--tree .] [--duration 7200] [--repeats 2] [--record truth] [SCENARIO]
 
 Runs `run_in_process` of SCENARIO (default sabatini-20) alternately from the tree under test and
 from a base tree (e.g. `git archive <commit> | tar -x -C /tmp/base`), each in a fresh Python
 process, and prints per-run wall, CPU and plant-loop seconds, their medians and minima and the ratios
-base / tree (the CPU time and the minimum are the least disturbed by other load).
+base / tree (the CPU time and the minimum are the least disturbed by other load). `--record truth`
+runs the batch mode (deploy/batch.py) instead of every message.
 The machine is shared: only the ratio within one invocation means anything; the load average is
 printed with it. Both trees must give the same total dV (it is printed and checked).
 """
@@ -35,14 +36,14 @@ def _timed(self, *a, **k):
 PlantNode.run = _timed
 sc = load_scenario(sys.argv[1]).with_overrides(duration_s=float(sys.argv[2]))
 t0, c0 = time.perf_counter(), time.process_time()
-res = run_in_process(sc, __import__('pathlib').Path(sys.argv[3]), 'bench')
+res = run_in_process(sc, __import__('pathlib').Path(sys.argv[3]), 'bench', record=sys.argv[4])
 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
 print(json.dumps({'wall_s': wall, 'cpu_s': cpu, 'loop_cpu_s': loop_cpu[0], 'loop_s': res.summary['loop_wall_s'], 'dv': res.summary['delta_v_total_mps']}))
 """
 
 
-def one(tree: Path, scenario: str, duration: float, out: Path) -> dict:
-    p = subprocess.run([sys.executable, "-c", CODE, str(Path(scenario).resolve()), str(duration), str(out)],
+def one(tree: Path, scenario: str, duration: float, out: Path, record: str = "all") -> dict:
+    p = subprocess.run([sys.executable, "-c", CODE, str(Path(scenario).resolve()), str(duration), str(out), record],
                        cwd=tree, capture_output=True, text=True, check=True)
     return json.loads(p.stdout.strip().splitlines()[-1])
 
@@ -55,13 +56,14 @@ def main() -> None:
     ap.add_argument("--tree", type=Path, default=Path(__file__).resolve().parent.parent)
     ap.add_argument("--duration", type=float, default=7200.0)
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--record", choices=("all", "truth"), default="all", help="truth: the batch mode")
     a = ap.parse_args()
     load0 = Path("/proc/loadavg").read_text().split()[:3]
     res: dict[str, list[dict]] = {"base": [], "tree": []}
     with tempfile.TemporaryDirectory() as d:
         for r in range(a.repeats):
             for name, tree in (("base", a.base), ("tree", a.tree)):
-                x = one(tree.resolve(), a.scenario, a.duration, Path(d) / f"{name}{r}")
+                x = one(tree.resolve(), a.scenario, a.duration, Path(d) / f"{name}{r}", a.record)
                 res[name].append(x)
                 print(f"{name} #{r}: wall {x['wall_s']:.2f} s, CPU {x['cpu_s']:.2f} s, plant loop {x['loop_s']:.2f} s "
                       f"(CPU {x['loop_cpu_s']:.2f} s), "

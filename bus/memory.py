@@ -32,6 +32,7 @@ class _Sub:
 
     def undeclare(self) -> None:
         self.active = False
+        self.bus._wanted.clear()
         if self in self.bus._subs:
             self.bus._subs.remove(self)
             self.bus._routes.clear()
@@ -67,6 +68,7 @@ class MemoryBus:
     def __init__(self) -> None:
         self._subs: list[_Sub] = []
         self._routes: dict[str, list[_Sub]] = {}  # key -> matching subscribers (cleared on (un)subscribe)
+        self._wanted: dict[str, bool] = {}  # key -> `wants(key)` (cleared with them)
         self._watches: list[_Watch] = []
         self._tokens: set[str] = set()
         self._queue: deque[tuple[str, bytes, int | None]] = deque()
@@ -82,7 +84,10 @@ class MemoryBus:
 
     def wants(self, key: str) -> bool:
         """True when a sample on `key` would reach a subscriber."""
-        return any(s.active for s in self._route(key))
+        w = self._wanted.get(key)
+        if w is None:
+            w = self._wanted[key] = any(s.active for s in self._route(key))
+        return w
 
     def publish(self, key: str, payload: bytes, t_ns: int | None = None) -> None:
         """Deliver to every matching subscriber; `t_ns` (the sample's simulation time, ns) is passed
@@ -112,6 +117,7 @@ class MemoryBus:
         sub = _Sub(self, key_expr, callback, stamped=stamped)
         self._subs.append(sub)
         self._routes.clear()
+        self._wanted.clear()
         return sub
 
     def declare_liveliness(self, key: str) -> _Token:

@@ -28,13 +28,13 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from google.protobuf.message import DecodeError, Message
-from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
 from bus.codec import message_type_of_topic, sim_time_ns
 from bus.foxglove_scene import FoxgloveScene
+from bus.mcap_writer import RecorderWriter
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -83,7 +83,7 @@ class McapRecorder:
 
     def __init__(self, path: str | Path, run: str, *, chunk_size: int = CHUNK_SIZE, epoch_utc: str | None = None,
                  config: dict[str, Any] | None = None, foxglove: bool = True,
-                 flush_period_s: float | None = FLUSH_PERIOD_S) -> None:
+                 flush_period_s: float | None = FLUSH_PERIOD_S, background: bool = False) -> None:
         self.path = Path(path)
         self.keys = Keys(run)
         self.run = run
@@ -91,10 +91,12 @@ class McapRecorder:
         self._scene = FoxgloveScene(config) if foxglove else None
         self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._f: BinaryIO = open(self.path, "wb")
-        self._w = Writer(self._f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        # zstd chunks (bus/mcap_writer.py), compressed on a worker thread when `background`
+        self._w = RecorderWriter(self._f, chunk_size=chunk_size, background=background)
         self._w.start(profile="", library="swarmhil")
         self._schemas: dict[str, int] = {}
         self._channels: dict[tuple[str, str], int] = {}
+        self._topic_channel: dict[str, tuple[type[Message], int]] = {}  # topic -> (type, channel) of its last sample
         self.count = 0
         self.undecodable = 0
         self.by_topic: dict[str, int] = {}
@@ -122,8 +124,10 @@ class McapRecorder:
         return cid
 
     def _add(self, topic: str, cls: type[Message], payload: bytes, t_ns: int, wall_ns: int) -> None:
-        self._w.add_message(channel_id=self._channel_id(topic, cls), log_time=self.epoch_ns + max(t_ns, 0),
-                            data=payload, publish_time=wall_ns, sequence=self.count)
+        cid = self._topic_channel.get(topic)  # (the channel of a topic's usual type, looked up once)
+        if cid is None or cid[0] is not cls:
+            cid = self._topic_channel[topic] = (cls, self._channel_id(topic, cls))
+        self._w.add_message(cid[1], self.epoch_ns + max(t_ns, 0), payload, wall_ns, self.count)
         self.count += 1
         self.by_topic[topic] = self.by_topic.get(topic, 0) + 1
         self.bytes_by_topic[topic] = self.bytes_by_topic.get(topic, 0) + len(payload)
@@ -203,17 +207,20 @@ class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer.
 
     record="truth" (issue 16: a campaign row needs only the truth): only the `truth` and `event`
-    topics, without the Foxglove scene, transforms and log written alongside."""
+    topics, without the Foxglove scene, transforms and log written alongside. `background`: the
+    chunks are compressed on a worker thread (an in-process run: bus/mcap_writer.py)."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
-                 document: dict[str, Any] | None = None, segment: int = 0, record: str = "all") -> None:
+                 document: dict[str, Any] | None = None, segment: int = 0, record: str = "all",
+                 background: bool = False) -> None:
         if record not in RECORD_CHOICES:
             raise ValueError(f"unknown record {record!r}; known: {', '.join(RECORD_CHOICES)}")
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
         epoch = ((config or {}).get("run") or {}).get("epoch_utc")
-        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config, foxglove=record == "all")
+        self.rec = McapRecorder(path, run, epoch_utc=epoch, config=config, foxglove=record == "all",
+                                background=background)
         if config is not None:
             self.rec.describe_run(config, document)
         if segment:  # a restarted recorder: this file continues the run after a gap (bus/mcap_tools.merge)
@@ -222,6 +229,7 @@ class RecorderNode:
         self.run_end = False
         # on a bus that carries the publishers' simulation time (bus/memory.py), take it from there
         stamped = {"stamped": True} if getattr(bus, "stamps", False) else {}
+        self._k_event = self.keys.event
         keys = (self.keys.all,) if record == "all" else (self.keys.truth, self.keys.event)
         self._subs = [bus.subscribe(k, self._on_sample, **stamped) for k in keys]
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
@@ -229,7 +237,7 @@ class RecorderNode:
 
     def _on_sample(self, key: str, payload: bytes, t_ns: int | None = None) -> None:
         self.rec.write(key, payload, t_ns=t_ns)
-        if key == self.keys.event and not self.run_end:
+        if key == self._k_event and not self.run_end:
             try:
                 ev = pb.Event.FromString(payload)
             except (DecodeError, RuntimeWarning, ValueError):

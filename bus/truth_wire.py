@@ -22,10 +22,15 @@ import struct
 import numpy as np
 
 _D = struct.Struct("<d")
+_SMALL = [bytes((i,)) for i in range(0x80)]
 
 
 def varint(n: int) -> bytes:
     """Base-128 varint of a non-negative integer (protobuf wire type 0 and lengths)."""
+    if n < 0x80:
+        return _SMALL[n]
+    if n < 0x4000:  # (steps, sequence numbers and lengths of a run: no loop)
+        return bytes(((n & 0x7F) | 0x80, n >> 7))
     out = bytearray()
     while n >= 0x80:
         out.append((n & 0x7F) | 0x80)
@@ -66,7 +71,7 @@ class HeaderEncoder:
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z
-MAX_PLANS = 256  # patterns of present fields kept (TruthEncoder._plan; ~45 kB each for 20 bodies)
+MAX_PLANS = 256  # patterns of present fields kept (TruthEncoder._plan; ~30 kB each for 20 bodies)
 
 
 class TruthEncoder:
@@ -78,7 +83,8 @@ class TruthEncoder:
     velocity_mps and accel_cmd_mps2 assigned serialises to. `header` is `encode_header(...)`.
 
     The fields present (a double that is not +0.0, alive) change rarely from one step to the next:
-    the byte layout of each pattern seen is kept (`_plan`), and a step copies the values' bytes in.
+    the byte layout of each pattern seen is kept (`_plan`), and a step gathers the values' bytes and
+    the pattern's fixed bytes in one numpy call.
     """
 
     def __init__(self, ids: list[str], kinds: list[str] | str = "spacecraft") -> None:
@@ -160,9 +166,15 @@ class TruthEncoder:
         self._base = kmask[:, 3:].sum(axis=1) - 9 * 10 - 2  # body length without the optional fields
         if width - 3 >= 1 << 14:
             raise ValueError("ids or kinds too long for a two-byte body length")
-        self._vals = np.empty((n, 16))
-        self._present = np.empty((n, 11), dtype=bool)
-        self._plans: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._present = np.empty((n, 16), dtype=bool)  # of each double (the 6 of roe_m are not optional)
+        # the values' bytes (n, 16 doubles) followed by the fixed bytes of every pattern seen: a
+        # step writes the values in and takes the truth's bytes out in one gather (`_plans` maps
+        # a pattern of present fields to its byte indices into this buffer)
+        self._nv = n * 16 * 8
+        self._buf = np.zeros(self._nv, dtype=np.uint8)
+        self._vals = self._buf.view(np.float64).reshape(n, 16)
+        self._plans: dict[bytes, np.ndarray] = {}
+        self._tail_u: tuple[float, float, bytes] | None = None  # (a, n, their bytes)
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
                velocity_mps: np.ndarray, delta_v_mps: np.ndarray, alive: np.ndarray, accel_mps2: np.ndarray,
@@ -171,30 +183,35 @@ class TruthEncoder:
         v, pr = self._vals, self._present
         n = v.shape[0]
         head = b"\x0a" + varint(len(header)) + header
-        tail = _double(0x19, float(u_rad)) + _double(0x21, float(a_m)) + _double(0x29, float(n_radps))
+        fixed = self._tail_u
+        if fixed is None or fixed[0] != a_m or fixed[1] != n_radps:  # (the same every step of a run)
+            fixed = self._tail_u = (a_m, n_radps, _double(0x21, float(a_m)) + _double(0x29, float(n_radps)))
+        tail = _double(0x19, float(u_rad)) + fixed[2]
         if n == 0:
             return head + tail
-        v[:, 0:3] = position_m
-        v[:, 3:6] = velocity_mps
-        v[:, 6] = delta_v_mps
-        v[:, 7:10] = accel_mps2
-        v[:, 10:16] = roe_m
-        np.not_equal(v.view(np.uint64)[:, :10], 0, out=pr[:, :10])  # implicit presence: any bit set (-0.0, NaN)
-        pr[:, 10] = alive
-        key = pr.tobytes()
-        plan = self._plans.get(key)
-        if plan is None:  # a new pattern of present fields (a 24 h sabatini-20 run has about 120)
+        np.concatenate((position_m, velocity_mps, delta_v_mps[:, None], accel_mps2, roe_m), axis=1, out=v)
+        np.not_equal(v.view(np.uint64), 0, out=pr)  # implicit presence: any bit set (-0.0, NaN); roe_m is packed
+        key = pr.tobytes() + np.asarray(alive, dtype=bool).tobytes()
+        take = self._plans.get(key)
+        if take is None:  # a new pattern of present fields (a 24 h sabatini-20 run has about 120)
             if len(self._plans) >= MAX_PLANS:
                 self._plans.clear()
-            plan = self._plans[key] = self._plan(pr)
-        out, dst, src = plan
-        out = out.copy()
-        out[dst] = v.view(np.uint8).ravel()[src]
-        return head + out.tobytes() + tail
+                self._grow(self._buf[:self._nv])
+            present = np.empty((n, 11), dtype=bool)
+            present[:, :10] = pr[:, :10]
+            present[:, 10] = alive
+            take = self._plans[key] = self._plan(present)
+        return head + self._buf[take].tobytes() + tail
 
-    def _plan(self, pr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """For one pattern of present fields (n, 11): the body bytes without the double values,
-        where the values' bytes go in them, and which value bytes (of the (n, 16) doubles) go."""
+    def _grow(self, buf: np.ndarray) -> None:
+        """Replace the buffer (the values' bytes kept at its start) and the values' view of it."""
+        self._buf = buf
+        self._vals = buf[:self._nv].view(np.float64).reshape(self._vals.shape)
+
+    def _plan(self, pr: np.ndarray) -> np.ndarray:
+        """For one pattern of present fields (n, 11): the indices into `_buf` of the truth's body
+        bytes (the values' bytes where a present double goes, else the pattern's own fixed bytes,
+        appended to `_buf` here)."""
         buf = self._tmpl.copy()
         keep = self._keep.copy()
         flat = pr.ravel()
@@ -209,4 +226,8 @@ class TruthEncoder:
         keep[self._len_hi] = long
         at = np.cumsum(keep) - 1  # where each kept byte of the rows lands in the output
         kept = keep[self._dbl]
-        return buf[keep], at[self._dbl][kept], np.flatnonzero(kept)
+        fixed = buf[keep]
+        take = len(self._buf) + np.arange(len(fixed), dtype=np.intp)  # the fixed bytes, appended below
+        take[at[self._dbl][kept]] = np.flatnonzero(kept)  # the values' bytes: _dbl is (row, double, byte) order
+        self._grow(np.concatenate((self._buf, fixed)))
+        return take

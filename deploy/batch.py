@@ -58,6 +58,7 @@ class BatchHook:
         keys = Keys(run)
         # the agents are up (the plant waits for their liveliness before step 0, as for processes)
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
+        self._empty: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # observers -> (offsets, (0, 3))
 
     def __call__(self, ctx: Any, rows: np.ndarray, sense: Callable[[], Any]) -> np.ndarray:
         """`sense()` gives the stimuli of the observers `rows` (RelBatch); not called when no
@@ -68,11 +69,16 @@ class BatchHook:
             rel = sense()
             batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
                                      offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
-                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps)
+                                     rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps,
+                                     owner=rel.owner)
         else:
+            offsets, none = self._empty.get(len(rows), (None, None))
+            if offsets is None:  # no neighbours for anyone: the same read-only arrays every step
+                offsets, none = self._empty[len(rows)] = (np.zeros(len(rows) + 1, dtype=np.int64), np.zeros((0, 3)))
+                offsets.setflags(write=False)
+                none.setflags(write=False)
             batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
-                                     offsets=np.zeros(len(rows) + 1, dtype=np.int64), neighbour_ids=[],
-                                     rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
+                                     offsets=offsets, neighbour_ids=[], rel_position_m=none, rel_velocity_mps=none)
         return self.agents.step(rows, batch)
 
     @property

@@ -124,7 +124,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     wall0 = time.monotonic()
     bus = MemoryBus()
     opts = opts or {}
-    rec = RecorderNode(bus, run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc), record=record)
+    rec = RecorderNode(bus, run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc), record=record,
+                       background=True)  # chunks compressed on a worker thread while the run goes on
     comps = enabled_companions(sc, opts)
     hook = None
     if record == "truth":

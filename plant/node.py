@@ -45,6 +45,7 @@ class PlantNode:
                  on_truth: Callable[..., None] | None = None) -> None:
         self.bus = bus
         self.keys = Keys(run)
+        self._k_truth, self._k_clock = self.keys.truth, self.keys.clock  # (built once: keys of every step)
         self.run_id = run
         self.sc = scenario
         o = scenario.orbit
@@ -79,6 +80,8 @@ class PlantNode:
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
         self._local_all = False  # every spacecraft alive at the step of _local_cmd
+        self._all_rows = np.arange(len(scenario.ids))  # the observers when all are alive
+        self._all_rows.setflags(write=False)
         # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
@@ -210,7 +213,7 @@ class PlantNode:
         pos, vel = self.world.lvlh()
         ids = self.world.ids
         alive = self.world.alive.tolist()
-        if self._wants is None or self._wants(self.keys.clock):
+        if self._wants is None or self._wants(self._k_clock):
             tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
                            alive=[s for s, a in zip(ids, alive) if a], final=final)
             self.bus.publish(self.keys.clock, tick.SerializeToString())
@@ -220,7 +223,7 @@ class PlantNode:
         if self._truth_wire is not None:
             w = self.world
             roe = w.roe_m()
-            data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self.keys.truth)),
+            data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self._k_truth)),
                                            u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
                                            w.last_accel_mps2, roe)
             if self.on_truth is not None:
@@ -228,16 +231,16 @@ class PlantNode:
         else:
             data = self._mission_truth(pos, vel, alive).SerializeToString()
         if self._stamps:
-            self.bus.publish(self.keys.truth, data, sim_time_ns(t_s))
+            self.bus.publish(self._k_truth, data, sim_time_ns(t_s))
         else:
-            self.bus.publish(self.keys.truth, data)
+            self.bus.publish(self._k_truth, data)
         if final:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
                              alive=self.world.alive, world=self.world)
         if self.local_agents is not None:
-            rows = np.flatnonzero(self.world.alive)
-            self._local_all = len(rows) == len(ids)
+            self._local_all = all(alive)
+            rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
             self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
@@ -290,16 +293,18 @@ class PlantNode:
         wait re-evaluates) or the stall timeout ends the wait; a stall is an error event and drops
         the agents it waited for. Real time: what missed the wall deadline is held."""
         k = self._step
-        if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
-            alive = self.world.alive
+        if self._local_cmd is not None:  # batch mode (a World): every live agent answered, in this process
+            cmd, self._local_cmd = self._local_cmd, None
             if self._local_all:  # everyone alive: the same assignments without the masks
-                self.held[:, :3] = self._local_cmd
+                self.held[:, :3] = cmd
                 self.held[:, 3:] = 0.0
-            else:
-                self.held[alive, :3] = self._local_cmd[alive]
-                self.held[alive, 3:] = 0.0
-            self._local_cmd = None
-            self._advance(k, all_alive=self._local_all)
+                self.world.step(cmd, self.step_s, all_alive=True)  # (the values of held[:, :3], contiguous)
+                self._after_step(k)
+                return
+            alive = self.world.alive
+            self.held[alive, :3] = cmd[alive]
+            self.held[alive, 3:] = 0.0
+            self._advance(k)
             return
         live = self.live_ids()
         got = self.box.wait(self._expected, self.pacer.deadline(k))
@@ -331,7 +336,10 @@ class PlantNode:
         if isinstance(self.world, MissionWorld):
             self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
         else:
-            self.world.step(self.held[:, :3], self.step_s)
+            self.world.step(self.held[:, :3], self.step_s, all_alive=all_alive)
+        self._after_step(k)
+
+    def _after_step(self, k: int) -> None:
         self.pacer.after_step(k)
         self._step += 1
         self.stats.steps = self._step

@@ -48,8 +48,8 @@ def in_view(rel: np.ndarray, cam: CameraGeometry, out: np.ndarray) -> np.ndarray
     ahead = rel[..., 1]
     lim = cam.tan_half_fov * ahead
     np.greater(ahead, 0.0, out=out)
-    out &= np.abs(rel[..., 0]) <= lim
-    out &= np.abs(rel[..., 2]) <= lim
+    side = np.abs(rel[..., ::2])  # |x|, |z|: both <= lim is max(|x|, |z|) <= lim (np.maximum keeps a NaN: False)
+    out &= np.maximum(side[..., 0], side[..., 1]) <= lim
     out &= np.einsum("...i,...i->...", rel, rel) <= cam.detection_range_m**2
     return out
 

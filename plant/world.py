@@ -61,16 +61,19 @@ class World:
         pos, vel = self.propagator.state()
         return roe_linear.lvlh_to_roe(pos, vel, self.u_rad, self.n_radps)
 
-    def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
-        """Actuator model: each axis saturates at +-max_accel (three thruster pairs); dead spacecraft coast."""
+    def limit(self, accel_mps2: np.ndarray, all_alive: bool = False) -> np.ndarray:
+        """Actuator model: each axis saturates at +-max_accel (three thruster pairs); dead spacecraft
+        coast (`all_alive`: the caller knows none is dead, no rows to zero)."""
         a = limit_per_axis(accel_mps2, self.max_accel_mps2)
-        a[~self.alive] = 0.0
+        if not all_alive:
+            a[~self.alive] = 0.0
         return a
 
-    def step(self, accel_mps2: np.ndarray, dt_s: float) -> None:
-        """Advance by dt with each command held constant over the step; delta-v += |a| dt."""
+    def step(self, accel_mps2: np.ndarray, dt_s: float, all_alive: bool = False) -> None:
+        """Advance by dt with each command held constant over the step; delta-v += |a| dt
+        (`all_alive`: as for `limit`)."""
         c0 = time.perf_counter()
-        a = self.limit(accel_mps2)
+        a = self.limit(accel_mps2, all_alive)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.sqrt(np.add.reduce(a * a, axis=1)) * dt_s  # np.linalg.norm(a, axis=1), its arithmetic
         self.propagator.step(a, dt_s)

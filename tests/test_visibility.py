@@ -31,6 +31,8 @@ def test_visibility_equals_the_rule_as_written() -> None:
         if n > 2 and case % 5 == 0:
             pos[1] = pos[0]  # coincident
             pos[2, 1] = np.nan
+        if n > 5 and case % 7 == 0:  # NaN and inf across the boresight (max(|x|, |z|) <= lim keeps them out)
+            pos[3, 0], pos[4, 2], pos[5, 0] = np.nan, np.inf, -np.inf
         alive = None if case % 2 else rng.random(n) < 0.8
         cam = cams[case % 2]
         got = visibility_matrix(pos, cam, alive)

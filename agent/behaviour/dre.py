@@ -22,6 +22,7 @@ memory and 1-2 s of its start). `SWARMHIL_CACHE_DIR=off` disables the disk cache
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -65,10 +66,11 @@ def interpolate_periodic(table: np.ndarray, u_rad: float, axis: int = 0) -> np.n
     u = float(u_rad)
     n_table = table.shape[axis]
     x = (u % TWO_PI) / TWO_PI * n_table
-    i0 = int(np.floor(x)) % n_table
-    f = x - np.floor(x)
-    t0 = np.take(table, i0, axis=axis)
-    t1 = np.take(table, (i0 + 1) % n_table, axis=axis)
+    fl = math.floor(x)  # (np.floor's value: x is a finite float >= 0; a NaN raises as int(np.floor(x)) does)
+    i0 = fl % n_table
+    f = x - fl
+    t0 = table.take(i0, axis=axis)
+    t1 = table.take((i0 + 1) % n_table, axis=axis)
     return (1.0 - f) * t0 + f * t1
 
 

@@ -32,6 +32,11 @@ from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, sta
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe, observer_roe_rows
 
+try:  # the ufunc np.clip calls after its argument checks (numpy 2: np._core; 1.x: np.core)
+    from numpy._core.umath import clip as _clip
+except ImportError:  # pragma: no cover - numpy 1.x
+    from numpy.core.umath import clip as _clip
+
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
 
@@ -115,12 +120,13 @@ def safe_direction(roe_jk_m: np.ndarray, de_m: np.ndarray | None = None, di_m: n
     de, di = roe_jk_m[:, 2:4], roe_jk_m[:, 4:6]
     nde = np.hypot(de[:, :1], de[:, 1:]) if de_m is None else de_m[:, None]
     ndi = np.hypot(di[:, :1], di[:, 1:]) if di_m is None else di_m[:, None]
-    out = np.zeros_like(de)
-    out[:, 0] = 1.0
     ok = ndi > _TINY_M
-    out = np.where(ok, di / np.where(ok, ndi, 1.0), out)
+    out = np.where(ok, di / np.where(ok, ndi, 1.0), _RADIAL)
     ok = nde > _TINY_M
     return np.where(ok, de / np.where(ok, nde, 1.0), out)
+
+
+_RADIAL = np.array([[1.0, 0.0]])  # safe_direction's last fallback, (1, 0)
 
 
 class SabatiniController:
@@ -170,8 +176,10 @@ class SabatiniController:
         de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3]) if de_m is None else de_m
         di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5]) if di_m is None else di_m
         d_max_trans_m = p.fov_margin * range_m * self.tan_fov
-        too_large = (di_m > d_max_trans_m) | (de_m > d_max_trans_m)
-        too_small = (di_m < p.d_min_trans_m) | (de_m < p.d_min_trans_m)
+        # (di > d or de > d) is fmax(di, de) > d, and (di < d or de < d) is fmin(di, de) < d: fmax and
+        # fmin give the other operand when one is NaN (a NaN compares False), NaN when both are
+        too_large = np.fmax(di_m, de_m) > d_max_trans_m
+        too_small = np.fmin(di_m, de_m) < p.d_min_trans_m
         not_parallel = parallelism(roe_jk_m, de_m, di_m) < p.parallel_min
         correct = is_ca | (is_al & (too_large | too_small | not_parallel))
         if correct.any():  # the safe direction only where it is used (elementwise: the same values)
@@ -180,7 +188,7 @@ class SabatiniController:
             ref[correct, 4:6] = safe
         ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
         ref[is_att, 2:6] = 0.0  # unweighted in Q_att; the reference of section 3.7 is zero
-        w_al = np.clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)
+        w_al = _clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)  # np.clip's ufunc
         weight = np.where(is_al, w_al, 1.0)
         return ref, weight, correct
 
@@ -217,13 +225,13 @@ class SabatiniController:
         n_pairs = int(off[-1]) if n_obs else 0
         if n_pairs == 0:
             return CommandBatch(np.zeros((n_obs, 3)), ["search"] * n_obs, build=_searching)
-        owner = np.repeat(np.arange(n_obs), counts)  # the observer of each pair
+        owner = batch.owners()  # the observer of each pair
         rel_pos = np.asarray(batch.rel_position_m, float).reshape(n_pairs, 3)
         rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(n_pairs, 3)
         u = batch.u_rad
         roe_jk_m = observer_roe_rows(rel_pos, rel_vel, u, self.n_radps)  # relative_roe_observer, bit for bit
-        de_m = np.hypot(roe_jk_m[:, 2], roe_jk_m[:, 3])
-        di_m = np.hypot(roe_jk_m[:, 4], roe_jk_m[:, 5])
+        de_di = np.hypot(roe_jk_m[:, 2::2], roe_jk_m[:, 3::2])  # |de|, |di| of each pair in one call
+        de_m, di_m = de_di[:, 0], de_di[:, 1]
         d_min_jk_m = np.abs(roe_jk_m[:, 1]) - 2.0 * de_m  # decision_distance_m
         # behaviour of each pair (section 3.3): CA below d_min, attraction above 0.6 d_max, else
         # alignment (a NaN distance is alignment)
@@ -237,11 +245,11 @@ class SabatiniController:
         # u_c = -sum_k w_jk K_b(u) (dalpha_jk - dalpha_ref_jk), the gains of the enabled behaviours
         on_b = self._enabled_codes
         gains = interpolate_periodic(self._gain_stack, u, axis=1)  # (3 behaviours, 3, 6): GainTable.gain of each
-        contrib = np.zeros((n_pairs, 3))
         if on_b.all():
             contrib = -weight[:, None] * np.matmul(gains[code], err[:, :, None])[:, :, 0]
             prio = code
         else:
+            contrib = np.zeros((n_pairs, 3))
             on = on_b[code]
             if on.any():
                 contrib[on] = -weight[on][:, None] * np.matmul(gains[code[on]], err[on][:, :, None])[:, :, 0]
@@ -249,14 +257,12 @@ class SabatiniController:
         # each observer's sum over its neighbours, in order, from +0.0 (unbuffered, sequential)
         total = np.zeros((n_obs, 3))
         np.add.at(total, owner, contrib)
-        accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
+        accel = _clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)  # np.clip's ufunc
         # mode: the first enabled behaviour present (CA, alignment, attraction), else coast; search
         # without neighbours
         first = np.full(n_obs, len(BEHAVIOURS))
         np.minimum.at(first, owner, prio)
-        modes = [_MODES[f] for f in first.tolist()]
-        for i in np.flatnonzero(counts == 0).tolist():
-            modes[i] = "search"
+        modes = [_MODES[f] if c else "search" for f, c in zip(first.tolist(), counts.tolist())]
         enabled = self._enabled
 
         def build(i: int) -> Command:

@@ -11,6 +11,9 @@ and mapping to LVLH reproduces HCW (tests/test_dynamics_linear.py).
 """
 from __future__ import annotations
 
+import functools
+import math
+
 import numpy as np
 
 from plant.dynamics.constants import MU_EARTH_M3PS2
@@ -37,8 +40,12 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
     y = dl + 2 dex sin u - 2 dey cos u    vy = n (-3/2 da + 2 dex cos u + 2 dey sin u)
     z = dix sin u - diy cos u             vz = n (dix cos u + diy sin u)
 
-    Evaluated in exactly this order (each product, then the sums left to right), with the products
-    of a kind in one numpy call (issue 16: this runs every step of a batch run).
+    Evaluated in exactly this order (each product, then the sums left to right), in few numpy
+    calls on whole contiguous arrays (issue 16: this runs every step of a batch run): every
+    component is (A + B) + C with a - b written as a + (-b) (the same IEEE result) and -0.0 for
+    a missing A or C (-0.0 + b == b, bit for bit); A, B and C of every row are one gather, their
+    scale factors (x 1, x 2, x -1.5: the same products as written) one multiplication, the
+    trigonometric factors of B and C another.
     """
     roe = _as_rows(roe_m, 6, "roe_m")
     c, s = np.cos(u_rad), np.sin(u_rad)
@@ -48,24 +55,42 @@ def roe_to_lvlh(roe_m: np.ndarray, u_rad: float, n_radps: float) -> tuple[np.nda
         vel = n_radps * np.stack((dex * s - dey * c, -1.5 * da + 2.0 * dex * c + 2.0 * dey * s, dix * c + diy * s),
                                  axis=-1)
         return pos, vel
-    k = np.array((c, s, s, c, s, c, c, s))
-    p = roe[..., _U] * k[:4]  # dex c, dex s, dix s, dix c
-    q = roe[..., _V] * k[4:]  # dey s, dey c, diy c, diy s
-    w = (2.0 * roe[..., _W]) * k[4:]  # (2 dex) s, (2 dey) c, (2 dex) c, (2 dey) s
-    pos = np.empty(roe.shape[:-1] + (3,))
-    vel = np.empty(roe.shape[:-1] + (3,))
-    da = roe[..., DA]
-    np.subtract(da - p[..., 0], q[..., 0], out=pos[..., 0])
-    np.subtract(roe[..., DL] + w[..., 0], w[..., 1], out=pos[..., 1])
-    np.subtract(p[..., 2], q[..., 2], out=pos[..., 2])
-    np.subtract(p[..., 1], q[..., 1], out=vel[..., 0])
-    np.add(-1.5 * da + w[..., 2], w[..., 3], out=vel[..., 1])
-    np.add(p[..., 3], q[..., 3], out=vel[..., 2])
-    vel *= n_radps
-    return pos, vel
+    lead = roe.shape[:-1]
+    take, scale, trig, speed = _lvlh_plan(math.prod(lead), float(n_radps))
+    g = np.concatenate((roe.reshape(-1), _NEG_ZERO)).take(take)  # (3, rows, 6): A, B, C (-0.0: the last)
+    g *= scale
+    g[1:] *= np.array((float(c), float(s), -float(c), -float(s))).take(trig)
+    out = np.add(g[0], g[1])
+    out += g[2]
+    out *= speed  # x 1.0 for the positions (exact), x n for the velocities
+    out = out.reshape(lead + (6,))
+    return out[..., :3], out[..., 3:]
 
 
-_U, _V, _W = np.array([DEX, DEX, DIX, DIX]), np.array([DEY, DEY, DIY, DIY]), np.array([DEX, DEY, DEX, DEY])
+# per output (x, y, z, vx, vy, vz): A (column, scale), B (column, scale, trig), C (column, scale, trig);
+# trig 0: c, 1: s, 2: -c, 3: -s; None: -0.0
+_LVLH_A = ((DA, 1.0), (DL, 1.0), None, None, (DA, -1.5), None)
+_LVLH_B = ((DEX, 1.0, 2), (DEX, 2.0, 1), (DIX, 1.0, 1), (DEX, 1.0, 1), (DEX, 2.0, 0), (DIX, 1.0, 0))
+_LVLH_C = ((DEY, 1.0, 3), (DEY, 2.0, 2), (DIY, 1.0, 2), (DEY, 1.0, 2), (DEY, 2.0, 1), (DIY, 1.0, 1))
+
+
+_NEG_ZERO = np.array([-0.0])
+
+
+@functools.lru_cache(maxsize=16)
+def _lvlh_plan(rows: int, n_radps: float) -> tuple[np.ndarray, ...]:
+    """`roe_to_lvlh`'s gather indices (3, rows, 6) into the flat ROE followed by -0.0, scale
+    factors, trigonometric indices (2, rows, 6) and the speed factors (rows, 6) of `rows` rows."""
+    col = np.array([[a[0] if a else -1 for a in _LVLH_A], [b[0] for b in _LVLH_B], [c[0] for c in _LVLH_C]])
+    sc = np.array([[a[1] if a else 1.0 for a in _LVLH_A], [b[1] for b in _LVLH_B], [c[1] for c in _LVLH_C]])
+    tr = np.array([[b[2] for b in _LVLH_B], [c[2] for c in _LVLH_C]])
+    take = np.arange(rows)[None, :, None] * 6 + col[:, None, :]
+    take[0][:, col[0] < 0] = rows * 6  # the missing A: the -0.0 after the ROE
+    out = (take, np.broadcast_to(sc[:, None, :], (3, rows, 6)).copy(), np.broadcast_to(tr[:, None, :], (2, rows, 6)).copy(),
+           np.broadcast_to(np.array([1.0, 1.0, 1.0, n_radps, n_radps, n_radps]), (rows, 6)).copy())
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
@@ -138,19 +163,22 @@ def zoh_input_matrix(u0_rad: float, n_radps: float, dt_s: float) -> np.ndarray:
     """
     n = n_radps
     um = u0_rad + 0.5 * n * dt_s
-    h = np.sin(0.5 * n * dt_s)
-    dcos = 2.0 * np.sin(um) * h / n**2  # (cos u0 - cos u1) / n^2
-    dsin = 2.0 * np.cos(um) * h / n**2  # (sin u1 - sin u0) / n^2
-    return np.array(
-        [
-            [0.0, 2.0 * dt_s / n, 0.0],
-            [-2.0 * dt_s / n, -1.5 * dt_s**2, 0.0],
-            [dcos, 2.0 * dsin, 0.0],
-            [-dsin, 2.0 * dcos, 0.0],
-            [0.0, 0.0, dsin],
-            [0.0, 0.0, dcos],
-        ]
-    )
+    h = _half_step_sin(n, dt_s)
+    dcos = 2.0 * float(np.sin(um)) * h / n**2  # (cos u0 - cos u1) / n^2
+    dsin = 2.0 * float(np.cos(um)) * h / n**2  # (sin u1 - sin u0) / n^2
+    # one flat tuple of Python floats (the same IEEE products as with numpy scalars), one array call
+    return np.array((0.0, 2.0 * dt_s / n, 0.0,
+                     -2.0 * dt_s / n, -1.5 * dt_s**2, 0.0,
+                     dcos, 2.0 * dsin, 0.0,
+                     -dsin, 2.0 * dcos, 0.0,
+                     0.0, 0.0, dsin,
+                     0.0, 0.0, dcos)).reshape(6, 3)
+
+
+@functools.lru_cache(maxsize=64)
+def _half_step_sin(n_radps: float, dt_s: float) -> float:
+    """sin(n dt / 2) of `zoh_input_matrix`: the same for every step of a run."""
+    return float(np.sin(0.5 * n_radps * dt_s))
 
 
 def propagate_roe(

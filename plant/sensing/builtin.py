@@ -77,17 +77,19 @@ class RelKind:
         pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
         obs = np.asarray(observers, dtype=np.int64)
         if len(obs) == len(vis):  # every spacecraft observes (observers are distinct): vis's own rows
-            jj, kk = np.nonzero(vis)
+            jj, kk = vis.nonzero()
             j = jj
         else:
-            jj, kk = np.nonzero(vis[obs])  # row by row, neighbours in index order: stimulus's order
+            jj, kk = vis[obs].nonzero()  # row by row, neighbours in index order: stimulus's order
             j = obs[jj]
-        rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
+        state = np.concatenate((pos, vel), axis=1)  # position and velocity differences in one gather
+        d = state[kk] - state[j]
+        rp, rv = d[:, :3], d[:, 3:]
         if self.noise is not None and len(kk):
             rp, rv = self.noise.apply_rows(rp, rv, u)
         offsets = np.zeros(len(obs) + 1, dtype=np.int64)
-        np.cumsum(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
-        return RelBatch(offsets, kk, rp, rv)
+        np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])  # (np.cumsum)
+        return RelBatch(offsets, kk, rp, rv, jj)
 
 
 @dataclass(frozen=True)
@@ -98,6 +100,7 @@ class RelBatch:
     neighbour: np.ndarray  # (P,) index of each neighbour in ctx.ids
     rel_position_m: np.ndarray  # (P, 3) r_k - r_j, LVLH
     rel_velocity_mps: np.ndarray  # (P, 3)
+    owner: np.ndarray | None = None  # (P,) the observer row r of each pair
 
 
 @register_sensing("scene")
