@@ -32,10 +32,6 @@ from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, sta
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe, observer_roe_rows
 
-try:  # the ufunc np.clip calls after its argument checks (numpy 2: np._core; 1.x: np.core)
-    from numpy._core.umath import clip as _clip
-except ImportError:  # pragma: no cover - numpy 1.x
-    from numpy.core.umath import clip as _clip
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
@@ -188,7 +184,7 @@ class SabatiniController:
             ref[correct, 4:6] = safe
         ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
         ref[is_att, 2:6] = 0.0  # unweighted in Q_att; the reference of section 3.7 is zero
-        w_al = _clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)  # np.clip's ufunc
+        w_al = np.clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)
         weight = np.where(is_al, w_al, 1.0)
         return ref, weight, correct
 
@@ -257,7 +253,7 @@ class SabatiniController:
         # each observer's sum over its neighbours, in order, from +0.0 (unbuffered, sequential)
         total = np.zeros((n_obs, 3))
         np.add.at(total, owner, contrib)
-        accel = _clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)  # np.clip's ufunc
+        accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
         # mode: the first enabled behaviour present (CA, alignment, attraction), else coast; search
         # without neighbours
         first = np.full(n_obs, len(BEHAVIOURS))

@@ -14,10 +14,6 @@ from typing import Literal
 
 import numpy as np
 
-try:  # the ufunc np.clip calls after its argument checks (numpy 2: np._core; 1.x: np.core)
-    from numpy._core.umath import clip as _clip
-except ImportError:  # pragma: no cover - numpy 1.x
-    from numpy.core.umath import clip as _clip
 
 LimitMode = Literal["per_axis", "norm"]
 LIMIT_MODES: tuple[str, ...] = ("per_axis", "norm")
@@ -38,9 +34,7 @@ def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.nda
     """Saturate each axis: clip(u, -max, max); max scalar, (N,) or (N, 3). Returns a new (N, 3) array."""
     u = np.asarray(command, dtype=float)
     m = _check_max(max_value)
-    if isinstance(m, float):  # np.clip(u, -m, m)'s own ufunc, without its Python wrapper (issue 16)
-        return _clip(u, -m, m)
-    if m.ndim == 1:
+    if not isinstance(m, float) and m.ndim == 1:
         m = m[:, None]
     return np.clip(u, -m, m)
 
