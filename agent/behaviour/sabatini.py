@@ -184,7 +184,7 @@ class SabatiniController:
             ref[correct, 4:6] = safe
         ref[:, 0] = np.where(is_ca, p.ca_da_offset_m, 0.0)
         ref[is_att, 2:6] = 0.0  # unweighted in Q_att; the reference of section 3.7 is zero
-        w_al = np.clip((self._d_att_m - d_min_jk_m) / self._span_m, 0.0, 1.0)
+        w_al = ((self._d_att_m - d_min_jk_m) / self._span_m).clip(0.0, 1.0)  # ndarray.clip: np.clip without its wrapper
         weight = np.where(is_al, w_al, 1.0)
         return ref, weight, correct
 
@@ -253,7 +253,7 @@ class SabatiniController:
         # each observer's sum over its neighbours, in order, from +0.0 (unbuffered, sequential)
         total = np.zeros((n_obs, 3))
         np.add.at(total, owner, contrib)
-        accel = np.clip(total, -self.p.max_accel_mps2, self.p.max_accel_mps2)
+        accel = total.clip(-self.p.max_accel_mps2, self.p.max_accel_mps2)  # (ndarray.clip: the same ufunc)
         # mode: the first enabled behaviour present (CA, alignment, attraction), else coast; search
         # without neighbours
         first = np.full(n_obs, len(BEHAVIOURS))

@@ -36,7 +36,7 @@ def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.nda
     m = _check_max(max_value)
     if not isinstance(m, float) and m.ndim == 1:
         m = m[:, None]
-    return np.clip(u, -m, m)
+    return u.clip(-m, m)  # np.clip's ufunc without np.clip's Python wrapper (1.3 against 2.7 us; issue 16)
 
 
 def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray:
