@@ -32,7 +32,6 @@ from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, sta
 from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
 from agent.roe import lvlh_to_roe, observer_roe_rows
 
-
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
 

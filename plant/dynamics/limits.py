@@ -14,7 +14,6 @@ from typing import Literal
 
 import numpy as np
 
-
 LimitMode = Literal["per_axis", "norm"]
 LIMIT_MODES: tuple[str, ...] = ("per_axis", "norm")
 
