@@ -108,8 +108,11 @@ def _agent(args: argparse.Namespace, stop: Stop, cred: Any, out: Path) -> int:
         sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode,
                                                          speed=args.speed)
         cfg = agent_config(sc, args.id)
-    name = f"agent-{args.id}"  # callbacks on the network thread (issue 16), unless a fault delay line calls them too
-    bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred, direct=faults_for(name) is None), name)
+    name = f"agent-{args.id}"
+    # The flight software runs on the dispatcher thread, never on Zenoh's network thread: a step can
+    # take seconds (paper 000's cold fit on a loaded machine: 12 s), and with the step on the network
+    # thread the agent's session was dropped by the router mid-step (issue 24).
+    bus = with_faults(ZenohBus(args.router, lease_ms=AGENT_LEASE_MS, credential=cred, direct=False), name)
     _watch_router(bus, stop)
     node = build_agent(bus, args.run, cfg)
     stop.wait()

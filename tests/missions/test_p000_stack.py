@@ -252,6 +252,9 @@ def assert_stack_run(mp: dict, ip: dict, steps: int) -> dict:
     s = mp["summary"]
     assert s["process_mode"] == "multi-process" and ip["summary"]["process_mode"] == "in-process"
     assert s["steps"] == steps and not s["dead_agents"] and not s["agent_faults"] and s["rejected_packets"] == 0
+    # no agent lost and rejoined on the way (a dropped session coasts the spacecraft for a step or
+    # two: found under load when agents ran their step on Zenoh's network thread, deploy/proc.py)
+    assert not s.get("rejoins"), s.get("rejoins")
     assert set(s["exit_codes"].values()) == {0}
     # 1. the same truth bit for bit on Zenoh and on the in-memory bus, and the same link traffic
     for k in ("t", "pos", "vel", "accel", "q", "w", "tau", "target_pos", "target_q"):
@@ -328,13 +331,19 @@ def test_capture10_flies_multi_process_over_zenoh(tmp_path: Path) -> None:
     # and the plant flies attitude in inertial axes, reported in the CW frame that has turned n t
     # (1.1 deg at 18 s) where the room's loop takes the CW frame as inertial, so the cone's edges
     # differ; the first fits from a small patch are fragile (stack: a2 detects at 17.7 s, fits at
-    # 21.7 s). Measured: room a2, a1, a8 at 19.25-19.3 s; stack the same three at 21.70-21.75 s.
+    # 21.7 s). Measured: room a2, a1, a8 at 19.25-19.3 s; stack the same three at 21.70-21.75 s, or
+    # 22.70-22.75 s with other floating-point kernels (below).
     res, room_pos = room_loop(SHORT_S)
     room_entry = {f"a{i}": round(x, 2) for i, x in enumerate(res.chase_entry_s) if x is not None}
     k0 = int(round(min(min(m["entry_s"].values()), min(room_entry.values())) / DT))
     assert k0 > 300 and np.abs(mp["pos"][:k0] - room_pos[:k0]).max() < 1e-9
     assert len(m["entry_s"]) >= 3 and m["entry_s"].keys() <= room_entry.keys()
-    assert abs(min(m["entry_s"].values()) - min(room_entry.values())) < 3.0
+    # the same three agents enter chase first in both loops, the stack later: its first fits come
+    # from a small patch and a last-bit difference moves a fit to the next attempt. Measured gap
+    # (issue 24, docs/determinism.md): 2.45 s on AVX-512 and on AVX2 with the Sandybridge BLAS
+    # kernels, 3.45 s on AVX2 with its own; one more such step of margin
+    assert set(sorted(m["entry_s"], key=m["entry_s"].get)[:3]) == set(sorted(room_entry, key=room_entry.get)[:3])
+    assert 2.0 < min(m["entry_s"].values()) - min(room_entry.values()) < 4.5
     assert m["state_msgs"] > 0 and m["by_type"]["p000-landmarks"][0] > 0
 
 

@@ -74,7 +74,10 @@ def test_scenario_holds_the_generated_escape_and_structure() -> None:
     assert len(got) == len(want)
     for g, w in zip(got, want):
         assert (g["t_start_s"], g["t_end_s"]) == (w["t_start_s"], w["t_end_s"])
-        assert np.allclose(g["accel_mps2"], w["accel_mps2"], rtol=0, atol=1e-15)
+        # the file was written from solve_ivp at rtol 1e-12, rounded to 15 decimals: the solver's own
+        # error (~1e-14 m/s^2 on ~6e-3) and the kernels' last bits (another CPU: 1e-15 after the
+        # rounding, issue 24) are far inside rtol 1e-9; a wrong direction, force or filter is not
+        np.testing.assert_allclose(g["accel_mps2"], w["accel_mps2"], rtol=1e-9, atol=1e-15)
     c, r = sphere_arrays()
     assert np.array_equal(np.asarray(body["shape"]["centers_m"]), c)
     assert np.array_equal(np.asarray(body["shape"]["radii_m"]), r)

@@ -5,6 +5,8 @@ vector maps to LVLH as v_L = q ⊗ [0, v_B] ⊗ q*, i.e. `rotate(q, v_B)` = C(q)
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
@@ -27,7 +29,11 @@ def conjugate(q: np.ndarray) -> np.ndarray:
 
 
 def normalise(q: np.ndarray) -> np.ndarray:
-    n = float(np.linalg.norm(q))
+    """q / |q| for one 4-vector. |q| is math.hypot's (CPython's own arithmetic and a correctly rounded
+    sqrt: the same bits on every CPU), not np.linalg.norm's BLAS dot, whose kernel and so last bit
+    differ between processors: a seeded draw of attitudes is then the same on every machine
+    (docs/determinism.md)."""
+    n = math.hypot(*np.asarray(q, dtype=float).tolist())
     if n == 0.0:
         raise ValueError(f"zero quaternion {q}")
     return np.asarray(q, dtype=float) / n
