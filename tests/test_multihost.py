@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
 
 from conftest import SCENARIOS, read_mcap
+from system_tools import require_command, require_root
 
 pytestmark = pytest.mark.system
 
@@ -78,10 +78,12 @@ def _topics(path: Path, part: str) -> list[tuple[str, bytes]]:
     return sorted((t, m.SerializeToString()) for t, _l, _p, m in read_mcap(path) if t.startswith(part) or f"/{part}" in t)
 
 
-@pytest.mark.skipif(os.geteuid() != 0 or shutil.which("ip") is None or shutil.which("openssl") is None,
-                    reason="needs root (network namespaces), the `ip` command and openssl")
 def test_three_host_run_equals_the_single_host_run(tmp_path: Path) -> None:
     import yaml
+
+    require_root("network namespaces")  # each a failure in CI, a skip with the install command elsewhere
+    require_command("ip", "iproute2")
+    require_command("openssl", "openssl")
 
     from compose_local import run_to_end, services, tail
     from deploy.compose import write_compose
