@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup setup-system demo test test-system test-study test-browser test-all bench soak proto clean
+.PHONY: setup setup-system demo test test-kernels test-system test-study test-browser test-all bench soak proto clean
 
 # Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
 # An agent image needs only the core: `pip install .` (docs/packaging.md).
@@ -32,6 +32,15 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -q
+
+# The tests most sensitive to the floating-point kernels, again under another kernel set than this
+# CPU's own (docs/determinism.md): OpenBLAS's Sandybridge kernels and numpy without its X86_V3
+# (AVX2/FMA3) loops, which differ from both an AVX2 and an AVX-512 machine's defaults. CI runs it.
+KERNELS ?= OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3
+KERNEL_SENSITIVE := tests/test_truth_checksums.py tests/missions/test_p000_stack.py tests/missions/test_p003_units.py \
+	tests/missions/test_p003_stack.py
+test-kernels: setup
+	env $(KERNELS) $(PY) -m pytest -q $(KERNEL_SENSITIVE) --durations=5
 
 # Long system runs (24 h scenarios, browser): marked `system`, run by CI after `make test`.
 test-system: setup-system

@@ -2,6 +2,7 @@
 
     python bench/kernel_drift.py SCENARIO [SCENARIO ...] [--duration S] [--checkpoints 600,3600,86400]
                                  [--set KEY=VALUE ...] [--json OUT.json]
+    python bench/kernel_drift.py --table RESULT.json [RESULT.json ...]   # the table of docs/determinism.md
 
 numpy picks SIMD kernels per CPU and OpenBLAS picks its kernels per CPU, so the last bits of sin,
 exp, dot and matrix products differ between machines: a lockstep run is bit-identical on one
@@ -82,7 +83,28 @@ def drift(a: Path, b: Path, checkpoints_s: list[float]) -> dict:
     return out
 
 
+def markdown_table(results: dict[str, dict]) -> str:
+    """The drift table of docs/determinism.md from {scenario: drift(...)}."""
+    def m(x: float | None) -> str:
+        return "-" if x is None else ("0" if x == 0.0 else f"{x:.2g}")
+
+    lines = ["| scenario | simulated | first difference | after 10 min [m] | after 1 h [m] | after 24 h [m] | largest [m] |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for name, r in results.items():
+        at = r["at_m"]
+        first = "never" if r["first_difference_t_s"] is None else f"{r['first_difference_t_s']:g} s"
+        lines.append(f"| {name} | {r['duration_s']:g} s | {first} | {m(at.get('600'))} | {m(at.get('3600'))} | "
+                     f"{m(at.get('86400'))} | {m(r['max_m'])} |")
+    return "\n".join(lines)
+
+
 def main() -> None:
+    if sys.argv[1:2] == ["--table"]:
+        results: dict[str, dict] = {}
+        for path in sys.argv[2:]:
+            results.update(json.loads(Path(path).read_text())["results"])
+        print(markdown_table(results))
+        return
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenarios", nargs="+")
     ap.add_argument("--duration", type=float, default=None, help="seconds (default: each scenario's own)")
