@@ -297,12 +297,31 @@ def test_surround6_full_length_meets_the_papers_outcomes(tmp_path: Path) -> None
 
 
 def report(run_dir: Path) -> None:
-    m = metrics(load_run(run_dir))
+    run = load_run(run_dir)
+    m = metrics(run)
     s = json.loads((Path(run_dir) / "summary.json").read_text())
     print({k: round(v, 4) for k, v in m.items() if not isinstance(v, np.ndarray)})
+    ratio = np.abs(m["tt_err_m"][1:]).max(axis=1) / m["funnel_m"][1:]
+    print(f"worst TT ratio {ratio.max():.7f} at {run['t'][1:][ratio.argmax()]:.1f} s; guard margins "
+          "(|q~|/x1*, |q~' - q'_v|/x2*) %.3f %.3f" % guard_margins(run))
     print("channel totals", s["channel"]["totals"], "wall", round(s["wall_s"], 1), "s")
 
 
-if __name__ == "__main__":
-    for d in sys.argv[1:]:
-        report(Path(d))
+def compare(dir_a: Path, dir_b: Path) -> None:
+    """Two runs of the scenario (e.g. the two kernel sets): largest truth differences, and of the TT
+    error up to 30 s and over the whole run."""
+    a, b = load_run(dir_a), load_run(dir_b)
+    for k in ("pos", "vel", "accel", "target_pos"):
+        print(k, "max |difference|", float(np.abs(a[k] - b[k]).max()))
+    ta, tb = metrics(a)["tt_err_m"], metrics(b)["tt_err_m"]
+    upto30 = a["t"] <= FUNNEL_S + 1e-9
+    print("TT error max |difference|: first 30 s", float(np.abs(ta - tb)[upto30].max()),
+          "whole run", float(np.abs(ta - tb).max()))
+
+
+if __name__ == "__main__":  # RUN_DIR ... | --compare RUN_A RUN_B
+    if sys.argv[1:2] == ["--compare"]:
+        compare(Path(sys.argv[2]), Path(sys.argv[3]))
+    else:
+        for d in sys.argv[1:]:
+            report(Path(d))

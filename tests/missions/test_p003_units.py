@@ -147,11 +147,13 @@ def test_funnel_numbers() -> None:
 
 
 def funnel_loop(dt_s: float, duration_s: float = 300.0, dq0_m: np.ndarray | None = None,
-                last_bits_seed: int | None = None, p: FunnelParams = FunnelParams()) -> dict:
+                last_bits_seed: int | None = None, trace: list | None = None,
+                p: FunnelParams = FunnelParams()) -> dict:
     """The TT law on q'' = u_L/m_L + d(t), |d| bounded and unknown to the controller, unsaturated
     (the theorem's setting), u_L held over each step dt (the guard's hold); initial error 10 km and
     40 m/s away (+ dq0_m). `last_bits_seed`: each step's u_L is multiplied by 1 + n 2^-52 with n
-    drawn from -2..2 per axis (another CPU's kernels differ from ours in such last bits).
+    drawn from -2..2 per axis (another CPU's kernels differ from ours in such last bits). `trace`:
+    gets (t, q~, q', u_L, e1, e2) of every step, before the step's update.
     Returns the worst max_axis |q~|/tan(k1 π/2) over the samples after t = 0 (the bound at the
     sample's time) and when, the error at the end, the peak |u_L| and the number of steps on which a
     transformed error reached its discrete-time saturation."""
@@ -172,6 +174,8 @@ def funnel_loop(dt_s: float, duration_s: float = 300.0, dq0_m: np.ndarray | None
         guarded += bool(np.abs(e1).max() >= sampled_limit(k1, p.lambda1 * dt_s)
                         or np.abs(e2).max() >= sampled_limit(k2, p.lambda2 * dt_s / p.mass_kg))
         u_peak = max(u_peak, float(np.abs(u).max()))
+        if trace is not None:
+            trace.append((t, q - q_des, v.copy(), u, e1, e2))
         v = v + (u / p.mass_kg + d) * dt_s
         q = q + v * dt_s
         ratio = float(np.abs(q - q_des).max() / funnel_half_width(t + dt_s, p.mu1, p.a1_per_s))
@@ -316,16 +320,55 @@ def test_registered_controllers_step() -> None:
     assert packets.decode_ct(c.transmissions[0].payload).index == 2
 
 
-if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time": [guarded|unguarded] [DURATION_S] [DT_S ...]
+def mechanism_report(dt_s: float = 0.002, duration_s: float = 300.0) -> None:
+    """Where the loop meets its bounds: the first step whose velocity error q' - q'_v is beyond
+    tan(k2 π/2) (e2 > π/2, the output then at the saturation), its size there, the first step past
+    the position bound, the share of steps saturated after it and outside after 10 s."""
+    from agent.missions.p003_surround.funnel import sampled_limit
+
+    p, tr = FunnelParams(), []
+    run = funnel_loop(dt_s, duration_s, trace=tr)
+    t = np.array([r[0] for r in tr])
+    k2 = np.array([performance(x, p.mu2, p.a2_per_s) for x in t])
+    x2 = np.tan(k2[:, None] * np.array([r[5] for r in tr]))  # q' - q'_v (e2 is returned unsaturated)
+    b1 = np.array([funnel_half_width(x, p.mu1, p.a1_per_s) for x in t])  # inf at t = 0
+    ratio = np.array([np.abs(r[1]).max() for r in tr]) / b1
+    sat = np.array([np.abs(r[5]).max() >= sampled_limit(k, p.lambda2 * dt_s / p.mass_kg) for r, k in zip(tr, k2)])
+    vv = np.array([r[2][0] for r in tr]) - x2[:, 0]
+    i = int(np.argmax(np.abs(x2).max(axis=1) >= np.tan(k2 * np.pi / 2)))
+    j = int(np.argmax(ratio >= 1.0)) if (ratio >= 1.0).any() else None
+    print(f"dt {dt_s:g} s: worst {run['worst']:.5f} at {run['t_worst_s']:.3f} s; peak |u_L| {run['u_peak_n']:.3g} N")
+    print(f"q'_v: {vv[0]:.0f} m/s at 0, {vv[i - 1]:.0f} m/s at {t[i - 1]:.3f} s, largest change per step before "
+          f"then {np.abs(np.diff(vv[:i])).max():.1f} m/s")
+    print(f"first velocity error beyond tan(k2 π/2) at t = {t[i]:.3f} s: {np.abs(x2[i]).max():.1f} m/s against "
+          f"{np.tan(k2[i] * np.pi / 2):.1f} m/s; |u_L| there {np.abs(tr[i][3]).max():.3g} N")
+    if j is not None:
+        print(f"first q~ beyond the bound at t = {t[j]:.3f} s; steps with e2 saturated after it "
+              f"{sat[j:].mean():.2%}; samples outside after 10 s {(ratio[t > 10.0] >= 1.0).mean():.1%}")
+
+
+if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
+    # [guarded|unguarded] [DURATION_S] [DT_S ...]  |  bits [guarded|unguarded] DURATION_S DT_S  |  trace [...]
     import sys
 
     from agent.missions.p003_surround import funnel
 
-    if sys.argv[1:2] == ["unguarded"]:  # the law as it was: e clipped at π/2 - 1e-9 only
+    args = sys.argv[1:]
+    mode = args.pop(0) if args and args[0] in ("bits", "trace") else "table"
+    if args[:1] == ["unguarded"]:  # the law as it was: e clipped at π/2 - 1e-9 only
         funnel.sampled_limit = lambda k, g: np.pi / 2 - 1e-9
-    dur = float(sys.argv[2]) if len(sys.argv) > 2 else 300.0
-    for dt in (float(x) for x in (sys.argv[3:] or ["0.0002", "0.0005", "0.002", "0.005", "0.02", "0.05", "0.1"])):
-        r = funnel_loop(dt, duration_s=dur)
-        print(f"dt {dt:g} s: worst |q~|/bound {r['worst']:.5f} at {r['t_worst_s']:.3f} s, peak |u_L| "
-              f"{r['u_peak_n']:.3g} N, guarded steps {r['guarded_steps']}, "
-              f"error at end {np.round(r['err_end_m'], 2)} m")
+    args = args[1:] if args[:1] in (["guarded"], ["unguarded"]) else args
+    dur = float(args[0]) if args else 300.0
+    dts = [float(x) for x in args[1:]] or [0.0002, 0.0005, 0.002, 0.005, 0.02, 0.05, 0.1]
+    if mode == "trace":
+        mechanism_report(dts[0] if args[1:] else 0.002, dur)
+    for dt in dts if mode == "table" else dts[:1] if mode == "bits" else []:
+        variants = [("as is", {})]
+        if mode == "bits":
+            variants += [(f"last bits seed {i}", {"last_bits_seed": i}) for i in range(6)]
+            variants += [("initial error + 1 mm", {"dq0_m": np.array([1e-3, -1e-3, 1e-3])})]
+        for label, kw in variants:
+            r = funnel_loop(dt, duration_s=dur, **kw)
+            print(f"dt {dt:g} s, {label}: worst |q~|/bound {r['worst']:.12f} at {r['t_worst_s']:.3f} s, "
+                  f"peak |u_L| {r['u_peak_n']:.3g} N, guarded steps {r['guarded_steps']}, "
+                  f"error at end {np.round(r['err_end_m'], 2)} m")
