@@ -45,10 +45,14 @@ class LeaderController:
     def __init__(self, p: FunnelParams) -> None:
         self.p = p
         self.telemetry = LeaderTelemetry()
+        self.t_prev: float | None = None
 
     def step(self, obs: Observation) -> Command:
         target = sensing.read(obs.extra, sensing.TARGET_REL_KEY)
-        u_l, e1, e2 = tt_control(target.position_m, target.velocity_mps, obs.t_s, self.p)
+        # the hold of the discrete-time guard: the measured interval between steps (p.sample_s first)
+        hold = self.p.sample_s if self.t_prev is None or obs.t_s <= self.t_prev else obs.t_s - self.t_prev
+        self.t_prev = obs.t_s
+        u_l, e1, e2 = tt_control(target.position_m, target.velocity_mps, obs.t_s, self.p, hold)
         accel = leader_accel(u_l, self.p)
         self.telemetry = LeaderTelemetry(u_l, e1, e2)
         pkt = packets.TTPacket(obs.step, accel, target.position_m, target.velocity_mps)

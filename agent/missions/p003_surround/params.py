@@ -25,6 +25,9 @@ class FunnelParams:
     q_des_m: tuple[float, float, float] = (400.0, 0.0, 0.0)  # q_TL,d (§5)
     mass_kg: float = 60.0  # m_L (§5)
     max_thrust_n: float = 180.0  # u_L,max (§5); choice: limit on the Euclidean norm
+    # guard: the period T over which u_L is held (§5's step), for the discrete-time saturation of
+    # e1, e2 (funnel.sampled_limit); the leader uses the measured interval between its steps
+    sample_s: float = 0.1
 
 
 @dataclass(frozen=True)
