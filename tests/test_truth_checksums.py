@@ -33,9 +33,10 @@ POSITION_TOL_M = 1e-9      # measured cross-kernel drift: 2.3e-13 m (10 min), 4.
 VELOCITY_TOL_MPS = 1e-12   # the drift's velocities: ~n x position drift, < 1e-15 m/s
 
 
-def assert_matches_reference(got: dict, ref: dict) -> None:
+def assert_matches_reference(got: dict, ref: dict, position_tol_m: float = POSITION_TOL_M,
+                             velocity_tol_mps: float = VELOCITY_TOL_MPS) -> None:
     assert got["ids"] == ref["ids"] and got["t_s"] == ref["t_s"]
-    for key, tol in (("position_m", POSITION_TOL_M), ("velocity_mps", VELOCITY_TOL_MPS)):
+    for key, tol in (("position_m", position_tol_m), ("velocity_mps", velocity_tol_mps)):
         diff = np.abs(np.asarray(got[key]) - np.asarray(ref[key]))
         worst = np.unravel_index(int(diff.argmax()), diff.shape)
         assert diff.max() <= tol, (f"{key} differs from the reference by {diff.max():.3g} (tolerance {tol:g}) "
@@ -71,3 +72,14 @@ def test_truth_of_two_hours_holds_the_reference(tmp_path: Path) -> None:
     truth_sha256(scenario, 7200.0, tmp_path / "plain")
     assert_matches_reference(truth_reference(tmp_path / "plain"),
                              json.loads(reference_path(REFERENCES, scenario, 7200.0).read_text()))
+
+
+@pytest.mark.system
+def test_camera_truth_of_ten_minutes_holds_the_reference(tmp_path: Path) -> None:
+    """sabatini-20-camera-filter, 10 min: rendered images, blob thresholds and a filter make the loop
+    chaotic; two kernel sets drift apart by 4.2e-4 m at 10 min, 0.30 m at 1 h and 3.8 m at 2 h
+    (bench/kernel_drift.py), so only the first 10 min are a regression guard, at 1e-2 m (24x)."""
+    scenario = str(SCENARIOS / "sabatini-20-camera-filter.toml")
+    truth_sha256(scenario, 600.0, tmp_path / "camera")
+    assert_matches_reference(truth_reference(tmp_path / "camera"),
+                             json.loads(reference_path(REFERENCES, scenario, 600.0).read_text()), 1e-2, 1e-4)
