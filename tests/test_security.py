@@ -69,20 +69,38 @@ def test_no_or_wrong_credentials_cannot_connect(secured, monkeypatch: pytest.Mon
     assert_refused(ep, sec.credential("agent-a"), [(ep, c) for c in bad], monkeypatch)
 
 
+def _wait_for(cond, what: str, timeout_s: float = 30.0) -> None:
+    t_end = time.monotonic() + timeout_s
+    while not cond():
+        assert time.monotonic() < t_end, f"not within {timeout_s} s: {what}"
+        time.sleep(0.01)
+
+
 def test_an_agent_publishes_only_its_own_keys(secured) -> None:
     _sec, _ep, bus = secured
     k = Keys(RUN)
     plant, channel, rec, a, b = bus("plant"), bus("channel"), bus("recorder"), bus("agent-a"), bus("agent-b")
-    got: dict[str, list[str]] = {"plant": [], "channel": [], "rec": [], "b": [], "alive": []}
-    plant.subscribe(k.act_all, lambda key, _p: got["plant"].append(key))
+    got: dict[str, list] = {"plant": [], "channel": [], "rec": [], "b": [], "alive": []}
+    plant.subscribe(k.act_all, lambda key, p: got["plant"].append((key, bytes(p))))
     plant.watch_liveliness(k.alive_all, lambda key, up: got["alive"].append(key) if up else None)
     channel.subscribe(k.clock, lambda key, _p: got["channel"].append(key))
-    rec.subscribe(k.all, lambda key, _p: got["rec"].append(key))
-    b.subscribe(k.sense("b", "rel"), lambda key, _p: got["b"].append(key))
-    a.subscribe(k.sense("b", "rel"), lambda key, _p: got["b"].append("spy:" + key))  # not a's to read
+    rec.subscribe(k.all, lambda key, p: got["rec"].append((key, bytes(p))))
+    b.subscribe(k.sense("b", "rel"), lambda key, p: got["b"].append((key, bytes(p))))
+    a.subscribe(k.sense("b", "rel"), lambda key, p: got["b"].append(("spy:" + key, bytes(p))))  # not a's to read
     a.declare_liveliness(k.alive("agent-a"))
     a.declare_liveliness(k.alive("plant"))  # a forged liveliness token
-    time.sleep(0.5)
+    # synchronised on what arrives, not on sleeps: first every subscription is in place (a probe on
+    # each allowed path gets through, the liveliness of agent-a is seen) ...
+    _wait_for(lambda: k.alive("agent-a") in got["alive"], "agent-a's liveliness at the plant")
+
+    def probe(tag: bytes) -> None:
+        _wait_for(lambda: (a.publish(k.act("a"), tag), plant.publish(k.sense("b", "rel"), tag))
+                  and (k.act("a"), tag) in got["plant"] and (k.sense("b", "rel"), tag) in got["b"]
+                  and {(k.act("a"), tag), (k.sense("b", "rel"), tag)} <= set(got["rec"]), f"probe {tag!r}")
+
+    probe(b"probe")
+    for name in ("plant", "channel", "rec", "b"):
+        got[name].clear()
     for _ in range(3):
         a.publish(k.act("a"), b"own")
         a.publish(k.act("b"), b"forged")       # another agent's command key
@@ -91,13 +109,20 @@ def test_an_agent_publishes_only_its_own_keys(secured) -> None:
         a.publish(k.isl_rx("b"), b"forged")    # the channel's delivery key
         a.publish(k.sync("channel"), b"forged")
         plant.publish(k.sense("b", "rel"), b"stim")
-        time.sleep(0.05)
-    time.sleep(0.7)
-    assert got["plant"] == [k.act("a")] * 3
+    # ... then an end marker after the forgeries, from the same sessions: once it has arrived, every
+    # earlier sample from a and from the plant has been routed (one session's samples stay in order)
+    probe(b"end")
+    # (probes repeated before the first one arrived may still come in: not counted)
+    def counted(xs: list) -> list:
+        return [x for x in xs if x[1] not in (b"probe", b"end")]
+
+    sent = [(k.act("a"), b"own")] * 3
+    assert counted(got["plant"]) == sent
     assert got["channel"] == []
-    assert sorted(set(got["rec"])) == sorted({k.act("a"), k.sense("b", "rel")}), got["rec"]
-    assert got["b"] == [k.sense("b", "rel")] * 3
-    assert got["alive"] == [k.alive("agent-a")]
+    stim = [(k.sense("b", "rel"), b"stim")] * 3
+    assert sorted(counted(got["rec"])) == sorted(sent + stim), got["rec"]
+    assert counted(got["b"]) == stim
+    assert got["alive"] == [k.alive("agent-a")]  # the forged plant token was declared before the probes
 
 
 # --- validation in every receiver -----------------------------------------------------------------
