@@ -182,7 +182,8 @@ period_s = 10.0
 FAULTS = {"agent-sc04": {"delay_tx": {"/act": 0.5}}}
 
 
-def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bool = True) -> None:
+def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bool = True,
+            final_tick: bool = True) -> None:
     """A neighbour holding agent sc01's credentials: keeps forging sc02's and sc03's commands (their
     key, their id in header.source, every step) and the plant's final tick; and one with no
     credentials at all."""
@@ -215,7 +216,7 @@ def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bo
                                              accel_mps2=vec([5e-3, -5e-3, 5e-3]), controller="null")
                     bus.publish(k.act(sid), cmd.SerializeToString())
                     sent += 1
-            if sent > 2000:  # the run is well under way: the plant's final tick, forged
+            if final_tick and sent > 2000:  # the run is well under way: the plant's final tick, forged
                 final = pb.Tick(header=header(RUN, "plant", 3, 30.0, 0), final=True)
                 bus.publish(k.clock, final.SerializeToString())
             time.sleep(0.1)
@@ -224,7 +225,7 @@ def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bo
         bus.close()
 
 
-def _secure_run(d: Path, attack: bool, secure: bool = True) -> tuple[Path, dict]:
+def _secure_run(d: Path, attack: bool, secure: bool = True, final_tick: bool = True) -> tuple[Path, dict]:
     from deploy.launcher import MultiProcessRun
     from deploy.scenario import load_scenario
 
@@ -234,7 +235,7 @@ def _secure_run(d: Path, attack: bool, secure: bool = True) -> tuple[Path, dict]
     out = d / "out"
     report: dict = {}
     stop = threading.Event()
-    t = threading.Thread(target=_attack, args=(out, stop, report, secure), daemon=True) if attack else None
+    t = threading.Thread(target=_attack, args=(out, stop, report, secure, final_tick), daemon=True) if attack else None
     if t:
         t.start()
     mp = pytest.MonkeyPatch()
@@ -284,3 +285,22 @@ def test_forged_commands_and_final_tick_move_nothing(clean_and_attacked) -> None
     ch = s_att["channel"]
     assert ch["windows"] == s_att["steps"] == 20 and ch["forced_windows"] == 0, ch
     assert not s_att["dead_agents"] and not s_att["missed_deadlines"]
+
+
+def test_the_same_forgery_moves_the_truth_of_an_insecure_run(clean_and_attacked, tmp_path: Path) -> None:
+    """The positive control of the test above: the same attacker and the same forged commands on a
+    run with --insecure (an open router, no credentials needed) must move sc02's and sc03's truth,
+    or the identical truth of the secure run proves nothing. (Without the forged final tick: with it,
+    the insecure run did not end within the 600 s test timeout on a loaded 2-core machine.)"""
+    clean, s_clean, _attacked, _s_att = clean_and_attacked
+    insecure, s_ins = _secure_run(tmp_path / "insecure", attack=True, secure=False, final_tick=False)
+    assert s_ins["forged"] >= 243
+    dv_clean, dv_ins = s_clean["delta_v_mps"], s_ins["delta_v_mps"]
+    print("delta-v clean", dv_clean, "insecure, attacked", dv_ins)
+    # null controller: no delta-v at all undisturbed; the forged 5e-3 m/s^2 per axis (clipped to
+    # 1e-3) reaches the plant for the forged craft only (measured: every one of the 20 steps,
+    # sqrt(3) 1e-3 m/s^2 x 200 s = 0.346 m/s each)
+    assert all(v == 0.0 for v in dv_clean.values()), dv_clean
+    assert dv_ins["sc02"] > 0.0 and dv_ins["sc03"] > 0.0, dv_ins
+    assert dv_ins["sc01"] == 0.0 and dv_ins["sc04"] == 0.0, dv_ins
+    assert _topics(insecure, "truth") != _topics(clean, "truth")
