@@ -73,3 +73,19 @@ def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monk
         assert took < timeout_ms / 2, (took, timeout_ms)
     finally:
         monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", normal)
+
+
+def weakly_connected_by_hand(n: int, edges) -> bool:
+    """Are n nodes one component when the directed edges (j, k) are taken undirected? Union-find,
+    written here as the tests' own reference (not plant.sensors / dashboards.metrics)."""
+    parent = list(range(n))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for j, k in edges:
+        parent[root(int(j))] = root(int(k))
+    return len({root(i) for i in range(n)}) == 1
