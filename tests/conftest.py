@@ -49,3 +49,53 @@ def read_mcap(path: Path | str):
         for _schema, channel, message, decoded in reader.iter_decoded_messages():
             out.append((channel.topic, message.log_time, message.publish_time, decoded))
     return out
+
+
+def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monkeypatch: pytest.MonkeyPatch,
+                   factor: float = 5.0, floor_ms: int = 1500) -> None:
+    """Each (endpoint, credential) of `bad` (None: no credential) is refused by the router at `ep`, and the refusal
+    is not a slow machine or a dead router: a refused client sees only a connect timeout (zenoh says
+    "Timeout!" whether the router refused it or nobody listens), so a good credential connects to the
+    same router before and after, and each bad attempt waits `factor` times the slower good connect
+    (at least `floor_ms`): on a machine where the good one needs 20 ms, a 1.5 s timeout means refused."""
+    import time
+
+    import zenoh
+
+    from bus import zenoh_bus
+    from bus.zenoh_bus import ZenohBus
+
+    def good_ms(timeout_ms: int) -> float:
+        monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", timeout_ms)
+        t0 = time.monotonic()
+        ZenohBus(ep, credential=good_credential).close()
+        return 1e3 * (time.monotonic() - t0)
+
+    normal = zenoh_bus.CONNECT_TIMEOUT_MS
+    try:
+        timeout_ms = max(floor_ms, int(factor * good_ms(normal)))
+        for bad_ep, bad_credential in bad:
+            monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", timeout_ms)
+            with pytest.raises(zenoh.ZError):
+                ZenohBus(bad_ep, credential=bad_credential)
+        # positive control: the router is alive and lets the good credential in well within that timeout
+        took = good_ms(timeout_ms)
+        assert took < timeout_ms / 2, (took, timeout_ms)
+    finally:
+        monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", normal)
+
+
+def weakly_connected_by_hand(n: int, edges) -> bool:
+    """Are n nodes one component when the directed edges (j, k) are taken undirected? Union-find,
+    written here as the tests' own reference (not plant.sensors / dashboards.metrics)."""
+    parent = list(range(n))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for j, k in edges:
+        parent[root(int(j))] = root(int(k))
+    return len({root(i) for i in range(n)}) == 1

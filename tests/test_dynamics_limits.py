@@ -69,10 +69,47 @@ def test_force_to_accel() -> None:
         force_to_accel(f, np.array([1.0, 0.0]))
 
 
-def test_world_dv_norm_is_linalg_norm_bit_for_bit() -> None:
-    """plant/world.py sums |a| dt with np.sqrt(np.add.reduce(a * a, axis=1)), which is what
-    np.linalg.norm(a, axis=1) computes for real arrays (issue 16: without its Python)."""
-    rng = np.random.default_rng(3)
-    a = rng.normal(0, 1e-4, (500, 3)) * 10.0 ** rng.integers(-200, 150, (500, 3))
-    a[rng.random((500, 3)) < 0.05] = 0.0
-    assert np.sqrt(np.add.reduce(a * a, axis=1)).tobytes() == np.linalg.norm(a, axis=1).tobytes()
+def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
+    """World.step itself (not numpy against numpy): delta-v += |clip(a)| dt per live craft, checked
+    against hand-computed values (3-4-5 triangles, sqrt(2) and sqrt(3) of a saturated command, a
+    dead craft coasting) and, bit for bit, against the same sum done in plain Python floats
+    (math.sqrt of x*x + y*y + z*z: correctly rounded operations in the order numpy reduces 3 values,
+    so the same bits on any CPU)."""
+    import math
+
+    from plant.world import World
+
+    cmds = np.array([
+        [3e-4, 4e-4, 0.0],      # |a| = 5e-4, under the 1e-3 limit on every axis
+        [0.0, -6e-4, 8e-4],     # |a| = 1e-3
+        [5e-3, -2e-3, 0.0],     # both axes clip to 1e-3: sqrt(2) e-3, not |(5, -2)| e-3
+        [-9.0, 9.0, 9.0],       # all three clip: sqrt(3) e-3
+        [0.0, 0.0, 0.0],        # no thrust, no delta-v
+        [1e-3, 1e-3, 1e-3],     # dead below: coasts, no delta-v although it asks for thrust
+    ])
+    n = len(cmds)
+    w = World([f"sc{i}" for i in range(n)], np.zeros((n, 6)), a_m=6_878_137.0, inc_rad=1.7, raan_rad=0.0,
+              u0_rad=0.0, max_accel_mps2=1e-3)
+    w.alive[5] = False
+    dt, steps = 10.0, 7
+    for _ in range(steps):
+        w.step(cmds, dt)
+    per_step = np.array([5e-4, 1e-3, math.sqrt(2) * 1e-3, math.sqrt(3) * 1e-3, 0.0, 0.0])
+    np.testing.assert_allclose(w.delta_v_mps, steps * dt * per_step, rtol=1e-14, atol=0.0)
+    assert w.delta_v_mps[4] == 0.0 and w.delta_v_mps[5] == 0.0
+    np.testing.assert_array_equal(w.last_accel_mps2[2:4], [[1e-3, -1e-3, 0.0], [-1e-3, 1e-3, 1e-3]])
+    np.testing.assert_array_equal(w.last_accel_mps2[5], [0.0, 0.0, 0.0])
+    # random commands, half of them saturating, some craft dead: the same arithmetic in Python floats
+    rng = np.random.default_rng(24)
+    w = World([f"sc{i}" for i in range(40)], np.zeros((40, 6)), a_m=6_878_137.0, inc_rad=1.7, raan_rad=0.0,
+              u0_rad=0.0, max_accel_mps2=1e-3)
+    w.alive[rng.random(40) < 0.2] = False
+    want = [0.0] * 40
+    for _ in range(5):
+        cmd = rng.normal(0.0, 1e-3, (40, 3))
+        w.step(cmd, 3.0)
+        for i in range(40):
+            if w.alive[i]:
+                x, y, z = (min(max(float(c), -1e-3), 1e-3) for c in cmd[i])
+                want[i] += math.sqrt(x * x + y * y + z * z) * 3.0
+    assert w.delta_v_mps.tolist() == want

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from conftest import SCENARIOS, read_mcap
+from conftest import SCENARIOS, read_mcap, weakly_connected_by_hand
 from dashboards.navreport import (
     TrackRows, associate, nees_of, read_tracks, write_comparison, write_nav_report, analyse_run,
 )
@@ -224,7 +224,19 @@ def test_reports_and_comparison_are_written(runs, tmp_path):
     used = [(int(st), int(j), int(k)) for st, j, k, u in zip(nav.rows.step, nav.rows.observer, nav.err.neighbour,
                                                            nav.rows.used) if u]
     assert s["used_rows_not_visible_fraction"] == pytest.approx(np.mean([x not in vis for x in used]), abs=1e-12)
-    assert 0.0 <= s["used_graph_weakly_connected_fraction"] <= 1.0
+    # per truth step, the used-track digraph and the visibility digraph weakly connected or not,
+    # counted here with the test's own union-find from the rows and the plant's visibility rule
+    vis_by_step = {int(m.header.step): _vis_of(m) for topic, _l, _p, m in read_mcap(runs["filter"] / "run.mcap")
+                   if topic == "truth"}
+    n_sc = len(next(iter(vis_by_step.values())))
+    used_by_step: dict[int, list] = {}
+    for st, j, k in used:
+        used_by_step.setdefault(st, []).append((j, k))
+    conn_used = [weakly_connected_by_hand(n_sc, used_by_step.get(st, [])) for st in sorted(vis_by_step)]
+    conn_vis = [weakly_connected_by_hand(n_sc, zip(*np.nonzero(v))) for _st, v in sorted(vis_by_step.items())]
+    assert s["used_graph_weakly_connected_fraction"] == pytest.approx(np.mean(conn_used), abs=1e-12)
+    assert s["visibility_weakly_connected_fraction"] == pytest.approx(np.mean(conn_vis), abs=1e-12)
+    print("weakly connected: used", np.mean(conn_used), "visibility", np.mean(conn_vis))
     # held back = visible with a track but none used: the two coverages' difference; the range bands
     # and the start / after split partition the visible pair-steps (a 300 s run is all start)
     assert s["held_back_fraction"] == pytest.approx(cov - cov_used, abs=1e-12)

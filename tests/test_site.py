@@ -172,8 +172,20 @@ def test_site_links_every_page_and_writes_the_tables(site_run: Path) -> None:
                 np.testing.assert_array_equal(a[col].to_numpy(), b[col].to_numpy(dtype=float), err_msg=f"{name}.{col}")
     truth = pd.read_parquet(rep / "data" / "truth.parquet")
     assert sorted(truth["id"].unique()) == [f"sc{i:02d}" for i in range(1, 7)] and truth["step"].nunique() == 121
+    # the event page lists every event of the recording, in its order, read here from the MCAP
+    import html as html_mod
+    from collections import Counter
+
+    want = [(f"{m.header.t:.6g}", str(m.header.step), m.header.source, m.kind, m.subject, m.detail)
+            for topic, _l, _p, m in read_mcap(site_run / "run.mcap") if topic == "event"]
+    kinds = Counter(w[3] for w in want)
+    assert kinds["run_start"] == 1 and kinds["link_config"] == 1, kinds  # the plant's and the link's
     events = (rep / "events.html").read_text()
-    assert "run_start" in events or "link_config" in events
+    rows = [tuple(html_mod.unescape(c) for c in re.findall(r"<td>(.*?)</td>", r, re.S))
+            for r in re.findall(r"<tr>(<td>.*?)</tr>", events, re.S)]
+    assert rows == want
+    counts = ", ".join(f"{k}: {n}" for k, n in sorted(kinds.items()))
+    assert f"{len(want)} events from the recording's <code>event</code> topic ({counts})." in events
 
 
 def test_load_round_trips_the_truth_exactly(site_run: Path) -> None:

@@ -218,14 +218,18 @@ def report(res: RunResult, label: str) -> str:
             f"landmark packets {res.landmark_packets} ({res.landmark_bytes} B)")
 
 
-def check_paper_outcome(res: RunResult, min_out_of_search: int, min_settled: int) -> None:
-    """The paper's claims that carry numbers or a clear yes/no (docs/paper000.md)."""
+def check_paper_outcome(res: RunResult, min_out_of_search: int, min_settled: int,
+                        centre_max_m: float = 0.2) -> None:
+    """The paper's claims that carry numbers or a clear yes/no (docs/paper000.md); `centre_max_m`:
+    the bound on the worst centre error, chosen per run from its measured value."""
+    print(f"worst axes error {max(res.axes_err, default=float('nan')):.4f}, "
+          f"worst centre error {max(res.centre_err_m, default=float('nan')):.4f} m")
     assert sum(m != "search" for m in res.modes) >= min_out_of_search, res.modes
     assert res.min_pair_m > SAFETY_DISTANCE_M                      # no collisions (§4.2)
     assert res.min_surface_m > 0.0                                  # nobody inside the true target
     assert len(res.axes_err) >= min_settled                         # agents in chase >= SETTLE_S
     assert max(res.axes_err) < 0.02                                 # semi-axes recovered (Fig. 7)
-    assert max(res.centre_err_m) < 0.2
+    assert max(res.centre_err_m) < centre_max_m
     assert res.state_broadcasts < 0.25 * res.chase_agent_steps      # event trigger << every step
 
 
@@ -235,7 +239,10 @@ def test_closed_loop_ten_agents_capture_case_i() -> None:
     20–34 s, 3 more at ~96 s; axes within 1 %; event broadcasts ≈ 0.12 of every step."""
     res = run_capture(duration_s=100.0, dt_s=0.1, seed=1, params={"perception_period_s": 2.0})
     print(report(res, "case i, 100 s, dt 0.1"))
-    check_paper_outcome(res, min_out_of_search=7, min_settled=7)
+    # worst centre error measured 0.03 m (default kernels) and 0.039 m (OPENBLAS_CORETYPE=Sandybridge
+    # NPY_DISABLE_CPU_FEATURES=X86_V3) on an AVX2 machine: bound 0.08 m, 2x the larger (was 0.2 m);
+    # worst axes error 1.1 % / 1.3 % against the paper's 2 %
+    check_paper_outcome(res, min_out_of_search=7, min_settled=7, centre_max_m=0.08)
 
 
 @pytest.mark.system

@@ -24,9 +24,9 @@ def _run(parent: Path, name: str, state_tx: int, lm_bytes: int = 1000) -> None:
 
 
 def test_reduction_pairs_runs_by_seed_and_case(tmp_path: Path) -> None:
-    from dashboards.p000_sweep import load_runs, reduction_table, spread
+    from dashboards.p000_sweep import load_runs, reduction_table
 
-    for seed, (ev, per, every) in {1: (20, 40, 1000), 2: (30, 50, 1200)}.items():
+    for seed, (ev, per, every) in {1: (20, 40, 1000), 2: (30, 50, 1250)}.items():
         _run(tmp_path, f"c10-s{seed}-event", ev)
         _run(tmp_path, f"c10-s{seed}-1hz", per)
         _run(tmp_path, f"c10-s{seed}-every", every)
@@ -36,13 +36,22 @@ def test_reduction_pairs_runs_by_seed_and_case(tmp_path: Path) -> None:
     rows = load_runs(tmp_path)
     assert len(rows) == 8 and sum(r["mp"] for r in rows) == 1
     t = reduction_table(rows, 10)
-    assert f"| event / 1 Hz (separate runs, same seed) | {spread([20 / 40, 30 / 50], '{:.3f}')} |" in t
-    assert f"| event / every-step (separate runs, same seed) | {spread([20 / 1000, 30 / 1200], '{:.3f}')} |" in t
-    assert "0.550 ± 0.071 (0.500–0.600, n = 2)" in t
+    # by hand: 20/40, 30/50 = 0.5, 0.6: mean 0.55, sample std 0.05 sqrt(2) = 0.0707;
+    # 20/1000, 30/1250 = 0.020, 0.024: mean 0.022, std 0.002 sqrt(2) = 0.00283
+    assert "| event / 1 Hz (separate runs, same seed) | 0.550 ± 0.071 (0.500–0.600, n = 2) |" in t
+    assert "| event / every-step (separate runs, same seed) | 0.022 ± 0.003 (0.020–0.024, n = 2) |" in t
     assert "| 1 Hz run: state packets sent | — |" in reduction_table(rows, 20)  # no baseline run for case (ii)
     p = subprocess.run([sys.executable, "-m", "dashboards.p000_sweep", str(tmp_path / "not-a-run")], cwd=ROOT,
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+
+
+def test_spread_by_hand() -> None:
+    from dashboards.p000_sweep import spread
+
+    assert spread([]) == "—" and spread([0.5]) == "0.5" and spread([0.5], "{:.3f}") == "0.500"
+    assert spread([1.0, 2.0, 6.0]) == "3 ± 2.65 (1–6, n = 3)"  # std sqrt((4 + 1 + 9) / 2) = sqrt(7)
+    assert spread([10.0, 10.0]) == "10 ± 0 (10–10, n = 2)"
 
 
 def test_settle_time_is_the_last_crossing() -> None:

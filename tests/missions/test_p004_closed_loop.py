@@ -270,9 +270,14 @@ def assert_paper_outcome(run: Run) -> None:
     s = summary(run)
     print({k: round(v, 4) for k, v in s.items()})
     assert run.e_norm[0].min() > 2000.0
-    assert s["e_max_after_200s_m"] < 15.0
-    assert s["e_mean_after_200s_m"] < 6.0
-    assert s["t_e_below_10m_s"] < 200.0
+    # bounds from the measured values with a stated margin (250 s run, seed 4; AVX2 machine, default
+    # kernels / OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3; the 360 s run of
+    # docs/paper004.md: 0.87 / 3.05 m, below 10 m from 43.5 s): max error after 200 s measured
+    # 2.89 / 2.82 m, bound 5 m (1.7x); mean 1.09 / 0.86 m, bound 2 m (1.8x); all below 10 m from
+    # 42.8 s on both, bound 60 s (1.4x); zeta-tilde max after 150 s 9.78 m/s, bound 15 m/s (1.5x)
+    assert s["e_max_after_200s_m"] < 5.0
+    assert s["e_mean_after_200s_m"] < 2.0
+    assert s["t_e_below_10m_s"] < 60.0
     assert s["zeta_tilde_max_after_150s_mps"] < 15.0
     assert np.all(np.isfinite(run.u_norm)) and s["u_peak_mps2"] < 1e4
     assert s["theta_norm_max"] <= 31.0 + 1e-9  # theta_bar + epsilon of the projection
