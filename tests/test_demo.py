@@ -21,7 +21,7 @@ def test_demo_writes_the_rrd_and_the_report_and_says_how_to_open_them(tmp_path: 
     # in-process: the same demo command, run and report (the multi-process --viz save path is
     # tests/test_viz_run.py's); multi-process it took 100 s at a load average of 60
     p = subprocess.run([sys.executable, "-m", "deploy.cli", "demo", "--out", str(out), "--in-process"], cwd=ROOT,
-                       capture_output=True, text=True, timeout=170)
+                       capture_output=True, text=True, timeout=600)  # ~80 s on a quiet machine; 170 s was exceeded at load ~15
     assert p.returncode == 0, p.stdout + p.stderr
     tail = p.stdout.strip().splitlines()[-4:]
     rrd, page = out.resolve() / "run.rrd", out.resolve() / "report" / "index.html"
@@ -30,7 +30,18 @@ def test_demo_writes_the_rrd_and_the_report_and_says_how_to_open_them(tmp_path: 
     disable_analytics()
     v = subprocess.run([rerun_exe(), "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
     assert v.returncode == 0, v.stdout + v.stderr
+    # every figure of the page has its content: an image file that exists and is not empty, or an
+    # interactive plotly div; and there are figures (all() of no figure was true)
     html = page.read_text()
-    imgs = re.findall(r'src=["\']([^"\']+\.(?:png|svg))["\']', html)
-    assert all((page.parent / i).is_file() for i in imgs), imgs
-    assert imgs or "<svg" in html or "plotly" in html.lower(), "the report has no figure"
+    figs = re.findall(r'<figure id="fig-([^"]+)">(.*?)</figure>', html, re.S)
+    print("figures:", [stem for stem, _ in figs])
+    assert len(figs) >= 5, [stem for stem, _ in figs]
+    for stem, body in figs:
+        img = re.search(r'<img src="([^"]+)"', body)
+        if img:
+            f = page.parent / img.group(1)
+            assert f.is_file() and f.stat().st_size > 1000, (stem, img.group(1))
+        else:
+            assert 'class="plotly-graph-div"' in body, stem
+        for href in re.findall(r'<a href="([^"#:]+)"', body):  # the static exports of the figure
+            assert (page.parent / href).is_file(), (stem, href)
