@@ -23,10 +23,12 @@ BENCH = "timings (bench tier); not yet registered"
 
 REQUIRED: tuple[Required, ...] = (
     Required("docs/paper002-reproduction.md", "Results", "paper002-results"),
-    Required("docs/paper002-reproduction.md", "Navigation noise (section 5, Figs. 30-31): `runs/sweep-noise`", None,
-             "same sources as paper002-results (tier all); not yet rendered"),
+    Required("docs/paper002-reproduction.md", "Navigation noise (section 5, Figs. 30-31): `runs/sweep-noise`",
+             "paper002-noise"),
+    Required("docs/paper002-reproduction.md", "Navigation noise (section 5, Figs. 30-31): `runs/sweep-noise`",
+             "paper002-noise-seeds"),
     Required("docs/paper002-reproduction.md", "How dV depends on the initial dispersion (Table 1 is missing)", None,
-             "nine more 24 h runs (tier all); not yet registered"),
+             "two tables (dispersion, random draws): eight more 24 h runs (tier all); not yet registered"),
     Required("docs/paper000-reproduction.md", "The paper's claims against the measurements", None,
              STUDY + " (550 s cases, ~17 min each, three seeds per case)"),
     Required("docs/paper000.md", "Paper vs measured", None, STUDY + " (550 s at 0.05 s, three policies)"),

@@ -27,7 +27,10 @@ def _noise_key(frac: float, seed: int | None = None) -> str:
 
 
 _KEEP = ("control.delta_v_total_mps", "control.delta_v_last_hour_mps", "x.orbit_union_split_for_good",
-         "x.orbit_union_always_connected", "connectivity.weakly_connected_fraction")
+         "x.orbit_union_always_connected", "connectivity.weakly_connected_fraction",
+         "connectivity.orbit_union_weakly_connected_fraction", "connectivity.components_end",
+         "connectivity.max_components", "closest_approach.visible_pairs.distance_m",
+         "closest_approach.non_visible_pairs.distance_m")
 
 
 def _sweep(get: Callable[[str], dict[str, Any]]) -> dict[str, Any]:
@@ -284,3 +287,67 @@ TABLES = [Table("paper002-results", DOC, HEADER, measured=(2,), verdict_col=3, r
          "35 %; connected throughout in {p002.intact10} of 1 at 10 % and {p002.intact20} of 3 realisations at 20 %"),
         _v_integrity, ("3", "30", "1", "35", "10", "20")),
 ))]
+
+
+# --- the noise tables ("Navigation noise"): the same runs, every column ---------------------------
+def _case_claims(case: str, tag: str) -> list[Claim]:
+    """The columns of one noisy run (case key of the p002.noise source, claim id tag)."""
+    n = "p002.noise"
+    return [
+        _c(f"{tag}-dv", f"{case}.control.delta_v_total_mps", AUTO, f"{tag}: total dV [m/s]", ".2f", source=n),
+        _c(f"{tag}-last-hour", f"{case}.control.delta_v_last_hour_mps", AUTO, f"{tag}: dV in the last hour [m/s]",
+           ".2g", source=n),
+        _c(f"{tag}-wc-pct", f"{case}.connectivity.weakly_connected_fraction", AUTO,
+           f"{tag}: weakly connected steps [%]", ".1f", PCT, source=n),
+        _c(f"{tag}-orbit-wc-pct", f"{case}.connectivity.orbit_union_weakly_connected_fraction", AUTO,
+           f"{tag}: orbit-union connected after the first orbit [%]", ".3g", PCT, source=n),
+        _c(f"{tag}-split", _yes(f"{case}.x.orbit_union_split_for_good"), Tol(),
+           f"{tag}: orbit-union graph split at the end", source=n),
+        _c(f"{tag}-comp-end", f"{case}.connectivity.components_end", Tol(), f"{tag}: components at 24 h", "d",
+           source=n),
+        _c(f"{tag}-comp-max", f"{case}.connectivity.max_components", Tol(), f"{tag}: most components", "d",
+           source=n),
+        _c(f"{tag}-ca-vis", f"{case}.closest_approach.visible_pairs.distance_m", AUTO,
+           f"{tag}: closest approach, visible pairs [m]", ".1f", source=n),
+        _c(f"{tag}-ca-hid", f"{case}.closest_approach.non_visible_pairs.distance_m", AUTO,
+           f"{tag}: closest approach, non-visible pairs [m]", ".1f", source=n),
+    ]
+
+
+NOISE_CASES = (("0", "p002.n0", "0 %", "7"), *[(str(f), f"p002.n{round(f * 100)}", f"{round(f * 100)} %", "7")
+                                                for f in NOISE],
+               *[(f"{f}-seed{s}", f"p002.n{round(f * 100)}s{s}", f"{round(f * 100)} %", str(s))
+                 for f in (0.2, 0.3) for s in SEEDS])
+CLAIMS += [c for case, tag, _, _ in NOISE_CASES for c in _case_claims(case, tag)
+           if not (c.id.endswith("-dv") and tag != "p002.n0" and case in {str(f) for f in NOISE})]
+
+
+def _dv_id(case: str, tag: str) -> str:
+    """The total-dV claim of a case (the Results table's row 13 already holds the sweep's)."""
+    return f"{tag}-dv" if tag == "p002.n0" or "seed" in case else f"p002.noise{tag.removeprefix('p002.n')}-dv"
+
+
+def _noise_row(case: str, tag: str, label: str, seed: str | None) -> Row:
+    lead = (label,) if seed is None else (label, seed)
+    return Row((*lead, "{" + _dv_id(case, tag) + "}", f"{{{tag}-last-hour}}",
+                *((f"{{{tag}-wc-pct}} %", f"{{{tag}-orbit-wc-pct}} %") if seed is None
+                  else (f"{{{tag}-wc-pct}} % / {{{tag}-orbit-wc-pct}} %", f"{{{tag}-split}}")),
+                f"{{{tag}-comp-end}} ({{{tag}-comp-max}})", f"{{{tag}-ca-vis}} / {{{tag}-ca-hid}}"))
+
+
+TABLES += [
+    Table("paper002-noise", DOC, ("noise", "total dV [m/s]", "dV in the last hour [m/s]", "weakly connected (per step)",
+                                  "weakly connected (orbit union, after the first orbit)",
+                                  "components at the end (max)", "closest approach visible / non-visible [m]"),
+          tuple(_noise_row(c, t, lab, None) for c, t, lab, _ in NOISE_CASES[:5]), measured=tuple(range(1, 7)),
+          align=("---", "---:", "---:", "---:", "---:", "---:", "---:")),
+    Table("paper002-noise-seeds", DOC, ("noise", "seed", "total dV [m/s]", "dV in the last hour [m/s]",
+                                        "weakly connected per step / orbit union", "orbit-union graph split at the end",
+                                        "components at the end (max)", "closest approach visible / non-visible [m]"),
+          tuple(_noise_row(c, t, lab, sd) for c, t, lab, sd in sorted(NOISE_CASES[2:3] + NOISE_CASES[5:]
+                                                                        + NOISE_CASES[3:4],
+                                                                        key=lambda x: (x[2], int(x[3])))),
+          measured=tuple(range(2, 8)), align=("---", "---", "---:", "---:", "---:", "---", "---:", "---:")),
+]
+_SHOWN = {k for t in TABLES for k in t.placeholders()}
+CLAIMS = [c for c in CLAIMS if c.id in _SHOWN or not c.id.startswith("p002.n")]  # a run's unshown columns
