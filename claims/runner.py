@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from claims.model import Claim, Source, Table, Value
-from claims.render import doc_line, render_table, row_values, verdicts
+from claims.render import doc_line, row_values, verdicts
 
 KERNEL_ENV = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
 
@@ -112,7 +112,3 @@ def locate(claims: Mapping[str, Claim], tables: Mapping[str, Table]) -> dict[str
                 out.setdefault(k, f"{t.doc}:{doc_line(t, i)}")
     return out
 
-
-def table_render(t: Table, claims: Mapping[str, Claim], measured: Mapping[str, Value]) -> str:
-    """The table as the values measured now would render it (for `--show`)."""
-    return render_table(t, claims, measured)
