@@ -351,3 +351,97 @@ TABLES += [
 ]
 _SHOWN = {k for t in TABLES for k in t.placeholders()}
 CLAIMS = [c for c in CLAIMS if c.id in _SHOWN or not c.id.startswith("p002.n")]  # a run's unshown columns
+
+
+# --- "How dV depends on the initial dispersion" and the other random draws: 8 more 24 h runs -------
+SIGMAS = ("[20, 40, 15, 15, 15, 15]", "[10, 40, 30, 30, 30, 30]", "[20, 40, 30, 30, 30, 30]",
+          "[40, 40, 30, 30, 30, 30]", "[20, 40, 60, 60, 60, 60]", "[80, 40, 30, 30, 30, 30]")
+OURS = "[20, 40, 30, 30, 30, 30]"
+DRAWS = (7, 1, 2, 3)
+
+
+def _sigma_key(sigma: str) -> str:
+    return "p002.s20" if sigma == OURS else "p002.disp-" + "-".join(x.strip() for x in sigma.strip("[]").split(","))
+
+
+def _init_spread(sets: tuple[str, ...] = (), seed: int | None = None) -> dict[str, Any]:
+    """The initial a*da spread (max - min over the spacecraft) of a scenario's draw: no run."""
+    from claims.runs import scenario
+
+    sc = scenario("sabatini-20", sets, seed)
+    return {"x.init_da_spread_m": float(sc.roe_m[:, 0].max() - sc.roe_m[:, 0].min())}
+
+
+def _disp_sets(sigma: str) -> tuple[str, ...]:
+    return () if sigma == OURS else (f"dispersion.sigma_roe_m={sigma.replace(' ', '')}",)
+
+
+SOURCES += [
+    *[Source(_sigma_key(sg), "all", (lambda st: lambda get: sabatini_metrics("sabatini-20", st))(_disp_sets(sg)),
+             f"sabatini-20 --set dispersion.sigma_roe_m={sg.replace(' ', '')}") for sg in SIGMAS if sg != OURS],
+    *[Source(f"p002.init-{_sigma_key(sg)}", "quick", (lambda st: lambda get: _init_spread(st))(_disp_sets(sg)),
+             f"the initial draw of sabatini-20 with sigma {sg} (no run)") for sg in SIGMAS],
+    *[Source(f"p002.draw-{s}", "all", (lambda sd: lambda get: sabatini_metrics("sabatini-20", (), sd))(s),
+             f"sabatini-20 --seed {s}") for s in DRAWS if s != 7],
+]
+
+
+def _run_claims(src: str, tag: str, cols: tuple[str, ...]) -> list[Claim]:
+    """The columns `cols` of one ideal-sensing run (source `src`), as claims `tag-<col>`."""
+    spec = {
+        "dv": ("control.delta_v_total_mps", AUTO, ".2f", 1.0), "t95": ("control.t_95pct_delta_v_s", AUTO, ".1f", H),
+        "wc": ("connectivity.weakly_connected_fraction", AUTO, ".1f", PCT),
+        "owc": ("connectivity.orbit_union_weakly_connected_fraction", AUTO, ".1f", PCT),
+        "cend": ("connectivity.components_end", Tol(), "d", 1.0), "cmax": ("connectivity.max_components", Tol(), "d", 1.0),
+        "split-h": ("connectivity.first_split_t_s", AUTO, ".2f", H),
+        "at": ("closest_visible_steady.along_track_m.min", AUTO, ".0f", 1.0),
+        "rd": ("closest_visible_steady.radial_m.min", AUTO, ".1f", 1.0),
+        "ct": ("closest_visible_steady.cross_track_m.min", AUTO, ".1f", 1.0),
+        "par": ("closest_visible_steady.parallelism.fraction_ge_threshold", AUTO, ".1f", PCT),
+        "vis": ("closest_approach.visible_pairs.distance_m", AUTO, ".1f", 1.0),
+        "hid": ("closest_approach.non_visible_pairs.distance_m", AUTO, ".1f", 1.0),
+    }
+    return [_c(f"{tag}-{col}", spec[col][0], spec[col][1], f"{tag}: {spec[col][0]}", spec[col][2], spec[col][3],
+               source=src) for col in cols]
+
+
+_DISP_COLS = ("dv", "t95", "wc", "owc", "cend", "cmax", "at", "rd", "ct", "vis", "hid")
+_DRAW_COLS = ("dv", "wc", "owc", "cend", "cmax", "split-h", "rd", "ct", "par", "vis", "hid")
+
+
+def _dtag(sigma: str) -> str:
+    return "p002.d" + "-".join(x.strip() for x in sigma.strip("[]").split(","))
+
+
+CLAIMS += [c for sg in SIGMAS for c in _run_claims(_sigma_key(sg), _dtag(sg), _DISP_COLS)]
+CLAIMS += [_c(f"{_dtag(sg)}-init", "x.init_da_spread_m", AUTO, f"initial a*da spread, sigma {sg} [m]", ".0f",
+              source=f"p002.init-{_sigma_key(sg)}") for sg in SIGMAS]
+CLAIMS += [c for s in DRAWS for c in _run_claims("p002.s20" if s == 7 else f"p002.draw-{s}", f"p002.r{s}", _DRAW_COLS)]
+
+
+def _disp_row(sigma: str) -> Row:
+    t, b = _dtag(sigma), ("**" if sigma == OURS else "")
+    return Row(((f"**{sigma}** (ours)" if sigma == OURS else sigma), f"{{{t}-init}} m", f"{b}{{{t}-dv}}{b}",
+                f"{{{t}-t95}} h", f"{{{t}-wc}} % / {{{t}-owc}} %",
+                f"{{{t}-cend}} ({{{t}-cmax}})", f"{{{t}-at}} / {{{t}-rd}} / {{{t}-ct}}", f"{{{t}-vis}} / {{{t}-hid}}"))
+
+
+def _draw_row(seed: int) -> Row:
+    t = f"p002.r{seed}"
+    return Row((f"{seed} (ours)" if seed == 7 else str(seed), f"{{{t}-dv}}", f"{{{t}-wc}} % / {{{t}-owc}} %",
+                f"{{{t}-cend}} ({{{t}-cmax}}), {{{t}-split-h}} h", f"{{{t}-rd}} / {{{t}-ct}}, {{{t}-par}} %",
+                f"{{{t}-vis}} / {{{t}-hid}}"))
+
+
+TABLES += [
+    Table("paper002-dispersion", DOC, (
+        "sigma [m]", "initial a*da spread", "total dV [m/s]", "95 % of dV by", "weakly connected per step / orbit union",
+        "components at the end (max)", "steady-state min along-track / radial / cross-track [m]",
+        "closest approach visible / non-visible [m]"), tuple(_disp_row(sg) for sg in SIGMAS), measured=tuple(range(1, 8)),
+        align=("---", "---:", "---:", "---:", "---:", "---:", "---", "---:")),
+    Table("paper002-draws", DOC, (
+        "seed", "total dV [m/s]", "weakly connected per step / orbit union", "components at the end (max), first split",
+        "steady-state min radial / cross-track [m], parallelism >= 0.8", "closest approach visible / non-visible [m]"),
+        tuple(_draw_row(s) for s in DRAWS), measured=tuple(range(1, 6)),
+        align=("---", "---:", "---:", "---", "---", "---:")),
+]
