@@ -41,10 +41,19 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/paper003.md", "Paper's numbers vs measured", None, "four 300 s closed loops (tier all); not yet"),
     Required("docs/paper003.md", "Target tracking (leader only, `… test_p003_closed_loop.py tt`)", None,
              "ten 300 s leader loops (tier all); not yet"),
-    Required("docs/paper004.md", "The paper's numbers against this implementation", None,
-             "ten 360 s closed loops, 15-45 s each (tier all); not yet"),
+    Required("docs/paper004.md", "The paper's numbers against this implementation", "paper004-numbers"),
     Required("docs/performance.md", "Where the time of an in-process run goes", None, BENCH),
     Required("docs/reliability.md", "Lockstep does not depend on load", None, BENCH),
 )
 
 NOT_YET = tuple(r for r in REQUIRED if r.table is None)
+
+# Sources whose claims are recorded with the default kernels only: the other kernel set's runs did
+# not finish in time (ten 360 s loops at a load average of 17). Their tolerances are the spreads
+# measured on the paper's case (claims/paper004.py). The list only shrinks: `swarmhil claims --all
+# --record` under OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3 fills them.
+ALT_PENDING: tuple[str, ...] = (
+    "p004.no-network-phi-0", "p004.path-graph", "p004.b-i-1-for-s4-only", "p004.b-i-1-for-s4-only-no-network",
+    "p004.5-hz", "p004.20-hz", "p004.noise-free-measurements", "p004.thrust-limit-10-m-s-2-per-axis",
+    "p004.thrust-limit-1-m-s-2-per-axis",
+)

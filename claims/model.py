@@ -133,7 +133,7 @@ def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, mar
     if not tol.auto or not isinstance(value, (int, float)):
         return tol
     spread = abs(float(value) - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
-    return Tol(abs=max(margin * spread, half_digit(float(value), spec)))
+    return Tol(abs=max(tol.abs, margin * spread, half_digit(float(value), spec)), rel=tol.rel)
 
 
 PLACEHOLDER = re.compile(r"\{([a-z0-9][a-z0-9_.\-]*)(?::([^{}]*))?\}")

@@ -13,7 +13,6 @@ from claims.missions import mission_test_module
 from claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/paper004.md"
-AUTO = Tol(auto=True)  # max(3 x cross-kernel spread, half the last printed digit): claims/model.py resolve_tol
 MODULE = "test_p004_closed_loop"
 
 # (doc row label, key of the room's cases: "" = the paper's case, else its VARIANTS key, outcome)
@@ -55,24 +54,31 @@ def _below(s: Mapping[str, Any]) -> float | str:
 
 
 # (field, claim suffix, format, tolerance) for a case that does not diverge
+# Relative spreads between the two kernel sets measured on the paper's case (value, alt), x3: the
+# tolerance of the cases whose alt is not measured yet (claims/coverage.py ALT_PENDING). The errors
+# after 200 s move by 31-42 % (1.33 vs 0.91 m mean, 4.83 vs 2.82 m max): the saturated network and
+# the noise amplify the last bits; the time to 10 m, the peak command and lambda do not move.
+def _k(rel: float = 0.0, abs_: float = 0.0) -> Tol:
+    return Tol(abs=abs_, rel=rel, auto=True)
+
+
 FIELDS: tuple[tuple[str, str, str, Tol], ...] = (
-    ("lambda_min_H", "lambda", ".3f", AUTO),
-    ("e_mean_after_200s_m", "e-mean", ".3g", AUTO),
-    ("e_max_after_200s_m", "e-max", ".3g", AUTO),
-    ("t_e_below_10m_s", "t-below-10m", ".1f", AUTO),
-    ("zeta_tilde_mean_after_150s_mps", "zeta-mean", ".2g", AUTO),
-    ("zeta_tilde_max_after_150s_mps", "zeta-max", ".2g", AUTO),
-    ("u_peak_mps2", "u-peak", "s3", AUTO),
-    ("u_mean_mps2", "u-mean", ".3g", AUTO),
-    ("u_mean_after_200s_mps2", "u-mean-200", ".2g", AUTO),
-    ("delta_v_max_mps", "dv-max", ",.0f", AUTO),
-    ("phi_mean_after_200s_mps2", "phi-mean", ".3g", AUTO),
-    ("V0", "v0", ".2g", AUTO),
-    ("V_end", "v-end", ".2g", AUTO),
+    ("lambda_min_H", "lambda", ".3f", _k()),
+    ("e_mean_after_200s_m", "e-mean", "s3", _k(0.93)),
+    ("e_max_after_200s_m", "e-max", "s3", _k(1.25)),
+    ("t_e_below_10m_s", "t-below-10m", ".1f", _k(abs_=0.3)),
+    ("zeta_tilde_mean_after_150s_mps", "zeta-mean", ".2g", _k(0.001)),
+    ("zeta_tilde_max_after_150s_mps", "zeta-max", ".3g", _k(0.001)),
+    ("u_peak_mps2", "u-peak", "s3", _k()),
+    ("u_mean_mps2", "u-mean", "#.3g", _k(0.0015)),
+    ("u_mean_after_200s_mps2", "u-mean-200", ".2g", _k(0.0085)),
+    ("delta_v_max_mps", "dv-max", ",.0f", _k(0.0035)),
+    ("phi_mean_after_200s_mps2", "phi-mean", "#.3g", _k(0.014)),
+    ("V0", "v0", ".2g", _k()),
+    ("V_end", "v-end", ".3g", _k(0.05)),
 )
-DIVERGED = (("lambda_min_H", "lambda", ".3f", AUTO),
-            ("e_max_m", "e-max-km", ",.0f", AUTO),
-            ("diverged_at_s", "diverged-at", ".1f", AUTO))
+DIVERGED = (("lambda_min_H", "lambda", ".3f", _k()), ("e_max_m", "e-max-km", ",.0f", _k(0.05)),
+            ("diverged_at_s", "diverged-at", ".1f", _k(abs_=0.3)))
 
 
 def _claims_of(label: str, key: str, outcome: str) -> list[Claim]:

@@ -20,9 +20,9 @@ RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from claims import paper002
+    from claims import paper002, paper004
 
-    return [paper002]
+    return [paper002, paper004]
 
 
 def _value(v: Any) -> Any:
