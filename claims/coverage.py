@@ -53,7 +53,6 @@ NOT_YET = tuple(r for r in REQUIRED if r.table is None)
 # measured on the paper's case (claims/paper004.py). The list only shrinks: `swarmhil claims --all
 # --record` under OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3 fills them.
 ALT_PENDING: tuple[str, ...] = (
-    "p004.path-graph", "p004.b-i-1-for-s4-only", "p004.b-i-1-for-s4-only-no-network",
-    "p004.5-hz", "p004.20-hz", "p004.noise-free-measurements", "p004.thrust-limit-10-m-s-2-per-axis",
+    "p004.20-hz", "p004.noise-free-measurements", "p004.thrust-limit-10-m-s-2-per-axis",
     "p004.thrust-limit-1-m-s-2-per-axis",
 )
