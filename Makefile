@@ -71,3 +71,9 @@ proto: setup
 
 clean:
 	rm -rf runs .pytest_cache
+
+# The docs' numbers rerun and checked (claims/, docs/claims.md): `make claims` the quick ones (also
+# in `make test`), `make claims ARGS=--all` with the system tier, `ARGS=--write` rewrites the tables.
+.PHONY: claims
+claims: setup
+	$(PY) -m deploy.cli claims $(or $(ARGS),--quick)

@@ -1,0 +1,95 @@
+"""`swarmhil claims`: rerun the docs' numbers and check or rewrite the tables the docs include."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+import click
+
+
+def _writable(_ctx: click.Context, _param: click.Parameter, value: str | None) -> str | None:
+    """--json: refused up front (exit 2) when its directory cannot be written."""
+    if value is not None:
+        parent = Path(value).resolve().parent
+        if not parent.is_dir() or not os.access(parent, os.W_OK):
+            raise click.BadParameter(f"{value}: cannot be written (no writable directory {parent})")
+    return value
+
+
+def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]:
+    if all_:
+        return ("quick", "all")
+    chosen = tuple(t for t, on in (("quick", quick), ("study", study), ("bench", bench)) if on)
+    return chosen or ("quick",)
+
+
+@click.command("claims")
+@click.option("--quick", "quick", is_flag=True, help="The claims that take seconds (the default; run by `make test`).")
+@click.option("--all", "all_", is_flag=True, help="Quick and minutes-long claims (the system tests).")
+@click.option("--study", is_flag=True, help="The hours-long claims (paper studies; not run by CI).")
+@click.option("--bench", is_flag=True, help="Timings on this machine: checked for presence and shape only.")
+@click.option("--write", is_flag=True, help="Rewrite the docs' marked tables from the registry (no run).")
+@click.option("--check-docs", is_flag=True, help="Only check that the docs' marked tables are what the registry renders.")
+@click.option("--record", "record_", is_flag=True,
+              help="Store the measured values in claims/recorded.json (as `alt` under another kernel set).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False), callback=_writable,
+              help="Write the outcomes as JSON here.")
+@click.option("--cache", type=click.Path(file_okay=False),
+              help="Keep each source's result here (per kernel set) and reuse it; not for checking.")
+@click.option("--list", "list_", is_flag=True, help="List the claims (id, tier, tolerance, doc line) and exit.")
+def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check_docs: bool, record_: bool,
+           json_out: str | None, cache: str | None, list_: bool) -> None:
+    """Rerun the numbers the docs state (claims/, docs/claims.md) and compare with the recorded ones.
+
+    Exit 0 when every selected claim holds within its tolerance, every verdict computed from the
+    values measured now is the doc's, and the docs' marked tables are what the registry renders."""
+    from claims.registry import record, registry
+    from claims.render import doc_drift, write_docs
+    from claims.runner import SourceCache, kernel_set, locate, rerun, verdict_changes
+
+    reg = registry()
+    where = locate(reg.claims, reg.tables)
+    if list_:
+        for c in reg.claims.values():
+            click.echo(f"{c.id}\t{reg.tier(c)}\t{c.tol.describe()}\t{where.get(c.id, '-')}\t{c.what}")
+        return
+    if write:
+        for doc in write_docs(reg.tables, reg.claims):
+            click.echo(f"rewrote {doc}")
+        return
+    drift = doc_drift(reg.tables, reg.claims)
+    for d in drift:
+        click.echo(f"DOC  {d}")
+    if check_docs:
+        sys.exit(1 if drift else 0)
+    tiers = _tiers(quick, all_, study, bench)
+    kset = kernel_set()
+    click.echo(f"claims: tiers {', '.join(tiers)}; kernels {kset}", err=True)
+    sc = SourceCache(reg.sources, Path(cache) if cache else None, lambda s: click.echo(s, err=True))
+    outs = rerun(reg.select(tiers), sc)
+    measured = {o.claim.id: o.measured for o in outs if o.measured is not None}
+    bad = 0
+    for o in outs:
+        c = o.claim
+        flag = "ok  " if o.ok else "FAIL"
+        bad += not o.ok
+        got = o.error or c.render(o.measured, None)
+        click.echo(f"{flag} {c.id}: {got} (recorded {c.render()}, {c.tol.describe()}; alt {c.render(c.alt) if c.alt is not None else '-'}) "
+                   f"{where.get(c.id, '')}")
+    changes = verdict_changes(reg.tables, reg.claims, measured)
+    for ch in changes:
+        click.echo(f"VERDICT {ch}")
+    if json_out:
+        Path(json_out).write_text(json.dumps({"kernels": kset, "source_wall_s": sc.wall_s, "claims": {
+            o.claim.id: {"measured": o.measured, "recorded": o.claim.value, "ok": o.ok, "error": o.error}
+            for o in outs}}, indent=1, default=list))
+    if record_:
+        record(measured, "value" if kset == "default" else "alt", kset)
+        click.echo(f"recorded {len(measured)} values ({'value' if kset == 'default' else 'alt'})", err=True)
+        return
+    n = len(outs)
+    click.echo(f"{n - bad} of {n} claims hold; {len(changes)} verdict changes; {len(drift)} doc tables drifted",
+               err=True)
+    sys.exit(1 if bad or changes or drift else 0)

@@ -1,0 +1,55 @@
+"""Which doc tables must be claims tables (issue 24), and the explicit list of those not yet covered.
+
+A required table is named by its doc and the heading it sits under. It is covered when the registry
+renders it (`table` = its marker id). `NOT_YET` lists the tables that are not, each with why; the
+test `tests/test_claims.py` fails if a listed table gets a marker (move it out of the list) or a
+required table is neither covered nor listed, so the list can only shrink honestly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Required:
+    doc: str
+    heading: str  # the heading line the table sits under (as written, without the #s)
+    table: str | None  # marker id when covered
+    why_not: str = ""  # when not covered yet: what it takes
+
+
+STUDY = "its runs take hours (study tier); not yet registered"
+BENCH = "timings (bench tier); not yet registered"
+
+REQUIRED: tuple[Required, ...] = (
+    Required("docs/paper002-reproduction.md", "Results", "paper002-results"),
+    Required("docs/paper002-reproduction.md", "Navigation noise (section 5, Figs. 30-31): `runs/sweep-noise`",
+             "paper002-noise"),
+    Required("docs/paper002-reproduction.md", "Navigation noise (section 5, Figs. 30-31): `runs/sweep-noise`",
+             "paper002-noise-seeds"),
+    Required("docs/paper002-reproduction.md", "How dV depends on the initial dispersion (Table 1 is missing)",
+             "paper002-dispersion"),
+    Required("docs/paper002-reproduction.md", "How dV depends on the initial dispersion (Table 1 is missing)",
+             "paper002-draws"),
+    Required("docs/paper000-reproduction.md", "The paper's claims against the measurements", None,
+             STUDY + " (550 s cases, ~17 min each, three seeds per case)"),
+    Required("docs/paper000.md", "Paper vs measured", None, STUDY + " (550 s at 0.05 s, three policies)"),
+    Required("docs/paper000.md", "Case (i) over the link, 550 s", None, STUDY + " (multi-process, 550 s)"),
+    Required("docs/paper001.md", "Paper vs measured", None, STUDY + " (11 releases x 3 readings, 32,000 s at 1 s)"),
+    Required("docs/paper001.md", "The claims table, checked on the stack (full tersoff-6, seed 1, 5 s steps, 40,000 s)",
+             None, STUDY + " (40,000 s on the stack)"),
+    Required("docs/paper003.md", "Paper's numbers vs measured", None, "four 300 s closed loops (tier all); not yet"),
+    Required("docs/paper003.md", "Target tracking (leader only, `… test_p003_closed_loop.py tt`)", None,
+             "ten 300 s leader loops (tier all); not yet"),
+    Required("docs/paper004.md", "The paper's numbers against this implementation", "paper004-numbers"),
+    Required("docs/performance.md", "Where the time of an in-process run goes", None, BENCH),
+    Required("docs/reliability.md", "Lockstep does not depend on load", None, BENCH),
+)
+
+NOT_YET = tuple(r for r in REQUIRED if r.table is None)
+
+# Sources whose claims are recorded with the default kernels only (a new module's, while its
+# other-kernel runs are pending); tests/test_claims.py accepts them without `alt` and fails once
+# one is measured, so the list only shrinks. `swarmhil claims --all --record` under
+# OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3 fills them.
+ALT_PENDING: tuple[str, ...] = ()  # all measured (2026-12-03)

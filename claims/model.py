@@ -1,0 +1,194 @@
+"""The claims registry's types: a claim, the tolerance it is checked with, and the doc tables it fills.
+
+A **claim** is one number (or one short list of identifiers) a doc states: the function that
+computes it from a named **source** (a run or a computation, cached so that several claims share
+one run), the value recorded here, the value under the other kernel set (docs/claims.md "Two
+kernel sets") and the tolerance chosen from their spread. A **table** is the markdown table a doc
+includes between `<!-- claims:ID -->` and `<!-- /claims -->`: each cell is a template whose numbers
+are `{claim-id}` placeholders, and the verdict cell is computed from the values, never typed.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+Value = float | int | str | tuple[str, ...]
+Values = Mapping[str, Value]
+TIERS = ("quick", "all", "study", "bench")  # seconds, minutes (system tests), hours (not CI), timings
+
+
+@dataclass(frozen=True)
+class Tol:
+    """How far a rerun may land from the recorded value: |measured - recorded| <= abs + rel*|recorded|.
+
+    Strings and identifier lists must match exactly. `shape_only` (bench timings on the shared
+    machine): only that a finite number of the right kind was measured."""
+
+    abs: float = 0.0
+    rel: float = 0.0
+    shape_only: bool = False
+    auto: bool = False  # resolved by the registry: max(3 |value - alt|, half a unit of the printed digit)
+
+    def holds(self, measured: Value, recorded: Value) -> bool:
+        """Whether `measured` stands for `recorded` (never when nothing was recorded)."""
+        if recorded is None:
+            return False
+        if isinstance(recorded, (str, tuple)):
+            return measured == recorded
+        if not isinstance(measured, (int, float)) or isinstance(measured, bool) or not math.isfinite(measured):
+            return False
+        if self.shape_only:
+            return True
+        return abs(float(measured) - float(recorded)) <= self.abs + self.rel * abs(float(recorded)) + 1e-12
+
+    def describe(self) -> str:
+        if self.shape_only:
+            return "presence and shape only"
+        if self.auto:
+            return "auto (not resolved)"
+        parts = ([f"±{self.abs:g}"] if self.abs else []) + ([f"±{100 * self.rel:g} %"] if self.rel else [])
+        return " + ".join(parts) or "exact"
+
+
+@dataclass(frozen=True)
+class Source:
+    """A named computation whose result (a flat dict of JSON values) several claims share.
+
+    `run(get)` is pure in its inputs (scenario, options); `get(name)` gives another source's result
+    (a derived source, e.g. a sweep made of runs). The runner caches results per kernel set."""
+
+    name: str
+    tier: str
+    run: Callable[[Callable[[str], dict[str, Any]]], dict[str, Any]]
+    what: str  # the command that regenerates it, for the docs and the runner's report
+
+    def __post_init__(self) -> None:
+        if self.tier not in TIERS:
+            raise ValueError(f"source {self.name}: tier {self.tier!r} not in {TIERS}")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One number a doc states, with what regenerates it and how closely.
+
+    value: recorded on the reference machine (AMD EPYC, AVX2) with its default kernels; alt: the
+    same under `OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3` (None: not measured,
+    e.g. bench timings); tol chosen from |value - alt| with a margin (docs/claims.md)."""
+
+    id: str
+    source: str
+    compute: Callable[[Mapping[str, Any]], Value]
+    tol: Tol
+    what: str  # what the number is, in words
+    fmt: str = ".3g"  # format spec of the value in the doc (str.format mini-language)
+    value: Value | None = None  # filled from claims/recorded.json by the registry
+    alt: Value | None = None
+
+    def render(self, v: Value | None = None, spec: str | None = None) -> str:
+        """The value as the doc prints it."""
+        v = self.value if v is None else v
+        if v is None:
+            return "(not recorded)"
+        if isinstance(v, tuple):
+            return ", ".join(v) if v else "none"
+        if isinstance(v, str):
+            return v
+        return number(v, spec or self.fmt)
+
+
+def number(v: float | int, spec: str) -> str:
+    """A number as the docs print it: str.format's spec, thousands with a space (`,` in the spec),
+    exponents short (1.4e9, not 1.4e+09); `s3` = three significant digits with thousands spaced."""
+    if isinstance(v, float) and math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    if spec == "s3":
+        v = float(f"{v:.3g}")
+        spec = ",.0f" if abs(v) >= 1000 else ".3g"
+    out = format(v, spec).replace(",", " ")
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + ("-" if m.group(1) == "-" else "") + m.group(2), out)
+
+
+def half_digit(value: float, spec: str) -> float:
+    """Half a unit of the last digit `spec` prints of `value`: the smallest change the doc shows."""
+    v = abs(float(value))
+    if spec == "s3":
+        spec = ".3g"
+    m = re.search(r"\.(\d+)([fge])", spec)
+    if m is None:
+        return 0.5  # integers ('d', ',.0f' without decimals)
+    n, kind = int(m.group(1)), m.group(2)
+    if kind == "f":
+        return 0.5 * 10.0 ** -n
+    if v == 0.0 or not math.isfinite(v):
+        return 0.0
+    return 0.5 * 10.0 ** (math.floor(math.log10(v)) - max(n, 1) + 1)
+
+
+def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, margin: float = 3.0) -> Tol:
+    """An `auto` tolerance made concrete: max(margin x the measured cross-kernel spread, half a unit
+    of the doc's last printed digit), so the kernels' spread passes and any change the doc would
+    show fails."""
+    if not tol.auto or not isinstance(value, (int, float)):
+        return tol
+    spread = abs(float(value) - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
+    return Tol(abs=max(tol.abs, margin * spread, half_digit(float(value), spec)), rel=tol.rel)
+
+
+PLACEHOLDER = re.compile(r"\{([a-z0-9][a-z0-9_.\-]*)(?::([^{}]*))?\}")
+NUMBER = re.compile(r"(?<![A-Za-z0-9_.])\d+(?:[.,]\d+)*")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One table row: a template per column. Numbers in the measured columns come from
+    `{claim-id}` or `{claim-id:spec}` placeholders only, except those listed in `params` (thresholds
+    and times that define what is measured, e.g. the '5' of 'below 5 m'); `verdict` computes the
+    verdict cell from the claims' values."""
+
+    cells: tuple[str, ...]
+    verdict: Callable[[Values], str] | None = None
+    params: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Table:
+    """A doc table regenerated from the registry: doc path, marker id, header, rows.
+
+    `measured`: the indices of the columns whose numbers must all be claims (the paper's own figure
+    and the claim's wording are not measured)."""
+
+    id: str
+    doc: str
+    header: tuple[str, ...]
+    rows: tuple[Row, ...]
+    measured: tuple[int, ...]
+    verdict_col: int | None = None
+    align: tuple[str, ...] = field(default=())
+
+    def placeholders(self) -> list[str]:
+        """The claim ids this table uses, in order of appearance."""
+        out: list[str] = []
+        for row in self.rows:
+            for cell in row.cells:
+                out += [m.group(1) for m in PLACEHOLDER.finditer(cell) if m.group(1) not in out]
+        return out
+
+
+def literal_numbers(template: str) -> list[str]:
+    """The numbers written in a template outside its placeholders (sc07, Fig. 10 and x^2 excepted:
+    a number glued to a letter or following 'Fig. ' is a name)."""
+    text = PLACEHOLDER.sub(" ", template)
+    text = re.sub(r"Figs?\.\s*\d+(?:\s*[-–,]\s*\d+)*", " ", text)
+    text = re.sub(r"\^\d+", " ", text)
+    return [m.group(0) for m in NUMBER.finditer(text)]
+
+
+def check_row_numbers(row: Row, measured: Sequence[int]) -> list[str]:
+    """Literal numbers in the measured columns that are not declared parameters."""
+    bad: list[str] = []
+    for i in measured:
+        if i < len(row.cells):
+            bad += [n for n in literal_numbers(row.cells[i]) if n not in row.params]
+    return bad

@@ -1,0 +1,90 @@
+"""The one claims registry: every module's sources, claims and tables, with the recorded values.
+
+Recorded values live in claims/recorded.json, `{claim id: {"value": ..., "alt": ..., "kernel_alt":
+...}}`, written by `swarmhil claims --all --record` (value, default kernels) and by the same under
+the other kernel set (alt). Tolerances are in the modules, chosen from |value - alt| (docs/claims.md).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from functools import lru_cache
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from claims.model import Claim, Source, Table, resolve_tol
+
+RECORDED = Path(__file__).resolve().parent / "recorded.json"
+
+
+def modules() -> list[ModuleType]:
+    """The registry's modules, one per doc or paper."""
+    from claims import paper002, paper004
+
+    return [paper002, paper004]
+
+
+def _value(v: Any) -> Any:
+    return tuple(v) if isinstance(v, list) else v
+
+
+def read_recorded(path: Path = RECORDED) -> dict[str, dict[str, Any]]:
+    """claims/recorded.json ({} when absent)."""
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+@dataclasses.dataclass(frozen=True)
+class Registry:
+    sources: dict[str, Source]
+    claims: dict[str, Claim]
+    tables: dict[str, Table]
+
+    def tier(self, claim: Claim) -> str:
+        return self.sources[claim.source].tier
+
+    def select(self, tiers: tuple[str, ...]) -> list[Claim]:
+        return [c for c in self.claims.values() if self.tier(c) in tiers]
+
+
+@lru_cache(maxsize=1)
+def registry() -> Registry:
+    """All modules merged, recorded values attached; duplicate ids and dangling references refused."""
+    rec = read_recorded()
+    sources: dict[str, Source] = {}
+    claims: dict[str, Claim] = {}
+    tables: dict[str, Table] = {}
+    for m in modules():
+        for s in m.SOURCES:
+            if s.name in sources:
+                raise ValueError(f"source {s.name} twice")
+            sources[s.name] = s
+        for c in m.CLAIMS:
+            if c.id in claims:
+                raise ValueError(f"claim {c.id} twice")
+            r = rec.get(c.id, {})
+            value, alt = _value(r.get("value")), _value(r.get("alt"))
+            claims[c.id] = dataclasses.replace(c, value=value, alt=alt, tol=resolve_tol(c.tol, value, alt, c.fmt))
+        for t in m.TABLES:
+            if t.id in tables:
+                raise ValueError(f"table {t.id} twice")
+            tables[t.id] = t
+    for c in claims.values():
+        if c.source not in sources:
+            raise ValueError(f"claim {c.id}: no source {c.source}")
+    for t in tables.values():
+        for k in t.placeholders():
+            if k not in claims:
+                raise ValueError(f"table {t.id}: no claim {k}")
+    return Registry(sources, claims, tables)
+
+
+def record(measured: dict[str, Any], field: str, kernel: str, path: Path = RECORDED) -> None:
+    """Merge measured values into claims/recorded.json as `value` (default kernels) or `alt`."""
+    rec = read_recorded(path)
+    for k, v in measured.items():
+        e = rec.setdefault(k, {})
+        e[field] = list(v) if isinstance(v, tuple) else v
+        if field == "alt":
+            e["kernel_alt"] = kernel
+    path.write_text(json.dumps(dict(sorted(rec.items())), indent=1) + "\n")
