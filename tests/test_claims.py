@@ -116,6 +116,7 @@ def test_quick_claims_hold_and_keep_their_verdicts():
 
 
 @pytest.mark.system
+@pytest.mark.timeout(2400)  # ~10-12 min on a quiet machine; pyproject's 600 s default would stop it
 def test_all_claims_hold():
     """`swarmhil claims --all`: the minutes-long sources (paper 002's noise runs, ...)."""
     res = subprocess.run([sys.executable, "-m", "deploy.cli", "claims", "--all"], cwd=ROOT, capture_output=True,
