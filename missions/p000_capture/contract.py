@@ -144,7 +144,6 @@ def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
     return surface_frame(ell, p_m)[0]
 
 
-
 def surface_landmarks(semi_axes_m: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
     """`count` points spread over the surface (Fibonacci directions scaled), with outward normals,
     in the principal frame: the plant's landmark set (the sensor of `p000-landmarks`) and the
