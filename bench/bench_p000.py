@@ -29,7 +29,7 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
     uniform in a 12 m box about its centre; and the true ellipsoid."""
     from scipy.spatial.transform import Rotation
 
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, surface_landmarks
+    from missions.p000_capture.contract import Ellipsoid, surface_landmarks
 
     rng = np.random.default_rng(seed)
     rot = Rotation.random(random_state=seed).as_matrix()
@@ -44,7 +44,7 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
 def bench_fits(fits: int, outliers: float) -> dict[str, float]:
     """Median wall time [s] of a cold GNC-TLS fit and of a track update, half case (i), half case (ii)
     shapes; and the fraction of cold fits whose sorted axes are within 2 %."""
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid
+    from missions.p000_capture.contract import Ellipsoid
     from agent.missions.p000_capture.gnc_tls import gnc_tls_fit, track_fit
 
     cold, track, ok = [], [], 0

@@ -123,7 +123,7 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
     its centroid and worst sorted-axis errors, its speed toward the true surface (normal component,
     relative to the target's motion) and its nearest neighbour; plus, over every chase step of every
     agent, the error of the estimated distance (estimated − true) and the largest inward speed."""
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, surface_frame
+    from missions.p000_capture.contract import Ellipsoid, surface_frame
     from dashboards.sections.p000 import axes_error, centroid_error, pair_distance, read_capture, target_axes
     from dashboards.truth_io import read_truth
     from plant.sensing.p000 import dcm

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from agent.missions.p000_capture import quaternion as quat
-from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance
+from missions.p000_capture.contract import Ellipsoid, signed_distance
 
 
 def initial_state(n: int, semi_axes_m, seed: int, r_buffer_m: float = 1.0,

@@ -54,7 +54,7 @@ def test_each_process_role_imports_only_what_it_needs(tmp_path: Path) -> None:
     assert any((tmp_path / "cache").glob("dre-*.npz"))  # filled by the launcher, read by the agents
 
 
-PROJECT = {"agent", "plant", "bus", "link", "deploy", "dashboards", "tests", "conftest"}
+PROJECT = {"agent", "plant", "bus", "link", "deploy", "dashboards", "missions", "tests", "conftest"}
 
 
 def test_no_private_imports_from_dependencies() -> None:

@@ -8,7 +8,7 @@ spacecraft attitudes from the raw Truth messages (standard mcap reader); each ag
 from summary.json["channel"]; from ctx.config the target's semi-axes and the controller's params
 (controller.params merged with each spacecraft's params, as deploy/scenario.py).
 
-Signed distances use the room's closest-point routine (agent/missions/p000_capture/ellipsoid.py) on
+Signed distances use the room's closest-point routine (missions/p000_capture/contract.py) on
 the TRUE target. The pure functions here (`surface_distance`, `chase_entry`, `link_by_type`,
 `pair_distance`) are also what tests/missions/test_p000_stack.py computes its figures with.
 """
@@ -134,7 +134,7 @@ def surface_distance(pos: np.ndarray, target_pos: np.ndarray, target_q: np.ndarr
                      rows: np.ndarray | None = None) -> np.ndarray:
     """(len(rows), N) signed distance of every spacecraft to the TRUE target surface (negative inside),
     with the room's closest-point routine."""
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance
+    from missions.p000_capture.contract import Ellipsoid, signed_distance
     from plant.sensing.p000 import dcm
 
     rows = np.arange(len(pos)) if rows is None else rows

@@ -4,7 +4,7 @@ Applies to runs flown with controller `p004-lbdnn`. Everything comes from the re
 servicers from ctx.truth (dashboards/truth_io.py, scenario frame = the defunct craft's LVLH for
 deploy/scenarios/servicing-6.toml), the defunct craft from the raw Truth messages of ctx.mcap (a
 body, not a spacecraft), the graph / C_i / b_i from the controller's params in ctx.config
-(agent/missions/p004_lbdnn/config.py mission_from_params), link bytes from summary.json's channel
+(missions/p004_lbdnn/contract.py mission_from_params), link bytes from summary.json's channel
 totals.
 
 Metrics (`summary.json["metrics"]["p004-servicing"]`): the tracking errors ‖e_i‖ = ‖q0 − q_i‖
@@ -118,7 +118,7 @@ def _servicers(config: dict[str, Any], ids: list[str]) -> list[str]:
 
 
 def _mission(config: dict[str, Any]):
-    from agent.missions.p004_lbdnn.config import mission_from_params
+    from missions.p004_lbdnn.contract import mission_from_params
 
     return mission_from_params(dict((config.get("controller") or {}).get("params") or {}))
 

@@ -1,34 +1,33 @@
 """Sensing kind `p000-landmarks` (paper 000 §2.2, §3.2.2): what a capture agent measures.
 
-For every spacecraft j, one Measurements message with the obs.extra keys of
-agent/missions/p000_capture/sensing.py (names as the room reads them; units in the names where
-there are units):
+For every spacecraft j, one Measurements message with the names of the room's contract
+(missions/p000_capture/contract.py, which the flight software reads with), here as measured:
 
-    p000_q_body_to_lvlh   (4,)   own attitude, scalar first, body -> CW frame. Stands for a star
-                                 tracker: the plant flies attitude in an inertial frame aligned with
-                                 the CW frame at t = 0 (plant/mission_world.py), so the sensor reports
-                                 q_z(-n t) (x) q_body_to_inertial (the CW frame turns at n about +z).
-    p000_omega_body_radps (3,)   own body rate (a gyro: the inertial rate, body axes).
-    p000_position_m       (3,)   own position in the CW frame centred on the target's initial
-    p000_velocity_mps     (3,)   position; stands for precise relative navigation (e.g. carrier-phase
-                                 differential GNSS to the frame's origin), ideal: the truth row minus
-                                 the target's initial position (0 in the scenarios).
-    p000_landmarks_body_m (K, 3) landmark returns in the body (sensor) frame: the target's surface
-                                 landmarks (Fibonacci set, fixed in the target body frame) that face
-                                 the sensor, lie within `range_m` (R_l) and inside the full cone
-                                 `fov_full_deg` about body +x; Gaussian noise `noise_m` per axis; a
-                                 binomial `outlier_fraction` of the returns replaced by points uniform
-                                 in the cone out to R_l.
-    p000_landmark_ids     (K,)   landmark index, -1 for an outlier.
-    p000_surface_rel_m    (3,)   agent -> closest point of the true surface (CW frame), present only
-                                 within `proximity_range_m` (R_h).
+    p000_q_body_to_lvlh   own attitude, body -> CW frame. Stands for a star tracker: the plant flies
+                          attitude in an inertial frame aligned with the CW frame at t = 0
+                          (plant/mission_world.py), so the sensor reports q_z(-n t) (x)
+                          q_body_to_inertial (the CW frame turns at n about +z).
+    p000_omega_body_radps own body rate (a gyro: the inertial rate, body axes).
+    p000_position_m       own position and velocity in the CW frame centred on the target's initial
+    p000_velocity_mps     position; stands for precise relative navigation (e.g. carrier-phase
+                          differential GNSS to the frame's origin), ideal: the truth row minus
+                          the target's initial position (0 in the scenarios).
+    p000_landmarks_body_m landmark returns in the body (sensor) frame: the target's surface
+                          landmarks (Fibonacci set, fixed in the target body frame) that face
+                          the sensor, lie within `range_m` (R_l) and inside the full cone
+                          `fov_full_deg` about body +x; Gaussian noise `noise_m` per axis; a
+                          binomial `outlier_fraction` of the returns replaced by points uniform
+                          in the cone out to R_l.
+    p000_landmark_ids     landmark index, -1 for an outlier.
+    p000_surface_rel_m    agent -> closest point of the true surface (CW frame), present only
+                          within `proximity_range_m` (R_h).
 
 Neighbours within `neighbour_range_m` (R_h) go in msg.neighbours (truth relative states; they
 become Observation.rel_*). The noise of agent j at step k comes from a generator seeded by
 ([run].seed, NOISE_TAG, k, j): the draws do not depend on the order in which the plant asks.
 This is the synthetic sensor of tests/missions/test_p000_closed_loop.py, on the plant's truth.
-The landmark set and the closest surface point use the room's geometry
-(agent/missions/p000_capture/ellipsoid.py: pure geometry, no flight-software state).
+The landmark set and the closest surface point use the contract's geometry (pure functions; the
+plant imports no flight software: docs/architecture.md "Mission rooms (issue 25)").
 """
 from __future__ import annotations
 
@@ -39,10 +38,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
+from missions.p000_capture import contract as c
 from plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p000-landmarks"
-PREFIX = "p000_"
 NOISE_TAG = 0x0C0
 
 
@@ -108,8 +107,6 @@ class P000LandmarkKind:
     message = pb.Measurements
 
     def __init__(self, scenario: Any) -> None:
-        from agent.missions.p000_capture.ellipsoid import surface_landmarks
-
         self.p = P000Params.model_validate(scenario.sensing.get("params", {}))
         body = next((b for b in scenario.bodies if b.id == self.p.target_id), None)
         if body is None:
@@ -124,21 +121,17 @@ class P000LandmarkKind:
             raise ValueError("p000-landmarks reports attitude: every [[spacecraft]] needs inertia_kgm2")
         self.semi_axes = np.asarray(body.shape.semi_axes_m, float)
         self.origin = np.asarray(body.motion.position_m, float)
-        self.lm_body, self.nrm_body = surface_landmarks(self.semi_axes, self.p.landmarks)
+        self.lm_body, self.nrm_body = c.surface_landmarks(self.semi_axes, self.p.landmarks)
         self.seed = int(scenario.seed)
 
     def _step_truth(self, ctx: SensingContext) -> dict[str, Any]:
-        from agent.missions.p000_capture.ellipsoid import Ellipsoid
-
         bt = next(b for b in ctx.world.body_truth() if b.spec.id == self.p.target_id)
         rot = dcm(bt.attitude_q)
         q, w = ctx.world.attitude_wxyz()
-        return {"ell": Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
+        return {"ell": c.Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
                 "nrm": self.nrm_body @ rot.T, "q": q, "w": w, "n": float(ctx.world.n_radps)}
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
-        from agent.missions.p000_capture.ellipsoid import surface_frame
-
         p = self.p
         tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
         msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
@@ -155,13 +148,13 @@ class P000LandmarkKind:
         rot = dcm(q_cw)
         rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
         ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
-        add_measurement(msg, PREFIX + "q_body_to_lvlh", q_cw)
-        add_measurement(msg, PREFIX + "omega_body_radps", tr["w"][j])
-        add_measurement(msg, PREFIX + "position_m", r - self.origin)
-        add_measurement(msg, PREFIX + "velocity_mps", vel[j])
-        add_measurement(msg, PREFIX + "landmarks_body_m", (ret @ rot).reshape(-1, 3))
-        add_measurement(msg, PREFIX + "landmark_ids", ids.astype(float))
-        sd, x_s, _ = surface_frame(tr["ell"], r)
+        add_measurement(msg, c.Q_BODY_TO_LVLH, q_cw)
+        add_measurement(msg, c.OMEGA_BODY_RADPS, tr["w"][j])
+        add_measurement(msg, c.POSITION_M, r - self.origin)
+        add_measurement(msg, c.VELOCITY_MPS, vel[j])
+        add_measurement(msg, c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3))
+        add_measurement(msg, c.LANDMARK_IDS, ids.astype(float))
+        sd, x_s, _ = c.surface_frame(tr["ell"], r)
         if sd <= p.proximity_range_m:
-            add_measurement(msg, PREFIX + "surface_rel_m", x_s - r)
+            add_measurement(msg, c.SURFACE_REL_M, x_s - r)
         return msg

@@ -12,11 +12,13 @@ agent/missions/p004_lbdnn/sensing.py). Positions are the plant's inertial propag
 `[[body]]` named by `defunct_id` (propagated).
 
 One source of truth for the graph, C_i and b_i: the servicer's own controller parameters
-(`Scenario.controller_of(id)`, parsed by the room's `mission_from_params`, exactly as the
-flight software parses them); `[sensing.params]` holds only the sensor: the defunct craft's id and
-the noise. Noise: white Gaussian, `noise_std_m` per component (paper: sqrt(0.5) m), drawn by
-`measurement_noise` from a generator seeded by ([run].seed, step, spacecraft index), so a draw does
-not depend on the order in which the plant asks for the stimuli. A dead neighbour is not measured.
+(`Scenario.controller_of(id)`, parsed by `mission_from_params` of the room's contract,
+missions/p004_lbdnn/contract.py, exactly as the flight software parses them; the names `KEY_D`,
+`KEY_Y` and `CONTROLLER` come from there too); `[sensing.params]` holds only the sensor: the
+defunct craft's id and the noise. Noise: white Gaussian, `noise_std_m` per component (paper:
+sqrt(0.5) m), drawn by `measurement_noise` from a generator seeded by ([run].seed, step, spacecraft
+index), so a draw does not depend on the order in which the plant asks for the stimuli. A dead
+neighbour is not measured.
 """
 from __future__ import annotations
 
@@ -28,12 +30,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
+from missions.p004_lbdnn.contract import CONTROLLER, KEY_D, KEY_Y, ServicerConfig, mission_from_params
 from plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p004-partial"
-CONTROLLER = "p004-lbdnn"
-D_NAME = "p004.d_m"   # subject: the neighbour's id
-Y_NAME = "p004.y_m"   # subject: the defunct craft's id
 NOISE_TAG = 0x004
 
 
@@ -52,10 +52,8 @@ def measurement_noise(seed: int, step: int, index: int, n_neighbours: int, m_row
     return rng.normal(0.0, std_m, (n_neighbours, 3)), rng.normal(0.0, std_m, m_rows)
 
 
-def servicer_configs(scenario: Any) -> dict[str, Any]:
+def servicer_configs(scenario: Any) -> dict[str, ServicerConfig]:
     """{id: ServicerConfig} of every spacecraft flown by p004-lbdnn, from its own controller params."""
-    from agent.missions.p004_lbdnn.config import mission_from_params
-
     out = {}
     for sid in scenario.ids:
         name, params = scenario.controller_of(sid)
@@ -100,8 +98,8 @@ class P004PartialKind:
                                              cfg.c_matrix.shape[0], self.p.noise_std_m)
         for k, nb in enumerate(cfg.neighbours):
             if alive.get(nb, False):
-                add_measurement(msg, D_NAME, r[row[nb]] - q_i + d_noise[k], nb)
+                add_measurement(msg, KEY_D, r[row[nb]] - q_i + d_noise[k], nb)
         if cfg.b:
             y = cfg.c_matrix @ (r[row[self.p.defunct_id]] - q_i) + y_noise
-            add_measurement(msg, Y_NAME, y, self.p.defunct_id)
+            add_measurement(msg, KEY_Y, y, self.p.defunct_id)
         return msg

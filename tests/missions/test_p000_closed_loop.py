@@ -19,9 +19,9 @@ from agent.controller import Observation, OrbitInfo
 from agent.missions.p000_capture import payload as pl
 from agent.missions.p000_capture import quaternion as quat
 from agent.missions.p000_capture.controller import CaptureController
-from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 from agent.missions.p000_capture.params import CaptureParams
 from agent.missions.p000_capture.sensing import CaptureSensing
+from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 
 N_RADPS = float(np.sqrt(3.986004418e14 / 6878137.0 ** 3))  # 500 km circular LEO
 SETTLE_S = 20.0  # estimate errors are scored for agents in chase at least this long

@@ -35,7 +35,7 @@ FIGURES = ("p000_paths3d.png", "p000_surface.png", "p000_pairs.png", "p000_messa
 def recompute(run: dict) -> dict:
     """The section's headline metrics from the recording, written out independently."""
     from agent.missions.p000_capture import quaternion as quat
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance
+    from missions.p000_capture.contract import Ellipsoid, signed_distance
     from plant.sensing.p000 import dcm, inertial_to_cw
 
     doc = tomllib.loads(CASE_I.read_text())

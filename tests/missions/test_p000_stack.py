@@ -120,8 +120,8 @@ def test_sensing_kind_measures_what_the_room_reads() -> None:
     from bus.codec import measurements_to_dict
     from deploy.scenario import ScenarioError, load_scenario
     from agent.missions.p000_capture import quaternion as quat
-    from agent.missions.p000_capture.ellipsoid import Ellipsoid, signed_distance, surface_landmarks
     from agent.missions.p000_capture.sensing import CaptureSensing
+    from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_landmarks
     from plant.sensing import make_sensing
     from plant.sensing.p000 import dcm, inertial_to_cw
 

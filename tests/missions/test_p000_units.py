@@ -13,8 +13,7 @@ from agent.missions.p000_capture import quaternion as quat
 from agent.missions.p000_capture.apf import apf_force, apf_potential, buffer_force
 from agent.missions.p000_capture.attitude import desired_attitude, pointing_error_rad, pointing_torque
 from agent.missions.p000_capture.chase import chase_force
-from agent.missions.p000_capture.ellipsoid import (Ellipsoid, buffer_slot, closest_point, closest_point_principal,
-                                                   signed_distance, surface_landmarks)
+from agent.missions.p000_capture.ellipsoid import buffer_slot, closest_point
 from agent.missions.p000_capture.estimate import TargetEstimate, consensus
 from agent.missions.p000_capture.gnc_tls import gnc_tls_fit
 from agent.missions.p000_capture.limits import saturate_norm
@@ -22,6 +21,7 @@ from agent.missions.p000_capture.modes import bounce_force, next_mode
 from agent.missions.p000_capture.params import CaptureParams
 from agent.missions.p000_capture.sensing import CaptureSensing
 from agent.missions.p000_capture.trigger import TriggerSettings, fires, threshold
+from missions.p000_capture.contract import Ellipsoid, closest_point_principal, signed_distance, surface_landmarks
 
 
 def brute_closest(p: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -27,8 +27,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from agent.controller import Observation, make_controller, OrbitInfo
-from agent.missions.p004_lbdnn.config import SERVICERS, MissionConfig, mission_from_params
 from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
+from missions.p004_lbdnn.contract import SERVICERS, MissionConfig, mission_from_params
 
 MU = 3.986004418e14
 R_E = 6378137.0

@@ -101,8 +101,8 @@ def test_sensing_kind_measures_neighbours_and_the_defunct_craft_in_eci() -> None
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
     from deploy.scenario import ScenarioError, load_scenario
-    from agent.missions.p004_lbdnn.config import PAPER_C
     from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
+    from missions.p004_lbdnn.contract import PAPER_C
     from plant.mission_world import MissionWorld
     from plant.sensing import SensingContext, make_sensing
     from plant.sensing.p004 import measurement_noise

@@ -9,8 +9,8 @@ import pytest
 
 from agent.controller import Observation, OrbitInfo, make_controller
 from agent.missions.p004_lbdnn import adaptation, lbdnn, observer, packet, rho_filter
-from agent.missions.p004_lbdnn.config import Gains, MissionConfig, mission_from_params
-from agent.missions.p004_lbdnn.sensing import KEY_Y, DefunctMeasurement
+from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
+from missions.p004_lbdnn.contract import KEY_Y, Gains, MissionConfig, mission_from_params
 
 ORBIT = OrbitInfo(semi_major_axis_m=6878137.0, mean_motion_radps=1.1e-3)
 

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, Transmission, register
+from missions.p000_capture.contract import signed_distance, surface_frame
 
 from . import payload as pl
 from . import quaternion as quat
 from .apf import apf_force, buffer_force
 from .attitude import desired_attitude, pointing_torque, rate_damping_torque
 from .chase import chase_force
-from .ellipsoid import signed_distance, surface_frame
 from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, track_fit
 from .limits import saturate_norm

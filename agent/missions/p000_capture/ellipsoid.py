@@ -1,97 +1,14 @@
-"""Ellipsoid geometry: shape matrix, closest surface point, signed distance, buffer slot.
+"""The flight software's own ellipsoid geometry: closest surface point and buffer slot (eq. 14).
 
-An ellipsoid is (centre c, shape matrix M) with surface (x−c)ᵀM(x−c) = 1 and M = R diag(a⁻²) Rᵀ;
-R's columns are the principal axes in LVLH, a the semi-axes. The buffer slot is the closest
-surface point pushed out along the outward normal (paper 000 eq. 14).
+The ellipsoid itself, the closest-point solve, the signed distance and the landmark set are shared
+with the plant and live in the room's contract (missions/p000_capture/contract.py). The buffer slot
+is the closest surface point pushed out along the outward normal (paper 000 eq. 14).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-
-@dataclass(frozen=True)
-class Ellipsoid:
-    centre_m: np.ndarray      # (3,) LVLH
-    rotation: np.ndarray      # (3, 3) principal axes (columns) in LVLH
-    semi_axes_m: np.ndarray   # (3,)
-
-    @property
-    def shape_matrix(self) -> np.ndarray:
-        return self.rotation @ np.diag(self.semi_axes_m ** -2.0) @ self.rotation.T
-
-    @classmethod
-    def from_shape_matrix(cls, centre_m: np.ndarray, shape: np.ndarray) -> "Ellipsoid":
-        """Principal axes from M; raises if M is not positive definite (not an ellipsoid)."""
-        sym = 0.5 * (shape + shape.T)
-        eig, vec = np.linalg.eigh(sym)
-        if eig[0] <= 0.0:
-            raise ValueError(f"shape matrix is not positive definite: eigenvalues {eig}")
-        return cls(np.asarray(centre_m, dtype=float), vec, eig ** -0.5)
-
-
-def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 80) -> np.ndarray:
-    """Closest point on x²/a₀²+y²/a₁²+z²/a₂² = 1 to p, all in the principal frame.
-
-    The stationary points are x_k = a_k² p_k/(a_k² + t). The root of Σ(a_k p_k/(a_k²+t))² = 1 on
-    t > −min a_k² is the answer for a general point, but when p has a zero component along an
-    axis whose t = −a_k² pole is reached (an interior point on a principal plane), the answer is
-    off that branch: x_k = ±a_k √(1 − Σ_{j≠k} (x_j/a_j)²) with x_j = a_j² p_j/(a_j² − a_k²)
-    (NOTES-000: the closest point to (3.5, 0, 0) on (4, 1.3, 1) is not the tip). Every candidate
-    is computed and the nearest kept.
-    """
-    p = np.asarray(p, dtype=float)
-    a = np.asarray(a, dtype=float)
-    sign = np.where(p < 0.0, -1.0, 1.0)
-    y = np.abs(p)
-    a2 = a * a
-    scale = float(np.max(a))
-    tiny = 1e-12 * scale
-    cands: list[np.ndarray] = []
-
-    ay = [float(a[k] * y[k]) for k in range(3)]
-    aa = [float(a2[k]) for k in range(3)]
-
-    def f(t: float) -> float:  # python floats: bisection calls this ~50 times
-        return ((ay[0] / (aa[0] + t)) ** 2 + (ay[1] / (aa[1] + t)) ** 2 + (ay[2] / (aa[2] + t)) ** 2) - 1.0
-
-    lo = -float(np.min(a2))
-    lo_eps = lo + 1e-15 * max(1.0, abs(lo))
-    if f(lo_eps) > 0.0:
-        hi = max(0.0, float(np.sqrt(sum(v * v for v in ay))))  # f(hi) <= 0
-        while f(hi) > 0.0:
-            hi = 2.0 * hi + 1.0
-        lo_b = lo_eps
-        for _ in range(iters):
-            mid = 0.5 * (lo_b + hi)
-            if f(mid) > 0.0:
-                lo_b = mid
-            else:
-                hi = mid
-            if hi - lo_b <= 1e-13 * max(1.0, abs(hi)):
-                break
-        t = 0.5 * (lo_b + hi)
-        cands.append(a2 * y / (a2 + t))
-    for k in range(3):
-        if y[k] > tiny:
-            continue
-        others = [j for j in range(3) if j != k]
-        if any(abs(a2[j] - a2[k]) < 1e-15 for j in others):
-            continue
-        x = np.zeros(3)
-        for j in others:
-            x[j] = a2[j] * y[j] / (a2[j] - a2[k])
-        rest = 1.0 - sum((x[j] / a[j]) ** 2 for j in others)
-        if rest >= 0.0:
-            x[k] = a[k] * np.sqrt(rest)
-            cands.append(x)
-    if not cands:  # p at the centre of a sphere-like degenerate case: the smallest-axis tip
-        x = np.zeros(3)
-        x[int(np.argmin(a))] = float(np.min(a))
-        cands.append(x)
-    best = min(cands, key=lambda c: float(np.linalg.norm(c - y)))
-    return sign * best
+from missions.p000_capture.contract import Ellipsoid, closest_point_principal
 
 
 def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -103,37 +20,7 @@ def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 
-def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """(signed distance, closest point x_s, outward normal n) in one closest-point solve."""
-    p = np.asarray(p_m, dtype=float)
-    local = ell.rotation.T @ (p - ell.centre_m)
-    x = closest_point_principal(local, ell.semi_axes_m)
-    n = x / ell.semi_axes_m ** 2
-    n = n / np.linalg.norm(n)
-    d = float(np.linalg.norm(local - x))
-    inside = float(np.sum((local / ell.semi_axes_m) ** 2)) < 1.0
-    return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
-
-
-def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
-    """Euclidean distance to the surface, negative inside."""
-    return surface_frame(ell, p_m)[0]
-
-
 def buffer_slot(ell: Ellipsoid, p_m: np.ndarray, r_buffer_m: float) -> np.ndarray:
     """x_g = x_s + R_buffer n (eq. 14): the agent's slot on the buffer shell."""
     x_s, n = closest_point(ell, p_m)
     return x_s + r_buffer_m * n
-
-
-def surface_landmarks(semi_axes_m: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """`count` points spread over the surface (Fibonacci directions scaled), with outward normals,
-    in the principal frame: a landmark model for tests and for a plant sensing kind."""
-    i = np.arange(count) + 0.5
-    phi = np.arccos(1.0 - 2.0 * i / count)
-    theta = np.pi * (1.0 + 5.0 ** 0.5) * i
-    u = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
-    a = np.asarray(semi_axes_m, dtype=float)
-    pts = u * a
-    normals = pts / a ** 2
-    return pts, normals / np.linalg.norm(normals, axis=1, keepdims=True)

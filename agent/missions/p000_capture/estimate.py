@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ellipsoid import Ellipsoid
+from missions.p000_capture.contract import Ellipsoid
 
 
 @dataclass

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from .ellipsoid import Ellipsoid
+from missions.p000_capture.contract import Ellipsoid
 
 
 @dataclass(frozen=True)

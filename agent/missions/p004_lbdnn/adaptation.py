@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agent.missions.p004_lbdnn.config import Gains
+from missions.p004_lbdnn.contract import Gains
 
 
 def adaptation_direction(jac: np.ndarray, zeta_hat: np.ndarray, eta: np.ndarray, theta_i: np.ndarray,

@@ -24,11 +24,9 @@ import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, Transmission, register
 from agent.missions.p004_lbdnn import adaptation, lbdnn, observer, packet, rho_filter
-from agent.missions.p004_lbdnn.config import ServicerConfig, mission_from_params
 from agent.missions.p004_lbdnn.control_law import control
 from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
-
-CONTROLLER_NAME = "p004-lbdnn"
+from missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
 
 
 @dataclass(frozen=True)
@@ -48,13 +46,13 @@ class InternalState:
 class LbdnnServicer:
     """One servicer (paper 004 §4.2), behind the Controller protocol."""
 
-    name = CONTROLLER_NAME
+    name = CONTROLLER
 
     def __init__(self, cfg: ServicerConfig, weight_bytes: int = 4) -> None:
         self.cfg = cfg
         self.g = cfg.gains
         self.weight_bytes = weight_bytes
-        p = cfg.n_params
+        p = lbdnn.n_params()
         self.theta = (lbdnn.kaiming_init(np.random.default_rng(cfg.weight_seed))
                       if cfg.use_network else np.zeros(p))
         self.eta_hat = np.zeros(3)
@@ -105,7 +103,7 @@ class LbdnnServicer:
             except ValueError:
                 self.rejected_packets += 1
                 continue
-            if pkt.step < self._rx_step.get(msg.src, -1) or pkt.theta.size != self.cfg.n_params:
+            if pkt.step < self._rx_step.get(msg.src, -1) or pkt.theta.size != lbdnn.n_params():
                 continue
             self._rx_step[msg.src] = pkt.step
             self._u_nb[msg.src] = pkt.accel_mps2
@@ -176,9 +174,10 @@ class LbdnnServicer:
                        transmissions=[Transmission(type=packet.PACKET_TYPE, payload=payload)])
 
 
-@register(CONTROLLER_NAME)
+@register(CONTROLLER)
 def make_servicer(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LbdnnServicer:
-    """Scenario factory: the `[controller]` table describes the whole network (config.py)."""
+    """Scenario factory: the `[controller]` table describes the whole network (the room's contract,
+    missions/p004_lbdnn/contract.py `mission_from_params`)."""
     params = dict(params)
     weight_bytes = int(params.pop("weight_bytes", 4))
     return LbdnnServicer(mission_from_params(params).servicer(sc_id), weight_bytes=weight_bytes)

@@ -6,7 +6,8 @@ the stack, as named arrays `obs.extra["p004.d_m/<j>"]` (the plant's sensing kind
 plant/sensing/p004.py; `neighbour_positions`); both in **inertial axes** (ECI), the frame of the
 Cartesian reading of paper 004 (NOTES-004), and so is the commanded acceleration. The partial
 measurement of the defunct craft y_i = C_i (q0 - q_i) (eq. 10), for servicers with b_i = 1,
-arrives in `obs.extra` under `KEY_Y` (or `KEY_Y + "/<defunct id>"` from the sensing kind).
+arrives in `obs.extra` under `KEY_Y` (or `KEY_Y + "/<defunct id>"` from the sensing kind). The
+names are the room's contract (missions/p004_lbdnn/contract.py).
 """
 from __future__ import annotations
 
@@ -15,12 +16,11 @@ from typing import Any
 
 import numpy as np
 
-KEY_Y = "p004.y_m"
-"""y_i = C_i (q0 - q_i) + noise, (m_i,) metres, inertial axes; absent when not measured."""
+from missions.p004_lbdnn.contract import KEY_D, KEY_Y
+
 KEY_Y_VALID = "p004.y_valid"
-"""bool: y_i is a fresh measurement at this step (False or absent: no line of sight)."""
-KEY_D = "p004.d_m"
-"""d_ij = q_j - q_i + noise, (3,) metres, inertial axes: obs.extra[f"{KEY_D}/{j}"] per neighbour j."""
+"""bool: y_i is a fresh measurement at this step (False or absent: no line of sight). Written by the
+in-process test loops (`DefunctMeasurement.to_extra`), not by the plant's sensing kind."""
 
 
 def neighbour_positions(extra: dict[str, Any]) -> dict[str, np.ndarray]:

@@ -1,4 +1,20 @@
-"""Typed configuration of paper 004's servicers: gains, output matrices C_i, b_i, graph.
+"""Paper 004's contract: what the plant's sensing kind and the servicers' flight software share.
+
+Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
+plant/sensing/p004.py (the sensor `p004-partial`), agent/missions/p004_lbdnn/ (the flight
+software) and the paper's report (dashboards/sections/p004.py). docs/architecture.md "Mission rooms
+(issue 25)".
+
+**Names.** `CONTROLLER` is the name the flight software registers and the sensing kind looks for
+(the servicers it measures for). The measurements arrive in `Observation.extra` as named arrays
+(bus/codec.py add_measurement, "<name>/<subject>"), in inertial axes (ECI), metres:
+
+    "p004.d_m/<j>"       d_ij = q_j - q_i + noise, (3,), one per graph neighbour j (eq. 9)
+    "p004.y_m/<defunct>" y_i = C_i (q0 - q_i) + noise, (m_i,), when b_i = 1 (eq. 10)
+
+**Parameter model** of the `[controller.params]` of p004-lbdnn: gains, output matrices C_i, b_i and
+the graph (`mission_from_params`). The plant reads the graph, C_i and b_i from the same parameters
+the flight software flies with, so there is one source of truth for them.
 
 The paper's values (§6): k1..k5 = 0.65, k6 = 1e-4, Gamma_i = 0.01 I_103, the six C_i printed
 in §6. Not given, chosen here (docs/paper004.md): the graph (Fig. 1 is missing: a ring
@@ -12,7 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from agent.missions.p004_lbdnn.lbdnn import LAYER_SIZES, n_params
+CONTROLLER = "p004-lbdnn"
+"""The servicers' controller name (registered by agent/missions/p004_lbdnn/controller.py)."""
+KEY_D = "p004.d_m"
+"""d_ij = q_j - q_i + noise, (3,) metres, inertial axes: obs.extra[f"{KEY_D}/{j}"] per neighbour j (eq. 9)."""
+KEY_Y = "p004.y_m"
+"""y_i = C_i (q0 - q_i) + noise, (m_i,) metres, inertial axes; subject: the defunct craft's id (eq. 10)."""
 
 PAPER_C: dict[str, tuple[tuple[float, ...], ...]] = {
     "s1": ((1.5124, -1.8904, 0.6818),),
@@ -80,10 +101,6 @@ class ServicerConfig:
             raise ValueError(f"{self.sc_id}: rk4_substeps must be >= 1, got {self.rk4_substeps}")
         if self.max_accel_mps2 is not None and not self.max_accel_mps2 > 0.0:
             raise ValueError(f"{self.sc_id}: max_accel_mps2 must be > 0 or None, got {self.max_accel_mps2}")
-
-    @property
-    def n_params(self) -> int:
-        return n_params(LAYER_SIZES)
 
     @property
     def ctc(self) -> np.ndarray:

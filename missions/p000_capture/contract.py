@@ -1,0 +1,158 @@
+"""Paper 000's contract: what the plant's sensing kind and the capture flight software share.
+
+Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
+plant/sensing/p000.py (the sensor, on the truth), agent/missions/p000_capture/ (the flight
+software), and the paper's report and seeds (dashboards/sections/p000.py, dashboards/p000_sweep.py,
+deploy/p000_seeds.py). docs/architecture.md "Mission rooms (issue 25)".
+
+**Measurement names** (paper 000 §2.2, §3.2.2): the plant sends one `swarmhil.v1.Measurements` per
+spacecraft and step; the agent reads the named arrays as `Observation.extra[name]`:
+
+    p000_q_body_to_lvlh   (4,)   own attitude, scalar first, body -> CW (LVLH) frame
+    p000_omega_body_radps (3,)   own body rate, body axes
+    p000_position_m       (3,)   own position in the CW frame centred on the target's initial position
+    p000_velocity_mps     (3,)   own velocity in that frame
+    p000_landmarks_body_m (K, 3) landmark returns in the body (sensor) frame; may hold outliers
+    p000_landmark_ids     (K,)   landmark ids, -1 for returns that are not a landmark (outliers)
+    p000_surface_rel_m    (3,)   agent -> closest point of the true target surface, CW frame, present
+                                 only within R_h (proximity sensing)
+
+Neighbours' relative states come in the message's neighbour rows (Observation.rel_*).
+
+**Geometry** (pure functions of numpy arrays): an ellipsoid is (centre c, shape matrix M) with
+surface (x−c)ᵀM(x−c) = 1 and M = R diag(a⁻²) Rᵀ; R's columns are the principal axes in LVLH, a the
+semi-axes. The plant uses it for the true surface (landmark set, proximity return), the flight
+software for its estimate (fit, closest point, buffer slot of eq. 14 in
+agent/missions/p000_capture/ellipsoid.py), the report for the signed distance to the true surface.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+PREFIX = "p000_"
+"""The prefix of every measurement name of paper 000."""
+Q_BODY_TO_LVLH = PREFIX + "q_body_to_lvlh"
+OMEGA_BODY_RADPS = PREFIX + "omega_body_radps"
+POSITION_M = PREFIX + "position_m"
+VELOCITY_MPS = PREFIX + "velocity_mps"
+LANDMARKS_BODY_M = PREFIX + "landmarks_body_m"
+LANDMARK_IDS = PREFIX + "landmark_ids"
+SURFACE_REL_M = PREFIX + "surface_rel_m"
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """Centre c, principal axes R (columns, LVLH) and semi-axes a: M = R diag(a⁻²) Rᵀ."""
+
+    centre_m: np.ndarray      # (3,) LVLH
+    rotation: np.ndarray      # (3, 3) principal axes (columns) in LVLH
+    semi_axes_m: np.ndarray   # (3,)
+
+    @property
+    def shape_matrix(self) -> np.ndarray:
+        return self.rotation @ np.diag(self.semi_axes_m ** -2.0) @ self.rotation.T
+
+    @classmethod
+    def from_shape_matrix(cls, centre_m: np.ndarray, shape: np.ndarray) -> "Ellipsoid":
+        """Principal axes from M; raises if M is not positive definite (not an ellipsoid)."""
+        sym = 0.5 * (shape + shape.T)
+        eig, vec = np.linalg.eigh(sym)
+        if eig[0] <= 0.0:
+            raise ValueError(f"shape matrix is not positive definite: eigenvalues {eig}")
+        return cls(np.asarray(centre_m, dtype=float), vec, eig ** -0.5)
+
+
+def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 80) -> np.ndarray:
+    """Closest point on x²/a₀²+y²/a₁²+z²/a₂² = 1 to p, all in the principal frame.
+
+    The stationary points are x_k = a_k² p_k/(a_k² + t). The root of Σ(a_k p_k/(a_k²+t))² = 1 on
+    t > −min a_k² is the answer for a general point, but when p has a zero component along an
+    axis whose t = −a_k² pole is reached (an interior point on a principal plane), the answer is
+    off that branch: x_k = ±a_k √(1 − Σ_{j≠k} (x_j/a_j)²) with x_j = a_j² p_j/(a_j² − a_k²)
+    (NOTES-000: the closest point to (3.5, 0, 0) on (4, 1.3, 1) is not the tip). Every candidate
+    is computed and the nearest kept.
+    """
+    p = np.asarray(p, dtype=float)
+    a = np.asarray(a, dtype=float)
+    sign = np.where(p < 0.0, -1.0, 1.0)
+    y = np.abs(p)
+    a2 = a * a
+    scale = float(np.max(a))
+    tiny = 1e-12 * scale
+    cands: list[np.ndarray] = []
+
+    ay = [float(a[k] * y[k]) for k in range(3)]
+    aa = [float(a2[k]) for k in range(3)]
+
+    def f(t: float) -> float:  # python floats: bisection calls this ~50 times
+        return ((ay[0] / (aa[0] + t)) ** 2 + (ay[1] / (aa[1] + t)) ** 2 + (ay[2] / (aa[2] + t)) ** 2) - 1.0
+
+    lo = -float(np.min(a2))
+    lo_eps = lo + 1e-15 * max(1.0, abs(lo))
+    if f(lo_eps) > 0.0:
+        hi = max(0.0, float(np.sqrt(sum(v * v for v in ay))))  # f(hi) <= 0
+        while f(hi) > 0.0:
+            hi = 2.0 * hi + 1.0
+        lo_b = lo_eps
+        for _ in range(iters):
+            mid = 0.5 * (lo_b + hi)
+            if f(mid) > 0.0:
+                lo_b = mid
+            else:
+                hi = mid
+            if hi - lo_b <= 1e-13 * max(1.0, abs(hi)):
+                break
+        t = 0.5 * (lo_b + hi)
+        cands.append(a2 * y / (a2 + t))
+    for k in range(3):
+        if y[k] > tiny:
+            continue
+        others = [j for j in range(3) if j != k]
+        if any(abs(a2[j] - a2[k]) < 1e-15 for j in others):
+            continue
+        x = np.zeros(3)
+        for j in others:
+            x[j] = a2[j] * y[j] / (a2[j] - a2[k])
+        rest = 1.0 - sum((x[j] / a[j]) ** 2 for j in others)
+        if rest >= 0.0:
+            x[k] = a[k] * np.sqrt(rest)
+            cands.append(x)
+    if not cands:  # p at the centre of a sphere-like degenerate case: the smallest-axis tip
+        x = np.zeros(3)
+        x[int(np.argmin(a))] = float(np.min(a))
+        cands.append(x)
+    best = min(cands, key=lambda c: float(np.linalg.norm(c - y)))
+    return sign * best
+
+
+def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """(signed distance, closest point x_s, outward normal n) in one closest-point solve."""
+    p = np.asarray(p_m, dtype=float)
+    local = ell.rotation.T @ (p - ell.centre_m)
+    x = closest_point_principal(local, ell.semi_axes_m)
+    n = x / ell.semi_axes_m ** 2
+    n = n / np.linalg.norm(n)
+    d = float(np.linalg.norm(local - x))
+    inside = float(np.sum((local / ell.semi_axes_m) ** 2)) < 1.0
+    return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
+
+
+def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
+    """Euclidean distance to the surface, negative inside."""
+    return surface_frame(ell, p_m)[0]
+
+
+def surface_landmarks(semi_axes_m: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """`count` points spread over the surface (Fibonacci directions scaled), with outward normals,
+    in the principal frame: the plant's landmark set (the sensor of `p000-landmarks`) and the
+    test loops' synthetic sensor."""
+    i = np.arange(count) + 0.5
+    phi = np.arccos(1.0 - 2.0 * i / count)
+    theta = np.pi * (1.0 + 5.0 ** 0.5) * i
+    u = np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
+    a = np.asarray(semi_axes_m, dtype=float)
+    pts = u * a
+    normals = pts / a ** 2
+    return pts, normals / np.linalg.norm(normals, axis=1, keepdims=True)
