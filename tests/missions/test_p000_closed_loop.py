@@ -239,10 +239,12 @@ def test_closed_loop_ten_agents_capture_case_i() -> None:
     20–34 s, 3 more at ~96 s; axes within 1 %; event broadcasts ≈ 0.12 of every step."""
     res = run_capture(duration_s=100.0, dt_s=0.1, seed=1, params={"perception_period_s": 2.0})
     print(report(res, "case i, 100 s, dt 0.1"))
-    # worst centre error measured 0.03 m (default kernels) and 0.039 m (OPENBLAS_CORETYPE=Sandybridge
-    # NPY_DISABLE_CPU_FEATURES=X86_V3) on an AVX2 machine: bound 0.08 m, 2x the larger (was 0.2 m);
-    # worst axes error 1.1 % / 1.3 % against the paper's 2 %
-    check_paper_outcome(res, min_out_of_search=7, min_settled=7, centre_max_m=0.08)
+    # worst centre error measured on an AVX2 machine 0.030 m and 0.039 m (its own kernels and
+    # OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3), and 0.087 m with the initial
+    # attitudes normalised by math.hypot instead of BLAS (last bits only: the loop is chaotic,
+    # docs/determinism.md): bound 0.15 m, 1.7x the largest (was 0.2 m); worst axes error 1.1-1.3 %
+    # against the paper's 2 %
+    check_paper_outcome(res, min_out_of_search=7, min_settled=7, centre_max_m=0.15)
 
 
 @pytest.mark.system
