@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, SCENARIOS
+from conftest import ROOT, SCENARIOS, read_mcap, weakly_connected_by_hand
 from system_tools import require_module
 
 SCENARIO = str(SCENARIOS / "sabatini-20.toml")
@@ -45,6 +45,25 @@ def _single_run(seed: int, out: Path) -> dict:
     return summary_row(json.loads((out / "summary.json").read_text()))
 
 
+def _connected_fraction(out: Path) -> float:
+    """Share of truth steps whose camera visibility digraph is weakly connected, recounted with the
+    plant's visibility rule and the test's own union-find."""
+    import numpy as np
+
+    from deploy.scenario import load_scenario
+    from plant.sensors import CameraGeometry, visibility_matrix
+
+    cam = CameraGeometry(**load_scenario(SCENARIO).camera)
+    conn = []
+    for topic, _l, _p, m in read_mcap(out / "run.mcap"):
+        if topic == "truth":
+            pos = np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in m.bodies])
+            vis = visibility_matrix(pos, cam, np.array([b.alive for b in m.bodies]))
+            conn.append(weakly_connected_by_hand(len(pos), zip(*np.nonzero(vis))))
+    assert len(conn) == int(CAMPAIGN_S / 10.0) + 1
+    return float(np.mean(conn))
+
+
 def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
     require_module("dask.distributed")
     import pyarrow.parquet as pq
@@ -64,7 +83,10 @@ def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
         compared = [k for k in single if k.startswith(("metrics.", "delta_v")) and not k.startswith("metrics.camera")]
         assert len(compared) > 30 and "metrics.closest_approach.all_pairs.distance_m" in compared
         assert {k: r[k] for k in compared} == {k: single[k] for k in compared}  # exactly: same truth
-        assert 0.0 <= r["metrics.connectivity.weakly_connected_fraction"] <= 1.0
+        # the connectivity the row holds, recounted from the single run's truth (the rows' equality
+        # above says nothing if both paths compute it wrongly)
+        assert r["metrics.connectivity.weakly_connected_fraction"] == pytest.approx(
+            _connected_fraction(tmp_path / f"single{s}"), abs=1e-12)
     assert len({rows[s]["delta_v_total_mps"] for s in seeds}) == 4  # the seeds draw different swarms
     table = pq.read_table(tmp_path / "c" / "campaign.parquet").to_pylist()
     assert [t["seed"] for t in table] == seeds
