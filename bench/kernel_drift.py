@@ -32,6 +32,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 ALTERNATE_KERNELS = {"OPENBLAS_CORETYPE": "Sandybridge", "NPY_DISABLE_CPU_FEATURES": "X86_V3"}
 """The other kernel set this machine can run (an AVX2 machine: OpenBLAS's pre-FMA kernels and numpy's
@@ -50,27 +51,12 @@ def run_truth(scenario: str, duration_s: float, out: Path, env_extra: dict[str, 
         raise SystemExit(f"kernel_drift: {' '.join(cmd)} failed ({p.returncode}): {p.stderr[-2000:]}")
 
 
-def truth_positions(run_dir: Path) -> tuple[np.ndarray, list[str], np.ndarray]:
-    """(t_s (K,), spacecraft ids, positions (K, N, 3)) of a run's recorded truth."""
-    from dashboards.frames import read_frames
-
-    tr = read_frames(run_dir / "run.mcap")["truth"]
-    tr = tr[tr["kind"] == "spacecraft"]
-    ids = sorted(tr["id"].unique())
-    steps = np.sort(tr["step"].unique())
-    pos = np.full((len(steps), len(ids), 3), np.nan)
-    row = {k: i for i, k in enumerate(steps)}
-    col = {s: j for j, s in enumerate(ids)}
-    for k, sid, x, y, z in tr[["step", "id", "x_m", "y_m", "z_m"]].itertuples(index=False):
-        pos[row[k], col[sid]] = (x, y, z)
-    t = tr.drop_duplicates("step").set_index("step").loc[steps, "t_s"].to_numpy()
-    return t, ids, pos
-
-
 def drift(a: Path, b: Path, checkpoints_s: list[float]) -> dict:
     """Position differences between the truths of runs a and b (same scenario and length)."""
-    ta, ids_a, pa = truth_positions(a)
-    tb, ids_b, pb = truth_positions(b)
+    from truth_checksums import truth_arrays
+
+    ta, ids_a, pa, _ = truth_arrays(a)
+    tb, ids_b, pb, _ = truth_arrays(b)
     if ids_a != ids_b or len(ta) != len(tb):
         raise ValueError(f"{a} and {b} do not hold the same spacecraft and steps")
     d = np.linalg.norm(pa - pb, axis=2).max(axis=1)  # (K,) worst spacecraft per step

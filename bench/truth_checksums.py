@@ -19,6 +19,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
@@ -43,10 +45,9 @@ REFERENCE_ROWS = 61
 """Steps a reference keeps: every one of a 10 min run at 10 s steps; evenly strided for longer runs."""
 
 
-def truth_reference(run_dir: Path) -> dict:
-    """{"t_s": [...], "ids": [...], "position_m": K x N x 3, "velocity_mps": K x N x 3} of a run's
-    spacecraft truth, in step order (dashboards/frames.py reads the recording), at most
-    REFERENCE_ROWS steps (the first, every stride-th, the last)."""
+def truth_arrays(run_dir: Path) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
+    """(t_s (K,), spacecraft ids, positions (K, N, 3), velocities (K, N, 3)) of a run's recorded
+    spacecraft truth, in step order (dashboards/frames.py reads the recording)."""
     from dashboards.frames import read_frames
 
     tr = read_frames(run_dir / "run.mcap")["truth"]
@@ -55,7 +56,14 @@ def truth_reference(run_dir: Path) -> dict:
     k = tr["step"].nunique()
     pos = tr[["x_m", "y_m", "z_m"]].to_numpy().reshape(k, len(ids), 3)
     vel = tr[["vx_mps", "vy_mps", "vz_mps"]].to_numpy().reshape(k, len(ids), 3)
-    t = tr.drop_duplicates("step")["t_s"].to_numpy()
+    return tr.drop_duplicates("step")["t_s"].to_numpy(), ids, pos, vel
+
+
+def truth_reference(run_dir: Path) -> dict:
+    """{"t_s": [...], "ids": [...], "position_m": K x N x 3, "velocity_mps": K x N x 3} of a run's
+    spacecraft truth, at most REFERENCE_ROWS steps (the first, every stride-th, the last)."""
+    t, ids, pos, vel = truth_arrays(run_dir)
+    k = len(t)
     keep = sorted(set(range(0, k, -(-k // REFERENCE_ROWS))) | {k - 1})
     return {"t_s": t[keep].tolist(), "ids": ids, "position_m": pos[keep].tolist(), "velocity_mps": vel[keep].tolist()}
 
