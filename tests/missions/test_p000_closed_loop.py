@@ -9,6 +9,7 @@ the true surface within R_h; neighbours within R_h; broadcasts delivered within 
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -247,10 +248,17 @@ def test_closed_loop_ten_agents_capture_case_i() -> None:
     check_paper_outcome(res, min_out_of_search=7, min_settled=7, centre_max_m=0.15)
 
 
+@functools.lru_cache(maxsize=1)
+def case_i_paper_run() -> RunResult:
+    """Case (i) as the paper (10 agents, 550 s at dt = 0.05 s, seed 1), flown once per pytest session:
+    two system tests read it, and it is the longest part of their CI time."""
+    return run_capture(duration_s=550.0, dt_s=0.05, seed=1)
+
+
 @pytest.mark.system
 def test_system_case_i_550s_paper_step() -> None:
     """Case (i) as the paper: 10 agents, 550 s at dt = 0.05 s, governed chase, event trigger."""
-    res = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
+    res = case_i_paper_run()
     print(report(res, "case i, 550 s, dt 0.05"))
     check_paper_outcome(res, min_out_of_search=10, min_settled=10)
     assert res.state_broadcasts < res.chase_agent_steps * res.dt_s  # fewer than 1 Hz periodic
@@ -260,7 +268,7 @@ def test_system_case_i_550s_paper_step() -> None:
 @pytest.mark.system
 def test_system_case_i_periodic_baseline_sends_more() -> None:
     """The same seed with the 1 Hz periodic broadcast: the link carries more state packets."""
-    event = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
+    event = case_i_paper_run()
     periodic = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"broadcast": "periodic"})
     print(report(event, "event"), report(periodic, "periodic 1 Hz"), sep="\n")
     assert event.state_broadcasts < periodic.state_broadcasts
