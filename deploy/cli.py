@@ -24,6 +24,7 @@ def _bad_file_errors() -> tuple[type[BaseException], ...]:
 
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_MEMORY, EXIT_INTERNAL = 0, 1, 2, 3, 70  # docs/cli.md "Exit codes"
+EXIT_DIVERGED = 5  # `refly --exit-code`: the re-flown commands differ from the recorded ones
 _VERBOSE = 0
 
 
@@ -346,6 +347,41 @@ def demo(ctx: click.Context, out: str, in_process: bool) -> None:
     click.echo(f"  open it with:           {viewer if viewer.exists() else 'rerun'} {rrd}")
     click.echo(f"its report (figures):     {page}")
     click.echo(f"  open it with:           python3 -m webbrowser {page.as_uri()}")
+
+
+@main.command()
+@click.argument("run_path", metavar="RUN", type=click.Path(exists=True, file_okay=False))
+@click.option("--agent", "sid", required=True, metavar="ID", help="The spacecraft whose flight software is re-flown.")
+@click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
+              help="Change the scenario before building the agent, as `run --set` (e.g. a gain); repeatable.")
+@click.option("--until", "until_s", type=float, metavar="SECONDS", help="Stop after this simulated time.")
+@click.option("--out", "out", type=click.Path(file_okay=False),
+              help="Where the difference table and figure go (default RUN/refly-<ID>).")
+@click.option("--exit-code", is_flag=True, help="Exit 5 when the re-flown commands differ from the recorded ones.")
+def refly(run_path: str, sid: str, sets: tuple[str, ...], until_s: float | None, out: str | None,
+          exit_code: bool) -> None:
+    """Re-fly one agent of the run in directory RUN alone on its recorded stimuli and link deliveries; compare
+    every command with the recorded one and print the first divergence (docs/hil.md)."""
+    from deploy.refly import ReflyConfigError, ReflyError, agent_config_of, read_recorded, refly as refly_agent, write_outputs
+    from deploy.cli_inputs import check_run_dir
+    from deploy.scenario import ScenarioError
+
+    check_run_dir(run_path)
+    try:
+        rec = read_recorded(run_path, sid)
+    except ReflyError as exc:  # not a recording of this agent's inputs: 1
+        _fail(str(exc), EXIT_FAILED)
+    try:
+        res = refly_agent(rec, agent_config_of(rec, sets), until_s)
+    except (ScenarioError, ReflyConfigError) as exc:  # a --set the scenario or the controller refuses: 2
+        _fail(str(exc), EXIT_USAGE)
+    out_dir = Path(out) if out else Path(run_path) / f"refly-{sid}"
+    files = write_outputs(res, out_dir)
+    click.echo(res.verdict())
+    click.echo(f"re-flown in {res.wall_s:.1f} s wall ({res.steps / max(res.wall_s, 1e-9):.0f} steps/s); "
+               f"wrote {', '.join(str(f) for f in files)}")
+    if exit_code and res.diffs:
+        sys.exit(EXIT_DIVERGED)
 
 
 from deploy.cli_report import report as _report_cmd; main.add_command(_report_cmd)  # noqa: E402,E702

@@ -109,6 +109,7 @@ def _run_dir_cases() -> list:
         "report": lambda p, f: ["report", p],
         "report-bandwidth": lambda p, f: ["report-bandwidth", p],
         "report-nav": lambda p, f: ["report-nav", p, "--out", str(f["d"] / "nav")],
+        "refly": lambda p, f: ["refly", p, "--agent", "sc01", "--out", str(f["d"] / "refly")],
     }
     kinds = {"missing": ("no_run", "missing_run", 2), "a file": ("empty_mcap", "empty.mcap", 2),
              "no run.mcap": ("not_run", "has no run.mcap", 1), "empty": ("empty_run", "run.mcap is empty", 1),

@@ -52,6 +52,19 @@ def test_camera_scenario_24h_multiprocess_lockstep(name: str, tmp_path: Path) ->
     assert (tmp_path / "run" / "run.mcap").stat().st_size > 0
     if "filter" in name:  # issue 4's goal, against ideal sensing over the same span, measured here
         _check_filter_against_ideal(tmp_path, duration)
+        _check_refly(tmp_path / "run", "sc07")
+
+
+def _check_refly(run_dir: Path, sid: str) -> None:
+    """`swarmhil refly` (issue 26) on this multi-process recording: the agent's camera, EKF and
+    controller re-flown alone reproduce its every command bit for bit; the wall is printed."""
+    from deploy.refly import agent_config_of, read_recorded, refly
+
+    t0 = time.monotonic()
+    rec = read_recorded(run_dir, sid)
+    res = refly(rec, agent_config_of(rec))
+    print(f"refly {sid}: {res.verdict()}; read and re-flown in {time.monotonic() - t0:.0f} s wall")
+    assert res.diffs == [] and res.steps == len(rec.acts) > 0
 
 
 def _check_filter_against_ideal(tmp_path: Path, duration: float) -> None:
