@@ -295,7 +295,10 @@ def mcap_info(src: str) -> None:
 @click.option("--image", default="swarmhil:latest", show_default=True)
 @click.option("--router-host", "router_hosts", multiple=True, metavar="ADDRESS",
               help="The router's address as other hosts dial it (repeatable): named in its TLS certificate.")
-def compose(scenario: str, out: str, run_id: str | None, image: str, router_hosts: tuple[str, ...]) -> None:
+@click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
+              help="Override any scenario field (repeatable; value parsed as TOML), validated like the file (as `run --set`).")
+def compose(scenario: str, out: str, run_id: str | None, image: str, router_hosts: tuple[str, ...],
+            sets: tuple[str, ...]) -> None:
     """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
     containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
     from deploy.compose import write_compose
@@ -303,7 +306,7 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
     from deploy.scenario import ScenarioError, load_scenario
 
     try:
-        sc = load_scenario(scenario)
+        sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
     from bus.keys import check_token

@@ -99,6 +99,8 @@ def test_dockerfile_is_hardened() -> None:
     lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     assert "|| true" not in text
     base = next(ln for ln in lines if ln.startswith("FROM ")).split()[1]
+    if base == "${BASE}":  # the base is a build argument (offline builds on a local image); its default is checked
+        base = next(ln for ln in lines if ln.startswith("ARG BASE=")).split("=", 1)[1]
     assert "@sha256:" in base or re.fullmatch(r"python:\d+\.\d+\.\d+-slim-\w+", base), base  # a patch release or a digest
     user = [ln for ln in lines if ln.startswith("USER ")]
     assert user and user[-1].split()[1].split(":")[0] not in ("root", "0")
@@ -152,3 +154,18 @@ def test_compose_services_run_together_as_plain_processes(tmp_path: Path) -> Non
     assert sum(t == "truth" for t, *_ in msgs) == 11
     assert any(t == "event" and m.kind == "run_end" for t, _l, _p, m in msgs)
     assert any(t.startswith("isl/rx/") for t, *_ in msgs)  # the link channel delivered
+
+
+def test_compose_set_overrides_like_run(tmp_path: Path) -> None:
+    """`swarmhil compose --set` (issue 28): applied to the document every container reads, validated like
+    `run --set` (one line, exit 2)."""
+    out, _doc = _project(tmp_path, "sabatini-20-beacon.toml", "c2", "--set", "run.duration_s=120", "--set",
+                        "link.loss_probability=0.25")
+    resolved = json.loads((out.parent / "scenario.json").read_text())
+    assert resolved["doc"]["run"]["duration_s"] == 120 and resolved["doc"]["link"]["loss_probability"] == 0.25
+    assert resolved["sets"] == ["run.duration_s=120", "link.loss_probability=0.25"]
+    r = subprocess.run([sys.executable, "-m", "deploy.cli", "compose", str(SCENARIOS / "drift-20.toml"), "--out",
+                        str(tmp_path / "bad" / "compose.yml"), "--set", "run.duration_s=-5"],
+                       cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "duration_s" in r.stderr and not (tmp_path / "bad" / "compose.yml").exists()
