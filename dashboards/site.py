@@ -1,8 +1,9 @@
 """The report site of a run (issue 18): RUN/report/ with one page per section, all from one Jinja2
 template set (dashboards/templates/), linked from RUN/report/index.html by a bar on every page.
 
-- index.html: the mission metrics (headline table), paper 002's figures for its controllers and
-  every registered mission section that applies (dashboards/sections/), and the list of pages;
+- index.html: the overview every run has (headline table: dV, closest approach, link traffic,
+  events), then every registered mission section that applies (dashboards/sections/; paper 002's
+  metrics and figures are its section p002.py), and the list of pages;
 - navigation.html when agents reported navigation (tracks or decisions in their telemetry);
 - bandwidth.html when the run had a link (isl or link/stats topics);
 - events.html: the event log;
@@ -71,9 +72,30 @@ def line_figure(out: Path, spec: LineFigure, png: str, caption: str, interactive
     return f
 
 
-def figures_of(out: Path, pairs: list[tuple[str, str]]) -> list[SiteFigure]:
-    """(PNG name, caption) pairs of the mission sections and navreport as SiteFigures."""
-    return [static_figure(out, f, c) for f, c in pairs if f]
+def figures_of(out: Path, pairs: list[Any]) -> list[SiteFigure]:
+    """(PNG name, caption) pairs of the mission sections and navreport as SiteFigures; a SiteFigure
+    (a section's interactive figure) is kept as it is."""
+    return [f if isinstance(f, SiteFigure) else static_figure(out, *f) for f in pairs
+            if isinstance(f, SiteFigure) or f[0]]
+
+
+def traffic_rows(fr: dict[str, Any]) -> list[tuple[str, str]]:
+    """The overview's link traffic and events of a run (frames of dashboards/frames.py): the
+    channel's counters at its last LinkStats sample, summed as link/model.py `totals` does
+    (transmitters' own rows "*" sent, the others delivered or dropped), and the events by kind."""
+    link = fr["link"]
+    if len(link):
+        last = link[link["step"] == link["step"].max()]
+        tx, rx = last[last["dst"] == "*"], last[last["dst"] != "*"]
+        traffic = (f"{int(tx['messages'].sum())} messages sent ({int(tx['payload_bytes'].sum())} B payload), "
+                   f"{int(rx['messages'].sum())} delivered; dropped: {int(rx['dropped_range'].sum())} out of range, "
+                   f"{int(rx['dropped_occulted'].sum())} occulted, {int(rx['dropped_lost'].sum())} lost, "
+                   f"{int(tx['dropped_queue'].sum())} at a full queue")
+    else:
+        traffic = "no link in this run"
+    ev = fr["events"]
+    counts = ", ".join(f"{html.escape(str(k))}: {n}" for k, n in sorted(Counter(ev["kind"]).items()))
+    return [("link traffic", traffic), ("events", f"{len(ev)}" + (f" ({counts})" if counts else ""))]
 
 
 def figure_html(f: SiteFigure) -> str:
@@ -137,7 +159,8 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
              Markup(f'<a href="data/{html.escape(t["name"])}.csv">{html.escape(t["name"])}.csv</a>')) for t in written]
     render("data.html", out / "data.html", title=f"Data tables: {fr['run']}", pages=bar, tables=rows,
            run_dir=str(run_dir))
-    return render("page.html", out / "index.html", title=title, pages=bar, head=head, figures=figures,
+    return render("page.html", out / "index.html", title=title, pages=bar, head=[*head, *traffic_rows(fr)],
+                  figures=figures,
                   sections=sections, links=links, intro=Markup(intro), plotly_js=js)
 
 

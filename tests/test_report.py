@@ -106,6 +106,37 @@ def test_report_command_writes_figures_and_metrics(tiny_run):
     assert ca["all_pairs"]["distance_m"] <= sampled.min() + 1e-9
 
 
+P002_METRICS = ("along-track to closest visible", "orbit-minimum a(|dl|-2|de|)", "radial a|de|", "parallelism",
+                "always weakly connected")
+OVERVIEW = ("total dV [m/s]", "dV per spacecraft [m/s]", "max |a| [m/s^2]", "closest approach, all pairs", "link traffic",
+            "events")
+
+
+def overview_of(page: str) -> str:
+    """The overview of a report page: everything before the first section heading."""
+    return page.split("<h2", 1)[0]
+
+
+def test_paper002_metrics_are_in_its_section_not_in_the_overview(tiny_run):
+    """Issue 25: the overview is what every mission has; paper 002's ROE metrics and figures are its
+    section's (dashboards/sections/p002.py), with the same rows and figures as before."""
+    from dashboards.report import write_report
+
+    page = write_report(tiny_run, steady_from_s=360.0, interactive=False, export=()).read_text()
+    overview, section = overview_of(page), page.split('<h2 id="p002-swarm">', 1)[1].split("<h2", 1)[0]
+    for word in P002_METRICS:
+        assert word not in overview and word in section, word
+    for word in OVERVIEW:
+        assert word in overview, word
+    assert "no link in this run" in overview  # the tiny run has no link
+    assert "t &gt;= 6 min" in section and "in visibility" in section
+    for png in ("components.png", "digraph_start.png", "sep_along.png", "dv.png", "closest_approach.png"):
+        assert png in section and png not in overview, png
+    summary = json.loads((tiny_run / "summary.json").read_text())
+    assert "p002-swarm" not in summary["metrics"]  # paper 002's metrics stay where they were
+    assert summary["metrics"]["connectivity"]["always_weakly_connected"] is False
+
+
 def test_parse_values_and_set_param():
     from deploy.cli_report import parse_values, set_param
 

@@ -26,13 +26,16 @@ class SectionContext:
     summary: dict[str, Any]
     config: dict[str, Any]       # the resolved configuration the recording carries ({} for old recordings)
     truth: Any                   # dashboards.truth_io.TruthArrays
+    swarm: Any = None            # dashboards.metrics.SwarmMetrics of the run (its per-step series)
+    interactive: bool = True     # many-line figures may also be Plotly (dashboards/site.py line_figure)
+    projection_orbits: float | None = 3.0  # the trailing window of projection figures (None: whole run)
 
 
 @dataclass
 class SectionResult:
     title: str
     metrics: dict[str, Any] = field(default_factory=dict)
-    figures: list[tuple[str, str]] = field(default_factory=list)  # (file name in ctx.out, caption)
+    figures: list[Any] = field(default_factory=list)  # (file name in ctx.out, caption), or a site figure
     html: str = ""                                                # extra HTML (tables), already escaped
 
 

@@ -22,6 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from dashboards.figstyle import colors as _colors
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 
 CONTROLLER = "p000-capture"
@@ -249,7 +252,6 @@ def _window(t: np.ndarray) -> str:
 def fig_paths(pos: np.ndarray, rec: CaptureRecording, axes: np.ndarray, r_buffer: float, ids: list[str],
               run: str, t: np.ndarray, path: Path) -> str:
     """Trajectories relative to the target's centre around the target ellipsoid at the last step."""
-    from dashboards.report import _colors, _plt, _save
     from plant.sensing.p000 import dcm
 
     plt = _plt()
@@ -281,7 +283,6 @@ def fig_paths(pos: np.ndarray, rec: CaptureRecording, axes: np.ndarray, r_buffer
 
 def fig_surface(ts: np.ndarray, sd: np.ndarray, entry: dict[str, float], r_buffer: float, ids: list[str],
                 run: str, path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -300,7 +301,6 @@ def fig_surface(ts: np.ndarray, sd: np.ndarray, entry: dict[str, float], r_buffe
 
 
 def fig_pairs(t: np.ndarray, pair: np.ndarray, ids: list[str], run: str, path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -319,7 +319,6 @@ def fig_pairs(t: np.ndarray, pair: np.ndarray, ids: list[str], run: str, path: P
 def fig_messages(tx: list[tuple[str, str, int, int]], dt_s: float, t_end: float, ids: list[str],
                  types: list[str], run: str, path: Path) -> str:
     """Cumulative packets sent per agent over time, one panel per message type (isl/tx topics)."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -341,7 +340,6 @@ def fig_messages(tx: list[tuple[str, str, int, int]], dt_s: float, t_end: float,
 def fig_pointing(t: np.ndarray, err: np.ndarray, rate: np.ndarray | None, ids: list[str], run: str,
                  path: Path) -> str:
     """Attitude errors (Fig. 5): pointing error to the true centroid and, if flown, the body rate."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -365,7 +363,6 @@ def fig_pointing(t: np.ndarray, err: np.ndarray, rate: np.ndarray | None, ids: l
 
 def fig_axes(t: np.ndarray, est_axes: np.ndarray, axes: np.ndarray, ids: list[str], run: str, path: Path) -> str:
     """Figs. 7 and 12: each agent's sorted semi-axes estimate (telemetry) against the truth."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -384,7 +381,6 @@ def fig_axes(t: np.ndarray, est_axes: np.ndarray, axes: np.ndarray, ids: list[st
 
 
 def fig_centroid(t: np.ndarray, err: np.ndarray, ids: list[str], run: str, path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))
@@ -402,7 +398,6 @@ def fig_centroid(t: np.ndarray, err: np.ndarray, ids: list[str], run: str, path:
 def fig_triggers(tx: list[tuple[str, str, int, int]], dt_s: float, t_end: float, ids: list[str], run: str,
                  path: Path, typ: str = "p000-state") -> str:
     """Trigger instants: one row per agent, a tick per state broadcast (isl/tx)."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     col = _colors(len(ids))

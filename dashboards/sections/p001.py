@@ -28,6 +28,9 @@ import numpy as np
 
 from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, mean_relative_error, structure_name
 from agent.missions.p001_lattice.params import LatticeParams
+from dashboards.figstyle import colors as _colors
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 
 CONTROLLER = "p001-lattice"
@@ -135,7 +138,6 @@ def _sphere(ax, radius: float, color: str, label: str) -> None:
 
 def fig_paths(t_s, pos, ids, p: LatticeParams, met, path) -> str:
     """Fig. 2: 3-D paths in the CW frame with the three spheres; left the whole run, right inside r_middle."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     cols = _colors(len(ids))
@@ -172,7 +174,6 @@ def fig_paths(t_s, pos, ids, p: LatticeParams, met, path) -> str:
 
 def fig_pattern(pos_end, ids, p: LatticeParams, met, path) -> str:
     """Fig. 3: the final pattern in the yz-plane with the desired vertices and the bonds (< 1.3 l)."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     cols = _colors(len(ids))
@@ -208,7 +209,6 @@ def fig_pattern(pos_end, ids, p: LatticeParams, met, path) -> str:
 
 def fig_speed_accel(t_s, series, ids, met, path) -> str:
     """Fig. 4: speed and commanded acceleration of each agent over time, with the paper's bounds."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     cols = _colors(len(ids))
@@ -234,7 +234,6 @@ def fig_speed_accel(t_s, series, ids, met, path) -> str:
 
 def fig_eq16(t_s, series, met, path) -> str:
     """Fig. 5: eq. 16 over time (log scale), from the first agent entering r_middle when there is one."""
-    from dashboards.report import _plt, _save
 
     plt = _plt()
     span = met["gathering"]["enter_middle_span_s"]

@@ -17,6 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from dashboards.figstyle import colors as _colors
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 
 LEADER_CONTROLLER = "p003-leader"
@@ -178,7 +181,6 @@ def _window(t: np.ndarray) -> str:
 
 def fig_tt(m: dict, run: str, path: Path) -> str:
     """Figs. 6-8: TT error per axis inside the funnel ±tan(k1 π/2), and the transformed errors."""
-    from dashboards.report import _plt, _save
 
     plt = _plt()
     t, tt, fw = m["t"], m["tt_err_m"], m["funnel_m"]
@@ -204,7 +206,6 @@ def fig_tt(m: dict, run: str, path: Path) -> str:
 
 def fig_ct(m: dict, names: list[str], run: str, path: Path) -> str:
     """Figs. 13-14: servicer slot position and velocity errors."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     t, col = m["t"], _colors(len(names))
@@ -227,7 +228,6 @@ def fig_ct(m: dict, names: list[str], run: str, path: Path) -> str:
 def fig_paths(pos: np.ndarray, target_pos: np.ndarray, su: SurroundSetup, names: list[str], run: str,
               t: np.ndarray, path: Path) -> str:
     """Figs. 10-12: 3D paths relative to the target around its structure spheres, slots marked."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     fig = plt.figure(figsize=(8, 7))
@@ -259,7 +259,6 @@ def fig_paths(pos: np.ndarray, target_pos: np.ndarray, su: SurroundSetup, names:
 
 def fig_thrust(m: dict, su: SurroundSetup, names: list[str], leader: str, run: str, path: Path) -> str:
     """Figs. 9 and 15-16: thrust norms per craft against their limits."""
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     ts = m["t"][:-1]

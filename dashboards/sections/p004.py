@@ -29,6 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from dashboards.figstyle import colors as _colors
+from dashboards.figstyle import pyplot as _plt
+from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 
 NAME = "p004-servicing"
@@ -197,7 +200,6 @@ def _window(t: np.ndarray) -> tuple[float, str]:
 
 
 def fig_tracking(a: dict[str, Any], met: dict[str, Any], path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     t, e, ids = a["t"], a["e"], a["ids"]
@@ -225,7 +227,6 @@ def fig_tracking(a: dict[str, Any], met: dict[str, Any], path: Path) -> str:
 
 
 def fig_effort(a: dict[str, Any], met: dict[str, Any], path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     t, u, dv, ids = a["t"], a["u"], a["dv"], a["ids"]
@@ -251,7 +252,6 @@ def fig_effort(a: dict[str, Any], met: dict[str, Any], path: Path) -> str:
 
 
 def fig_paths(a: dict[str, Any], met: dict[str, Any], path: Path) -> str:
-    from dashboards.report import _colors, _plt, _save
 
     plt = _plt()
     t, rel, ids = a["t"], a["rel"], a["ids"]

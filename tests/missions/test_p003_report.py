@@ -94,6 +94,12 @@ def test_report_has_the_surround_section(tmp_path: Path) -> None:
 
     page = (run_dir / "report" / "index.html").read_text()
     assert "Paper 003: surrounding an escaping target" in page
+    # issue 25: the overview is mission-neutral, paper 002's metrics are not in it (nor its section)
+    overview = page.split("<h2", 1)[0]
+    for word in ("along-track to closest visible", "orbit-minimum a(|dl|-2|de|)", "radial a|de|", "parallelism",
+                 "always weakly connected"):
+        assert word not in page, word
+    assert "dV per spacecraft" in overview and "link traffic" in overview and "p002-swarm" not in page
     for f in FIGURES:
         png = run_dir / "report" / f
         assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, f

@@ -139,3 +139,18 @@ def test_steady_window_metrics(reported: tuple[Path, dict], monkeypatch: pytest.
     met, _arrays = sec.compute(ctx)
     above = np.nonzero((e >= 1000.0).any(axis=1))[0]
     assert met["t_all_below_10m_s"] == pytest.approx(t[above[-1] + 1])
+
+
+def test_overview_is_mission_neutral(reported: tuple[Path, dict]) -> None:
+    """Issue 25: servicing-6's report starts with what every mission has and shows none of paper
+    002's metrics (they were the overview of every report before)."""
+    out, _run = reported
+    page = (out / "report" / "index.html").read_text()
+    overview = page.split("<h2", 1)[0]
+    for word in ("along-track to closest visible", "orbit-minimum a(|dl|-2|de|)", "radial a|de|", "parallelism",
+                 "always weakly connected"):
+        assert word not in page, word
+    for word in ("total dV [m/s]", "dV per spacecraft [m/s]", "closest approach, all pairs", "link traffic", "events"):
+        assert word in overview, word
+    assert "messages sent" in overview  # servicing-6 flies a link
+    assert "p002-swarm" not in page and "Paper 004: servicers converging on the defunct craft" in page
