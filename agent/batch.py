@@ -17,7 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, make_controller, step_batch
+from agent.catalogue import make_controller
+from agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, step_batch
 
 log = logging.getLogger("swarmhil.agent")
 

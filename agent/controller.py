@@ -3,6 +3,10 @@
 A controller is a pure object over numpy arrays: it is given what the agent knows at a step
 (`Observation`) and returns the acceleration it commands (`Command`). It never sees truth it
 could not have measured, and never touches the bus: the agent process loop does the I/O.
+
+A controller module registers its factory here by name (`register`); this module discovers nothing
+and imports no controller: agent/catalogue.py, above every controller, loads them on demand and
+makes a scenario's controller (`make_controller`).
 """
 from __future__ import annotations
 
@@ -199,44 +203,14 @@ def register(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
     return deco
 
 
-def load_controllers() -> None:
-    """Import the built-in controllers and every mission package under agent/missions/ (each
-    registers its controllers by decorator when imported: adding a mission edits nothing here).
-    Lazy, because the missions import this module for `register`."""
-    from agent import controllers  # noqa: F401  (registers the built-in controllers)
-    from agent.missions import load_missions
-
-    load_missions()
+def registered_factory(name: str) -> ControllerFactory | None:
+    """The factory registered under `name`, or None (nothing is loaded here: agent/catalogue.py loads)."""
+    return _REGISTRY.get(name)
 
 
-def validate_params(name: str, params: dict[str, Any]) -> None:
-    """Check a controller's params with its registered validator (no-op when it has none)."""
-    load_controllers()
-
-    check = _VALIDATORS.get(name)
-    if check is not None:
-        check(dict(params))
+def registered_validator(name: str) -> Callable[[dict[str, Any]], Any] | None:
+    return _VALIDATORS.get(name)
 
 
-def controller_module(name: str) -> str:
-    """The module whose import registers controller `name` (an agent image imports only that one)."""
-    load_controllers()
-
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")
-    return _REGISTRY[name].__module__
-
-
-def make_controller(name: str, sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> Controller:
-    if name not in _REGISTRY:  # an agent image has imported its controller's module only
-        load_controllers()
-
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown controller {name!r}; known: {sorted(_REGISTRY)}")
-    return _REGISTRY[name](sc_id, orbit, params)
-
-
-def known_controllers() -> list[str]:
-    load_controllers()
-
+def registered_names() -> list[str]:
     return sorted(_REGISTRY)

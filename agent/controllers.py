@@ -5,6 +5,7 @@ from typing import Any
 
 import numpy as np
 
+from agent.behaviour.sabatini import SabatiniParams, make_sabatini
 from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
 
 
@@ -65,8 +66,6 @@ def _check_drift_null(params: dict[str, Any]) -> None:
 
 
 def _check_sabatini(params: dict[str, Any]) -> None:
-    from agent.behaviour.sabatini import SabatiniParams
-
     SabatiniParams.from_dict(dict(params))
 
 
@@ -82,6 +81,4 @@ def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNu
 @register("sabatini", validate=_check_sabatini)
 def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
     """Behavioural swarm keeping of paper 002 (agent/behaviour/sabatini.py); scipy is imported on use."""
-    from agent.behaviour.sabatini import make_sabatini
-
     return make_sabatini(sc_id, orbit, params)

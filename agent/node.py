@@ -12,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Command, Observation, OrbitInfo
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from bus.codec import (RejectedPacket, Rejections, add_measurement, decode, header, measurements_to_dict, sense_type,
-                       vec)
+from bus.codec import RejectedPacket, Rejections, add_measurement, decode, header, measurements_to_dict, sense_type, vec
 from bus.keys import Keys
 
 log = logging.getLogger("swarmhil.agent")

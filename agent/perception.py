@@ -22,11 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from agent.camera.model import quat_to_matrix
+from agent.camera.model import Camera, quat_to_matrix
+from agent.camera.render import compose_frame
 from agent.controller import Observation
 from agent.nav.base import Track, observation_arrays
+from agent.nav.ekf import EkfConfig
 from agent.nav.pipeline import VisionNav
+from agent.nav.rough import RoughNavigator
 from bus import swarmhil_pb2 as pb
+from bus.optional import require
 
 NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample",
               "control_max_sigma_m"}
@@ -64,9 +68,6 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
     import inspect
     import math
 
-    from agent.nav.ekf import EkfConfig
-    from agent.nav.rough import RoughNavigator
-
     if navigator == "ekf":
         known = {f.name for f in dataclasses.fields(EkfConfig)}
     else:  # what make_navigator passes on as keywords: the constructor's arguments after the fixed ones
@@ -94,8 +95,6 @@ def control_tracks(tracks: list[Track], max_sigma_m: float) -> list[Track]:
 
 class Perception:
     def __init__(self, a_m: float, n_radps: float, cfg: dict[str, Any], camera_cfg: dict[str, Any] | None = None) -> None:
-        from agent.camera.model import Camera
-
         cam = None
         if camera_cfg:
             px = int(camera_cfg.get("image_px", 1080))
@@ -151,8 +150,6 @@ class Perception:
         if period <= 0 or t_s + 1e-9 < self._next_image_t:
             return None
         self._next_image_t = t_s + period
-        from agent.camera.render import compose_frame
-        from bus.optional import require
 
         Image = require("PIL.Image", "debug images ([nav] debug_image_period_s)")
 

@@ -27,11 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import integer_axis, legend
+from bus.keys import split_topic
+from bus.mcap_tools import run_of_recording
+from dashboards.figstyle import Line, LineFigure, Panel, colors, integer_axis, legend
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.figstyle import time_axis as _time_axis
+from dashboards.interactive import plotly_div
+from dashboards.kit import bar_for, figure_html, render, static_figure
 from link.model import COUNTER_FIELDS, DROP_CAUSES, TX_ROW, check_tx, line_of_sight_clear, reason_class
+
 
 @dataclass
 class LinkTraffic:
@@ -73,8 +78,6 @@ class LinkTraffic:
 
 def _topic_kind(topic: str) -> tuple[str, str | None]:
     """Kind and id of an MCAP topic: `isl/tx/sc01` (or the old `swarm/<run>/isl/tx/sc01`)."""
-    from bus.keys import split_topic
-
     parts = split_topic(topic)[1].split("/")
     if len(parts) == 3 and parts[0] == "isl" and parts[1] in ("tx", "rx"):
         return f"isl_{parts[1]}", parts[2]
@@ -110,12 +113,9 @@ def read_link_traffic(run_dir: str | Path) -> LinkTraffic:
         s = reader.get_summary()
         topics = sorted({ch.topic for ch in s.channels.values()}) if s is not None else []
         if run is None:
-            from bus.mcap_tools import run_of_recording
-
             run = run_of_recording(reader)
             if run is None:
                 raise ValueError(f"{run_dir}: cannot tell the run id (no swarmhil.run metadata, no single swarm/<run>/ prefix)")
-        from bus.keys import split_topic
 
         wanted = [t for t in topics if split_topic(t)[0] in (None, run) and _topic_kind(t)[0] in
                   ("isl_tx", "isl_rx", "link_stats", "truth", "event")]
@@ -332,8 +332,6 @@ def fig_per_agent(lt: LinkTraffic, path: Path, bin_s: float) -> str:
 
 def spec_per_agent(lt: LinkTraffic, bin_s: float):  # type: ignore[no-untyped-def]
     """fig_per_agent's lines as a LineFigure (dashboards/figstyle.py), for the interactive version."""
-    from dashboards.figstyle import Line, LineFigure, Panel, colors
-
     s = per_agent_series(lt, bin_s)
     x, xl = _time_axis(s["edges_s"][1:])
     cols = colors(len(lt.ids))
@@ -421,8 +419,6 @@ def _table(head: list[str], rows: list[list[Any]], left: int = 1) -> str:
 
 def _page(title: str, body: str, out: Path) -> Path:
     """The page, with the report site's link bar when it joins a site (RUN/report/bandwidth.html)."""
-    from dashboards.site import bar_for, render
-
     return render("page.html", out, title=title, intro=body, pages=bar_for(out))
 
 
@@ -479,12 +475,8 @@ def bandwidth_section(lt: LinkTraffic, out_dir: Path, prefix: str = "bandwidth_"
         (fig_matrix(lt, out_dir / f"{prefix}matrix.png"), "Link matrix: delivered bytes per (transmitter, receiver)."),
         (fig_drops(lt, out_dir / f"{prefix}drops.png"), "Drops by cause per transmitter."),
     ]
-    from dashboards.site import figure_html, static_figure
-
     shown = [static_figure(out_dir, f, c) for f, c in figs]
     if interactive:
-        from dashboards.interactive import plotly_div
-
         shown[0].div = plotly_div(spec_per_agent(lt, bin_s), f"plot-{prefix}per-agent")
     body += "".join(figure_html(f) for f in shown)
     rows = per_link_table(lt)
@@ -566,8 +558,6 @@ def write_bandwidth_comparison(run_a: str | Path | LinkTraffic, run_b: str | Pat
     fig_matrix(a, None, vmax=vmax, ax=axes[0])
     fig_matrix(b, None, vmax=vmax, ax=axes[1])
     mname = _save(fig, out_dir / "bandwidth_compare_matrix.png")
-    from dashboards.site import figure_html, static_figure
-
     body += figure_html(static_figure(out_dir, fig_compare(a, b, out_dir / "bandwidth_compare.png"), "A solid, B dashed."))
     body += figure_html(static_figure(out_dir, mname, "Link matrices on one colour scale."))
     _page(f"swarmhil bandwidth: {a.run} vs {b.run}", body, out_html)

@@ -26,8 +26,6 @@ H = 3600.0
 
 
 def pyplot():
-    from bus.optional import require
-
     matplotlib = require("matplotlib", "the report's figures")
 
     matplotlib.use("Agg")
@@ -139,6 +137,8 @@ def overflowing_texts(fig: Any) -> list[str]:
 
 # --- line figures drawn both statically (here) and interactively (dashboards/interactive.py) ---------
 from dataclasses import dataclass, field  # noqa: E402
+
+from bus.optional import require
 
 
 @dataclass

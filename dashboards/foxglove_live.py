@@ -23,6 +23,7 @@ from google.protobuf.message import Message
 
 from bus.foxglove_scene import FoxgloveScene
 from bus.keys import Keys
+from bus.optional import require
 from bus.recorder import epoch_ns, message_type_for_key, parse_sample
 
 log = logging.getLogger("swarmhil.foxglove")
@@ -39,8 +40,6 @@ class FoxgloveLive:
     """Samples of one run -> Foxglove channels on a WebSocket server (not thread-safe: one caller)."""
 
     def __init__(self, run: str, config: dict[str, Any] | None, port: int = DEFAULT_PORT) -> None:
-        from bus.optional import require
-
         self._fg = foxglove = require("foxglove", "--viz foxglove")
         self.run = run
         self.keys = Keys(run)

@@ -35,6 +35,12 @@ from typing import Any
 
 import numpy as np
 
+from bus.keys import split_topic
+from bus.mcap_tools import run_of_recording
+from dashboards.metrics import compute_metrics
+from dashboards.run_config import camera_from_config, run_config
+from dashboards.truth_io import read_truth
+
 TRUTH, COMMAND, LINK_STATS, EVENT = ("swarmhil.v1.Truth", "swarmhil.v1.ActuatorCommand", "swarmhil.v1.LinkStats",
                                      "swarmhil.v1.Event")
 ROE_COLUMNS = ["roe_da_m", "roe_dl_m", "roe_dex_m", "roe_dey_m", "roe_dix_m", "roe_diy_m"]
@@ -65,8 +71,6 @@ class RunData:
 
 
 def _rel(topic: str) -> str:
-    from bus.keys import split_topic
-
     return split_topic(topic)[1]
 
 
@@ -75,8 +79,6 @@ def read_frames(mcap_path: str | Path) -> dict[str, Any]:
     import pandas as pd
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
-
-    from bus.mcap_tools import run_of_recording
 
     truth: dict[str, list] = {k: [] for k in ["step", "t_s", "id", "kind", "alive", "x_m", "y_m", "z_m", "vx_mps",
                                               "vy_mps", "vz_mps", "ax_cmd_mps2", "ay_cmd_mps2", "az_cmd_mps2",
@@ -228,8 +230,6 @@ def load(run_dir: str | Path, metrics: bool = True) -> RunData:
     from RUN/report/data/ when a report wrote them, else computed here from the truth."""
     import pandas as pd
 
-    from dashboards.run_config import run_config
-
     d = Path(run_dir)
     mcap = d / "run.mcap"
     if not mcap.is_file():
@@ -246,10 +246,6 @@ def load(run_dir: str | Path, metrics: bool = True) -> RunData:
             data.metrics_series = pd.read_parquet(tables / "metrics_series.parquet")
             data.metrics = pd.read_parquet(tables / "metrics.parquet")
         else:
-            from dashboards.metrics import compute_metrics
-            from dashboards.run_config import camera_from_config
-            from dashboards.truth_io import read_truth
-
             m = compute_metrics(read_truth(mcap, data.run or None), camera_from_config(data.config))
             data.metrics_series = metrics_series_frame(m)
             data.metrics = metrics_frame(summary.get("metrics") or m.summary)

@@ -36,6 +36,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dashboards.kit import figures_of, render
+from dashboards.metrics import visibility_series, weak_components
+from dashboards.run_config import run_camera
+from dashboards.run_metrics import summary_with_metrics
 from dashboards.truth_io import TruthArrays, read_truth, run_id_of
 
 H = 3600.0
@@ -283,8 +287,6 @@ def control_graph_summary(rows: TrackRows, err: NavErrors, vis: np.ndarray) -> d
     the share of used track rows whose neighbour was not visible at that step (a track kept through
     a few misses), and the per-step weak connectivity of the digraph j -> k of the tracks the
     controllers used, beside that of the plant's visibility digraph (dashboards/metrics.py)."""
-    from dashboards.metrics import weak_components
-
     u = rows.used & (err.truth_row >= 0)
     seen = vis[err.truth_row[u], rows.observer[u], err.neighbour[u]]
     n_used, _ = weak_components(track_graph(rows, err, vis.shape, used_only=True))
@@ -574,31 +576,6 @@ def nav_table_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
     return out
 
 
-def _camera(run_dir: Path, summary: dict[str, Any]):
-    from plant.sensors import CameraGeometry
-
-    cam = summary.get("metrics", {}).get("camera")
-    if cam:
-        return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
-    from dashboards.run_config import camera_from_config, run_config
-
-    recorded = camera_from_config(run_config(run_dir))
-    if recorded is not None:  # the configuration the recording carries (older recordings: below)
-        return recorded
-    src = summary.get("scenario_file")
-    here = Path(__file__).resolve().parent.parent / "deploy" / "scenarios"
-    for cand in (run_dir / "scenario.toml", here / str(src)):
-        if src and cand.is_file():
-            try:
-                from deploy.scenario import load_scenario
-
-                c = load_scenario(cand).camera
-                return CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
-            except Exception:  # noqa: BLE001 - a scenario that no longer parses: the paper's camera
-                break
-    return CameraGeometry()
-
-
 @dataclass
 class RunNav:
     truth: TruthArrays
@@ -611,8 +588,6 @@ class RunNav:
 
 def analyse_run(run_dir: str | Path) -> RunNav:
     """Read run_dir/run.mcap, associate, compute the errors and their summary (no files written)."""
-    from dashboards.metrics import visibility_series
-
     run_dir = Path(run_dir)
     spath = run_dir / "summary.json"
     summary = json.loads(spath.read_text()) if spath.is_file() else {}
@@ -621,7 +596,7 @@ def analyse_run(run_dir: str | Path) -> RunNav:
     rows, dec = read_tracks(run_dir / "run.mcap", truth.run, truth.ids)
     err = associate(rows, truth)
     derr = decision_roe_errors(dec, rows, err, truth)
-    cam = _camera(run_dir, summary)
+    cam = run_camera(run_dir, summary)
     vis = visibility_series(truth.position_m, cam, truth.alive) if rows.n else None
     s = nav_summary(rows, err, derr, vis)
     if vis is not None:
@@ -663,8 +638,6 @@ def write_nav_report(run_dir: str | Path) -> Path:
     table = nav_table_rows(nav.summary)
     (out / "nav_table.md").write_text(_markdown(["quantity", "value"], [list(r) for r in table]))
     figs = nav_figures(nav, out)
-    from dashboards.site import figures_of, render
-
     render("page.html", out / "index.html", title=f"Navigation error: {nav.truth.run}",
            head=[(k, html.escape(v)) for k, v in table],
            figures=figures_of(out, figs), intro="<p>Definitions: dashboards/navreport.py. Numbers: nav_summary.json.</p>")
@@ -672,18 +645,6 @@ def write_nav_report(run_dir: str | Path) -> Path:
 
 
 # --- comparison of runs ------------------------------------------------------------------------------------
-def _swarm_metrics(run_dir: Path) -> dict[str, Any]:
-    """The swarm metrics of dashboards/metrics.py for a run (computed into summary.json if missing)."""
-    spath = run_dir / "summary.json"
-    summary = json.loads(spath.read_text()) if spath.is_file() else {}
-    if "metrics" not in summary:
-        from dashboards.report import write_report
-
-        write_report(run_dir, figures=False)
-        summary = json.loads(spath.read_text())
-    return summary
-
-
 def comparison_row(run_dir: str | Path, label: str | None = None) -> dict[str, Any]:
     """One run's line of the comparison: swarm metrics from truth and its navigation error."""
     run_dir = Path(run_dir)
@@ -691,7 +652,7 @@ def comparison_row(run_dir: str | Path, label: str | None = None) -> dict[str, A
     if not nav_path.is_file():
         write_nav_report(run_dir)
     nav = json.loads(nav_path.read_text())
-    summary = _swarm_metrics(run_dir)
+    summary = summary_with_metrics(run_dir)
     met = summary["metrics"]
     c, cv, ca = met["connectivity"], met["closest_visible_steady"], met["closest_approach"]
     cw = met.get("closest_visible_whole_run", {})
@@ -782,8 +743,6 @@ def write_comparison(run_dirs: Sequence[str | Path], out_dir: str | Path, labels
     (out / "comparison.json").write_text(json.dumps(rows, indent=1))
     th = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     tb = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in cells)
-    from dashboards.site import render
-
     render("page.html", out / "comparison.html", title="Runs compared",
            intro=f"<table><tr>{th}</tr>{tb}</table><p>Swarm metrics from truth (dashboards/metrics.py), navigation "
                  "error from telemetry against truth (dashboards/navreport.py). Separations: closest visible "

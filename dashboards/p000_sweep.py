@@ -22,6 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from dashboards.sections.p000 import axes_error, centroid_error, pair_distance, read_capture, target_axes
+from dashboards.truth_io import read_truth
+from missions.p000_capture.contract import Ellipsoid, surface_frame
+from plant.sensing.p000 import dcm
+
 NAME = re.compile(r"^c(?P<n>\d+)-s(?P<seed>\d+)-(?P<policy>event|1hz|every|literal)(?P<mp>-mp)?$")
 
 
@@ -123,11 +128,6 @@ def closest_approach(run_dir: Path, every: int = 1) -> dict[str, Any]:
     its centroid and worst sorted-axis errors, its speed toward the true surface (normal component,
     relative to the target's motion) and its nearest neighbour; plus, over every chase step of every
     agent, the error of the estimated distance (estimated − true) and the largest inward speed."""
-    from missions.p000_capture.contract import Ellipsoid, surface_frame
-    from dashboards.sections.p000 import axes_error, centroid_error, pair_distance, read_capture, target_axes
-    from dashboards.truth_io import read_truth
-    from plant.sensing.p000 import dcm
-
     run_dir = Path(run_dir)
     summ = json.loads((run_dir / "summary.json").read_text())
     tr = read_truth(run_dir / "run.mcap")
@@ -185,9 +185,6 @@ def compare_runs(a: Path, b: Path) -> dict[str, bool]:
     dV, commanded accelerations, attitudes, body rates, the target's pose), telemetry (modes and the
     estimates), isl/tx packets and the channel's link rows, read with the streaming readers only
     (a 550 s case (ii) MCAP is ~0.6 GB: nothing is decoded but these topics)."""
-    from dashboards.sections.p000 import read_capture
-    from dashboards.truth_io import read_truth
-
     out: dict[str, bool] = {}
     ta, tb = read_truth(Path(a) / "run.mcap"), read_truth(Path(b) / "run.mcap")
     for f in ("step", "t_s", "position_m", "velocity_mps", "delta_v_mps", "accel_mps2", "alive"):

@@ -12,23 +12,25 @@ from __future__ import annotations
 
 import html
 import json
-import math
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from dashboards.figstyle import integer_axis, legend, span_text, time_unit, window_text
+from dashboards.figstyle import exporting, integer_axis, legend, span_text, time_unit, window_text
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
-from dashboards.kit import approach, fmt
-from dashboards.metrics import SwarmMetrics, compute_metrics
-from dashboards.run_config import camera_from_config, run_config
+from dashboards.frames import metrics_series_frame
+from dashboards.kit import approach, figures_of, fmt, render
+from dashboards.metrics import SwarmMetrics
+from dashboards.run_config import run_camera, run_config
+from dashboards.run_metrics import SERIES, read_summary, store_metrics
+from dashboards.sections import SectionContext, sections_for
+from dashboards.site import write_site
 from dashboards.truth_io import TruthArrays, read_truth
 from plant.sensors import CameraGeometry
 
 H = 3600.0
-SERIES = "metrics_series.npz"  # per-step series a sweep report overlays
 
 
 # --- the overview ----------------------------------------------------------------------------------------
@@ -53,34 +55,6 @@ def _headline(summary: dict[str, Any], met: dict[str, Any]) -> list[tuple[str, s
     ]
 
 
-def _camera_for(run_dir: Path, summary: dict[str, Any]) -> CameraGeometry:
-    """The camera of a run: from earlier metrics, the configuration the recording carries
-    (dashboards/run_config.py), and for recordings older than that the sweep's scenario_doc.json,
-    the scenario file of the same name in deploy/scenarios, or else the paper's (500 m, 1080 px,
-    f = 1000 px)."""
-    cam = summary.get("metrics", {}).get("camera")
-    if cam:
-        return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
-    recorded = camera_from_config(run_config(run_dir))
-    if recorded is not None:
-        return recorded
-    doc_path = run_dir / "scenario_doc.json"
-    if doc_path.is_file():
-        c = json.loads(doc_path.read_text()).get("camera", {})
-        return CameraGeometry(c.get("detection_range_m", 500.0), int(c.get("image_px", 1080)), c.get("focal_px", 1000.0))
-    src = summary.get("scenario_file")
-    path = Path(__file__).resolve().parent.parent / "deploy" / "scenarios" / str(src)
-    if src and path.is_file():
-        from deploy.scenario import ScenarioError, load_scenario
-
-        try:
-            c = load_scenario(path).camera
-            return CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
-        except ScenarioError:
-            pass
-    return CameraGeometry()
-
-
 def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, steady_from_s: float | None = None,
                  projection_orbits: float = 3.0, figures: bool = True, interactive: bool = True,
                  export: tuple[str, ...] = ("svg", "pdf")) -> Path:
@@ -88,46 +62,17 @@ def write_report(run_dir: str | Path, *, cam: CameraGeometry | None = None, stea
     run_dir/metrics_series.npz; with `figures`, the report site run_dir/report/ (dashboards/site.py):
     index.html and its pages, the figures (PNG, SVG, PDF; Plotly where there are many lines when
     `interactive`; the vector copies of `export`) and the tables of report/data/."""
-    from dashboards.figstyle import exporting
-
     with exporting(export):
         return _write_report(Path(run_dir), cam, steady_from_s, projection_orbits, figures, interactive)
 
 
-def write_metrics(run_dir: str | Path, truth: TruthArrays, cam: CameraGeometry,
-                  steady_from_s: float | None = None) -> Path:
-    """What `write_report(..., figures=False)` writes (the metrics into run_dir/summary.json and
-    run_dir/metrics_series.npz), from truth arrays the caller already holds (issue 16: a campaign's
-    batch run keeps them, deploy/batch.TruthLog) instead of reading run.mcap back."""
-    run_dir = Path(run_dir)
-    spath = run_dir / "summary.json"
-    _write_metrics(run_dir, json.loads(spath.read_text()) if spath.is_file() else {}, truth, cam, steady_from_s)
-    return spath
-
-
-def _write_metrics(run_dir: Path, summary: dict[str, Any], truth: TruthArrays, cam: CameraGeometry,
-                   steady_from_s: float | None) -> tuple[SwarmMetrics, dict[str, Any]]:
-    m = compute_metrics(truth, cam, steady_from_s)
-    met = m.summary
-    met["camera"] = {"detection_range_m": cam.detection_range_m, "image_px": cam.image_px, "focal_px": cam.focal_px}
-    summary["metrics"] = met
-    (run_dir / "summary.json").write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(run_dir / SERIES, t_s=m.t_s, n_components=m.n_components, largest=m.largest,
-                        n_components_orbit=m.n_components_orbit,
-                        delta_v_total_mps=m.delta_v_mps.sum(axis=1))
-    return m, met
-
-
 def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: float | None, projection_orbits: float,
                   figures: bool, interactive: bool) -> Path:
-    from dashboards.frames import metrics_series_frame
-    from dashboards.site import figures_of, write_site
-
     spath = run_dir / "summary.json"
-    summary = json.loads(spath.read_text()) if spath.is_file() else {}
-    cam = cam or _camera_for(run_dir, summary)
+    summary = read_summary(run_dir)
+    cam = cam or run_camera(run_dir, summary)
     truth = read_truth(run_dir / "run.mcap", summary.get("run"))
-    m, met = _write_metrics(run_dir, summary, truth, cam, steady_from_s)
+    m, met = store_metrics(run_dir, summary, truth, cam, steady_from_s)
     if not figures:
         return spath
     out = run_dir / "report"
@@ -150,8 +95,6 @@ def _mission_sections(run_dir: Path, out: Path, summary: dict[str, Any], truth: 
     """Run every registered report section that applies to this run (dashboards/sections/): its
     metrics, when it has any, into summary["metrics"][name]; returns {anchor, title, html, figures}
     per section (figures: (PNG, caption) pairs or site figures)."""
-    from dashboards.sections import SectionContext, sections_for
-
     cfg = summary["config"]  # write_report filled it from the recording
     blocks = []
     for name, fn in sections_for(cfg):
@@ -248,8 +191,6 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
             link = html.escape(str(case_page))
         table += "<tr>" + "".join(f"<td>{fmt(r.get(c))}</td>" for c in cols) + f"<td>{link}</td></tr>"
     table += "</table>"
-    from dashboards.site import figures_of, render
-
     render("page.html", out / "index.html", title=f"swarmhil sweep: {param}", head=head,
            figures=figures_of(out, figs), intro=table)
     return out / "index.html"

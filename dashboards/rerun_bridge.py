@@ -60,13 +60,21 @@ from typing import Any, Iterable
 import numpy as np
 from google.protobuf.message import DecodeError
 
+from agent.roe import roe_to_lvlh
 from bus import swarmhil_pb2 as pb
 from bus.codec import Rejections
 from bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # noqa: F401 (MODE_COLOURS: re-exported)
 from bus.keys import Keys
-from dashboards.rerun_bodies import (R_LVLH_FROM_CAM, SceneSpec, cone_strips, display_lengths, shape_ellipsoids,
-                                     wxyz_to_xyzw)
 from bus.optional import require
+from dashboards.rerun_bodies import (
+    LANDMARK_KINDS,
+    R_LVLH_FROM_CAM,
+    SceneSpec,
+    cone_strips,
+    display_lengths,
+    shape_ellipsoids,
+    wxyz_to_xyzw,
+)
 
 rr = require("rerun", "the Rerun viewer (--viz, replay)")
 rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")
@@ -163,8 +171,6 @@ def roe_rel_to_position_m(roe_rel_m: np.ndarray, u_rad: Any, n_radps: float) -> 
 
     The flight software's own linear map (agent/roe.py, D'Amico; NOTES-002): what the agent believes.
     """
-    from agent.roe import roe_to_lvlh
-
     return roe_to_lvlh(np.asarray(roe_rel_m, float).reshape(-1, 6), np.asarray(u_rad, float), n_radps)[0]
 
 
@@ -730,7 +736,6 @@ class SwarmLogger:
         """Landmark returns of each step in the body frame of the agent (empty when none), outliers red."""
         if not items or self.spec.landmark_kind is None:
             return
-        from dashboards.rerun_bodies import LANDMARK_KINDS
 
         pts_name, ids_name = LANDMARK_KINDS[self.spec.landmark_kind]
         per: dict[str, list[tuple[int, float, np.ndarray, np.ndarray]]] = defaultdict(list)

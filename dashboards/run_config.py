@@ -41,6 +41,25 @@ def run_config(run_dir: str | Path) -> dict[str, Any] | None:
         return None
 
 
+def run_camera(run_dir: str | Path, summary: dict[str, Any] | None = None) -> CameraGeometry:
+    """The camera of a run, from the run alone: the camera its metrics were computed for
+    (summary.json["metrics"]["camera"]), else the configuration the recording carries, else (a sweep
+    case recorded before that) the case's scenario_doc.json, else the paper's (500 m, 1080 px,
+    f = 1000 px). Never a scenario file of the repository: the report needs no checkout."""
+    d = Path(run_dir)
+    cam = ((summary or {}).get("metrics") or {}).get("camera")
+    if cam:
+        return CameraGeometry(cam["detection_range_m"], int(cam["image_px"]), cam["focal_px"])
+    recorded = camera_from_config(run_config(d))
+    if recorded is not None:
+        return recorded
+    doc_path = d / "scenario_doc.json"
+    if doc_path.is_file():
+        c = json.loads(doc_path.read_text()).get("camera", {})
+        return CameraGeometry(c.get("detection_range_m", 500.0), int(c.get("image_px", 1080)), c.get("focal_px", 1000.0))
+    return CameraGeometry()
+
+
 def camera_from_config(cfg: dict[str, Any] | None) -> CameraGeometry | None:
     c = (cfg or {}).get("camera")
     if not c:

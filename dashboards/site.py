@@ -12,71 +12,26 @@ template set (dashboards/templates/), linked from RUN/report/index.html by a bar
 Figures with many lines are interactive (Plotly; plotly.js is one file of the site, no CDN) with
 their static PNG/SVG/PDF linked; the others are PNG images with their SVG/PDF linked. This module
 only assembles pages: reading is dashboards/frames.py, analysis dashboards/metrics.py and
-navreport.py, figures dashboards/figstyle.py and interactive.py.
+navreport.py, figures dashboards/figstyle.py and interactive.py, the page helpers the report kit
+dashboards/kit.py.
 """
 from __future__ import annotations
 
 import html
 from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dashboards import figstyle
-from dashboards.figstyle import LineFigure, render_static
+from mcap.reader import make_reader
+
+from bus.keys import split_topic
+from dashboards.bandwidth import bandwidth_section, read_link_traffic
+from dashboards.frames import metrics_frame, read_frames, write_tables
+from dashboards.interactive import write_plotly_js
+from dashboards.kit import SiteFigure, figures_of, nav_bar, render
+from dashboards.navreport import analyse_run, nav_figures, nav_table_rows
 
 MAX_EVENT_ROWS = 5000  # rows of the event page; data/events.csv has them all
-PAGES = [("index.html", "Overview and mission metrics"), ("navigation.html", "Navigation"),
-         ("bandwidth.html", "Bandwidth"), ("events.html", "Events"), ("data.html", "Data tables")]
-
-
-@dataclass
-class SiteFigure:
-    stem: str
-    src: str                                   # the PNG
-    caption: str                               # HTML
-    div: str | None = None                     # the Plotly figure, when interactive
-    exports: list[tuple[str, str]] = field(default_factory=list)  # (format, file) of the static copies
-
-
-def _env():  # type: ignore[no-untyped-def]
-    from jinja2 import Environment, PackageLoader, select_autoescape
-
-    return Environment(loader=PackageLoader("dashboards", "templates"), autoescape=select_autoescape(["html"]),
-                       trim_blocks=True, lstrip_blocks=True)
-
-
-def render(template: str, out: Path, **ctx: Any) -> Path:
-    """Render a template of dashboards/templates to out (ctx: title, pages, here, ...)."""
-    ctx.setdefault("pages", None)
-    ctx.setdefault("here", out.name)
-    out.write_text(_env().get_template(template).render(**ctx))
-    return out
-
-
-def static_figure(out: Path, png: str, caption: str) -> SiteFigure:
-    """An image already written into out, with the static copies that exist beside it."""
-    stem = Path(png).stem
-    ex = [("PNG", png)] + [(e.upper(), f"{stem}.{e}") for e in figstyle.EXPORT if (out / f"{stem}.{e}").is_file()]
-    return SiteFigure(stem, png, caption, None, ex)
-
-
-def line_figure(out: Path, spec: LineFigure, png: str, caption: str, interactive: bool = True) -> SiteFigure:
-    """A LineFigure drawn static (PNG + exports) and, when interactive, as a Plotly div."""
-    render_static(spec, out / png)
-    f = static_figure(out, png, caption)
-    if interactive:
-        from dashboards.interactive import plotly_div
-
-        f.div = plotly_div(spec, f"plot-{f.stem}")
-    return f
-
-
-def figures_of(out: Path, pairs: list[Any]) -> list[SiteFigure]:
-    """(PNG name, caption) pairs of the mission sections and navreport as SiteFigures; a SiteFigure
-    (a section's interactive figure) is kept as it is."""
-    return [f if isinstance(f, SiteFigure) else static_figure(out, *f) for f in pairs
-            if isinstance(f, SiteFigure) or f[0]]
 
 
 def traffic_rows(fr: dict[str, Any]) -> list[tuple[str, str]]:
@@ -98,30 +53,10 @@ def traffic_rows(fr: dict[str, Any]) -> list[tuple[str, str]]:
     return [("link traffic", traffic), ("events", f"{len(ev)}" + (f" ({counts})" if counts else ""))]
 
 
-def figure_html(f: SiteFigure) -> str:
-    """One figure as the pages show it (the `figure` macro of templates/macros.html)."""
-    return str(_env().get_template("macros.html").module.figure(f))
-
-
-def _nav_bar(available: set[str]) -> list[dict[str, str]]:
-    return [{"href": h, "label": lab} for h, lab in PAGES if h in available]
-
-
-def bar_for(page: Path) -> list[dict[str, str]] | None:
-    """The link bar for a page written on its own (report-bandwidth) into an existing site, else None."""
-    d = page.parent
-    if page.name not in dict(PAGES) or not (d / "index.html").is_file():
-        return None
-    return _nav_bar({h for h, _l in PAGES if (d / h).is_file()} | {page.name})
-
-
 def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]], figures: list[SiteFigure],
                sections: list[dict[str, Any]], metrics_series: Any, metrics: dict[str, Any], intro: str = "") -> Path:
     """Every page of the site and data/ (module docstring). Returns index.html."""
-    from markupsafe import Markup
-
-    from dashboards.frames import metrics_frame, read_frames, write_tables
-    from dashboards.interactive import write_plotly_js
+    from markupsafe import Markup  # Jinja2's (the reports extra): imported where used, bus/optional.py
 
     fr = read_frames(run_dir / "run.mcap")
     tables = {k: fr[k] for k in ("truth", "commands", "link", "link_totals", "events")}
@@ -133,7 +68,7 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
     nav_body = _navigation(run_dir, out) if any(t.startswith("sc/") and t.endswith("/tm") for t in topics) else None
     available = {"index.html", "events.html", "data.html"} | ({"bandwidth.html"} if has_link else set()) | (
         {"navigation.html"} if nav_body is not None else set())
-    bar = _nav_bar(available)
+    bar = nav_bar(available)
     interactive = any(f.div for f in figures) or any(f.div for s in sections for f in s["figures"])
     js = write_plotly_js(out) if interactive or has_link else None
     notes = {"navigation.html": "navigation error of every track against truth",
@@ -141,8 +76,6 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
              "events.html": f"{len(fr['events'])} events", "data.html": "time series and metrics as Parquet and CSV"}
     links = [{"href": p["href"], "label": p["label"], "note": notes.get(p["href"], "")} for p in bar[1:]]
     if has_link:
-        from dashboards.bandwidth import bandwidth_section, read_link_traffic
-
         lt = read_link_traffic(run_dir)
         render("page.html", out / "bandwidth.html", title=f"Bandwidth: {lt.run}", pages=bar,
                intro=bandwidth_section(lt, out, interactive=js is not None), plotly_js=js)
@@ -165,10 +98,6 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
 
 
 def _topics(mcap: Path) -> set[str]:
-    from mcap.reader import make_reader
-
-    from bus.keys import split_topic
-
     with open(mcap, "rb") as f:
         s = make_reader(f).get_summary()
     return {split_topic(ch.topic)[1] for ch in s.channels.values()} if s is not None else set()
@@ -176,8 +105,6 @@ def _topics(mcap: Path) -> set[str]:
 
 def _navigation(run_dir: Path, out: Path) -> tuple[list[tuple[str, str]], list[SiteFigure], str] | None:
     """(head rows, figures, note) of the navigation page; None when no agent reported navigation."""
-    from dashboards.navreport import analyse_run, nav_figures, nav_table_rows
-
     nav = analyse_run(run_dir)
     if nav.rows.n == 0 and nav.decisions.step.size == 0:
         return None

@@ -20,6 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
+from bus.keys import split_topic
+from bus.mcap_tools import find_topic, run_of_recording
+from plant.dynamics.roe_linear import lvlh_to_roe
+
 TRUTH_SCHEMA = "swarmhil.v1.Truth"
 
 
@@ -64,9 +68,6 @@ def run_id_of(run_dir: Path) -> str | None:
 
 def _truth_topic(reader, run: str | None) -> tuple[str, str]:
     """(truth topic, run id): `truth` of a current recording, `swarm/<run>/truth` of an old one."""
-    from bus.keys import split_topic
-    from bus.mcap_tools import find_topic, run_of_recording
-
     summary = reader.get_summary()
     topics = sorted({ch.topic for ch in summary.channels.values()}) if summary is not None else []
     found = find_topic(topics, "truth", run)
@@ -127,7 +128,6 @@ def _to_arrays(run: str, msgs: list) -> TruthArrays:
     a_m, n_radps = float(msgs[0].semi_major_axis_m), float(msgs[0].mean_motion_radps)
     missing = np.isnan(roe).any(axis=2)
     if missing.any():  # older recordings: the linear map of the LVLH state (NOTES-002 matrix M)
-        from plant.dynamics.roe_linear import lvlh_to_roe
 
         for r in np.flatnonzero(missing.any(axis=1)):
             roe[r, missing[r]] = lvlh_to_roe(pos[r, missing[r]], vel[r, missing[r]], u[r], n_radps)

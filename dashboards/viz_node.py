@@ -37,6 +37,9 @@ from typing import Any
 from urllib.parse import quote
 
 from bus.keys import Keys
+from bus.optional import require
+from bus.zenoh_bus import free_loopback_port
+from dashboards.foxglove_live import DEFAULT_PORT, FoxgloveLive
 
 log = logging.getLogger("swarmhil.viz")
 
@@ -113,8 +116,6 @@ def web_url(web_port: int, grpc_port: int) -> str:
 
 
 def free_port() -> int:
-    from bus.zenoh_bus import free_loopback_port
-
     return free_loopback_port()
 
 
@@ -168,8 +169,7 @@ class WebViewer:
 def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, viz_port: int | None = None,
                    viz_url: str | None = None) -> Any:
     """A RecordingStream with the sinks of a mode (rrd: also write this file)."""
-    from bus.optional import require
-    from dashboards.rerun_bridge import APP_ID
+    from dashboards.rerun_bridge import APP_ID  # viewer extra: rerun_bridge imports rerun
 
     rr = require("rerun", "the Rerun viewer (--viz)")
 
@@ -187,7 +187,7 @@ def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, 
 
 class VizNode:
     def __init__(self, bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
-        from dashboards.rerun_bridge import CameraRule, trail_steps_for
+        from dashboards.rerun_bridge import CameraRule, trail_steps_for  # viewer extra: rerun_bridge imports rerun
 
         self.mode = opts.get("viz")
         if self.mode not in MODES:
@@ -207,8 +207,6 @@ class VizNode:
         self.camera = CameraRule.from_scenario(getattr(sc, "camera", None))
         self.trail_steps = trail_steps_for(sc.step_s, sc.orbit.mean_motion_radps, getattr(sc, "sections", {}).get("viz"))
         if self.mode == "foxglove":
-            from dashboards.foxglove_live import DEFAULT_PORT, FoxgloveLive
-
             self.logger: Any = FoxgloveLive(run, sc.resolved(), port=int(opts.get("viz_port") or DEFAULT_PORT))
             self.url = self.logger.url
             (out / "viewer_url.txt").write_text(self.url + "\n")
@@ -221,7 +219,7 @@ class VizNode:
         self._start_subscriptions(bus, run)
 
     def _open_rerun(self, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
-        from dashboards.rerun_bridge import SwarmLogger
+        from dashboards.rerun_bridge import SwarmLogger  # viewer extra: rerun_bridge imports rerun
 
         disable_analytics()
         self.rrd = out / "run.rrd"

@@ -96,16 +96,17 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
     row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
     rdir = run_dir(Path(out), seed)
     try:
-        from deploy.launcher import run_in_process
-        from deploy.scenario import load_scenario
+        from deploy.launcher import run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
         res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record,
                              keep_truth=metrics)
         summary = res.summary
         if metrics:
-            from dashboards.report import write_metrics, write_report
-            from plant.sensors import CameraGeometry
+            from dashboards.report import write_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from dashboards.run_metrics import write_metrics  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
             if res.truth is not None:  # the arrays the run kept: no read-back of the recording
@@ -171,7 +172,7 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[Any, tuple], *, execu
             on_row(key, r)
 
     if executor == "dask":
-        from bus.optional import require
+        from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         dd = require("dask.distributed", "--executor dask")
         Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
@@ -243,7 +244,7 @@ def write_table(out: Path, rows: list[dict[str, Any]], name: str = "campaign",
     """OUT/<name>.parquet and OUT/<name>.csv: one row per run, the same columns (`first` first)."""
     import csv
 
-    from bus.optional import require
+    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     pa = require("pyarrow", "the campaign table (Parquet)")
     pq = require("pyarrow.parquet", "the campaign table (Parquet)")

@@ -38,7 +38,7 @@ class OrbitCfg:
 
     @property
     def mean_motion_radps(self) -> float:
-        from plant.dynamics.constants import MU_EARTH_M3PS2
+        from plant.dynamics.constants import MU_EARTH_M3PS2  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         return math.sqrt(MU_EARTH_M3PS2 / self.semi_major_axis_m**3)
 
@@ -99,7 +99,7 @@ class Scenario:
             ver = "unknown"
         link = None
         if "link" in self.sections:
-            from link.model import link_enabled, parse_link_config
+            from link.model import link_enabled, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             if link_enabled(self.sections["link"]):
                 link = parse_link_config(self.sections["link"], self.source, self.seed).to_dict()
@@ -242,7 +242,7 @@ def _roe6(src: str, where: str, value: Any) -> np.ndarray:
 def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> Scenario:
     """Read a scenario (TOML, or the JSON a launcher writes for its children: {"source", "doc",
     "sets"}), apply `--set` overrides, validate."""
-    from deploy.overrides import OverrideError, apply_sets
+    from deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     doc, src, applied = read_document(path)
     try:
@@ -337,7 +337,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     max_accel = _positive(src, "[actuator].max_accel_mps2", act.get("max_accel_mps2", 1e-3))
     limit = _choice(src, "[actuator].limit", act.get("limit", "per_axis"), ("per_axis", "norm"))
     ctl = _table(src, doc, "controller", {"name", "params", "decision_period_s"})
-    from agent.controller import known_controllers
+    from agent.catalogue import known_controllers  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     controller = _choice(src, "[controller].name", ctl.get("name", "null"), tuple(known_controllers()))
     params = ctl.get("params", {})
@@ -351,7 +351,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         raise _err(src, "[controller].decision_period_s", f"must be a whole number of steps of {step} s", decision_period)
     sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad",
                                         "params"})
-    from plant.sensing import known_sensing, validate_sensing_params
+    from plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     sensing = {
         "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), tuple(known_sensing())),
@@ -369,7 +369,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if sparams:
         sensing["params"] = dict(sparams)
     if sensing["kind"] == "scene":
-        from agent.perception import nav_config
+        from agent.perception import nav_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             nav_config(doc.get("nav"))
@@ -390,7 +390,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
-        from link.model import LinkConfigError, parse_link_config
+        from link.model import LinkConfigError, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             parse_link_config(doc["link"], src, seed)
@@ -499,7 +499,7 @@ def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any
 
 
 def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
-    from plant.bodies import SpacecraftSpec
+    from plant.bodies import SpacecraftSpec  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     return [SpacecraftSpec(id=i, roe_m=[float(x) for x in r]) for i, r in zip(ids, roe_m)]
 
@@ -507,7 +507,7 @@ def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
 def _initial_roe(sc: Scenario) -> np.ndarray:
     """(N,6) ROE of every spacecraft: given, or mapped from a Cartesian LVLH state (exact inverse of
     the linear map the `linear` and `j2` plants start from)."""
-    from plant.dynamics.roe_linear import lvlh_to_roe
+    from plant.dynamics.roe_linear import lvlh_to_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     rows = []
     for s in sc.spacecraft:
@@ -532,7 +532,7 @@ def _one_line(exc: Exception) -> str:
 
 def _check_params(src: str, where: str, controller: str, params: dict[str, Any]) -> None:
     """Validate a controller's params with the check its registration provides (agent/controller.py)."""
-    from agent.controller import validate_params
+    from agent.catalogue import validate_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         validate_params(controller, params)
@@ -591,7 +591,7 @@ def _viz(src: str, doc: dict[str, Any]) -> None:
 def _bodies(src: str, items: Any, ids: set[str]) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import BodySpec, format_validation_error
+    from plant.bodies import BodySpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list):
         raise _err(src, "[[body]]", "must be an array of tables", items)
@@ -617,7 +617,7 @@ def check_name(src: str, name: Any) -> str:
 def _explicit(src: str, items: Any) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import SpacecraftSpec, format_validation_error
+    from plant.bodies import SpacecraftSpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list) or not items:
         raise _err(src, "[[spacecraft]]", "must be a non-empty array of tables", items)
@@ -639,9 +639,9 @@ def _explicit(src: str, items: Any) -> list[Any]:
 
 
 def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.ndarray]:
-    from plant.dispersion import Dispersion, draw_roe
-    from plant.dynamics.roe_linear import roe_to_lvlh
-    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+    from plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(d, dict):
         raise _err(src, "[dispersion]", "must be a table", d)

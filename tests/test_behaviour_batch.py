@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from agent.behaviour.sabatini import SabatiniController
-from agent.controller import (Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, make_controller,
-                              step_batch)
+from agent.catalogue import make_controller
+from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, step_batch
 from conftest import SCENARIOS
 from deploy.scenario import load_scenario
 

@@ -15,7 +15,8 @@ import pytest
 
 from agent.behaviour.sabatini import (ALIGN, ALIGN_DRIFT, ATTRACT, CA, SabatiniController, SabatiniParams,
                                       relative_roe_observer)
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.roe import input_matrix
 from plant.dynamics import roe_linear as truth
 
@@ -150,7 +151,8 @@ def test_deterministic_in_process_and_across_processes(tmp_path):
              v=[o.rel_velocity_mps for o in obs])
     script = f"""
 import json, numpy as np
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 d = np.load({str(tmp_path / 'obs.npz')!r})
 c = make_controller("sabatini", "sc01", OrbitInfo({A_M!r}, {N_RADPS!r}), {{}})
 out = [c.step(Observation(i, 10.0 * i, float(u), [f"k{{j}}" for j in range(5)], p, v)).accel_mps2.tobytes().hex()

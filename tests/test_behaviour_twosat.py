@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from agent.behaviour.sabatini import parallelism
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from plant.dynamics import roe_linear as truth
 from plant.sensors import CameraGeometry, visibility_matrix
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from agent.camera.render import Detector, RoiStack
+from agent.camera.render import Detector, RoiStack, silhouette_area_px
 
 _PLANAR_8 = np.zeros((3, 3, 3), dtype=bool)
 _PLANAR_8[1] = True  # 8-connectivity within a canvas, none across canvases of a stack
@@ -95,7 +95,7 @@ def blobs_in_stack(
 
 
 def _blobs_numba(image_e, origin_px, size_px, detector: Detector, min_pixels: int) -> Blobs:
-    from agent.camera import _fast
+    from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
     return Blobs(
         *_fast.blobs(
@@ -122,8 +122,6 @@ def exact_blobs(pos_cam_m: np.ndarray, rot_body_to_cam: np.ndarray, camera, shap
     area = exact silhouette area (agent.camera.render.silhouette_area_px), centroid = projection of
     the body centre; one blob per body whose centre projects into the frame, never merged.
     """
-    from agent.camera.render import silhouette_area_px
-
     pos = np.asarray(pos_cam_m, dtype=float).reshape(-1, 3)
     keep = camera.in_fov(pos)
     if not keep.any():

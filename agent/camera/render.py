@@ -32,6 +32,7 @@ import numpy as np
 
 from agent.camera.model import Camera
 from agent.camera.shape import SpacecraftShape
+from bus.optional import require
 
 ROI_MARGIN_PX = 2
 Z_NEAR_M = 0.05
@@ -297,7 +298,7 @@ class Renderer:
     def _coverage(self, pos, rot, canvas_of_body, origin, size, hp, wp, sil=None) -> np.ndarray:
         cam, shp = self.camera, self.shape
         if self.backend == "numba":
-            from agent.camera import _fast
+            from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
             return _fast.render_canvases(
                 shp.vertices_m, shp.normals, shp.face_offsets_m, shp.edges, pos, rot,
@@ -338,7 +339,7 @@ class Renderer:
         return [RoiStack(img, origin, size, idx, group)]
 
     def _render_rois_numba(self, pos: np.ndarray, rot: np.ndarray, frame: int, noise: bool) -> list[RoiStack]:
-        from agent.camera import _fast
+        from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
         cam, shp, det = self.camera, self.shape, self.detector
         canvas, origin, size = _fast.plan_canvases(shp.vertices_m, pos, rot, cam.focal_px, cam.cx, cam.cy, cam.height_px, cam.width_px, ROI_MARGIN_PX)
@@ -367,7 +368,6 @@ def _pick_backend(backend: str) -> str:
         raise ValueError(f"unknown render backend {backend!r}; known: numpy, numba, auto")
     if backend == "numpy":
         return backend
-    from bus.optional import require
 
     try:
         require("numba", f"[nav] backend = {backend!r}")

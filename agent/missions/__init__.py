@@ -1,17 +1,5 @@
-"""Mission rooms: one subpackage per paper, each registering its own controller(s).
-
-`load_missions()` imports every subpackage so their `agent.controller.register` decorators run;
-`agent.controller.load_controllers()` calls it, so a new paper is a new room and no central file is edited.
+"""Mission rooms' flight software: one subpackage per paper, each registering its own controller(s)
+with `agent.controller.register` when imported. agent/catalogue.py imports every subpackage
+(bus/discovery.py `import_all`) when a controller is looked up, so a new paper is a new room and no
+central file is edited.
 """
-from __future__ import annotations
-
-import importlib
-import pkgutil
-
-
-def load_missions() -> list[str]:
-    """Import every mission subpackage (registering its controllers); return their names."""
-    names = [m.name for m in pkgutil.iter_modules(__path__) if m.ispkg]
-    for name in names:
-        importlib.import_module(f"{__name__}.{name}")
-    return names

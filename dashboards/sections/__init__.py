@@ -11,11 +11,11 @@ package is imported on first use, so adding a section is adding a module.
 """
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
+
+from bus.discovery import import_all
 
 
 @dataclass
@@ -65,10 +65,7 @@ def uses_controller(config: dict[str, Any], *names: str) -> bool:
 
 
 def _load() -> None:
-    import dashboards.sections as pkg
-
-    for info in pkgutil.iter_modules(pkg.__path__):
-        importlib.import_module(f"dashboards.sections.{info.name}")
+    import_all(__name__)
 
 
 def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:

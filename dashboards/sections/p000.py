@@ -22,10 +22,15 @@ from typing import Any
 
 import numpy as np
 
+from bus.codec import measurements_to_dict
+from bus.keys import split_topic
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
+from missions.p000_capture.contract import Ellipsoid, signed_distance
+from plant.sensing.p000 import dcm
 
 CONTROLLER = "p000-capture"
 MAX_SURFACE_ROWS = 2000  # signed distance on at most this many recorded steps (always the last)
@@ -52,10 +57,6 @@ class CaptureRecording:
 def read_capture(mcap: Path, ids: list[str], run: str | None = None) -> CaptureRecording:
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
-
-    from bus.codec import measurements_to_dict
-    from bus.keys import split_topic
-    from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 
     tgt: dict[int, tuple] = {}
     att: dict[int, np.ndarray] = {}
@@ -137,9 +138,6 @@ def surface_distance(pos: np.ndarray, target_pos: np.ndarray, target_q: np.ndarr
                      rows: np.ndarray | None = None) -> np.ndarray:
     """(len(rows), N) signed distance of every spacecraft to the TRUE target surface (negative inside),
     with the room's closest-point routine."""
-    from missions.p000_capture.contract import Ellipsoid, signed_distance
-    from plant.sensing.p000 import dcm
-
     rows = np.arange(len(pos)) if rows is None else rows
     out = np.empty((len(rows), pos.shape[1]))
     for r, k in enumerate(rows):
@@ -236,7 +234,7 @@ def settle_time(t: np.ndarray, err: np.ndarray, tol: float) -> list[float | None
 
 
 def capture_params(cfg: dict[str, Any] | None, sid: str):
-    from agent.missions.p000_capture.params import CaptureParams
+    from agent.missions.p000_capture.params import CaptureParams  # the fsw's parameter model, until it moves to the room's contract (issue 25)
 
     cfg = cfg or {}
     scs = {str(s["id"]): s for s in cfg.get("spacecraft") or []}
@@ -252,8 +250,6 @@ def _window(t: np.ndarray) -> str:
 def fig_paths(pos: np.ndarray, rec: CaptureRecording, axes: np.ndarray, r_buffer: float, ids: list[str],
               run: str, t: np.ndarray, path: Path) -> str:
     """Trajectories relative to the target's centre around the target ellipsoid at the last step."""
-    from plant.sensing.p000 import dcm
-
     plt = _plt()
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")

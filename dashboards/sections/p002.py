@@ -20,10 +20,9 @@ from dashboards.figstyle import Line, LineFigure, Panel, span_text, time_axis, w
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
-from dashboards.kit import approach, check, fmt, head_table, pct
+from dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
 from dashboards.metrics import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN, SwarmMetrics, relative_to_com
 from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
-from dashboards.site import line_figure, static_figure
 from dashboards.truth_io import TruthArrays
 
 NAME = "p002-swarm"

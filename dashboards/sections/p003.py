@@ -21,6 +21,7 @@ from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 
 LEADER_CONTROLLER = "p003-leader"
 SERVICER_CONTROLLER = "p003-servicer"
@@ -56,9 +57,9 @@ def _sc_params(cfg: dict[str, Any], s: dict[str, Any]) -> dict[str, Any]:
 def setup_from_config(cfg: dict[str, Any] | None, ids: list[str]) -> SurroundSetup:
     """The setup of a run from its resolved configuration; without one (old recording), the §5
     defaults with "lsat" the leader, every other spacecraft a servicer and the Table 2 spheres."""
-    from agent.missions.p003_surround.controllers import servicer_index
-    from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict
-    from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays
+    from agent.missions.p003_surround.controllers import servicer_index  # the fsw's models, until they move to the room's contract (issue 25)
+    from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict  # the fsw's models, until they move to the room's contract (issue 25)
+    from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays  # the fsw's models, until they move to the room's contract (issue 25)
 
     cfg = cfg or {}
     scs = {str(s["id"]): s for s in cfg.get("spacecraft") or []}
@@ -112,7 +113,7 @@ def surround_metrics(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, accel_step
 
     accel_steps (K-1, N, 3): the command applied over each step [t_k, t_k+1). Thrust = |a| m with the
     configured masses. The funnel bound is infinite at t = 0, so ratios start at the second row."""
-    from agent.missions.p003_surround.funnel import funnel_half_width, performance, transformed_error
+    from agent.missions.p003_surround.funnel import funnel_half_width, performance, transformed_error  # the fsw's models, until they move to the room's contract (issue 25)
 
     fp = su.funnel
     lead, sats = su.leader, su.servicers
@@ -150,8 +151,6 @@ def read_target(mcap: Path, run: str | None = None) -> tuple[np.ndarray, np.ndar
     Truth messages (standard mcap reader, the truth topic as dashboards/truth_io.py finds it)."""
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
-
-    from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 
     rows: dict[int, tuple] = {}
     tid = ""

@@ -33,6 +33,8 @@ from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
+from missions.p004_lbdnn.contract import mission_from_params
 
 NAME = "p004-servicing"
 CONTROLLER = "p004-lbdnn"
@@ -89,8 +91,6 @@ def read_body(mcap_path: Path, body_id: str, run: str | None = None) -> dict[int
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
-    from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-
     rows: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     with open(mcap_path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
@@ -121,8 +121,6 @@ def _servicers(config: dict[str, Any], ids: list[str]) -> list[str]:
 
 
 def _mission(config: dict[str, Any]):
-    from missions.p004_lbdnn.contract import mission_from_params
-
     return mission_from_params(dict((config.get("controller") or {}).get("params") or {}))
 
 

@@ -9,6 +9,7 @@ import numpy as np
 from google.protobuf.message import Message
 
 from bus import swarmhil_pb2 as pb
+from bus.discovery import import_all
 
 
 @dataclass
@@ -64,15 +65,9 @@ def add_provider(module: str) -> None:
 def _load() -> None:
     """Import the providers, then every module of this package (a mission's plant-side sensor is a
     new module in plant/sensing/, registered by decorator: nothing else is edited)."""
-    import pkgutil
-
-    import plant.sensing as pkg
-
     for m in list(_PROVIDERS):
         importlib.import_module(m)
-    for info in pkgutil.iter_modules(pkg.__path__):
-        if info.name not in ("registry",):
-            importlib.import_module(f"plant.sensing.{info.name}")
+    import_all("plant.sensing", skip=("registry",))
 
 
 def known_sensing() -> list[str]:

@@ -7,7 +7,8 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from agent.controller import Command, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Command, OrbitInfo
 from agent.missions.p000_capture import payload as pl
 from agent.missions.p000_capture import quaternion as quat
 from agent.missions.p000_capture.apf import apf_force, apf_potential, buffer_force

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, structure_name
 from agent.missions.p001_lattice.sensing import OwnState
 

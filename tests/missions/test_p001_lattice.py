@@ -6,7 +6,8 @@ import pytest
 from scipy.linalg import expm
 from scipy.optimize import minimize_scalar
 
-from agent.controller import Observation, OrbitInfo, known_controllers, make_controller
+from agent.catalogue import known_controllers, make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.missions.p001_lattice.cw import ballistic_velocity, far_accel
 from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, mean_relative_error
 from agent.missions.p001_lattice.layers import Layer, next_layer

@@ -27,7 +27,8 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from agent.controller import Observation, OrbitInfo, make_controller  # noqa: E402
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo  # noqa: E402
 from agent.missions.p003_surround import nash, sensing  # noqa: E402
 from agent.missions.p003_surround.funnel import funnel_half_width  # noqa: E402
 from agent.missions.p003_surround.params import VARIANT_FAST_CT, FunnelParams, GameParams  # noqa: E402

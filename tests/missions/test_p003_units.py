@@ -7,7 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.missions.p003_surround import nash, packets, sensing
 from agent.missions.p003_surround.funnel import funnel_half_width, performance, tt_control
 from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict

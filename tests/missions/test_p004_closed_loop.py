@@ -26,7 +26,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from agent.controller import Observation, make_controller, OrbitInfo
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
 from missions.p004_lbdnn.contract import SERVICERS, MissionConfig, mission_from_params
 

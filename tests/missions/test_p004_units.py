@@ -7,7 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from agent.controller import Observation, OrbitInfo, make_controller
+from agent.catalogue import make_controller
+from agent.controller import Observation, OrbitInfo
 from agent.missions.p004_lbdnn import adaptation, lbdnn, observer, packet, rho_filter
 from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
 from missions.p004_lbdnn.contract import KEY_Y, Gains, MissionConfig, mission_from_params
