@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from bus.keys import Keys, check_token
+from bus.tls import client_tls, make_run_tls
 
 SUB_INGRESS = ["declare_subscriber"]
 LIVE_SUB_INGRESS = ["declare_liveliness_subscriber", "liveliness_query"]
@@ -60,8 +61,6 @@ class Credential:
         return {"transport/auth/usrpwd/user": self.user, "transport/auth/usrpwd/password": self.password, **self.tls}
 
     def with_tls(self, tls_dir: str | Path) -> "Credential":
-        from bus.tls import client_tls
-
         return replace(self, tls=client_tls(tls_dir, self.user))
 
 
@@ -210,7 +209,5 @@ def make_run_security(out: Path, run: str, users: Iterable[str], *, tls: bool = 
         _write_private(paths[u], f"{c.user}:{c.password}\n")
     run_tls = None
     if tls:
-        from bus.tls import make_run_tls
-
         run_tls = make_run_tls(d, users, tls_hosts)
     return RunSecurity(d, dictionary, acl, paths, run_tls)

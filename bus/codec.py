@@ -16,6 +16,7 @@ import numpy as np
 from google.protobuf.message import DecodeError, Message
 
 from bus import swarmhil_pb2 as pb
+from bus.keys import parse_topic, split_topic
 
 M = TypeVar("M", bound=Message)
 log = logging.getLogger("swarmhil.codec")
@@ -45,8 +46,6 @@ def message_type_of_topic(topic: str) -> type[Message] | None:
     """Message type of a key (`swarm/<run>/...`) or MCAP topic (`truth`, `sc/sc01/act`), None for a
     key outside the contract or one without payload (liveliness tokens). bus/keys.json is this map
     as data (bus/keys_json.py)."""
-    from bus.keys import parse_topic, split_topic
-
     try:
         kind, _id, sense = parse_topic(split_topic(topic)[1])
     except ValueError:

@@ -12,6 +12,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from bus.codec import message_type_of_topic
+
 PATH = Path(__file__).with_name("keys.json")
 
 # (pattern relative to swarm/<run>/, an example key that matches it, publisher -> subscriber)
@@ -41,8 +43,6 @@ RECORDING_ONLY: list[tuple[str, str]] = [
 
 
 def build() -> dict[str, Any]:
-    from bus.codec import message_type_of_topic
-
     keys = []
     for pattern, example, flow in ENTRIES:
         cls = message_type_of_topic(example)

@@ -25,9 +25,9 @@ from bus.keys import Keys
 
 def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     """None when the scenario can run in batch mode, else the reason it cannot (one phrase)."""
-    from agent.beacon import beacon_from_config
-    from deploy.companions import enabled_companions
-    from plant.sensing import has_batch_form
+    from agent.beacon import beacon_from_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if sc.fidelity not in ("linear", "j2"):
         return f"plant fidelity {sc.fidelity!r} (the mission world: attitude and bodies)"
@@ -45,7 +45,7 @@ class BatchHook:
     """The plant's `local_agents`: arrays of stimuli in, the (N, 3) commands in force out."""
 
     def __init__(self, bus: Any, run: str, sc: Any) -> None:
-        from deploy.agent_image import agent_config
+        from deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         # each spacecraft's flight software from the config its agent process would get
         cfgs = [agent_config(sc, s) for s in sc.ids]
@@ -113,7 +113,7 @@ class TruthLog:
 
     def arrays(self, run: str) -> Any:
         """The TruthArrays of the steps so far (dashboards/truth_io.py)."""
-        from dashboards.truth_io import TruthArrays, align_accel
+        from dashboards.truth_io import TruthArrays, align_accel  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         k = self.k
         acc, recorded_as = align_accel(self.acc[:k].copy(), self.dv[:k], self.t_s[:k])

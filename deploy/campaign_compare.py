@@ -84,9 +84,9 @@ def connectivity_windows(run_directory: Path, window_s: float) -> dict[str, Any]
     mcap = Path(run_directory) / "run.mcap"
     if not mcap.is_file():
         return None
-    from dashboards.metrics import visibility_series, weak_components
-    from dashboards.truth_io import read_truth
-    from plant.sensors import CameraGeometry
+    from dashboards.metrics import visibility_series, weak_components  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from dashboards.truth_io import read_truth  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     cam_cfg = json.loads((Path(run_directory) / "summary.json").read_text())["config"]["camera"]
     truth = read_truth(mcap)

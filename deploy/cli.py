@@ -146,9 +146,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
         insecure: bool, tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
-    from deploy.cli_viz import viz_opts
-    from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
-    from deploy.scenario import ScenarioError, load_scenario
+    from deploy.cli_viz import viz_opts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.launcher import MultiProcessRun, new_run_id, run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if record != "all" and not in_process:
         click.echo("error: --record truth needs --in-process (multi-process runs record every message)", err=True)
@@ -158,7 +158,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     except ScenarioError as exc:  # one line naming the field, exit code 2 (usage error), no traceback
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
-    from bus.keys import check_token
+    from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if tls and (insecure or in_process):
         click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
@@ -195,9 +195,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:
-        from deploy.launcher import RunFailed
-        from deploy.memory import NotEnoughMemory
-        from bus.tls import TlsError
+        from deploy.launcher import RunFailed  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from deploy.memory import NotEnoughMemory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
@@ -226,7 +226,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
 def router(listen: str, acl_dir: str | None) -> None:
     """The run's Zenoh router as its own process (what `swarmhil run` starts; compose and multi-host
     deployments too). Runs until SIGTERM or Ctrl-C."""
-    from deploy.router import main as router_main
+    from deploy.router import main as router_main  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     sys.exit(router_main(["--listen", listen, *(["--acl-dir", acl_dir] if acl_dir else [])]))
 
@@ -241,8 +241,8 @@ def mcap() -> None:
 @click.argument("dst", type=click.Path(dir_okay=False))
 def mcap_repair(src: str, dst: str) -> None:
     """Salvage every complete chunk of a recording whose writer was killed into DST."""
-    from bus.mcap_tools import repair
-    from deploy.cli_inputs import recording_problem
+    from bus.mcap_tools import repair  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.cli_inputs import recording_problem  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     problem = recording_problem(src)
     if problem and not problem.startswith("is cut short"):
@@ -259,7 +259,7 @@ def mcap_merge(files: tuple[str, ...]) -> None:
     """Join the segments of one run (SEG... OUT: run.mcap run.001.mcap ... merged.mcap) into OUT,
     the segments of a recorder that was killed and restarted; a segment without footer is read as
     `repair` reads it. The metadata `swarmhil.segments` keeps each segment's span (the gaps)."""
-    from bus.mcap_tools import merge
+    from bus.mcap_tools import merge  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if len(files) < 2:
         raise click.ClickException("give one or more segments and the output file: mcap merge SEG... OUT")
@@ -280,8 +280,8 @@ def mcap_merge(files: tuple[str, ...]) -> None:
 @click.argument("src", type=click.Path(exists=True, dir_okay=False))
 def mcap_info(src: str) -> None:
     """Message counts per topic of a recording."""
-    from bus.mcap_tools import topic_counts
-    from deploy.cli_inputs import check_recording
+    from bus.mcap_tools import topic_counts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.cli_inputs import check_recording  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     check_recording(src)
     for topic, n in sorted(topic_counts(src).items()):
@@ -301,16 +301,16 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
             sets: tuple[str, ...]) -> None:
     """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
     containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
-    from deploy.compose import write_compose
-    from deploy.launcher import new_run_id
-    from deploy.scenario import ScenarioError, load_scenario
+    from deploy.compose import write_compose  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
-    from bus.keys import check_token
-    from bus.tls import TlsError
+    from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
@@ -332,7 +332,7 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
 def demo(ctx: click.Context, out: str, in_process: bool) -> None:
     """The first five minutes: run the demo scenario (6 spacecraft, 30 simulated minutes) with its 3D
     views saved, write its report, and print where both are and the one command that opens each."""
-    from bus.optional import require
+    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("rerun", "swarmhil demo (its 3D views)")  # before the run, not after it
     require("matplotlib", "swarmhil demo (its report)")

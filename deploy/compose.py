@@ -118,7 +118,7 @@ class _NoAliasDumper(yaml.SafeDumper):
 def write_compose(sc: Scenario, scenario_file: str, run: str, out: Path, *, router_hosts: Iterable[str] = (),
                   **kw: Any) -> Path:
     """compose.yml, scenario.json and secrets/ (fresh credentials and certificates) in out's directory."""
-    from bus.acl import make_run_security
+    from bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     d = out.parent
     d.mkdir(parents=True, exist_ok=True)

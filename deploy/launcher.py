@@ -112,10 +112,10 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     (issue 16, campaigns): the recording holds the truth and the events only, and where the
     scenario allows (deploy/batch.py) the flight software of all spacecraft runs as one batch, fed
     with arrays instead of messages: the same truth, bit for bit, several times faster."""
-    from bus.memory import MemoryBus
-    from bus.recorder import RecorderNode
-    from plant.node import PlantNode
-    from plant.world import World
+    from bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from bus.recorder import RecorderNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.node import PlantNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.world import World  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     run = run or new_run_id(sc.name)
     out.mkdir(parents=True, exist_ok=True)
@@ -129,7 +129,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     comps = enabled_companions(sc, opts)
     hook = None
     if record == "truth":
-        from deploy.batch import BatchHook, why_not_batch
+        from deploy.batch import BatchHook, why_not_batch  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         why = why_not_batch(sc, opts)
         summary["batch"] = {"used": why is None, "why_not": why}
@@ -141,7 +141,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
                       local_agents=hook)
     log = None
     if keep_truth and isinstance(plant.world, World):
-        from deploy.batch import TruthLog
+        from deploy.batch import TruthLog  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         log = plant.on_truth = TruthLog(plant.world.ids, sc.steps, plant.world.a_m, plant.world.n_radps)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
@@ -162,7 +162,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
 def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
     """One spacecraft's flight software on a bus, configured from the scenario (both modes build it
     from the same JSON config: deploy/agent_image.py)."""
-    from deploy.agent_image import agent_config, build_agent
+    from deploy.agent_image import agent_config, build_agent  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     return build_agent(bus, run, agent_config(sc, sid))
 
@@ -278,7 +278,7 @@ class MultiProcessRun:
 
     def _supervision_event(self, watch: Any, kind: str, subject: str, detail: str, step: int) -> None:
         """An Event from the launcher (agent_restart, recorder_restart), recorded like the plant's."""
-        from bus.codec import header
+        from bus.codec import header  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         self._event_seq += 1
         ev = pb.Event(header=header(self.run, "launcher", step, step * self.sc.step_s, self._event_seq),
@@ -290,7 +290,7 @@ class MultiProcessRun:
         """A recorder that died mid-run is started again into the next segment (run.001.mcap, ...);
         once it answers the flush handshake it is recording, and the launcher's Event
         `recorder_restart` (recorded in the new segment) says what was lost in between."""
-        from bus.mcap_tools import segment_name
+        from bus.mcap_tools import segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         if self.recorder_segment >= RECORDER_MAX_RESTARTS:
             return False
@@ -308,7 +308,7 @@ class MultiProcessRun:
     def _merge_segments(self) -> dict[str, Any]:
         """After a recorder restart: run.mcap becomes run.000.mcap and the segments are merged into
         run.mcap (bus/mcap_tools.merge), so every reader sees one recording with the gaps listed."""
-        from bus.mcap_tools import merge, segment_name
+        from bus.mcap_tools import merge, segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         first = self.out / "run.000.mcap"
         (self.out / "run.mcap").replace(first)
@@ -341,7 +341,7 @@ class MultiProcessRun:
         draws another one. Returns the endpoint once the router accepts connections."""
         import socket
 
-        from bus.zenoh_bus import endpoint, free_loopback_port
+        from bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         for _attempt in range(attempts):
             port = free_loopback_port()
@@ -391,7 +391,7 @@ class MultiProcessRun:
         plant publishes its final truth and then run_end on one session, so both are recorded).
         Everything that reached the router before the request is covered by the answer. Bounded:
         on timeout a warning says what may be missing, and the shutdown goes on."""
-        from bus.recorder import flush_key
+        from bus.recorder import flush_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         t_end = time.monotonic() + timeout_s
         ack: dict[str, Any] | None = None
@@ -417,17 +417,17 @@ class MultiProcessRun:
             return ""
 
     def execute(self) -> RunResult:
-        from bus.recorder import ack_key
-        from bus.zenoh_bus import ZenohBus
+        from bus.recorder import ack_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from bus.zenoh_bus import ZenohBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-        from deploy.memory import check_memory
+        from deploy.memory import check_memory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         check_memory(self.sc, n_ground=2 + len(self.companions))  # plant, recorder, companions: refuse before any start
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
         # every child reads the one validated document (after --set), not the user's file
         # (and each agent only its own config: no scenario validation in an agent image)
-        from deploy.agent_image import write_resolved_scenario
+        from deploy.agent_image import write_resolved_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         write_resolved_scenario(self.sc, self.out / "scenario.json")
         self.scenario_path = str((self.out / "scenario.json").resolve())
@@ -435,7 +435,7 @@ class MultiProcessRun:
         wall0 = time.monotonic()
         launcher_cred = None
         if self.secure:
-            from bus.acl import make_run_security
+            from bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
             self.security = make_run_security(self.out, self.run, users, tls=self.tls)

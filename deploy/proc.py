@@ -101,7 +101,7 @@ def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
 def _agent(args: argparse.Namespace, stop: Stop, cred: Any, out: Path) -> int:
     """One spacecraft's flight software: its config from the launcher's DIR/scenario.json (no
     pydantic, no launcher, no other mission imported), else validated from a TOML scenario."""
-    from deploy.agent_image import agent_config, build_agent, read_agent_config
+    from deploy.agent_image import agent_config, build_agent, read_agent_config  # this process role's modules only (tests/test_imports.py)
 
     cfg = read_agent_config(args.scenario, args.id)
     if cfg is None:
@@ -136,7 +136,7 @@ def _await_run_end(node: object, timeout_s: float) -> None:
 def _router(args: argparse.Namespace) -> int:
     """The run's router on its own (compose, another host): deploy/router.py with the run's auth
     dictionary + ACL (bus/acl.py: --acl-dir, or --users/--acl) and mutual TLS (bus/tls.py: --tls)."""
-    from deploy.router import router_overrides, run_router
+    from deploy.router import router_overrides, run_router  # this process role's modules only (tests/test_imports.py)
 
     try:
         overrides = router_overrides(args.listen, acl_dir=args.acl_dir, users=args.users, acl=args.acl, tls=args.tls)
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = _stop_event()
     cred = None
     if args.credentials:
-        from bus.acl import read_credential
+        from bus.acl import read_credential  # this process role's modules only (tests/test_imports.py)
 
         cred = read_credential(args.credentials)
         if args.tls:
@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> int:
         return _agent(args, stop, cred, out)
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     if args.role == "plant":
-        from plant.node import PlantNode
+        from plant.node import PlantNode  # this process role's modules only (tests/test_imports.py)
 
         bus = with_faults(ZenohBus(args.router, credential=cred, direct=faults_for("plant") is None), "plant")
         _watch_router(bus, stop)
@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         _close_within(bus)
         return 0
     if args.role == "recorder":
-        from bus.recorder import RecorderNode
+        from bus.recorder import RecorderNode  # this process role's modules only (tests/test_imports.py)
 
         if sc.mode == "realtime" and RECORDER_NICE_REALTIME:
             # off the step's critical path: it only has to keep up on average (Zenoh buffers), while
@@ -238,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
             os.nice(RECORDER_NICE_REALTIME)
         bus = ZenohBus(args.router, credential=cred)
         _watch_router(bus, stop)
-        from bus.mcap_tools import segment_name
+        from bus.mcap_tools import segment_name  # this process role's modules only (tests/test_imports.py)
 
         node = RecorderNode(bus, args.run, out / segment_name(args.segment), config=sc.resolved(),
                             document=resolved_document(sc), segment=args.segment)
@@ -250,7 +250,7 @@ def main(argv: list[str] | None = None) -> int:
         _close_within(bus)
         return 0
     if args.role == "companion":
-        from deploy.companions import load
+        from deploy.companions import load  # this process role's modules only (tests/test_imports.py)
 
         comp = load(args.name)
         bus = with_faults(ZenohBus(args.router, credential=cred), args.name)

@@ -27,20 +27,20 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
     if acl and not users:
         raise ValueError("--acl needs --users (the ACL names authenticated users)")
     if acl_dir:
-        from bus.acl import router_overrides_from_dir
+        from bus.acl import router_overrides_from_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             overrides.update(router_overrides_from_dir(acl_dir))
         except OSError as exc:
             raise ValueError(f"{acl_dir}: {exc}") from None
     elif users:
-        from bus.acl import router_settings
+        from bus.acl import router_settings  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         overrides.update(router_settings(users, acl) if acl else {"transport/auth/usrpwd/dictionary_file": users})
     if listen.startswith("tls/") != bool(tls):
         raise ValueError(f"--listen {listen} and --tls go together (a tls/ endpoint needs the run's certificates)")
     if tls:
-        from bus.tls import router_tls
+        from bus.tls import router_tls  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         overrides.update(router_tls(tls))
     return overrides or None
@@ -49,7 +49,7 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
 def run_router(listen: str, overrides: dict | None, stop: Stop) -> int:
     import zenoh
 
-    from bus.zenoh_bus import _address_in_use, open_router
+    from bus.zenoh_bus import _address_in_use, open_router  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         session = open_router(listen, overrides)

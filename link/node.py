@@ -44,9 +44,10 @@ from google.protobuf.message import DecodeError
 
 from bus import swarmhil_pb2 as pb
 from bus.base import Bus
-from link.model import LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
 from bus.codec import RejectedPacket, Rejections, arr, decode, header
 from bus.keys import Keys
+from bus.memory import MemoryBus
+from link.model import LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
 
 log = logging.getLogger("swarmhil.channel")
 
@@ -76,8 +77,6 @@ def start(bus: Bus, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "Chan
         watchdog_s, stall = STALL_FACTOR * sc.stall_timeout_s, True
     else:
         watchdog_s, stall = 0.7 * sc.step_s / sc.speed, False
-    from bus.memory import MemoryBus
-
     return ChannelNode(bus, run, cfg, sc.ids, sc.step_s, ref_radius_m=sc.orbit.semi_major_axis_m,
                        watchdog_s=None if isinstance(bus, MemoryBus) else watchdog_s, stall_is_error=stall)
 

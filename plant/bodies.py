@@ -18,6 +18,8 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from bus.keys import check_token
+
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Quat = Annotated[list[float], Field(min_length=4, max_length=4)]
 PROCESS_PREFIXES = ("plant", "recorder", "channel", "viz")
@@ -60,8 +62,6 @@ class SpacecraftSpec(_Spec):
     @field_validator("id")
     @classmethod
     def _id_token(cls, v: str) -> str:
-        from bus.keys import check_token
-
         check_token(v, "spacecraft id")
         if v.startswith(PROCESS_PREFIXES):
             raise ValueError(f"must not start with a process name {list(PROCESS_PREFIXES)}")
@@ -161,8 +161,6 @@ class BodySpec(_Spec):
     @field_validator("id")
     @classmethod
     def _id_token(cls, v: str) -> str:
-        from bus.keys import check_token
-
         return check_token(v, "body id")
 
 

@@ -11,6 +11,16 @@ rule is checked whether or not a code path runs:
 - a room's `contract` imports nothing but the standard library, numpy and `bus`;
 - the `__init__` of `missions` and of every room imports nothing.
 
+And over the import graph of the product modules (every package the wheel installs):
+
+- no import circle (module-level imports, the ones Python runs on import; and none either when the
+  function-local ones are counted);
+- no arrow from a lower layer to a higher one: `bus` <- `plant` / `agent` / `link` <- `dashboards`
+  (with `swarmhil`, the analysis API) <- `deploy`; a room's contract sits on `bus`;
+- every function-local import of a project module says why it is not at the top (a comment on
+  its line: an optional extra, the agent image's size, a process role's start-up), and their number
+  does not grow (LOCAL_IMPORTS_MAX).
+
 And at run time, in a fresh interpreter: a contract loads no project module but `bus` and
 `missions`, and no pydantic or scipy; the flight software of papers 000 and 004 loads no `plant`,
 `dashboards` or `deploy` module.
@@ -28,6 +38,10 @@ from pathlib import Path
 from conftest import ROOT
 
 CONTRACT_MAY_IMPORT = {"numpy", "bus"}
+PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", "swarmhil")
+LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
+ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
+LOCAL_IMPORTS_MAX = 134  # function-local imports of project modules after issue 25 step 3 (main before it: 239)
 ROOMS_WITH_CONTRACT = ("p000_capture", "p004_lbdnn")
 
 
@@ -138,3 +152,148 @@ def test_rooms_are_installed_and_in_the_image() -> None:
     assert "missions*" in include, include
     copies = [ln.split() for ln in (ROOT / "deploy" / "Dockerfile").read_text().splitlines() if ln.startswith("COPY ")]
     assert ["COPY", "missions", "missions"] in copies, copies
+
+
+# --- the import graph of the product modules ------------------------------------------------------------
+def product_modules() -> dict[str, Path]:
+    """{dotted name: source file} of every module the wheel installs."""
+    return {".".join(module_name(p)): p for top in PRODUCT for p in sources(top)}
+
+
+def resolve(name: str, mods: dict[str, Path] | set[str]) -> str | None:
+    """The product module an imported name lands in (`pkg.mod.attr` -> `pkg.mod`), None if outside."""
+    while name and name not in mods:
+        name = name.rpartition(".")[0]
+    return name or None
+
+
+def import_statements(path: Path) -> Iterator[tuple[ast.Import | ast.ImportFrom, bool, bool]]:
+    """(statement, function-local, under `if TYPE_CHECKING`) of every import statement of a file."""
+    def visit(node: ast.AST, local: bool, typing_only: bool) -> Iterator[tuple[ast.Import | ast.ImportFrom, bool, bool]]:
+        for ch in ast.iter_child_nodes(node):
+            loc = local or isinstance(ch, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda))
+            tc = typing_only or (isinstance(ch, ast.If) and "TYPE_CHECKING" in ast.unparse(ch.test))
+            if isinstance(ch, (ast.Import, ast.ImportFrom)):
+                yield ch, loc, tc
+            yield from visit(ch, loc, tc)
+
+    yield from visit(ast.parse(path.read_text(), str(path)), False, False)
+
+
+def targets(path: Path, stmt: ast.Import | ast.ImportFrom, mods: dict[str, Path]) -> set[str]:
+    """The product modules a statement imports (`from M import a`: M.a when a is a module, else M),
+    leaving out the importer's own packages (Python runs them before the importer, not because of it)."""
+    mod = module_name(path)
+    package = mod if path.name == "__init__.py" else mod[:-1]
+    if isinstance(stmt, ast.Import):
+        names = [a.name for a in stmt.names]
+    else:
+        base = ".".join(package[:len(package) - stmt.level + 1] + ([stmt.module] if stmt.module else [])) \
+            if stmt.level else (stmt.module or "")
+        names = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base for a in stmt.names]
+    own = {".".join(mod[:i]) for i in range(1, len(mod) + 1)}
+    return {r for n in names if (r := resolve(n, mods)) is not None} - own
+
+
+def graph(function_local: bool) -> dict[str, set[str]]:
+    """module -> the product modules it imports when loaded (with `function_local`, also the
+    imports inside functions); imports under `if TYPE_CHECKING` never run and are left out."""
+    mods = product_modules()
+    g: dict[str, set[str]] = {m: set() for m in mods}
+    for m, path in mods.items():
+        for stmt, local, typing_only in import_statements(path):
+            if not typing_only and (function_local or not local):
+                g[m] |= targets(path, stmt, mods)
+    return g
+
+
+def circles(g: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def connect(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(g[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(g):
+        if v not in index:
+            connect(v)
+    return out
+
+
+def layer(module: str) -> int:
+    """The layer of a product module (docs/architecture.md "Mission rooms"): a room's part by its role."""
+    parts = module.split(".")
+    if parts[0] == "missions":
+        return ROOM_PART_LAYER[parts[2]] if len(parts) > 2 else 0
+    return LAYERS[parts[0]]
+
+
+def test_no_import_circles() -> None:
+    assert not circles(graph(function_local=False)), circles(graph(function_local=False))
+    assert not circles(graph(function_local=True)), circles(graph(function_local=True))
+
+
+def test_circles_are_found() -> None:
+    """The finder sees a circle, through a package's `__init__` too, and nothing in a chain."""
+    assert circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert circles({"a": {"b"}, "b": {"c"}, "c": set()}) == []
+    mods = {"p": Path("p/__init__.py"), "p.m": Path("p/m.py")}
+    assert resolve("p.m.f", mods) == "p.m" and resolve("p.x", mods) == "p" and resolve("q", mods) is None
+
+
+def test_no_arrow_from_a_lower_layer_to_a_higher_one() -> None:
+    mods = product_modules()
+    bad = []
+    for m, path in mods.items():
+        for stmt, _local, _tc in import_statements(path):
+            for t in targets(path, stmt, mods):
+                if layer(t) > layer(m):
+                    bad.append(f"{path.relative_to(ROOT)}:{stmt.lineno}: {m} (layer {layer(m)}) -> {t} (layer {layer(t)})")
+    assert not bad, bad
+    # the layers are exercised: every product top-level folder has a layer, and the dashboards read the plant
+    assert {m.split(".")[0] for m in mods} <= set(LAYERS) | {"missions"}
+    assert layer("dashboards.metrics") > layer("plant.sensors") and "plant.sensors" in graph(False)["dashboards.metrics"]
+
+
+def _reason(path: Path, stmt: ast.Import | ast.ImportFrom) -> str:
+    """The comment written on the lines of an import statement, without linter directives."""
+    lines = path.read_text().splitlines()[stmt.lineno - 1:stmt.end_lineno]
+    text = " ".join(ln.split("#", 1)[1] for ln in lines if "#" in ln)
+    for directive in ("noqa", "type: ignore", "pragma"):
+        text = text.split(directive)[0] if text.strip().startswith(directive) else text
+    return text.strip(" :")
+
+
+def local_project_imports() -> list[tuple[Path, ast.Import | ast.ImportFrom]]:
+    mods = product_modules()
+    return [(path, stmt) for path in mods.values() for stmt, local, _tc in import_statements(path)
+            if local and targets(path, stmt, mods)]
+
+
+def test_function_local_imports_of_the_project_say_why() -> None:
+    found = local_project_imports()
+    silent = [f"{p.relative_to(ROOT)}:{s.lineno}" for p, s in found if not _reason(p, s)]
+    assert not silent, f"{len(silent)} function-local imports of project modules without a reason comment: {silent}"
+    assert len(found) <= LOCAL_IMPORTS_MAX, f"{len(found)} function-local imports of project modules (max {LOCAL_IMPORTS_MAX})"

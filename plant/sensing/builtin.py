@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
+from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
 from plant.sensing.registry import SensingContext, register_sensing
 from plant.sensors import CameraGeometry, visibility_matrix
 
@@ -30,8 +31,6 @@ class _SensorNoise:
         self.rng = np.random.default_rng([int(scenario.seed), 0x5E45])
 
     def apply(self, rp: np.ndarray, rv: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
-        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
-
         roe = lvlh_to_roe(rp[None], rv[None], u, self.n)[0]
         roe = roe * (1.0 + self.frac * self.rng.standard_normal(6))
         p, v = roe_to_lvlh(roe[None], u, self.n)
@@ -39,8 +38,6 @@ class _SensorNoise:
 
     def apply_rows(self, rp: np.ndarray, rv: np.ndarray, u: float) -> tuple[np.ndarray, np.ndarray]:
         """`apply` of P pairs in order, (P, 3) each: the same draws (6 per pair, in order) and values."""
-        from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
-
         roe = lvlh_to_roe(rp, rv, u, self.n)
         roe = roe * (1.0 + self.frac * self.rng.standard_normal((len(rp), 6)))
         return roe_to_lvlh(roe, u, self.n)
@@ -108,7 +105,7 @@ class SceneKind:
     message = pb.SceneStimulus
 
     def __init__(self, scenario: Any) -> None:
-        from plant.scene_stimulus import SceneStimulusBuilder
+        from plant.scene_stimulus import SceneStimulusBuilder  # scene sensing only: the scene model and scipy's Rotation
 
         self.builder = SceneStimulusBuilder(scenario)
 
