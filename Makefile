@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup setup-system demo test test-kernels test-system test-study test-browser test-all bench soak proto clean
+.PHONY: setup setup-system demo lint test test-kernels test-system test-study test-browser test-all bench soak proto clean
 
 # Everything (every extra: viewer, reports, camera, campaign) at the versions CI tests (constraints.txt).
 # An agent image needs only the core: `pip install .` (docs/packaging.md).
@@ -32,6 +32,10 @@ demo: setup
 
 test: setup
 	$(PY) -m pytest -q
+
+# The linter (ruff; its rules are in pyproject.toml [tool.ruff]), clean on the tree. CI runs it.
+lint: setup
+	$(VENV)/bin/ruff check .
 
 # The tests most sensitive to the floating-point kernels, again under another kernel set than this
 # CPU's own (docs/determinism.md): OpenBLAS's Sandybridge kernels and numpy without its X86_V3

@@ -5,7 +5,6 @@ coincident spacecraft), and the default path (each `step` in turn) for a control
 """
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -5,7 +5,6 @@ memory), never a traceback. A table of cases over every subcommand and every kin
 through the `swarmhil` click entry point."""
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys

@@ -297,3 +297,12 @@ def test_function_local_imports_of_the_project_say_why() -> None:
     silent = [f"{p.relative_to(ROOT)}:{s.lineno}" for p, s in found if not _reason(p, s)]
     assert not silent, f"{len(silent)} function-local imports of project modules without a reason comment: {silent}"
     assert len(found) <= LOCAL_IMPORTS_MAX, f"{len(found)} function-local imports of project modules (max {LOCAL_IMPORTS_MAX})"
+
+
+def test_lint_is_clean_and_ci_runs_it() -> None:
+    """`make lint` (ruff with pyproject.toml's rules) passes on the tree, and .ci/run has it as a stage."""
+    p = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "."], cwd=ROOT, capture_output=True,
+                       text=True, timeout=120)
+    assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-1000:]
+    assert 'stage "lint" make lint' in (ROOT / ".ci" / "run").read_text()
+    assert "\nlint: setup\n\t$(VENV)/bin/ruff check .\n" in (ROOT / "Makefile").read_text()

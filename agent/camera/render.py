@@ -191,7 +191,6 @@ def rasterize(a: np.ndarray, b: np.ndarray, canvas: np.ndarray, size_px: np.ndar
     index of each piece; size_px (G, 2) = valid rows, cols of each canvas; shape = (G, H, W).
     """
     n_g, hp, wp = shape
-    acc = np.zeros(n_g * hp * (wp + 1))
     vmin, vmax = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
     h_lim = size_px[canvas, 0]
     r_lo = np.maximum(np.floor(vmin), 0).astype(np.int64)
