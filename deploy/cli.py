@@ -365,9 +365,9 @@ def refly(run_path: str, sid: str, sets: tuple[str, ...], until_s: float | None,
           exit_code: bool) -> None:
     """Re-fly one agent of the run in directory RUN alone on its recorded stimuli and link deliveries; compare
     every command with the recorded one and print the first divergence (docs/hil.md)."""
-    from deploy.refly import ReflyConfigError, ReflyError, agent_config_of, read_recorded, refly as refly_agent, write_outputs
-    from deploy.cli_inputs import check_run_dir
-    from deploy.scenario import ScenarioError
+    from deploy.refly import ReflyConfigError, ReflyError, agent_config_of, read_recorded, refly as refly_agent, write_outputs  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.scenario import ScenarioError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     check_run_dir(run_path)
     try:

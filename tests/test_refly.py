@@ -18,7 +18,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
 from mcap.reader import make_reader
 
 from bus import swarmhil_pb2 as pb
