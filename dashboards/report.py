@@ -5,8 +5,8 @@ metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metric
 report site run_dir/report/ (dashboards/site.py): index.html with the overview every run has (dV,
 closest approach, link traffic, events), then the section of each mission the run flew
 (dashboards/sections/; paper 002's metrics and Figs. 7-22 are dashboards/sections/p002.py), and
-the pages and tables the site links. `write_sweep_report(sweep_dir, cases)` does the same for a parameter sweep (dV and
-connectivity against the parameter, Figs. 30-31).
+the pages and tables the site links. `write_sweep_report(sweep_dir, cases)` does the same for a
+parameter sweep (dV and connectivity against the parameter, Figs. 30-31).
 """
 from __future__ import annotations
 
