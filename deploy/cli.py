@@ -105,7 +105,7 @@ def _clear_run(out: Path) -> None:
         (out / name).unlink(missing_ok=True)
     for p in out.glob("*_summary.json"):
         p.unlink()
-    for d in ("agents", "logs", "secrets"):
+    for d in ("agents", "logs", "secrets", "external"):
         shutil.rmtree(out / d, ignore_errors=True)
 
 
@@ -160,6 +160,13 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         sys.exit(2)
     from bus.keys import check_token
 
+    if in_process:
+        from deploy.external import external_ids
+
+        if external_ids(sc):
+            click.echo(f"error: {scenario}: {', '.join(external_ids(sc))} fly external flight software "
+                       "(fsw = \"external\"); that needs a multi-process run: drop --in-process", err=True)
+            sys.exit(2)
     if tls and (insecure or in_process):
         click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
         sys.exit(2)
@@ -211,6 +218,8 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
             click.echo(f"error: {exc}", err=True)
             sys.exit(1)
     s = res.summary
+    if s.get("external_join_timeout"):  # one line: which spacecraft, which endpoint (deploy/external.py)
+        _fail(res.reason, EXIT_FAILED)
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
                f"dead {sorted(s['dead_agents'])}, rejected packets {s['rejected_packets']}")
