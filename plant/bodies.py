@@ -57,7 +57,8 @@ class SpacecraftSpec(_Spec):
     limit: Literal["per_axis", "norm"] | None = None   # default: [actuator].limit
     max_torque_nm: float | None = Field(None, gt=0)    # by norm
     # "external": flight software the launcher does not start joins with the run's join kit
-    # (deploy/external.py, docs/hil.md); the launcher waits join_timeout_s (default 300 s) for it
+    # (deploy/external.py, docs/hil.md); the launcher waits join_timeout_s (default 300 s) for it.
+    # (join_timeout_s is ignored for "builtin", so `--set spacecraft.N.fsw=builtin` flies it built in)
     fsw: Literal["builtin", "external"] = "builtin"
     join_timeout_s: float | None = Field(None, gt=0, le=7 * 86400)
 
@@ -82,8 +83,6 @@ class SpacecraftSpec(_Spec):
             raise ValueError("give the initial state either as roe_m or as position_m (+ velocity_mps)")
         if self.max_accel_mps2 is not None and self.max_force_n is not None:
             raise ValueError("give max_accel_mps2 or max_force_n, not both")
-        if self.join_timeout_s is not None and self.fsw != "external":
-            raise ValueError("join_timeout_s applies to fsw = \"external\" only")
         return self
 
 

@@ -52,9 +52,11 @@ def test_external_spacecraft_is_validated() -> None:
     with pytest.raises(ScenarioError, match=r"x.toml: \[\[spacecraft\]\]\[1\].fsw .*'builtin' or 'external'"):
         parse_scenario(bad, "x.toml")
     bad = json.loads(json.dumps(doc))
-    bad["spacecraft"][0]["join_timeout_s"] = 5.0
-    with pytest.raises(ScenarioError, match=r"\[\[spacecraft\]\]\[0\] .*join_timeout_s applies to fsw = \"external\" only"):
+    bad["spacecraft"][1]["join_timeout_s"] = -5.0
+    with pytest.raises(ScenarioError, match=r"\[\[spacecraft\]\]\[1\].join_timeout_s .*greater than 0"):
         parse_scenario(bad, "x.toml")
+    builtin = load_scenario(SCENARIO, ["spacecraft.1.fsw=builtin"])  # the same scenario, flown built in
+    assert external_ids(builtin) == []
     long = json.loads(json.dumps(doc))
     long["spacecraft"][1]["join_timeout_s"] = 3600.0
     assert plant_ready_timeout_s(parse_scenario(long, "x.toml")) == 3660.0  # the plant outwaits the launcher
@@ -94,3 +96,119 @@ def test_join_timeout_is_one_line_and_leaves_nothing_running(tmp_path: Path) -> 
     assert doc["keys"]["act"] == "swarm/jt/sc/sc02/act" and doc["message_types"]["sense"] == "swarmhil.v1.RelStimulus"
     assert doc["zenoh"]["transport/auth/usrpwd/password"] == (kit / "agent-sc02.cred").read_text().strip().split(":")[1]
     assert doc["timing"]["deadline"]["mode"] == "lockstep" and doc["agent"]["controller"] == "drift-null"
+
+
+PROJECT_PACKAGES = {"agent", "bus", "claims", "dashboards", "deploy", "link", "missions", "plant", "swarmhil"}
+
+
+@pytest.fixture(scope="module")
+def fc_build(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The reference flight computer's own build step (examples/external_fsw/build.sh): protobuf
+    code generated from bus/swarmhil.proto, into a directory of the test's."""
+    build = tmp_path_factory.mktemp("fc-build")
+    r = subprocess.run([str(FC / "build.sh"), str(ROOT / "bus" / "swarmhil.proto"), str(build)], capture_output=True,
+                       text=True, env={**os.environ, "PYTHON": sys.executable}, timeout=120)
+    assert r.returncode == 0 and (build / "swarmhil_pb2.py").is_file(), r.stderr
+    return build
+
+
+class Flight:
+    """`swarmhil run` of a scenario with an external spacecraft, and the reference flight computer
+    started from its join kit once the launcher has written it."""
+
+    def __init__(self, out: Path, run_id: str, build: Path, args: list[str] = (), fc_args: list[str] = ()) -> None:
+        self.out = out
+        self.launcher = subprocess.Popen([*SWARMHIL, "run", str(SCENARIO), "--out", str(out), "--run-id", run_id,
+                                          "--no-progress", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                         text=True, env=_env(), cwd=ROOT)
+        self.kit = out / "external" / "sc02"
+        t_end = time.monotonic() + 120
+        while not (self.kit / "join.json").exists():
+            assert self.launcher.poll() is None, self.launcher.communicate()
+            assert time.monotonic() < t_end, "no join kit after 120 s"
+            time.sleep(0.1)
+        self.audit = out.parent / f"{run_id}-fc-modules.json"
+        # the flight computer runs outside the repository with the bare interpreter: nothing of
+        # the project on its path but what the editable install adds (the audit shows it took none)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        self.fc = subprocess.Popen([sys.executable, str(FC / "fc.py"), str(self.kit), "--build", str(build),
+                                    "--audit", str(self.audit), *fc_args], stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, text=True, env=env, cwd=out.parent)
+
+    def finish(self, timeout_s: float = 300.0) -> tuple[int, str, str, str]:
+        """(launcher exit code, its stdout, its stderr, the flight computer's output)."""
+        out, err = self.launcher.communicate(timeout=timeout_s)
+        fc_out, _ = self.fc.communicate(timeout=60)
+        return self.launcher.returncode, out, err, fc_out
+
+
+def _truth(path: Path) -> list[bytes]:
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
+
+
+def _acts(path: Path, sid: str) -> list:
+    return [m for t, _l, _p, m in read_mcap(path) if t == f"sc/{sid}/act"]
+
+
+def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: Path, fc_build: Path) -> None:
+    """sc02 of hil-3 flown by examples/external_fsw/fc.py (imports nothing of the project) in a
+    multi-process lockstep run: the truth is byte for byte the one of the same run with sc02's
+    built-in drift-null agent, and sc02's commands are non-zero and follow its stimuli."""
+    from deploy.launcher import MultiProcessRun
+
+    steps = ["--duration", "1000"]
+    flight = Flight(tmp_path / "ext", "hil1", fc_build, steps)
+    code, out, err, fc_out = flight.finish()
+    assert code == 0, (out, err, fc_out)
+    assert "fc: answered 100 stimuli" in fc_out, fc_out
+    modules = set(json.loads(flight.audit.read_text()))
+    assert {"zenoh", "numpy", "swarmhil_pb2"} <= modules and not modules & PROJECT_PACKAGES, modules & PROJECT_PACKAGES
+    s = json.loads((tmp_path / "ext" / "summary.json").read_text())
+    assert s["steps"] == 100 and not s["dead_agents"] and not s["missed_deadlines"] and s["rejected_packets"] == 0, s
+    assert s["external"]["sc02"]["joined_after_s"] is not None and "agent-sc02" not in s["pids"]
+
+    sc = load_scenario(SCENARIO, ["spacecraft.1.fsw=builtin"]).with_overrides(duration_s=1000.0)
+    ref = MultiProcessRun(str(SCENARIO), sc, tmp_path / "builtin", "hil1", progress=False,
+                          overrides={"duration": 1000.0}).execute()
+    assert ref.exit_code == 0, ref.reason
+    ext_mcap, ref_mcap = tmp_path / "ext" / "run.mcap", tmp_path / "builtin" / "run.mcap"
+    truth = _truth(ext_mcap)
+    assert len(truth) == 101 and truth == _truth(ref_mcap)  # bit for bit
+    ext_acts, ref_acts = _acts(ext_mcap, "sc02"), _acts(ref_mcap, "sc02")
+    assert {a.controller for a in ext_acts} == {"drift-null/external"} and {a.controller for a in ref_acts} == {"drift-null"}
+    uy = [a.accel_mps2.y for a in ext_acts]
+    assert uy == [a.accel_mps2.y for a in ref_acts] and [a.header.step for a in ext_acts] == list(range(100))
+    assert all(u != 0.0 for u in uy) and len(set(uy)) > 50  # a law of its stimuli, not the null controller
+    assert s["delta_v_mps"]["sc02"] > 0 and s["delta_v_mps"] == ref.summary["delta_v_mps"]
+
+
+def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: Path, fc_build: Path) -> None:
+    """SIGKILL the external flight computer (its PID) mid-run: the plant marks sc02 dead, it coasts
+    (no command, zero applied acceleration), the event is in the MCAP and the run completes."""
+    import signal
+
+    flight = Flight(tmp_path / "kill", "hil2", fc_build, fc_args=["--print-steps"])
+    for line in flight.fc.stdout:  # answered stimuli, one line each
+        if line.startswith("step 30 "):
+            break
+    os.kill(flight.fc.pid, signal.SIGKILL)
+    code, out, err, _fc = flight.finish()
+    assert code == 0, (out, err)
+    assert flight.fc.returncode == -signal.SIGKILL
+    s = json.loads((tmp_path / "kill" / "summary.json").read_text())
+    dead = s["dead_agents"]["sc02"]
+    assert s["steps"] == 300 and list(s["dead_agents"]) == ["sc02"] and 30 <= dead["step"] < 300, s["dead_agents"]
+    assert dead["reason"] == "liveliness token disappeared"
+    msgs = read_mcap(tmp_path / "kill" / "run.mcap")
+    events = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "agent_dead"]
+    assert [(e.subject, e.header.step) for e in events] == [("sc02", dead["step"])]
+    truth = [m for t, _l, _p, m in msgs if t == "truth"]
+    assert len(truth) == 301 and truth[-1].header.step == 300
+    after = [next(b for b in m.bodies if b.id == "sc02") for m in truth[dead["step"] + 1:]]
+    assert all(not b.alive and b.accel_cmd_mps2.y == 0.0 for b in after)  # coasting
+    assert any(next(b for b in m.bodies if b.id == "sc02").accel_cmd_mps2.y != 0.0 for m in truth[1:dead["step"]])
+    acts = _acts(tmp_path / "kill" / "run.mcap", "sc02")
+    assert acts and max(a.header.step for a in acts) <= dead["step"]
