@@ -187,7 +187,8 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
 
 def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: Path, fc_build: Path) -> None:
     """SIGKILL the external flight computer (its PID) mid-run: the plant marks sc02 dead, it coasts
-    (no command, zero applied acceleration), the event is in the MCAP and the run completes."""
+    (no command, zero applied acceleration), the event is in the MCAP and the run completes. A new
+    flight computer started from the same kit rejoins cold (event agent_rejoin) and flies again."""
     import signal
 
     flight = Flight(tmp_path / "kill", "hil2", fc_build, fc_args=["--print-steps"])
@@ -195,20 +196,77 @@ def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: 
         if line.startswith("step 30 "):
             break
     os.kill(flight.fc.pid, signal.SIGKILL)
+    assert flight.fc.wait(30) == -signal.SIGKILL
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    second = subprocess.Popen([sys.executable, str(FC / "fc.py"), str(flight.kit), "--build", str(fc_build)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     code, out, err, _fc = flight.finish()
+    second_out, _ = second.communicate(timeout=60)
     assert code == 0, (out, err)
-    assert flight.fc.returncode == -signal.SIGKILL
     s = json.loads((tmp_path / "kill" / "summary.json").read_text())
-    dead = s["dead_agents"]["sc02"]
-    assert s["steps"] == 300 and list(s["dead_agents"]) == ["sc02"] and 30 <= dead["step"] < 300, s["dead_agents"]
-    assert dead["reason"] == "liveliness token disappeared"
+    assert s["steps"] == 300 and not s["dead_agents"], s["dead_agents"]  # back alive at the end
+    (rejoin,) = s["rejoins"]
+    d, r = rejoin["dead_step"], rejoin["step"]
+    assert rejoin["id"] == "sc02" and rejoin["dead_reason"] == "liveliness token disappeared" and 30 <= d < r < 300, rejoin
     msgs = read_mcap(tmp_path / "kill" / "run.mcap")
-    events = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "agent_dead"]
-    assert [(e.subject, e.header.step) for e in events] == [("sc02", dead["step"])]
+    events = [(m.kind, m.subject, m.header.step) for t, _l, _p, m in msgs
+              if t == "event" and m.kind in ("agent_dead", "agent_rejoin")]
+    assert events == [("agent_dead", "sc02", d), ("agent_rejoin", "sc02", r)]
     truth = [m for t, _l, _p, m in msgs if t == "truth"]
-    assert len(truth) == 301 and truth[-1].header.step == 300
-    after = [next(b for b in m.bodies if b.id == "sc02") for m in truth[dead["step"] + 1:]]
-    assert all(not b.alive and b.accel_cmd_mps2.y == 0.0 for b in after)  # coasting
-    assert any(next(b for b in m.bodies if b.id == "sc02").accel_cmd_mps2.y != 0.0 for m in truth[1:dead["step"]])
-    acts = _acts(tmp_path / "kill" / "run.mcap", "sc02")
-    assert acts and max(a.header.step for a in acts) <= dead["step"]
+    assert len(truth) == 301 and truth[-1].header.step == 300  # the run completed
+    sc02 = [next(b for b in m.bodies if b.id == "sc02") for m in truth]
+    assert all(b.alive and b.accel_cmd_mps2.y != 0.0 for b in sc02[1:d])  # flown by the first computer
+    assert all(not b.alive and b.accel_cmd_mps2.y == 0.0 for b in sc02[d + 1:r])  # coasting
+    assert all(b.alive for b in sc02[r:]) and any(b.accel_cmd_mps2.y != 0.0 for b in sc02[r + 1:])  # flown again
+    acts = [a.header.step for a in _acts(tmp_path / "kill" / "run.mcap", "sc02")]
+    assert max(a for a in acts if a < r) <= d and min(a for a in acts if a > d) >= r
+    assert "fc: answered" in second_out, second_out
+
+
+def _doc_blocks(name: str) -> tuple[list[str], list[str]]:
+    """(the shell commands of the block marked to be run by this test, every python block) of a doc."""
+    import re
+
+    text = (ROOT / "docs" / name).read_text()
+    (sh,) = re.findall(r"<!-- run-by: tests/test_external_fsw.py::test_hil_doc_runs -->\n```sh\n(.*?)```", text, re.S)
+    cmds = [line.split("#")[0].strip() for line in sh.splitlines() if line.split("#")[0].strip()]
+    return cmds, re.findall(r"```python\n(.*?)```", text, re.S)
+
+
+def test_hil_doc_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """docs/hil.md's quick start as written (runs/hil in a temporary directory; the flight
+    computer's build into one too), then its Python on the run."""
+    cmds, python = _doc_blocks("hil.md")
+    run_dir = tmp_path / "runs" / "hil"
+    assert cmds == ["swarmhil run deploy/scenarios/hil-3.toml --out runs/hil --run-id hil",
+                    "examples/external_fsw/build.sh",
+                    "python examples/external_fsw/fc.py runs/hil/external/sc02"], cmds
+    build = tmp_path / "build"
+    args = [c.replace("runs/hil", str(run_dir)).split() for c in cmds]
+    args[0][0:1] = SWARMHIL
+    args[1] += [str(ROOT / "bus" / "swarmhil.proto"), str(build)]  # (into the test's directory)
+    args[2][0:1] = [sys.executable]
+    args[2] += ["--build", str(build)]
+    launcher = subprocess.Popen([*args[0], "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env=_env(), cwd=ROOT)
+    try:
+        r = subprocess.run(args[1], cwd=ROOT, env={**os.environ, "PYTHON": sys.executable}, capture_output=True,
+                           text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        t_end = time.monotonic() + 120
+        while not (run_dir / "external" / "sc02" / "join.json").exists() and time.monotonic() < t_end:
+            time.sleep(0.1)
+        fc = subprocess.run(args[2], cwd=ROOT, capture_output=True, text=True, timeout=300)
+        out, err = launcher.communicate(timeout=120)
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+    assert fc.returncode == 0 and launcher.returncode == 0, (fc.stdout, fc.stderr, out, err)
+    lines = out.splitlines()
+    assert lines[0].startswith("waiting up to 300 s for the external flight software of sc02 to join at tcp/127.0.0.1:")
+    assert lines[1].startswith("run hil: 300 steps") and "dead []" in lines[1], out
+    ns: dict[str, object] = {}
+    for code in python:
+        exec(compile(code.replace('"runs/hil"', repr(str(run_dir))), "docs/hil.md", "exec"), ns)  # noqa: S102
+    printed = capsys.readouterr().out
+    assert "sc02 answered 300 of 300 steps" in printed and "dead []" in printed and "compute per step p50" in printed
