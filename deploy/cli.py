@@ -141,10 +141,13 @@ def main(verbose: int) -> None:
               help="Multi-process runs: mutual TLS to the router with per-run certificates in DIR/secrets/tls (needs openssl).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
+@click.option("--join-listen", metavar="ENDPOINT",
+              help="Multi-process runs with external flight software: the router also listens here (an address of "
+                   "another network, e.g. tls/10.0.0.1:7447) and the join kits point here (docs/hil.md).")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
         speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
-        insecure: bool, tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
+        insecure: bool, tls: bool, sets: tuple[str, ...], join_listen: str | None, **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process
@@ -199,6 +202,14 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         opts["secure"] = False
     if tls:
         opts["tls"] = True
+    if join_listen:
+        from deploy.external import check_join_listen
+
+        try:
+            check_join_listen(join_listen, bool(opts.get("tls", sc.tls)), sc)
+        except ValueError as exc:
+            _fail(str(exc), EXIT_USAGE)
+        opts["join_listen"] = join_listen
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:

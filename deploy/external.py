@@ -168,6 +168,28 @@ def write_join_kit(out: Path, sc: Any, run: str, sid: str, router: list[str], se
     return kit
 
 
+def join_hosts(join_listen: str | None) -> list[str]:
+    """The host of a `--join-listen` endpoint (`tls/10.0.0.1:7447` -> ["10.0.0.1"]): the run's router
+    certificate must name it (bus/tls.py)."""
+    if not join_listen:
+        return []
+    return [join_listen.split("/", 1)[1].rpartition(":")[0].strip("[]")]
+
+
+def check_join_listen(endpoint: str, tls: bool, sc: Any) -> None:
+    """ValueError (one line) for a `--join-listen` that cannot work: no external spacecraft, another
+    protocol than the run's (tcp/, or tls/ with --tls), no host:port, or a wildcard address."""
+    proto = "tls" if tls else "tcp"
+    if not external_ids(sc):
+        raise ValueError(f"--join-listen {endpoint}: the scenario has no spacecraft with fsw = \"external\"")
+    head, _, rest = endpoint.partition("/")
+    host, _, port = rest.rpartition(":")
+    if head != proto or not host or not port.isdigit():
+        raise ValueError(f"--join-listen {endpoint}: must be {proto}/ADDRESS:PORT (the run's router speaks {proto})")
+    if host.strip("[]") in ("0.0.0.0", "::", ""):
+        raise ValueError(f"--join-listen {endpoint}: a wildcard address; give the address of the interface to listen on")
+
+
 class JoinWatch:
     """The launcher's wait for the external agents' liveliness tokens (on its own Zenoh session)."""
 
@@ -227,6 +249,8 @@ def start_external(run_obj: Any, watch: Any, router: str) -> JoinWatch | None:
         return None
     timeouts = {sid: join_timeout_s(sc, sid) for sid in ids}
     jw = JoinWatch(watch, run_obj.run, ids, timeouts)
+    # `--join-listen`: the router also listens on an address of another network, and the kits point there
+    router = run_obj.opts.get("join_listen") or router
     for sid in ids:
         write_join_kit(run_obj.out, sc, run_obj.run, sid, [router], run_obj.security)
     jw.t0 = time.monotonic()

@@ -26,7 +26,7 @@ from tqdm import tqdm
 from bus import swarmhil_pb2 as pb
 from bus.keys import Keys
 from deploy.companions import enabled_companions
-from deploy.external import JoinTimeout, external_ids, start_external
+from deploy.external import JoinTimeout, external_ids, join_hosts, start_external
 from deploy.scenario import Scenario, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
@@ -351,6 +351,8 @@ class MultiProcessRun:
             port = free_loopback_port()
             ep = endpoint(port, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "deploy.router", "--listen", ep]
+            if self.opts.get("join_listen"):  # external flight software on another host (deploy/external.py)
+                cmd += ["--also-listen", self.opts["join_listen"]]
             if self.security is not None:
                 cmd += ["--acl-dir", str(self.security.dir)]
                 if self.security.tls is not None:
@@ -442,7 +444,8 @@ class MultiProcessRun:
             from bus.acl import make_run_security
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            self.security = make_run_security(self.out, self.run, users, tls=self.tls)
+            self.security = make_run_security(self.out, self.run, users, tls=self.tls,
+                                              tls_hosts=join_hosts(self.opts.get("join_listen")))
             launcher_cred = self.security.credential("launcher")
         elif self.tls:
             raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")

@@ -69,6 +69,20 @@ def test_in_process_run_refuses_an_external_spacecraft(tmp_path: Path) -> None:
     assert r.stderr.strip().count("\n") == 0 and "sc02 fly external flight software" in r.stderr, r.stderr
 
 
+def test_join_listen_is_checked_before_anything_starts(tmp_path: Path) -> None:
+    """--join-listen (the router's extra endpoint for another host): the run's protocol, an explicit
+    address and port, and a scenario with an external spacecraft; else one line, exit 2."""
+    cases = [(SCENARIO, ["--tls", "--join-listen", "tcp/10.213.1.1:7447"], "must be tls/ADDRESS:PORT"),
+             (SCENARIO, ["--join-listen", "tcp/0.0.0.0:7447"], "a wildcard address"),
+             (SCENARIO, ["--join-listen", "tcp/10.213.1.1"], "must be tcp/ADDRESS:PORT"),
+             (SCENARIOS / "demo.toml", ["--join-listen", "tcp/10.213.1.1:7447"], "no spacecraft with fsw = \"external\"")]
+    for i, (scenario, args, why) in enumerate(cases):
+        r = subprocess.run([*SWARMHIL, "run", str(scenario), "--out", str(tmp_path / str(i)), *args], capture_output=True,
+                           text=True, env=_env(), cwd=ROOT, timeout=120)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and why in r.stderr, (args, r.stderr)
+        assert not (tmp_path / str(i) / "run.json").exists()
+
+
 def test_join_timeout_is_one_line_and_leaves_nothing_running(tmp_path: Path) -> None:
     """Nobody joins: the launcher prints where the kit is and what it waits for, then, after the
     join timeout, one line naming the spacecraft and the endpoint; exit 1; every process it
@@ -270,3 +284,60 @@ def test_hil_doc_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
         exec(compile(code.replace('"runs/hil"', repr(str(run_dir))), "docs/hil.md", "exec"), ns)  # noqa: S102
     printed = capsys.readouterr().out
     assert "sc02 answered 300 of 300 steps" in printed and "dead []" in printed and "compute per step p50" in printed
+
+
+@pytest.mark.system
+def test_external_flight_computer_over_mutual_tls_from_its_own_namespace(tmp_path: Path, fc_build: Path) -> None:
+    """The flight computer on another "host": the launcher and every process it starts in one network
+    namespace (`r`), the flight computer in another (`a`), joined only by the veth links of the
+    multi-host test (tests/test_multihost.py). `swarmhil run --tls --join-listen tls/10.213.1.1:7447`:
+    the router also listens on r's address, the kit points there and carries the run's CA and the
+    agent's client certificate (its certificate names that address). Same truth, bit for bit, as the
+    built-in run on loopback without TLS."""
+    from system_tools import require_command, require_root
+    from test_multihost import ROUTER_IP, Hosts
+
+    from deploy.launcher import MultiProcessRun
+
+    require_root("network namespaces")
+    require_command("ip", "iproute2")
+    require_command("openssl", "openssl")
+    out, ep = tmp_path / "tls", f"tls/{ROUTER_IP}:7447"
+    hosts = Hosts()
+    try:
+        launcher = subprocess.Popen([*hosts.prefix("r"), *SWARMHIL, "run", str(SCENARIO), "--out", str(out), "--run-id",
+                                     "hil3", "--no-progress", "--duration", "1000", "--tls", "--join-listen", ep,
+                                     "--set", "spacecraft.1.join_timeout_s=90"],
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), cwd=ROOT)
+        kit = out / "external" / "sc02"
+        t_end = time.monotonic() + 120
+        while not (kit / "join.json").exists():
+            assert launcher.poll() is None and time.monotonic() < t_end, launcher.communicate()
+            time.sleep(0.1)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        fc = subprocess.Popen([*hosts.prefix("a"), sys.executable, str(FC / "fc.py"), str(kit), "--build", str(fc_build)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, cwd=tmp_path)
+        time.sleep(1.0)
+        in_a, in_r = hosts.pids("a"), hosts.pids("r")  # where each really runs
+        code = launcher.wait(300)
+        fc_out, _ = fc.communicate(timeout=60)
+        l_out, l_err = launcher.communicate()
+    finally:
+        hosts.close()
+    assert code == 0 and fc.returncode == 0, (l_out, l_err, fc_out)
+    assert fc.pid in in_a and launcher.pid in in_r and in_a.isdisjoint(in_r), (in_a, in_r)
+    assert "fc: answered 100 stimuli" in fc_out, fc_out
+    doc = json.loads((kit / "join.json").read_text())
+    assert doc["router"] == [ep] and doc["zenoh"]["connect/endpoints"] == [ep]
+    assert doc["tls"] == {"ca": "tls/ca.pem", "cert": "tls/agent-sc02.pem", "key": "tls/agent-sc02.key"}
+    assert l_out.splitlines()[0].startswith(f"waiting up to 90 s for the external flight software of sc02 to join at {ep} ")
+    s = json.loads((out / "summary.json").read_text())
+    assert s["tls"] and s["secure"] and s["steps"] == 100 and not s["dead_agents"] and s["rejected_packets"] == 0, s
+
+    sc = load_scenario(SCENARIO, ["spacecraft.1.fsw=builtin"]).with_overrides(duration_s=1000.0)
+    ref = MultiProcessRun(str(SCENARIO), sc, tmp_path / "builtin", "hil3", progress=False,
+                          overrides={"duration": 1000.0}).execute()
+    assert ref.exit_code == 0, ref.reason
+    truth = _truth(out / "run.mcap")
+    assert len(truth) == 101 and truth == _truth(tmp_path / "builtin" / "run.mcap")
+    assert s["delta_v_mps"]["sc02"] > 0 and s["delta_v_mps"] == ref.summary["delta_v_mps"]
