@@ -237,6 +237,25 @@ def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: 
     assert "fc: answered" in second_out, second_out
 
 
+def test_slow_external_flight_computer_misses_real_time_deadlines_and_the_run_goes_on(tmp_path: Path,
+                                                                                      fc_build: Path) -> None:
+    """Real time at x50 (0.2 s a step) with a flight computer that takes 0.5 s a step: its misses are
+    counted (deadline_missed events, summary missed_deadlines), its spacecraft is not dropped, the run
+    completes on the wall clock."""
+    flight = Flight(tmp_path / "rt", "hil4", fc_build, ["--mode", "realtime", "--speed", "50", "--duration", "300"],
+                    fc_args=["--delay-s", "0.5"])
+    code, out, err, fc_out = flight.finish()
+    assert code == 0, (out, err, fc_out)
+    s = json.loads((tmp_path / "rt" / "summary.json").read_text())
+    assert s["steps"] == 30 and "sc02" not in s["dead_agents"], s
+    assert s["missed_deadlines"].get("sc02", 0) >= 20, s["missed_deadlines"]
+    msgs = read_mcap(tmp_path / "rt" / "run.mcap")
+    missed = [m.header.step for t, _l, _p, m in msgs if t == "event" and m.kind == "deadline_missed" and m.subject == "sc02"]
+    assert len(missed) == s["missed_deadlines"]["sc02"]
+    doc = json.loads((flight.kit / "join.json").read_text())
+    assert doc["timing"]["deadline"] == {**doc["timing"]["deadline"], "mode": "realtime", "wall_period_s": 0.2}
+
+
 def _doc_blocks(name: str) -> tuple[list[str], list[str]]:
     """(the shell commands of the block marked to be run by this test, every python block) of a doc."""
     import re

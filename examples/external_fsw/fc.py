@@ -72,7 +72,8 @@ class FlightComputer:
     """Stimulus in, command (and telemetry) out, on Zenoh's callback thread: one step is a few
     microseconds of numpy."""
 
-    def __init__(self, session: zenoh.Session, doc: dict[str, Any], pb: Any, print_steps: bool) -> None:
+    def __init__(self, session: zenoh.Session, doc: dict[str, Any], pb: Any, print_steps: bool,
+                 delay_s: float = 0.0) -> None:
         self.pb = pb
         self.doc = doc
         self.run, self.id = doc["run"], doc["spacecraft"]
@@ -86,6 +87,7 @@ class FlightComputer:
         self.seq = {"act": 0, "tm": 0}
         self.steps = 0
         self.print_steps = print_steps
+        self.delay_s = delay_s  # a slower computer: seconds added to every step's compute
         keys, types = doc["keys"], doc["message_types"]
         self.stim_cls = getattr(pb, types["sense"].rsplit(".", 1)[-1])
         self.act = session.declare_publisher(keys["act"], encoding=zenoh.Encoding(f"application/protobuf;{types['act']}"))
@@ -109,6 +111,8 @@ class FlightComputer:
             pos = np.array([(p.x, p.y, p.z) for p in (nb.position_m for nb in nbs)], dtype=float).reshape(-1, 3)
             vel = np.array([(v.x, v.y, v.z) for v in (nb.velocity_mps for nb in nbs)], dtype=float).reshape(-1, 3)
             self.accel, self.mode = drift_null(pos, vel, self.n, self.gain, self.max_accel)
+        if self.delay_s:
+            time.sleep(self.delay_s)
         compute_s = time.perf_counter() - t0
         ax, ay, az = self.accel.tolist()
         cmd = self.pb.ActuatorCommand(header=self.header("act", step, t), controller=self.name, isl_tx_count=0,
@@ -130,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--connect", help="another router endpoint than the kit's (e.g. an ssh-forwarded port)")
     ap.add_argument("--print-steps", action="store_true", help="one line per step answered")
     ap.add_argument("--audit", type=Path, help="write the top-level modules this process imported to this file")
+    ap.add_argument("--delay-s", type=float, default=0.0, help="emulate a slower computer: sleep this long per step")
     args = ap.parse_args(argv)
     doc = load_kit(args.kit)
     sys.path.insert(0, str(args.build.resolve()))
@@ -143,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         where = args.connect or doc["router"]
         print(f"fc: cannot join run {doc['run']} at {where}: {exc}", file=sys.stderr, flush=True)
         return 1
-    fc = FlightComputer(session, doc, pb, args.print_steps)
+    fc = FlightComputer(session, doc, pb, args.print_steps, args.delay_s)
     print(f"fc: flying {doc['spacecraft']} of run {doc['run']} ({doc['timing']['mode']}, "
           f"{doc['timing']['step_s']} s steps)", flush=True)
     gone_since = None
