@@ -329,6 +329,11 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
         sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
+    from deploy.external import external_ids
+
+    if external_ids(sc):  # a compose project starts every agent; external flight software joins a `swarmhil run`
+        _fail(f"{scenario}: {', '.join(external_ids(sc))} fly external flight software (fsw = \"external\"), which a "
+              "compose project does not start: use `swarmhil run` (docs/hil.md)", EXIT_USAGE)
     from bus.keys import check_token
     from bus.tls import TlsError
 
