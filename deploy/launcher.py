@@ -246,6 +246,7 @@ class MultiProcessRun:
         self.restarts: dict[str, int] = {}
         self.recorder_segment = 0  # recorder restarts so far: it writes run.NNN.mcap (bus/mcap_tools.py)
         self._event_seq = 0
+        self.cpu_budgets: dict[str, Any] = {}  # agent -> deploy.cpu_budget.CpuBudget
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
@@ -258,6 +259,22 @@ class MultiProcessRun:
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
         self._popen(name, cmd)
+        if name.startswith("agent-"):
+            self._limit_cpu(name)
+
+    def _limit_cpu(self, name: str) -> None:
+        """`[[spacecraft]] cpu_fraction`: the agent's process in a CPU-quota cgroup (deploy/cpu_budget.py);
+        one line on stderr where the machine does not allow it."""
+        fraction = self.sc.spec(name[len("agent-"):]).cpu_fraction
+        if not fraction:
+            return
+        from deploy.cpu_budget import limit
+
+        budget = limit(self.run, name, self.procs[name].pid, fraction)
+        if budget.group is None and name not in self.cpu_budgets:
+            print(f"cpu budget of {name} ({fraction:g} of a core) not enforced: {budget.why_not}", file=sys.stderr,
+                  flush=True)
+        self.cpu_budgets[name] = budget
 
     def _popen(self, name: str, cmd: list[str]) -> subprocess.Popen:
         logf = open(self.out / "logs" / f"{name}.log", "ab" if name in self.logs else "wb")  # a restart appends
@@ -571,6 +588,12 @@ class MultiProcessRun:
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         summary["restarts"] = dict(self.restarts)
+        if self.cpu_budgets:  # (every agent has exited: the groups' counters are final)
+            from deploy.cpu_budget import release
+
+            summary["cpu_budgets"] = {n: b.summary() for n, b in self.cpu_budgets.items()}
+            for b in self.cpu_budgets.values():
+                release(b)
         if self.recorder_segment:
             try:
                 summary["recording_segments"] = self._merge_segments()

@@ -61,6 +61,9 @@ class SpacecraftSpec(_Spec):
     # (join_timeout_s is ignored for "builtin", so `--set spacecraft.N.fsw=builtin` flies it built in)
     fsw: Literal["builtin", "external"] = "builtin"
     join_timeout_s: float | None = Field(None, gt=0, le=7 * 86400)
+    # the agent process's CPU budget as a fraction of one core (a flight computer slower than this
+    # machine), enforced with a cgroup CPU quota where the machine allows it (deploy/cpu_budget.py)
+    cpu_fraction: float | None = Field(None, ge=0.01, le=64)
 
     @field_validator("id")
     @classmethod
