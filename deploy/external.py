@@ -199,7 +199,6 @@ class JoinWatch:
         self.timeouts_s = timeouts_s
         self.t0 = time.monotonic()
         self.joined: dict[str, float] = {}  # id -> seconds after the kits were written
-        self.left: list[str] = []
         self._lock = threading.Lock()
         for sid in self.ids:
             bus.watch_liveliness(self.keys.alive(f"agent-{sid}"), self._on_token)
@@ -209,8 +208,6 @@ class JoinWatch:
         with self._lock:
             if alive and sid not in self.joined:
                 self.joined[sid] = time.monotonic() - self.t0
-            elif not alive:
-                self.left.append(sid)
 
     def check(self, router: str) -> None:
         """JoinTimeout (one line naming the spacecraft and the endpoint) once a join timeout has

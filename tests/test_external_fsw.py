@@ -76,10 +76,13 @@ def test_join_listen_is_checked_before_anything_starts(tmp_path: Path) -> None:
              (SCENARIO, ["--join-listen", "tcp/0.0.0.0:7447"], "a wildcard address"),
              (SCENARIO, ["--join-listen", "tcp/10.213.1.1"], "must be tcp/ADDRESS:PORT"),
              (SCENARIOS / "demo.toml", ["--join-listen", "tcp/10.213.1.1:7447"], "no spacecraft with fsw = \"external\"")]
+    from click.testing import CliRunner
+
+    from deploy.cli import main
+
     for i, (scenario, args, why) in enumerate(cases):
-        r = subprocess.run([*SWARMHIL, "run", str(scenario), "--out", str(tmp_path / str(i)), *args], capture_output=True,
-                           text=True, env=_env(), cwd=ROOT, timeout=120)
-        assert r.returncode == 2 and r.stderr.count("\n") == 1 and why in r.stderr, (args, r.stderr)
+        r = CliRunner().invoke(main, ["run", str(scenario), "--out", str(tmp_path / str(i)), *args])
+        assert r.exit_code == 2 and r.stderr.count("\n") == 1 and why in r.stderr, (args, r.stderr)
         assert not (tmp_path / str(i) / "run.json").exists()
 
 

@@ -137,6 +137,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--delay-s", type=float, default=0.0, help="emulate a slower computer: sleep this long per step")
     args = ap.parse_args(argv)
     doc = load_kit(args.kit)
+    if doc["message_types"]["sense"] not in ("swarmhil.v1.RelStimulus", "swarmhil.v1.Measurements"):
+        print(f"fc: this computer flies on neighbours' relative states (RelStimulus, Measurements), not on "
+              f"{doc['message_types']['sense']}", file=sys.stderr, flush=True)
+        return 2
     sys.path.insert(0, str(args.build.resolve()))
     pb = importlib.import_module("swarmhil_pb2")
     stop = threading.Event()
