@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 from pathlib import Path
@@ -159,6 +160,27 @@ class Flight:
         return self.launcher.returncode, out, err, fc_out
 
 
+def _forge_commands(kit: Path, stop: threading.Event) -> None:
+    """With the kit's credential, full thrust commands for the other spacecraft, every step, until
+    stopped: were they let through, the plant would take them (right run, source = the key's id)."""
+    import zenoh
+
+    from bus import swarmhil_pb2 as pb
+
+    doc = json.loads((kit / "join.json").read_text())
+    cfg = zenoh.Config()
+    for key, value in doc["zenoh"].items():
+        cfg.insert_json5(key, json.dumps(value))
+    with zenoh.open(cfg) as session:
+        pubs = {sid: session.declare_publisher(f"swarm/{doc['run']}/sc/{sid}/act") for sid in ("sc01", "sc03")}
+        while not stop.wait(0.02):
+            for step in range(100):
+                for sid, pub in pubs.items():
+                    pub.put(pb.ActuatorCommand(header=pb.Header(run=doc["run"], source=sid, step=step, t=step * 10.0),
+                                               accel_mps2=pb.Vector3(x=1e-3, y=1e-3, z=1e-3), controller="rogue")
+                            .SerializeToString())
+
+
 def _truth(path: Path) -> list[bytes]:
     from mcap.reader import make_reader
 
@@ -178,7 +200,12 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
 
     steps = ["--duration", "1000"]
     flight = Flight(tmp_path / "ext", "hil1", fc_build, steps)
+    stop = threading.Event()
+    rogue = threading.Thread(target=_forge_commands, args=(flight.kit, stop), daemon=True)
+    rogue.start()  # sc02's credential put on sc01's and sc03's keys: the router's ACL drops it all
     code, out, err, fc_out = flight.finish()
+    stop.set()
+    rogue.join(10)
     assert code == 0, (out, err, fc_out)
     assert "fc: answered 100 stimuli" in fc_out, fc_out
     modules = set(json.loads(flight.audit.read_text()))
