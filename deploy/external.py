@@ -198,7 +198,8 @@ class JoinWatch:
         self.ids = list(ids)
         self.timeouts_s = timeouts_s
         self.t0 = time.monotonic()
-        self.joined: dict[str, float] = {}  # id -> seconds after the kits were written
+        self.joined: dict[str, float] = {}  # id -> seconds after the kits were written (first token)
+        self.present: set[str] = set()      # ids whose token is up now
         self._lock = threading.Lock()
         for sid in self.ids:
             bus.watch_liveliness(self.keys.alive(f"agent-{sid}"), self._on_token)
@@ -206,15 +207,18 @@ class JoinWatch:
     def _on_token(self, key: str, alive: bool) -> None:
         sid = key.rsplit("/", 1)[-1][len("agent-"):]
         with self._lock:
-            if alive and sid not in self.joined:
-                self.joined[sid] = time.monotonic() - self.t0
+            if alive:
+                self.present.add(sid)
+                self.joined.setdefault(sid, time.monotonic() - self.t0)
+            else:
+                self.present.discard(sid)
 
     def check(self, router: str) -> None:
-        """JoinTimeout (one line naming the spacecraft and the endpoint) once a join timeout has
-        passed without that spacecraft's token."""
+        """Before step 0: JoinTimeout (one line naming the spacecraft and the endpoint) once a join
+        timeout has passed without that spacecraft's token up (never joined, or joined and left)."""
         now = time.monotonic() - self.t0
         with self._lock:
-            late = [s for s in self.ids if s not in self.joined and now > self.timeouts_s[s]]
+            late = [s for s in self.ids if s not in self.present and now > self.timeouts_s[s]]
         if late:
             sid = late[0]
             raise JoinTimeout(f"external flight software of spacecraft {sid} did not join within "
