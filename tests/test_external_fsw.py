@@ -222,11 +222,17 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
     truth = _truth(ext_mcap)
     assert len(truth) == 101 and truth == _truth(ref_mcap)  # bit for bit
     ext_acts, ref_acts = _acts(ext_mcap, "sc02"), _acts(ref_mcap, "sc02")
-    assert {a.controller for a in ext_acts} == {"drift-null/external"} and {a.controller for a in ref_acts} == {"drift-null"}
+    assert {a.controller for a in ext_acts} == {a.controller for a in ref_acts} == {"drift-null"}
+    tm = [m.controller for t, _l, _p, m in read_mcap(ext_mcap) if t == "sc/sc02/tm"]
+    assert len(tm) == 100 and set(tm) == {"drift-null/external"}  # the recording says who flew it
     uy = [a.accel_mps2.y for a in ext_acts]
     assert uy == [a.accel_mps2.y for a in ref_acts] and [a.header.step for a in ext_acts] == list(range(100))
     assert all(u != 0.0 for u in uy) and len(set(uy)) > 50  # a law of its stimuli, not the null controller
     assert s["delta_v_mps"]["sc02"] > 0 and s["delta_v_mps"] == ref.summary["delta_v_mps"]
+    # and the built-in flight software re-flown on what the external one received commands the same
+    r = subprocess.run([*SWARMHIL, "refly", str(tmp_path / "ext"), "--agent", "sc02", "--exit-code"],
+                       capture_output=True, text=True, env=_env(), cwd=ROOT, timeout=120)
+    assert r.returncode == 0 and r.stdout.startswith("sc02: identical over 100 steps"), (r.stdout, r.stderr)
 
 
 def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: Path, fc_build: Path) -> None:
@@ -286,20 +292,20 @@ def test_slow_external_flight_computer_misses_real_time_deadlines_and_the_run_go
     assert doc["timing"]["deadline"] == {**doc["timing"]["deadline"], "mode": "realtime", "wall_period_s": 0.2}
 
 
-def _doc_blocks(name: str) -> tuple[list[str], list[str]]:
-    """(the shell commands of the block marked to be run by this test, every python block) of a doc."""
+def _doc_blocks(name: str) -> tuple[list[list[str]], list[str]]:
+    """(the shell commands of each block marked to be run by this test, every python block) of a doc."""
     import re
 
     text = (ROOT / "docs" / name).read_text()
-    (sh,) = re.findall(r"<!-- run-by: tests/test_external_fsw.py::test_hil_doc_runs -->\n```sh\n(.*?)```", text, re.S)
-    cmds = [line.split("#")[0].strip() for line in sh.splitlines() if line.split("#")[0].strip()]
+    blocks = re.findall(r"<!-- run-by: tests/test_external_fsw.py::test_hil_doc_runs -->\n```sh\n(.*?)```", text, re.S)
+    cmds = [[line.split("#")[0].strip() for line in b.splitlines() if line.split("#")[0].strip()] for b in blocks]
     return cmds, re.findall(r"```python\n(.*?)```", text, re.S)
 
 
 def test_hil_doc_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """docs/hil.md's quick start as written (runs/hil in a temporary directory; the flight
     computer's build into one too), then its Python on the run."""
-    cmds, python = _doc_blocks("hil.md")
+    (cmds, refly), python = _doc_blocks("hil.md")
     run_dir = tmp_path / "runs" / "hil"
     assert cmds == ["swarmhil run deploy/scenarios/hil-3.toml --out runs/hil --run-id hil",
                     "examples/external_fsw/build.sh",
@@ -333,6 +339,13 @@ def test_hil_doc_runs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
         exec(compile(code.replace('"runs/hil"', repr(str(run_dir))), "docs/hil.md", "exec"), ns)  # noqa: S102
     printed = capsys.readouterr().out
     assert "sc02 answered 300 of 300 steps" in printed and "dead []" in printed and "compute per step p50" in printed
+    assert [c.split()[:4] for c in refly] == [["swarmhil", "refly", "runs/hil", "--agent"]] * 2, refly
+    got = [subprocess.run([*SWARMHIL, *c.replace("runs/hil", str(run_dir)).split()[1:]], capture_output=True, text=True,
+                          env=_env(), cwd=ROOT, timeout=120) for c in refly]
+    assert got[0].returncode == 0 and got[0].stdout.startswith("sc02: identical over 300 steps"), got[0]
+    assert got[1].returncode == 5 and got[1].stdout.startswith("sc01: first divergence at step 0 (t = 0 s): "
+                                                               "accel_mps2.y recorded "), got[1]
+    assert (run_dir / "refly-sc01" / "commands.csv").is_file()
 
 
 @pytest.mark.system

@@ -82,7 +82,8 @@ class FlightComputer:
         self.gain = float(agent["params"].get("gain_per_s", 1e-4))
         self.max_accel = float(agent["params"].get("max_accel_mps2", 1e-3))
         self.period = int(doc["timing"]["decision_period_steps"])
-        self.name = "drift-null/external"
+        self.name = "drift-null"  # the law's name in its commands (swarmhil refly compares it with the built-in's)
+        self.who = "drift-null/external"  # in its telemetry: the recording says who flew it
         self.accel, self.mode = np.zeros(3), "init"
         self.seq = {"act": 0, "tm": 0}
         self.steps = 0
@@ -118,7 +119,7 @@ class FlightComputer:
         cmd = self.pb.ActuatorCommand(header=self.header("act", step, t), controller=self.name, isl_tx_count=0,
                                       accel_mps2=self.pb.Vector3(x=ax, y=ay, z=az))
         self.act.put(cmd.SerializeToString())
-        tm = self.pb.Telemetry(header=self.header("tm", step, t), mode=self.mode, controller=self.name,
+        tm = self.pb.Telemetry(header=self.header("tm", step, t), mode=self.mode, controller=self.who,
                                accel_mps2=self.pb.Vector3(x=ax, y=ay, z=az), compute_s=compute_s)
         self.tm.put(tm.SerializeToString())
         self.steps += 1
