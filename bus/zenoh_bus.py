@@ -73,11 +73,12 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
     return cfg
 
 
-def open_router(listen: str, overrides: dict[str, Any] | None = None) -> zenoh.Session:
+def open_router(listen: str, overrides: dict[str, Any] | None = None, also: list[str] = ()) -> zenoh.Session:
     """A Python session in router mode: the run's router (no zenohd binary needed).
 
-    `overrides` carries the run's authentication dictionary and access control (bus/acl.py)."""
-    return zenoh.open(zenoh_config("router", [listen], [], overrides))
+    `overrides` carries the run's authentication dictionary and access control (bus/acl.py); `also`:
+    more endpoints to listen on (external flight software on another host, deploy/external.py)."""
+    return zenoh.open(zenoh_config("router", [listen, *also], [], overrides))
 
 
 def _address_in_use(exc: BaseException) -> bool:

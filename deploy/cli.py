@@ -105,7 +105,7 @@ def _clear_run(out: Path) -> None:
         (out / name).unlink(missing_ok=True)
     for p in out.glob("*_summary.json"):
         p.unlink()
-    for d in ("agents", "logs", "secrets"):
+    for d in ("agents", "logs", "secrets", "external"):
         shutil.rmtree(out / d, ignore_errors=True)
 
 
@@ -141,10 +141,13 @@ def main(verbose: int) -> None:
               help="Multi-process runs: mutual TLS to the router with per-run certificates in DIR/secrets/tls (needs openssl).")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file.")
+@click.option("--join-listen", metavar="ENDPOINT",
+              help="Multi-process runs with external flight software: the router also listens here (an address of "
+                   "another network, e.g. tls/10.0.0.1:7447) and the join kits point here (docs/hil.md).")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
         speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
-        insecure: bool, tls: bool, sets: tuple[str, ...], **viz: Any) -> None:
+        insecure: bool, tls: bool, sets: tuple[str, ...], join_listen: str | None, **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from deploy.cli_viz import viz_opts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from deploy.launcher import MultiProcessRun, new_run_id, run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -160,6 +163,13 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         sys.exit(2)
     from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
+    if in_process:
+        from deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+        if external_ids(sc):
+            click.echo(f"error: {scenario}: {', '.join(external_ids(sc))} fly external flight software "
+                       "(fsw = \"external\"); that needs a multi-process run: drop --in-process", err=True)
+            sys.exit(2)
     if tls and (insecure or in_process):
         click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
         sys.exit(2)
@@ -192,6 +202,14 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         opts["secure"] = False
     if tls:
         opts["tls"] = True
+    if join_listen:
+        from deploy.external import check_join_listen
+
+        try:
+            check_join_listen(join_listen, bool(opts.get("tls", sc.tls)), sc)
+        except ValueError as exc:
+            _fail(str(exc), EXIT_USAGE)
+        opts["join_listen"] = join_listen
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:
@@ -211,6 +229,8 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
             click.echo(f"error: {exc}", err=True)
             sys.exit(1)
     s = res.summary
+    if s.get("external_join_timeout"):  # one line: which spacecraft, which endpoint (deploy/external.py)
+        _fail(res.reason, EXIT_FAILED)
     click.echo(f"run {s['run']}: {s.get('steps', 0)} steps of {s['step_s']} s, {s['agents']} agents, "
                f"wall {s['wall_s']:.1f} s, total dV {s['delta_v_total_mps']:.4f} m/s, "
                f"dead {sorted(s['dead_agents'])}, rejected packets {s['rejected_packets']}")
@@ -309,6 +329,11 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
         sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
+    from deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+    if external_ids(sc):  # a compose project starts every agent; external flight software joins a `swarmhil run`
+        _fail(f"{scenario}: {', '.join(external_ids(sc))} fly external flight software (fsw = \"external\"), which a "
+              "compose project does not start: use `swarmhil run` (docs/hil.md)", EXIT_USAGE)
     from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 

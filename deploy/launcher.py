@@ -26,6 +26,7 @@ from tqdm import tqdm
 from bus import swarmhil_pb2 as pb
 from bus.keys import Keys
 from deploy.companions import enabled_companions
+from deploy.external import JoinTimeout, external_ids, join_hosts, start_external
 from deploy.scenario import Scenario, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
@@ -117,6 +118,9 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     from plant.node import PlantNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from plant.world import World  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
+    if external_ids(sc):
+        raise ValueError(f"{sc.source}: spacecraft {external_ids(sc)} fly external flight software (fsw = "
+                         f"\"external\"): that needs a multi-process run, not an in-process one")
     run = run or new_run_id(sc.name)
     out.mkdir(parents=True, exist_ok=True)
     summary = _base_summary(sc, run, "in-process")
@@ -242,6 +246,7 @@ class MultiProcessRun:
         self.restarts: dict[str, int] = {}
         self.recorder_segment = 0  # recorder restarts so far: it writes run.NNN.mcap (bus/mcap_tools.py)
         self._event_seq = 0
+        self.cpu_budgets: dict[str, Any] = {}  # agent -> deploy.cpu_budget.CpuBudget
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
@@ -254,6 +259,22 @@ class MultiProcessRun:
             if val is not None:
                 cmd += [f"--{opt}", str(val)]
         self._popen(name, cmd)
+        if name.startswith("agent-"):
+            self._limit_cpu(name)
+
+    def _limit_cpu(self, name: str) -> None:
+        """`[[spacecraft]] cpu_fraction`: the agent's process in a CPU-quota cgroup (deploy/cpu_budget.py);
+        one line on stderr where the machine does not allow it."""
+        fraction = self.sc.spec(name[len("agent-"):]).cpu_fraction
+        if not fraction:
+            return
+        from deploy.cpu_budget import limit
+
+        budget = limit(self.run, name, self.procs[name].pid, fraction)
+        if budget.group is None and name not in self.cpu_budgets:
+            print(f"cpu budget of {name} ({fraction:g} of a core) not enforced: {budget.why_not}", file=sys.stderr,
+                  flush=True)
+        self.cpu_budgets[name] = budget
 
     def _popen(self, name: str, cmd: list[str]) -> subprocess.Popen:
         logf = open(self.out / "logs" / f"{name}.log", "ab" if name in self.logs else "wb")  # a restart appends
@@ -347,6 +368,8 @@ class MultiProcessRun:
             port = free_loopback_port()
             ep = endpoint(port, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "deploy.router", "--listen", ep]
+            if self.opts.get("join_listen"):  # external flight software on another host (deploy/external.py)
+                cmd += ["--also-listen", self.opts["join_listen"]]
             if self.security is not None:
                 cmd += ["--acl-dir", str(self.security.dir)]
                 if self.security.tls is not None:
@@ -438,7 +461,8 @@ class MultiProcessRun:
             from bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            self.security = make_run_security(self.out, self.run, users, tls=self.tls)
+            self.security = make_run_security(self.out, self.run, users, tls=self.tls,
+                                              tls_hosts=join_hosts(self.opts.get("join_listen")))
             launcher_cred = self.security.credential("launcher")
         elif self.tls:
             raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
@@ -473,19 +497,25 @@ class MultiProcessRun:
         if self.sc.restart == "on-failure":
             watch.subscribe(keys.event, lambda _k, p: stalled.extend(_stalled_agent(p)))
         reason, code, interrupted = "", 0, False
+        joins = None
         old_term = _on_sigterm_raise()
         try:
             self._spawn("recorder", "recorder", router_ep)
             for c in self.companions:
                 self._spawn(c.name, "companion", router_ep, ["--name", c.name, "--opts", json.dumps(self.opts)])
+            external = set(external_ids(self.sc))  # flight software the launcher does not start (docs/hil.md)
             for sid in self.sc.ids:
-                self._spawn(f"agent-{sid}", "agent", router_ep, ["--id", sid])
+                if sid not in external:
+                    self._spawn(f"agent-{sid}", "agent", router_ep, ["--id", sid])
             self._spawn("plant", "plant", router_ep,
                         ["--companions", ",".join(c.name for c in self.companions),
                          "--barriers", ",".join(c.name for c in self.companions if c.barrier)])
             summary["pids"] = {n: p.pid for n, p in self.procs.items()}
             self._write_run_json(router_ep)
+            joins = start_external(self, watch, router_ep)
             while True:
+                if joins is not None and not stepping.is_set():
+                    joins.check(router_ep)  # JoinTimeout: one line naming the spacecraft and endpoint
                 rc = self.procs["plant"].poll()
                 if rc is not None:
                     if rc != 0:
@@ -519,13 +549,18 @@ class MultiProcessRun:
             interrupted, reason, code = True, "interrupted (SIGTERM)", 143
         except RunFailed as exc:
             reason, code = str(exc), 1
+        except JoinTimeout as exc:
+            reason, code = str(exc), 1
+            summary["external_join_timeout"] = True
         finally:
             router_up = self.procs["router"].poll() is None
+            # an external agent that never joined: no step ran, nothing to wait for in the recording
+            confirm = router_up and not summary.get("external_join_timeout")
             self._stop(["plant"], timeout_s=30.0)
             # the recorder has the plant's final truth and run_end (and everything the router had
             # before them) before the agents go; a plant that failed publishes no run_end
             plant = self.procs.get("plant")
-            if router_up:
+            if confirm:
                 self._flush_recorder(watch, acks, need_run_end=plant is not None and plant.returncode == 0)
             self._stop([n for n in self.procs if n.startswith("agent-")])
             if self.opts.get("viz") == "serve" and not interrupted and not code:
@@ -539,7 +574,7 @@ class MultiProcessRun:
             self._stop([c.name for c in self.companions])
             # the agents and companions have exited, so what they published is at the router, before
             # this request: once answered, it is recorded
-            final_ack = self._flush_recorder(watch, acks, need_run_end=False) if router_up else None
+            final_ack = self._flush_recorder(watch, acks, need_run_end=False) if confirm else None
             summary["recorder_confirmed"] = final_ack is not None
             self._stop(["recorder"], timeout_s=30.0)
             bar.close()
@@ -553,6 +588,12 @@ class MultiProcessRun:
         summary["interrupted"] = interrupted
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         summary["restarts"] = dict(self.restarts)
+        if self.cpu_budgets:  # (every agent has exited: the groups' counters are final)
+            from deploy.cpu_budget import release
+
+            summary["cpu_budgets"] = {n: b.summary() for n, b in self.cpu_budgets.items()}
+            for b in self.cpu_budgets.values():
+                release(b)
         if self.recorder_segment:
             try:
                 summary["recording_segments"] = self._merge_segments()
@@ -560,6 +601,8 @@ class MultiProcessRun:
                 log.error("merging the recording's segments failed: %s", exc)
                 summary["recording_segments"] = {"error": f"{type(exc).__name__}: {exc}"}
         summary["all_pids"] = self.all_pids
+        if joins is not None:
+            summary["external"] = joins.summary()
         plant_s = _read_json(self.out / "plant_summary.json")
         rec_s = _read_json(self.out / "recorder_summary.json")
         agents_rej, faults = {}, {}

@@ -217,8 +217,10 @@ def main(argv: list[str] | None = None) -> int:
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
+        from deploy.external import plant_ready_timeout_s
+
         try:
-            node.wait_ready(should_stop=stop.is_set)
+            node.wait_ready(timeout_s=plant_ready_timeout_s(sc), should_stop=stop.is_set)
         except TimeoutError as exc:  # the launcher sees exit code 3 and says why
             logging.getLogger("swarmhil.proc").error("plant: %s", exc)
             (out / "plant_error.txt").write_text(f"{exc}\n")

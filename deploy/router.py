@@ -46,20 +46,20 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
     return overrides or None
 
 
-def run_router(listen: str, overrides: dict | None, stop: Stop) -> int:
+def run_router(listen: str, overrides: dict | None, stop: Stop, also: list[str] = ()) -> int:
     import zenoh
 
     from bus.zenoh_bus import _address_in_use, open_router  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
-        session = open_router(listen, overrides)
+        session = open_router(listen, overrides, also)
     except zenoh.ZError as exc:
-        print(f"error: router: cannot listen on {listen}: {exc}", file=sys.stderr, flush=True)
+        print(f"error: router: cannot listen on {' and '.join([listen, *also])}: {exc}", file=sys.stderr, flush=True)
         return 4 if _address_in_use(exc) else 2
     except ValueError as exc:
         print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
-    print(f"router listening on {listen}", flush=True)
+    print(f"router listening on {' and '.join([listen, *also])}", flush=True)
     stop.wait()
     t = threading.Thread(target=session.close, daemon=True)
     t.start()
@@ -72,14 +72,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
     ap.add_argument("--acl-dir", help="a run's secrets directory (users.txt, acl.json: bus/acl.py)")
     ap.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
+    ap.add_argument("--also-listen", action="append", default=[], metavar="ENDPOINT",
+                    help="another endpoint to listen on, of the same protocol (external flight software on another host)")
     args = ap.parse_args(argv)
     try:  # a bad directory fails before any signal handler is installed
         overrides = router_overrides(args.listen, acl_dir=args.acl_dir, tls=args.tls)
+        for ep in args.also_listen:
+            if ep.split("/", 1)[0] != args.listen.split("/", 1)[0]:
+                raise ValueError(f"--also-listen {ep} is not a {args.listen.split('/', 1)[0]}/ endpoint like --listen")
     except ValueError as exc:
         print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
     stop = stop_on_signals(signal.SIGTERM, signal.SIGINT)
-    return run_router(args.listen, overrides, stop)
+    return run_router(args.listen, overrides, stop, args.also_listen)
 
 
 if __name__ == "__main__":

@@ -58,6 +58,14 @@ class SpacecraftSpec(_Spec):
     max_force_n: float | None = Field(None, gt=0)      # alternative to max_accel_mps2 (divided by mass)
     limit: Literal["per_axis", "norm"] | None = None   # default: [actuator].limit
     max_torque_nm: float | None = Field(None, gt=0)    # by norm
+    # "external": flight software the launcher does not start joins with the run's join kit
+    # (deploy/external.py, docs/hil.md); the launcher waits join_timeout_s (default 300 s) for it.
+    # (join_timeout_s is ignored for "builtin", so `--set spacecraft.N.fsw=builtin` flies it built in)
+    fsw: Literal["builtin", "external"] = "builtin"
+    join_timeout_s: float | None = Field(None, gt=0, le=7 * 86400)
+    # the agent process's CPU budget as a fraction of one core (a flight computer slower than this
+    # machine), enforced with a cgroup CPU quota where the machine allows it (deploy/cpu_budget.py)
+    cpu_fraction: float | None = Field(None, ge=0.01, le=64)
 
     @field_validator("id")
     @classmethod

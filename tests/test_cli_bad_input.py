@@ -166,6 +166,8 @@ CASES = [
     ("mcap merge without output", lambda f: ["mcap", "merge", str(f["truncated"])], "output file", 1),
     ("router without secrets", lambda f: ["router", "--listen", "tcp/127.0.0.1:9", "--acl-dir", str(f["d"])], "secrets directory", 2),
     ("claims unknown option", lambda f: ["claims", "--no-such-tier"], "--no-such-tier", 2),
+    ("compose external spacecraft", lambda f: ["compose", str(SCENARIOS / "hil-3.toml"), "--out", str(f["d"] / "c.yml")],
+     "external flight software", 2),
     ("claims unwritable json", lambda f: ["claims", "--check-docs", "--json", "/proc/swarmhil-no/such"], "--json", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
 ]
