@@ -203,7 +203,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if tls:
         opts["tls"] = True
     if join_listen:
-        from deploy.external import check_join_listen
+        from deploy.external import check_join_listen  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             check_join_listen(join_listen, bool(opts.get("tls", sc.tls)), sc)

@@ -31,7 +31,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bus.codec import message_type_of_topic
 from bus.keys import Keys
+from deploy.agent_image import agent_config
 
 DEFAULT_JOIN_TIMEOUT_S = 300.0
 KIT_VERSION = 1
@@ -76,7 +78,6 @@ def deadlines(sc: Any) -> dict[str, Any]:
 
 
 def _message_types(keys: dict[str, str]) -> dict[str, str | None]:
-    from bus.codec import message_type_of_topic
 
     out = {}
     for name, key in keys.items():
@@ -143,7 +144,6 @@ def join_document(sc: Any, run: str, sid: str, router: list[str], credential: An
 def write_join_kit(out: Path, sc: Any, run: str, sid: str, router: list[str], security: Any) -> Path:
     """DIR/external/<sid>/ (see the module docstring); returns the directory. join.json is written
     last, by rename, so a watcher that sees it sees a complete kit."""
-    from deploy.agent_image import agent_config
 
     kit = out / "external" / sid
     kit.mkdir(mode=0o700, parents=True, exist_ok=True)

@@ -268,7 +268,7 @@ class MultiProcessRun:
         fraction = self.sc.spec(name[len("agent-"):]).cpu_fraction
         if not fraction:
             return
-        from deploy.cpu_budget import limit
+        from deploy.cpu_budget import limit  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         budget = limit(self.run, name, self.procs[name].pid, fraction)
         if budget.group is None and name not in self.cpu_budgets:
@@ -589,7 +589,7 @@ class MultiProcessRun:
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         summary["restarts"] = dict(self.restarts)
         if self.cpu_budgets:  # (every agent has exited: the groups' counters are final)
-            from deploy.cpu_budget import release
+            from deploy.cpu_budget import release  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             summary["cpu_budgets"] = {n: b.summary() for n, b in self.cpu_budgets.items()}
             for b in self.cpu_budgets.values():

@@ -217,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
-        from deploy.external import plant_ready_timeout_s
+        from deploy.external import plant_ready_timeout_s  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             node.wait_ready(timeout_s=plant_ready_timeout_s(sc), should_stop=stop.is_set)
