@@ -1,0 +1,64 @@
+"""Faults as scenario data (issue 27): `[[fault]]` validation, and each fault's effect read back from
+the recording with the standard MCAP readers (tests/conftest.py read_mcap)."""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from conftest import read_mcap
+from deploy.scenario import ScenarioError, parse_scenario
+
+
+def doc(*faults: dict, n: int = 3, duration_s: float = 100.0) -> dict:
+    """A small Cartesian-free scenario: n spacecraft on the linear plant, 10 s steps."""
+    d = {"run": {"name": "faults", "duration_s": duration_s, "step_s": 10.0},
+         "spacecraft": [{"id": f"s{i}", "roe_m": [0.0, 100.0 * i, 0.0, 0.0, 0.0, 0.0]} for i in range(n)]}
+    if faults:
+        d["fault"] = [dict(f) for f in faults]
+    return d
+
+
+STUCK = {"kind": "thruster_stuck_off", "targets": ["s1"], "start_s": 20.0, "end_s": 60.0}
+
+
+@pytest.mark.parametrize("fault, message", [
+    ({**STUCK, "targets": ["s9"]}, "[[fault]][0] names unknown spacecraft id 's9'"),
+    ({**STUCK, "end_s": 10.0}, "[[fault]][0] end_s 10.0 must be after start_s 20.0"),
+    ({**STUCK, "kind": "thruster_melted"}, "[[fault]][0].kind is not a known fault kind"),
+    ({**STUCK, "start_s": "soon"}, "[[fault]][0].start_s"),
+    ({**STUCK, "duration_s": 5.0}, "[[fault]][0] give end_s or duration_s, not both"),
+    ({**STUCK, "factor": 2.0}, "[[fault]][0].factor is not a known field"),
+    ({"kind": "thruster_efficiency", "targets": ["s1"], "factor": -1.0}, "[[fault]][0].factor"),
+    ({"kind": "link_partition", "groups": [["s0", "s1"], ["s1"]]}, "puts 's1' in more than one group"),
+    ({"kind": "link_degraded", "between": [["s0"], ["s7"]]}, "names unknown spacecraft id 's7'"),
+    ({**STUCK, "start_s": 21.0, "end_s": 29.0}, "lasts less than one step of 10.0 s"),
+    ({"targets": ["s1"]}, "[[fault]][0].kind is required"),
+])
+def test_bad_faults_are_one_precise_line(fault: dict, message: str) -> None:
+    with pytest.raises(ScenarioError) as exc:
+        parse_scenario(doc(fault), "f.toml")
+    text = str(exc.value)
+    assert text.startswith("f.toml: ") and message in text and "\n" not in text, text
+
+
+def test_faults_are_typed_with_windows_in_steps() -> None:
+    from plant.faults import FaultWindow, ThrusterStuckOff, transitions
+
+    sc = parse_scenario(doc(STUCK, {"kind": "sensor_bias", "targets": ["s0", "s2"], "start_s": 15.0,
+                                    "duration_s": 30.0, "bias_m": [1.0, 2.0, 3.0]},
+                            {"kind": "link_partition", "name": "split", "groups": [["s0"]], "start_s": 50.0}), "f.toml")
+    stuck, bias, split = sc.faults
+    assert isinstance(stuck, ThrusterStuckOff) and stuck.name == "fault0" and split.name == "split"
+    assert FaultWindow.of(stuck, 10.0) == FaultWindow(2, 6)        # t = 20, 30, 40, 50 s
+    assert FaultWindow.of(bias, 10.0) == FaultWindow(2, 5)         # t = 20, 30, 40 (15 <= t < 45)
+    assert math.isinf(split.stop_s) and FaultWindow.of(split, 10.0).active(10**6)
+    assert [(e, f.name) for e, f in transitions(sc.faults, 10.0, 2, False)] == [("fault_start", "fault0"),
+                                                                             ("fault_start", "fault1")]
+    assert [(e, f.name) for e, f in transitions(sc.faults, 10.0, 10, True)] == [("fault_end", "split")]
+    assert sc.resolved()["faults"][1] == {"name": "fault1", "kind": "sensor_bias", "targets": ["s0", "s2"],
+                                          "start_s": 15.0, "end_s": 45.0, "bias_m": [1.0, 2.0, 3.0],
+                                          "bias_mps": [0.0, 0.0, 0.0]}
+    assert parse_scenario(doc(), "f.toml").faults == []
