@@ -19,6 +19,7 @@ from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
 from bus.truth_wire import HeaderEncoder, TruthEncoder
+from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -73,6 +74,16 @@ class PlantNode:
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
+        # [[fault]] (issue 27, plant/faults.py): actuator faults act in the world's actuator model,
+        # sensing faults on the stimuli; each fault's start and end is an Event on `faults`
+        self._faults = list(getattr(scenario, "faults", None) or [])
+        self._sensing_faults: SensingFaults | None = None
+        if self._faults:
+            actuation = ActuationFaults(self._faults, scenario.ids, scenario.step_s)
+            if actuation:
+                self.world.actuation_faults = actuation
+            sensing = SensingFaults(self._faults, scenario.ids, scenario.step_s, scenario.seed)
+            self._sensing_faults = sensing if sensing else None
         # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
         # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
         # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
@@ -162,6 +173,15 @@ class PlantNode:
         self.bus.publish(self.keys.event, ev.SerializeToString())
         (log.info if kind.startswith("run_") else log.warning)("%s %s: %s", kind, subject, detail)
 
+    def _fault_events(self, final: bool) -> None:
+        """Each [[fault]] that starts or ends at this step: an Event on `faults` (kind fault_start or
+        fault_end, subject the fault's name, detail its table as JSON)."""
+        for kind, f in transitions(self._faults, self.step_s, self._step, final):
+            detail = json.dumps(fault_summary(f))
+            ev = pb.Event(header=self._hdr(self.keys.faults), kind=kind, subject=f.name, detail=detail)
+            self.bus.publish(self.keys.faults, ev.SerializeToString())
+            log.warning("%s %s: %s", kind, f.name, detail)
+
     def _mark_dead(self, sc: str, reason: str) -> None:
         i = self.world.index[sc]
         if not self.world.alive[i]:
@@ -209,6 +229,8 @@ class PlantNode:
         scalar access per field costs more than the rest of the step)."""
         k = self._step
         final = final or k >= self.sc.steps
+        if self._faults:
+            self._fault_events(final)
         u = self.world.u_rad
         pos, vel = self.world.lvlh()
         ids = self.world.ids
@@ -248,6 +270,8 @@ class PlantNode:
                 continue
             key = self._sense_keys[j]
             stim = self.sensor.stimulus(ctx, j, self._hdr(key))
+            if self._sensing_faults is not None:
+                stim = self._sensing_faults.apply(stim, j, ctx)
             self.bus.publish(key, stim.SerializeToString())
 
     def _mission_truth(self, pos: np.ndarray, vel: np.ndarray, alive: list[bool]) -> pb.Truth:

@@ -62,3 +62,73 @@ def test_faults_are_typed_with_windows_in_steps() -> None:
                                           "start_s": 15.0, "end_s": 45.0, "bias_m": [1.0, 2.0, 3.0],
                                           "bias_mps": [0.0, 0.0, 0.0]}
     assert parse_scenario(doc(), "f.toml").faults == []
+
+
+# --- runs read back from the recording -------------------------------------------------------------
+def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.toml") -> object:
+    """Paper 002's shipped swarm (20 spacecraft, rel sensing), shortened, with these faults."""
+    import tomllib
+
+    from conftest import SCENARIOS
+
+    d = tomllib.loads((SCENARIOS / name).read_text())
+    d["run"]["duration_s"] = duration_s
+    d["fault"] = [dict(f) for f in faults]
+    return parse_scenario(d, name)
+
+
+def run(sc, out) -> list:
+    from deploy.launcher import run_in_process
+
+    run_in_process(sc, out, "faults")
+    return read_mcap(out / "run.mcap")
+
+
+def vec3(v) -> np.ndarray:
+    return np.array([v.x, v.y, v.z])
+
+
+def truth_accel(msgs: list, sid: str) -> dict[int, np.ndarray]:
+    """{step: acceleration applied to sid over [t_{step-1}, t_step)} from the recorded truth."""
+    return {int(m.header.step): vec3(b.accel_cmd_mps2) for t, _l, _p, m in msgs if t == "truth"
+            for b in m.bodies if b.id == sid}
+
+
+def commands(msgs: list, sid: str) -> dict[int, np.ndarray]:
+    return {int(m.header.step): vec3(m.accel_mps2) for t, _l, _p, m in msgs if t == f"sc/{sid}/act"}
+
+
+def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp_path) -> None:
+    """sc05 stuck off over [100, 200) s: the truth's applied acceleration is zero for steps 10..19
+    while its flight software commands thrust; sc06 stuck on at a given acceleration over the same
+    window; both follow their commands outside it."""
+    on = [2e-4, -1e-4, 5e-5]
+    sc = sabatini({"kind": "thruster_stuck_off", "targets": ["sc05"], "start_s": 100.0, "end_s": 200.0},
+                  {"kind": "thruster_stuck_on", "targets": ["sc06"], "start_s": 100.0, "duration_s": 100.0,
+                   "accel_mps2": on})
+    msgs = run(sc, tmp_path / "r")
+    window = range(10, 20)
+    for sid in ("sc05", "sc06"):
+        cmd, applied = commands(msgs, sid), truth_accel(msgs, sid)
+        assert any(np.any(cmd[k] != 0.0) for k in window), f"{sid} commanded no thrust in the window"
+        outside = [k for k in cmd if k not in window]
+        assert any(np.any(cmd[k] != 0.0) for k in outside)
+        for k in outside:  # the truth of step k + 1 holds what acted over step k: the (limited) command
+            np.testing.assert_array_equal(applied[k + 1], np.clip(cmd[k], -1e-3, 1e-3))
+        want = np.zeros(3) if sid == "sc05" else np.asarray(on)
+        for k in window:
+            np.testing.assert_array_equal(applied[k + 1], want)
+
+
+def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
+    from plant.faults import ActuationFaults, parse_faults
+
+    faults = parse_faults("t", [{"kind": "thruster_efficiency", "targets": ["b"], "factor": 0.25},
+                                {"kind": "thruster_misaligned", "targets": ["c"], "angle_deg": 90.0},
+                                {"kind": "thruster_stuck_off", "targets": ["a"], "start_s": 50.0}], ["a", "b", "c"], 10.0)
+    act = ActuationFaults(faults, ["a", "b", "c"], 10.0)
+    a = np.array([[1e-3, 0.0, 0.0]] * 3)
+    got = act(a, 0)
+    np.testing.assert_allclose(got, [[1e-3, 0, 0], [2.5e-4, 0, 0], [0, 1e-3, 0]], atol=1e-18)  # +x turned to +y about +z
+    np.testing.assert_array_equal(a, [[1e-3, 0.0, 0.0]] * 3)  # the input is not changed
+    np.testing.assert_allclose(act(a, 5)[0], 0.0)
