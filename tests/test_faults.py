@@ -132,3 +132,51 @@ def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_accelerat
     np.testing.assert_allclose(got, [[1e-3, 0, 0], [2.5e-4, 0, 0], [0, 1e-3, 0]], atol=1e-18)  # +x turned to +y about +z
     np.testing.assert_array_equal(a, [[1e-3, 0.0, 0.0]] * 3)  # the input is not changed
     np.testing.assert_allclose(act(a, 5)[0], 0.0)
+
+
+def positions(msgs: list) -> dict[int, dict[str, np.ndarray]]:
+    """{step: {id: position}} of the recorded truth."""
+    return {int(m.header.step): {b.id: vec3(b.position_m) for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+
+
+def stimuli(msgs: list, sid: str) -> dict[int, dict[str, np.ndarray]]:
+    """{step: {neighbour: sensed relative position}} of sid's recorded `rel` stimuli."""
+    return {int(m.header.step): {nb.id: vec3(nb.position_m) for nb in m.neighbours}
+            for t, _l, _p, m in msgs if t == f"sc/{sid}/sense/rel"}
+
+
+def test_sensing_faults_change_only_the_struck_spacecrafts_stimuli(tmp_path) -> None:
+    """Over [100, 200) s: sc03's stimuli are shifted by the bias and nobody else's (every other
+    observer's sensed relative positions are the truth's differences, the scenario's sensing being
+    ideal); sc07's are empty although it sees neighbours before; sc09's repeat those of step 10;
+    sc12's scatter about the truth by about the 2 m (1 sigma) of its noise fault."""
+    bias = [3.0, -2.0, 0.5]
+    win = {"start_s": 100.0, "end_s": 200.0}
+    sc = sabatini({"kind": "sensor_bias", "targets": ["sc03"], "bias_m": bias, **win},
+                  {"kind": "sensor_dropout", "targets": ["sc07"], **win},
+                  {"kind": "sensor_frozen", "targets": ["sc09"], **win},
+                  {"kind": "sensor_noise", "targets": ["sc12"], "position_sigma_m": 2.0, **win})
+    msgs = run(sc, tmp_path / "r")
+    truth = positions(msgs)
+    window = range(10, 20)
+    shifted = 0
+    for sid in sc.ids:
+        for k, seen in stimuli(msgs, sid).items():
+            if sid in ("sc07", "sc09", "sc12") and k in window:
+                continue
+            offset = np.asarray(bias) if sid == "sc03" and k in window else np.zeros(3)
+            for nb, rp in seen.items():
+                np.testing.assert_allclose(rp, truth[k][nb] - truth[k][sid] + offset, rtol=0, atol=1e-9)
+                shifted += sid == "sc03" and k in window
+    assert shifted >= 5, "sc03 saw too few neighbours in the window for the check to mean anything"
+    dropped = stimuli(msgs, "sc07")
+    assert any(dropped[k] for k in range(10)) and not any(dropped[k] for k in window) and dropped[20]
+    frozen = stimuli(msgs, "sc09")
+    assert frozen[10] and all(frozen[k].keys() == frozen[10].keys() for k in window)
+    for k in window:
+        for nb, rp in frozen[k].items():
+            np.testing.assert_array_equal(rp, frozen[10][nb])
+    assert any(not np.array_equal(frozen[19][nb], truth[19][nb] - truth[19]["sc09"]) for nb in frozen[19])
+    noisy = stimuli(msgs, "sc12")
+    err = np.array([rp - (truth[k][nb] - truth[k]["sc12"]) for k in window for nb, rp in noisy[k].items()])
+    assert len(err) >= 5 and 1.0 < float(np.sqrt(np.mean(err**2))) < 4.0, err
