@@ -180,3 +180,44 @@ def test_sensing_faults_change_only_the_struck_spacecrafts_stimuli(tmp_path) -> 
     noisy = stimuli(msgs, "sc12")
     err = np.array([rp - (truth[k][nb] - truth[k]["sc12"]) for k in window for nb, rp in noisy[k].items()])
     assert len(err) >= 5 and 1.0 < float(np.sqrt(np.mean(err**2))) < 4.0, err
+
+
+def test_a_partition_delivers_nothing_across_the_groups_and_counts_the_drops(tmp_path) -> None:
+    """sabatini-20-beacon, sc01..sc10 apart from the others over [100, 200) s: no packet sent in the
+    window crosses the groups (read from every isl/rx topic), some did before it and do after it,
+    and the channel's LinkStats count the partition's drops on cross-group rows only."""
+    a = [f"sc{i:02d}" for i in range(1, 11)]
+    sc = sabatini({"kind": "link_partition", "groups": [a], "start_s": 100.0, "end_s": 200.0},
+                  name="sabatini-20-beacon.toml")
+    msgs = run(sc, tmp_path / "r")
+    cross = lambda s, d: (s in a) != (d in a)  # noqa: E731
+    delivered = [(m.sent_t, m.src, t.rsplit("/", 1)[1]) for t, _l, _p, m in msgs if t.startswith("isl/rx/")]
+    across = [(ts, s, d) for ts, s, d in delivered if cross(s, d)]
+    assert not [x for x in across if 100.0 <= x[0] < 200.0], "packets crossed the partition"
+    assert [x for x in across if x[0] < 100.0] and [x for x in across if x[0] >= 200.0]
+    stats = [m for t, _l, _p, m in msgs if t == "link/stats"][-1]
+    dropped = {(c.src, c.dst): c.dropped_fault for c in stats.links if c.dropped_fault}
+    assert dropped and all(cross(s, d) for s, d in dropped), dropped
+    assert sum(dropped.values()) >= 10
+    events = [(m.kind, int(m.header.step)) for t, _l, _p, m in msgs if t == "faults"]
+    assert events == [("fault_start", 10), ("fault_end", 20)]
+    logs = [m.message for t, _l, _p, m in msgs if t == "foxglove/log" and "fault_" in m.message]
+    assert len(logs) == 2 and logs[0].startswith("fault_start fault0: ")
+
+
+def test_degraded_links_add_loss_and_latency_between_their_sets() -> None:
+    from link.faults import LinkFaults
+    from plant.faults import parse_faults
+
+    ids = ["a", "b", "c", "d"]
+    faults = parse_faults("t", [{"kind": "link_degraded", "between": [["a"], ["b", "c"]], "loss_probability": 0.5,
+                                 "extra_latency_s": 30.0, "start_s": 10.0, "end_s": 20.0},
+                                {"kind": "link_degraded", "loss_probability": 0.5, "start_s": 10.0, "end_s": 20.0}],
+                          ids, 10.0)
+    lf = LinkFaults(faults, ids, 10.0)
+    assert lf.at(0, 0, np.array([1, 2, 3])) is None and lf.at(2, 0, np.array([1])) is None
+    got = lf.at(1, 0, np.array([1, 2, 3]))
+    np.testing.assert_allclose(got.loss_probability, [0.75, 0.75, 0.5])
+    np.testing.assert_allclose(got.extra_latency_s, [30.0, 30.0, 0.0])
+    assert not got.blocked.any()
+    np.testing.assert_allclose(lf.at(1, 2, np.array([0, 1])).extra_latency_s, [30.0, 0.0])  # c -> a, c -> b
