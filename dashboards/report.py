@@ -379,7 +379,10 @@ def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: floa
         s["figures"] = figures_of(out, s["figures"])
     spath.write_text(json.dumps(summary, indent=1))
     title = f"swarmhil report: {summary.get('scenario', truth.run)}"
-    return write_site(run_dir, out, title, _headline(summary, met), figs, sections, metrics_series_frame(m),
+    from dashboards.sections.contact import overview_rows
+
+    return write_site(run_dir, out, title, overview_rows(summary) + _headline(summary, met), figs, sections,
+                      metrics_series_frame(m),
                       summary["metrics"],
                       intro="<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
                             "<code>summary.json</code> under <code>metrics</code> and in <a href=\"data.html\">the data "

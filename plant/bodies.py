@@ -56,6 +56,7 @@ class SpacecraftSpec(_Spec):
     max_force_n: float | None = Field(None, gt=0)      # alternative to max_accel_mps2 (divided by mass)
     limit: Literal["per_axis", "norm"] | None = None   # default: [actuator].limit
     max_torque_nm: float | None = Field(None, gt=0)    # by norm
+    radius_m: float | None = Field(None, gt=0)         # hard-body radius (default: [contact].default_radius_m)
 
     @field_validator("id")
     @classmethod
@@ -156,6 +157,7 @@ class BodySpec(_Spec):
     area_m2: float = Field(1.0, gt=0)
     drag_coefficient: float = Field(2.2, ge=0)
     shape: Annotated[Union[Ellipsoid, Spheres], Field(discriminator="kind")] | None = None
+    radius_m: float | None = Field(None, gt=0)  # hard-body sphere when no shape (default: [contact].default_radius_m)
     motion: Annotated[Union[Kinematic, Propagated], Field(discriminator="kind")] = Field(default_factory=Kinematic)
 
     @field_validator("id")

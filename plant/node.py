@@ -19,6 +19,7 @@ from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
 from bus.truth_wire import HeaderEncoder, TruthEncoder
+from plant.contact import ContactMonitor
 from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
@@ -84,6 +85,9 @@ class PlantNode:
                 self.world.actuation_faults = actuation
             sensing = SensingFaults(self._faults, scenario.ids, scenario.step_s, scenario.seed)
             self._sensing_faults = sensing if sensing else None
+        # hulls (issue 27, plant/contact.py): a contact or near-miss Event when two hulls touch or
+        # come within the keep-out distance
+        self.contact = ContactMonitor.of(scenario)
         # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
         # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
         # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
@@ -256,6 +260,9 @@ class PlantNode:
             self.bus.publish(self._k_truth, data, sim_time_ns(t_s))
         else:
             self.bus.publish(self._k_truth, data)
+        bodies = self.world.body_truth() if isinstance(self.world, MissionWorld) else []
+        for kind, pair, detail in self.contact.check(k, t_s, pos, bodies):
+            self._event(kind, pair, detail)
         if final:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
@@ -408,5 +415,6 @@ class PlantNode:
             "missed_deadlines": self.stats.missed_deadlines,
             "late_commands": self.stats.late_commands,
             "rejected_packets": {"plant": self.rejections.total, "plant_by_key": dict(self.rejections.by_key)},
+            "contact": self.contact.summary(),
         }
 

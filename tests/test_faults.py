@@ -262,3 +262,53 @@ def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
     assert raw(tmp_path / "plain" / "run.mcap", "truth") != truths[0]
     faults = [raw(o / "run.mcap", "faults") for o in (*outs, tmp_path / "ip")]
     assert len(faults[0]) == 6 and faults[0] == faults[1] == faults[2]  # three starts, three ends (the last at the run's end)
+
+
+# --- hulls and contact ---------------------------------------------------------------------------
+def closing(**contact) -> dict:
+    """Two spacecraft closing head-on at 1 m/s from 10 m (CW, no control), and a third drifting into
+    a body made of two spheres; 1 s steps."""
+    return {"run": {"name": "hulls", "duration_s": 20.0, "step_s": 1.0}, "plant": {"fidelity": "cw"},
+            "contact": contact,
+            "spacecraft": [{"id": "a", "position_m": [0.0, 0.0, 0.0], "velocity_mps": [0.0, 0.5, 0.0]},
+                           {"id": "b", "position_m": [0.0, 10.0, 0.0], "velocity_mps": [0.0, -0.5, 0.0],
+                            "radius_m": 1.0},
+                           {"id": "c", "position_m": [0.0, 40.0, 0.0], "velocity_mps": [0.0, 1.0, 0.0]}],
+            "body": [{"id": "rock", "shape": {"kind": "spheres", "centers_m": [[0.0, -3.0, 0.0], [0.0, 3.0, 0.0]],
+                                              "radii_m": [1.0, 1.0]},
+                      "motion": {"kind": "kinematic", "position_m": [0.0, 55.0, 0.0]}}]}
+
+
+def test_contacts_and_near_misses_are_recorded_and_flagged_in_the_overview(tmp_path) -> None:
+    """a (default hull 0.5 m) and b (1 m) touch when their centres are 1.5 m apart (t ~ 8.5 s: the
+    truth of step 9); they come within the 2 m keep-out at centres 3.5 m (step 7); c (0.5 m) meets
+    the rock's nearer sphere (1 m, centre y = 52) at y ~ 50.5 (step 11; within 2 m of it at step 9),
+    goes through, and meets the far sphere (y = 58) at y ~ 56.5 (step 17). Read from the recording,
+    and the report section and overview say so; with point masses no contact is looked for."""
+    from dashboards.sections import SectionContext
+    from dashboards.sections.contact import contact, overview_rows
+    from deploy.launcher import run_in_process
+    from deploy.scenario import parse_scenario
+
+    sc = parse_scenario(closing(keep_out_m=2.0), "hulls.toml")
+    run_in_process(sc, tmp_path / "r", "hulls")
+    msgs = read_mcap(tmp_path / "r" / "run.mcap")
+    ev = [(m.kind, m.subject, int(m.header.step)) for t, _l, _p, m in msgs if t == "event"
+          and m.kind in ("contact", "near_miss")]
+    assert ev == [("near_miss", "a|b", 7), ("contact", "a|b", 9), ("near_miss", "c|rock", 9),
+                  ("contact", "c|rock", 11), ("contact", "c|rock", 17)], ev
+    truth = {int(m.header.step): {b.id: vec3(b.position_m) for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+    for k, want in ((8, False), (9, True)):  # the truth agrees: 1.5 m is first crossed at step 9
+        assert bool(np.linalg.norm(truth[k]["a"] - truth[k]["b"]) < 1.5) is want
+    summary = {"metrics": {"contact": contact(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path,
+                                                             {}, sc.resolved(), None)).metrics}}
+    rows = dict(overview_rows(summary))
+    assert rows["CONTACTS between hulls"] == "3, first at t = 9 s: a - b"
+    assert rows["near misses (< 2 m keep-out)"] == "2, first at t = 7 s: a - b"
+
+    point = parse_scenario(closing(point_masses=True), "hulls.toml")
+    run_in_process(point, tmp_path / "p", "hulls")
+    assert not [m for t, _l, _p, m in read_mcap(tmp_path / "p" / "run.mcap") if t == "event" and m.kind == "contact"]
+    m = contact(SectionContext(tmp_path / "p", tmp_path / "p" / "run.mcap", tmp_path, {}, point.resolved(), None))
+    assert dict(overview_rows({"metrics": {"contact": m.metrics}})) == {
+        "contacts between hulls": "not looked for: the scenario declares point masses"}
