@@ -19,7 +19,7 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
 | `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
 | `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*`, `sc/*/sense/*` (landmark returns) |
-| `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls) |
+| `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls), `faults` (process faults) |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
 (keys under `swarm/<run>/` unless written in full). Zenoh ACL semantics used here (checked against eclipse-zenoh
@@ -112,7 +112,7 @@ def grants(keys: Keys, user: str) -> Grants:
                            f"{b}/sc/*/sense/*"],
                       live_sub=[])
     if user == "launcher":  # events: agent_restart, recorder_restart (its supervision)
-        return Grants(put=[flush, keys.event], token=[], sub=[keys.clock, ack, keys.event], live_sub=[])
+        return Grants(put=[flush, keys.event], token=[], sub=[keys.clock, ack, keys.event, keys.faults], live_sub=[])
     # any other companion (one a plugin registers in deploy/companions.py): it may read the whole
     # run, and publish only events and its own lockstep barrier
     name = check_token(user, "process name")

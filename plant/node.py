@@ -79,6 +79,7 @@ class PlantNode:
         # sensing faults on the stimuli; each fault's start and end is an Event on `faults`
         self._faults = list(getattr(scenario, "faults", None) or [])
         self._sensing_faults: SensingFaults | None = None
+        self._paused: set[str] = set()  # agents a process_pause fault holds out of the lockstep
         if self._faults:
             actuation = ActuationFaults(self._faults, scenario.ids, scenario.step_s)
             if actuation:
@@ -185,6 +186,31 @@ class PlantNode:
             ev = pb.Event(header=self._hdr(self.keys.faults), kind=kind, subject=f.name, detail=detail)
             self.bus.publish(self.keys.faults, ev.SerializeToString())
             log.warning("%s %s: %s", kind, f.name, detail)
+            if f.family == "process" and not final:
+                self._process_fault(kind, f)
+
+    def _process_fault(self, kind: str, f: Any) -> None:
+        """A process fault at this step (the launcher acts on the process when it sees the event):
+        a crash makes the agent dead now; a pause takes it out of the lockstep for the window (its
+        spacecraft coasts) and back at the window's end if its liveliness token is still up."""
+        for sc in f.targets:
+            i = self.world.index[sc]
+            if f.kind == "process_crash":
+                if kind == "fault_start":
+                    self._mark_dead(sc, f"fault {f.name}: process_crash at step {self._step}")
+            elif kind == "fault_start" and self.world.alive[i]:
+                self.world.alive[i] = False
+                self._paused.add(sc)
+                self._event("agent_paused", sc, f"fault {f.name}: paused at step {self._step}")
+            elif kind == "fault_end" and sc in self._paused:
+                self._paused.discard(sc)
+                if self.AGENT_PREFIX + sc in self.present or self.local_agents is not None:
+                    self.world.alive[i] = True
+                    self.held[i] = 0.0
+                    self._event("agent_resumed", sc, f"fault {f.name}: resumed at step {self._step}")
+                else:
+                    self.world.alive[i] = True  # (so that it is marked dead, with the reason)
+                    self._mark_dead(sc, f"fault {f.name}: its liveliness token is gone at the end of its pause")
 
     def _mark_dead(self, sc: str, reason: str) -> None:
         i = self.world.index[sc]

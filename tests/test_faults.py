@@ -231,6 +231,20 @@ def raw(path, topic: str) -> list[bytes]:
         return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == topic]
 
 
+def twice(sc, tmp_path, scenario: str) -> list:
+    """[(out, result)] of two multi-process runs of sc (each must succeed)."""
+    from conftest import SCENARIOS
+    from deploy.launcher import MultiProcessRun
+
+    runs = []
+    for i in range(2):
+        out = tmp_path / f"mp{i}"
+        res = MultiProcessRun(str(SCENARIOS / scenario), sc, out, sc.name, progress=False).execute()
+        assert res.exit_code == 0, res.reason
+        runs.append((out, res))
+    return runs
+
+
 def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
     """Six spacecraft of sabatini-20-beacon as real processes over Zenoh (plant, link channel,
     recorder, six agents), with a partition, a stuck thruster and a sensor bias: two multi-process
@@ -239,7 +253,7 @@ def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
     import tomllib
 
     from conftest import SCENARIOS
-    from deploy.launcher import MultiProcessRun, run_in_process
+    from deploy.launcher import run_in_process
 
     d = tomllib.loads((SCENARIOS / "sabatini-20-beacon.toml").read_text())
     d["run"]["duration_s"] = 300.0
@@ -249,14 +263,9 @@ def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
                   {"kind": "thruster_stuck_off", "targets": ["sc04"], "start_s": 100.0, "duration_s": 100.0},
                   {"kind": "sensor_bias", "targets": ["sc02"], "bias_m": [5.0, 5.0, 0.0], "start_s": 60.0}]
     sc = parse_scenario(d, "six.toml")
-    outs = []
-    for i in range(2):
-        out = tmp_path / f"mp{i}"
-        res = MultiProcessRun(str(SCENARIOS / "sabatini-20-beacon.toml"), sc, out, "six", progress=False).execute()
-        assert res.exit_code == 0, res.reason
-        outs.append(out)
-    run_in_process(sc, tmp_path / "ip", "six")
-    run_in_process(plain, tmp_path / "plain", "six")
+    outs = [out for out, _res in twice(sc, tmp_path, "sabatini-20-beacon.toml")]
+    run_in_process(sc, tmp_path / "ip", sc.name)
+    run_in_process(plain, tmp_path / "plain", sc.name)
     truths = [raw(o / "run.mcap", "truth") for o in (*outs, tmp_path / "ip")]
     assert len(truths[0]) == 31 and truths[0] == truths[1] == truths[2]
     assert raw(tmp_path / "plain" / "run.mcap", "truth") != truths[0]
@@ -312,3 +321,36 @@ def test_contacts_and_near_misses_are_recorded_and_flagged_in_the_overview(tmp_p
     m = contact(SectionContext(tmp_path / "p", tmp_path / "p" / "run.mcap", tmp_path, {}, point.resolved(), None))
     assert dict(overview_rows({"metrics": {"contact": m.metrics}})) == {
         "contacts between hulls": "not looked for: the scenario declares point masses"}
+
+
+# --- process faults ------------------------------------------------------------------------------
+def test_process_crash_and_pause_act_at_their_steps_and_rerun_bit_identical(tmp_path) -> None:
+    """Six spacecraft of sabatini-20 as processes: sc03's flight software crashes at 50 s (step 5;
+    restart never): the dead event at that step, no command after, the truth coasts, the launcher's
+    SIGKILL in its exit code; sc04's is paused over [100, 150) s: out of the lockstep (no command,
+    truth not alive) for steps 10-14, then it resumes and commands again. Run twice: the same truth."""
+    import tomllib
+
+    from conftest import SCENARIOS
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
+    d["run"]["duration_s"] = 200.0
+    d["dispersion"]["count"] = 6
+    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
+                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
+    sc = parse_scenario(d, "six.toml")
+    truths = []
+    for out, res in twice(sc, tmp_path, "sabatini-20.toml"):
+        assert res.summary["exit_codes"]["agent-sc03"] == -9 and res.summary["exit_codes"]["agent-sc04"] == 0
+        truths.append(raw(out / "run.mcap", "truth"))
+    assert truths[0] == truths[1]
+    msgs = read_mcap(tmp_path / "mp0" / "run.mcap")
+    ev = [(m.kind, m.subject, int(m.header.step)) for t, _l, _p, m in msgs if t == "event" and m.kind.startswith("agent_")]
+    assert ev == [("agent_dead", "sc03", 5), ("agent_paused", "sc04", 10), ("agent_resumed", "sc04", 15)], ev
+    assert max(commands(msgs, "sc03")) == 4
+    assert sorted(commands(msgs, "sc04")) == [*range(10), *range(15, 20)]
+    alive = {int(m.header.step): {b.id: b.alive for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+    assert [k for k in alive if not alive[k]["sc04"]] == list(range(10, 15))
+    assert all(not alive[k]["sc03"] for k in range(5, 21)) and alive[4]["sc03"]
+    applied = truth_accel(msgs, "sc03")
+    assert all(not applied[k].any() for k in range(6, 21))
