@@ -203,6 +203,12 @@ def test_a_partition_delivers_nothing_across_the_groups_and_counts_the_drops(tmp
     assert events == [("fault_start", 10), ("fault_end", 20)]
     logs = [m.message for t, _l, _p, m in msgs if t == "foxglove/log" and "fault_" in m.message]
     assert len(logs) == 2 and logs[0].startswith("fault_start fault0: ")
+    from dashboards.sections import SectionContext
+    from dashboards.sections.faults import faults
+
+    res = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), None))
+    assert res.metrics == {"fault0": {"kind": "link_partition", "started_t_s": 100.0, "ended_t_s": 200.0}}
+    assert "<td>fault0</td><td>link_partition</td>" in res.html
 
 
 def test_degraded_links_add_loss_and_latency_between_their_sets() -> None:
