@@ -118,6 +118,36 @@ def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp
         want = np.zeros(3) if sid == "sc05" else np.asarray(on)
         for k in window:
             np.testing.assert_array_equal(applied[k + 1], want)
+    # the report's recovery figures, against the truth read independently here
+    from dashboards.sections import SectionContext
+    from dashboards.sections.faults import faults
+    from dashboards.truth_io import read_truth
+    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+
+    truth = read_truth(tmp_path / "r" / "run.mcap")
+    rec = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), truth)).metrics
+    dv = sum(float(np.linalg.norm(vec3(b.accel_cmd_mps2))) * 10.0 for t, _l, _p, m in msgs
+             if t == "truth" and 11 <= m.header.step <= 20 for b in m.bodies)
+    assert rec["fault0"]["delta_v_in_window_mps"] == pytest.approx(dv, rel=1e-9) and dv > 0
+    pos = positions(msgs)
+    cam = CameraGeometry(**sc.camera)
+    connected = [weakly_connected(visibility_matrix(np.array([pos[k][i] for i in sc.ids]), cam)) for k in range(31)]
+    assert (rec["fault1"]["components_max_in_window"] == 1) == all(connected[10:20])
+    assert (rec["fault1"]["time_to_reconnect_s"] == 0.0) == connected[20]
+
+
+def test_recovery_reads_the_window_and_the_reconnection() -> None:
+    from dashboards.sections.faults import recovery
+
+    t = np.arange(8) * 10.0
+    dv = np.outer(np.arange(8.0), [1.0, 2.0])        # the swarm spends 3 m/s a step
+    ncomp = np.array([1, 1, 2, 3, 2, 2, 1, 1])
+    assert recovery(t, dv, ncomp, 20.0, 40.0) == {"delta_v_in_window_mps": 6.0, "components_at_start": 2,
+                                                  "components_max_in_window": 3, "components_at_end": 2,
+                                                  "time_to_reconnect_s": 20.0}
+    assert recovery(t, dv, ncomp, 20.0, None)["time_to_reconnect_s"] == 0.0   # to the run's end: one component there
+    assert recovery(t, dv, np.array([1, 2, 2, 2, 2, 2, 2, 2]), 10.0, 30.0)["time_to_reconnect_s"] is None
+    assert recovery(t, dv, None, 0.0, 70.0) == {"delta_v_in_window_mps": 21.0}
 
 
 def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
