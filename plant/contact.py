@@ -35,11 +35,24 @@ class ContactConfig(BaseModel):
     point_masses: bool = False                                # no hulls: no contact is looked for
 
 
-def sphere_pairs(pos_m: np.ndarray, radius_m: np.ndarray, margin_m: float) -> np.ndarray:
-    """(N, N) bool, upper triangle: |p_i - p_j| < r_i + r_j + margin (sphere overlap grown by margin)."""
-    d = pos_m[:, None, :] - pos_m[None, :, :]
-    reach = radius_m[:, None] + radius_m[None, :] + margin_m
-    return np.triu(np.einsum("ijk,ijk->ij", d, d) < reach * reach, 1)
+def centre_d2(pos_m: np.ndarray) -> np.ndarray:
+    """(N, N) squared distances between centres (per axis: faster than an (N, N, 3) array at N <= 100)."""
+    x, y, z = np.ascontiguousarray(pos_m.T)  # (contiguous columns: strided ones are several times slower)
+    dx, dy, dz = x[:, None] - x, y[:, None] - y, z[:, None] - z
+    dx *= dx
+    dy *= dy
+    dz *= dz
+    dx += dy
+    dx += dz
+    return dx
+
+
+def reach2(radius_m: np.ndarray, margin_m: float) -> np.ndarray:
+    """(N, N) squared reach (r_i + r_j + margin)^2 of two spheres grown by margin, upper triangle;
+    -1 elsewhere (a pair counted once, nobody with itself): overlap when centre_d2 < reach2."""
+    r = (radius_m[:, None] + radius_m[None, :] + margin_m) ** 2
+    r[np.tril_indices(len(radius_m))] = -1.0
+    return r
 
 
 def _rotate_to_body(q_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -93,21 +106,30 @@ class ContactMonitor:
         body_r = {b.id: r0 if cfg.point_masses or getattr(b, "radius_m", None) is None else b.radius_m for b in bodies}
         return ContactMonitor(list(sc.ids), radii, bodies, body_r, cfg)
 
-    def _pairs(self, pos_m: np.ndarray, body_truth: list[Any], margin_m: float) -> set[tuple[str, str]]:
-        out = {(self.ids[i], self.ids[j]) for i, j in zip(*np.nonzero(sphere_pairs(pos_m, self.radius_m, margin_m)))}
+    def __post_init__(self) -> None:
+        self._reach2_contact = reach2(self.radius_m, 0.0)
+        self._reach2_near = reach2(self.radius_m, self.cfg.keep_out_m)
+
+    def _pairs(self, pos_m: np.ndarray, d2: np.ndarray, body_truth: list[Any], near: bool) -> set[tuple[str, str]]:
+        i, j = np.nonzero(d2 < (self._reach2_near if near else self._reach2_contact))
+        out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
+        margin = self.cfg.keep_out_m if near else 0.0
         for bt in body_truth:
             shape = None if self.cfg.point_masses else bt.spec.shape
             hit = body_hits(pos_m, self.radius_m, bt.position_m, bt.attitude_q, shape,
-                            self.body_radius_m.get(bt.spec.id, self.cfg.default_radius_m), margin_m)
-            out |= {(self.ids[i], bt.spec.id) for i in np.flatnonzero(hit)}
+                            self.body_radius_m.get(bt.spec.id, self.cfg.default_radius_m), margin)
+            out |= {(self.ids[k], bt.spec.id) for k in np.flatnonzero(hit).tolist()}
         return out
 
     def check(self, step: int, t_s: float, pos_m: np.ndarray, body_truth: list[Any]) -> list[tuple[str, str, str]]:
         """(kind "contact" | "near_miss", "a|b", detail) of the pairs that came into contact or within
         the keep-out distance at this step."""
+        d2 = centre_d2(pos_m)
+        contact = set() if self.cfg.point_masses else self._pairs(pos_m, d2, body_truth, False)
+        near = self._pairs(pos_m, d2, body_truth, True) if self.cfg.keep_out_m > 0 else set()
+        if not (contact or near or self._contact or self._near):
+            return []
         out: list[tuple[str, str, str]] = []
-        contact = set() if self.cfg.point_masses else self._pairs(pos_m, body_truth, 0.0)
-        near = self._pairs(pos_m, body_truth, self.cfg.keep_out_m) if self.cfg.keep_out_m > 0 else set()
         where = {s: pos_m[i] for i, s in enumerate(self.ids)} | {bt.spec.id: bt.position_m for bt in body_truth}
         for kind, now, before, log in (("contact", contact, self._contact, self.contacts),
                                        ("near_miss", near - contact, self._near, self.near_misses)):
