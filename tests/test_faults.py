@@ -118,6 +118,11 @@ def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp
         want = np.zeros(3) if sid == "sc05" else np.asarray(on)
         for k in window:
             np.testing.assert_array_equal(applied[k + 1], want)
+    # Foxglove's scene draws the struck spacecraft red while the fault lasts (steps 10-19), sc01 never
+    red = {(int(round(m.entities[0].timestamp.seconds - 946728000)) // 10, e.id) for t, _l, _p, m in msgs
+           if t == "foxglove/scene" for e in m.entities if e.spheres and e.spheres[0].color.r == 1.0
+           and e.spheres[0].color.g < 0.2}
+    assert red == {(k, s) for k in range(10, 20) for s in ("sc05", "sc06")}, sorted(red)
     # the report's recovery figures, against the truth read independently here
     from dashboards.sections import SectionContext
     from dashboards.sections.faults import faults
