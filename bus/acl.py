@@ -15,11 +15,11 @@ one may publish only on its own keys and receive only what it subscribes to:
 | user | publishes (put) | liveliness token | subscribes (and receives) |
 |---|---|---|---|
 | `agent-X` | `sc/X/act`, `sc/X/tm`, `sc/X/tm/**`, `isl/tx/X` | `alive/agent-X` | `sc/X/sense/*`, `isl/rx/X` |
-| `plant` | `clock`, `truth`, `sc/*/sense/*`, `event` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
+| `plant` | `clock`, `truth`, `sc/*/sense/*`, `event`, `faults` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
 | `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
 | `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
 | `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*`, `sc/*/sense/*` (landmark returns) |
-| `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls), liveliness `alive/*` (external flight software joining) |
+| `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls), `faults` (process faults), liveliness `alive/*` (external flight software joining) |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
 (keys under `swarm/<run>/` unless written in full). Zenoh ACL semantics used here (checked against eclipse-zenoh
@@ -95,7 +95,7 @@ def grants(keys: Keys, user: str) -> Grants:
         return Grants(put=[keys.act(sid), keys.tm(sid), f"{keys.tm(sid)}/**", keys.isl_tx(sid)],
                       token=[keys.alive(user)], sub=[f"{b}/sc/{sid}/sense/*", keys.isl_rx(sid)], live_sub=[])
     if user == "plant":
-        return Grants(put=[keys.clock, keys.truth, f"{b}/sc/*/sense/*", keys.event], token=[keys.alive("plant")],
+        return Grants(put=[keys.clock, keys.truth, f"{b}/sc/*/sense/*", keys.event, keys.faults], token=[keys.alive("plant")],
                       sub=[keys.act_all, keys.sync_all], live_sub=[keys.alive_all])
     if user == "channel":
         return Grants(put=[f"{b}/isl/rx/*", keys.link_stats, keys.sync("channel"), keys.event],
@@ -112,7 +112,8 @@ def grants(keys: Keys, user: str) -> Grants:
                       live_sub=[])
     if user == "launcher":  # events: agent_restart, recorder_restart (its supervision)
         # liveliness: it waits for external flight software to join (deploy/external.py)
-        return Grants(put=[flush, keys.event], token=[], sub=[keys.clock, ack, keys.event], live_sub=[keys.alive_all])
+        return Grants(put=[flush, keys.event], token=[], sub=[keys.clock, ack, keys.event, keys.faults],
+                      live_sub=[keys.alive_all])
     # any other companion (one a plugin registers in deploy/companions.py): it may read the whole
     # run, and publish only events and its own lockstep barrier
     name = check_token(user, "process name")

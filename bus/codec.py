@@ -27,6 +27,7 @@ TYPE_OF_KIND: dict[str, type[Message]] = {
     "sync": pb.Tick,
     "truth": pb.Truth,
     "event": pb.Event,
+    "faults": pb.Event,  # a [[fault]]'s start and end (plant/faults.py)
     "link_stats": pb.LinkStats,
     "act": pb.ActuatorCommand,
     "tm": pb.Telemetry,

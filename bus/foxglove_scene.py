@@ -11,11 +11,13 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
   into body -> LVLH; a kinematic body's is already in the scenario frame).
 - Scene: one entity per body in its own frame (`frame_locked`): a sphere for a spacecraft coloured
   by its agent's mode (`MODE_COLOURS`, the viewer's; the mode of the newest telemetry before this
-  truth, so one step behind; blue before any, grey once dead), the body's shape for other bodies (`[[body]].shape` of the resolved config:
+  truth, so one step behind; blue before any, grey once dead, red while a `[[fault]]` on the
+  `faults` topic strikes it: docs/faults.md), the body's shape for other bodies (`[[body]].shape` of the resolved config:
   an ellipsoid, or a list of spheres in the body frame; a small orange sphere without a shape),
   and its id as a text label; plus one entity `links` in `lvlh` with a line per ISL delivery
   seen since the previous truth (sender -> receiver).
-- Log: every `swarmhil.v1.Event` also as a `foxglove.Log` (topic `foxglove/log`) for the Log panel.
+- Log: every `swarmhil.v1.Event` (topics `event` and `faults`) also as a `foxglove.Log` (topic
+  `foxglove/log`) for the Log panel.
 
 `FoxgloveScene.derive` is the one place these messages are made from samples: the recorder
 (bus/recorder.py) writes what it returns into the MCAP, the live Foxglove server
@@ -23,6 +25,7 @@ DESIGN.md "MCAP (contract)": besides the swarmhil.v1 messages, a recording carri
 """
 from __future__ import annotations
 
+import json
 import math
 import zlib
 from typing import Any
@@ -51,7 +54,8 @@ TF_TOPIC = "foxglove/tf"
 SCENE_TOPIC = "foxglove/scene"
 LOG_TOPIC = "foxglove/log"
 _WARN_EVENTS = ("agent_dead", "deadline_missed", "rejected_packet", "late_command", "lockstep_stall", "link_stall",
-                "agent_restart", "agent_rejoin", "recorder_restart")
+                "agent_restart", "agent_rejoin", "recorder_restart", "fault_start", "fault_end", "contact",
+                "near_miss", "agent_paused", "agent_resumed")
 SPACECRAFT_DIAMETER_M = 4.0  # display size (the truth has no spacecraft geometry)
 BODY_DIAMETER_M = 6.0        # a body without a shape
 
@@ -60,6 +64,7 @@ _GREY = Color(r=0.5, g=0.5, b=0.5, a=0.6)
 _ORANGE = Color(r=1.0, g=0.6, b=0.2, a=0.8)
 _WHITE = Color(r=1.0, g=1.0, b=1.0, a=1.0)
 _GREEN = Color(r=0.3, g=1.0, b=0.4, a=0.8)
+_RED = Color(r=1.0, g=0.1, b=0.1, a=1.0)    # a spacecraft a [[fault]] strikes, while the fault lasts
 _IDENTITY = Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)
 
 # Colours (RGB) of modes and behaviours; unknown names get a stable hashed colour.
@@ -150,19 +155,22 @@ class FoxgloveScene:
                 self.shapes[str(b["id"])] = b.get("shape")
         self._links: set[tuple[str, str]] = set()
         self._modes: dict[str, str] = {}
+        self._faulty: dict[str, int] = {}  # spacecraft id -> [[fault]]s active on it (the `faults` topic)
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
         """The entity of a body without its timestamp (built once per body, state and mode)."""
         mode = self._modes.get(body_id, "")
-        key = (body_id, kind, alive, mode)
+        faulty = self._faulty.get(body_id, 0) > 0
+        key = (body_id, kind, alive, mode + "\0fault" * faulty)
         ent = self._templates.get(key)
         if ent is None:
             ent = SceneEntity(frame_id=body_id, id=body_id, frame_locked=True)
             if kind in ("", "spacecraft"):
                 d = SPACECRAFT_DIAMETER_M
+                colour = _GREY if not alive else _RED if faulty else _mode_color(mode) if mode else _BLUE
                 ent.spheres.append(SpherePrimitive(pose=Pose(orientation=_IDENTITY), size=Vector3(x=d, y=d, z=d),
-                                                   color=_GREY if not alive else _mode_color(mode) if mode else _BLUE))
+                                                   color=colour))
             else:
                 ent.spheres.extend(_shape_primitives(self.shapes.get(body_id)))
             ent.texts.append(TextPrimitive(pose=Pose(position=Vector3(x=0.0, y=0.0, z=6.0), orientation=_IDENTITY),
@@ -171,6 +179,16 @@ class FoxgloveScene:
             ent.metadata.add(key="kind", value=kind or "spacecraft")
             self._templates[key] = ent
         return ent
+
+    def saw_fault(self, event: Any) -> None:
+        """A [[fault]]'s start or end (plant/faults.py): its target spacecraft are drawn red meanwhile."""
+        try:
+            targets = json.loads(event.detail).get("targets") or []
+        except (ValueError, AttributeError):
+            return
+        step = {"fault_start": 1, "fault_end": -1}.get(event.kind, 0)
+        for sid in targets:
+            self._faulty[str(sid)] = max(0, self._faulty.get(str(sid), 0) + step)
 
     def saw_delivery(self, src: str, dst: str) -> None:
         """An ISL delivery src -> dst (drawn with the next truth)."""
@@ -187,6 +205,8 @@ class FoxgloveScene:
             tf, scene = self.from_truth(msg, t_ns)
             return [(TF_TOPIC, FrameTransforms, tf), (SCENE_TOPIC, SceneUpdate, scene)]
         if cls is pb.Event:
+            if topic == "faults":
+                self.saw_fault(msg)
             return [(LOG_TOPIC, Log, event_log(msg, t_ns))]
         if cls is pb.IslPacket and topic.startswith("isl/rx/"):
             self.saw_delivery(msg.src, topic[len("isl/rx/"):])

@@ -10,6 +10,7 @@
     swarm/<run>/link/stats            channel -> all      LinkStats
     swarm/<run>/alive/<process>       liveliness tokens
     swarm/<run>/event                 any -> all          Event (project addition, not in the contract list)
+    swarm/<run>/faults                plant -> all        Event: each [[fault]]'s start and end (project addition, issue 27)
     swarm/<run>/sync/<process>        companion -> plant  Tick: lockstep barrier "done with step k" (project addition)
 """
 from __future__ import annotations
@@ -65,6 +66,10 @@ class Keys:
         return f"{self.base}/event"
 
     @property
+    def faults(self) -> str:
+        return f"{self.base}/faults"
+
+    @property
     def link_stats(self) -> str:
         return f"{self.base}/link/stats"
 
@@ -116,7 +121,7 @@ class Keys:
     def parse(self, key: str) -> tuple[str, str | None, str | None]:
         """Split a key of this run into (topic kind, spacecraft/process id, sensor kind).
 
-        Kinds: clock, truth, event, link_stats, sense, act, tm, isl_tx, isl_rx, alive.
+        Kinds: clock, truth, event, faults, link_stats, sense, act, tm, isl_tx, isl_rx, alive.
         Raises ValueError for a key outside the contract.
         """
         prefix = self.base + "/"
@@ -135,7 +140,7 @@ def parse_topic(topic: str, key: str | None = None) -> tuple[str, str | None, st
     """(kind, id, sensor kind) of a key relative to `swarm/<run>/` (an MCAP topic); see Keys.parse."""
     parts = topic.split("/")
     match parts:
-        case ["clock"] | ["truth"] | ["event"]:
+        case ["clock"] | ["truth"] | ["event"] | ["faults"]:
             return parts[0], None, None
         case ["link", "stats"]:
             return "link_stats", None, None

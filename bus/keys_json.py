@@ -30,6 +30,7 @@ ENTRIES: list[tuple[str, str, str]] = [
     ("isl/rx/*", "isl/rx/x", "channel -> agent"),
     ("link/stats", "link/stats", "channel -> all"),
     ("event", "event", "any -> all"),
+    ("faults", "faults", "plant -> all (each [[fault]]'s start and end)"),
     ("sync/*", "sync/x", "companion -> plant (lockstep barrier)"),
     ("alive/*", "alive/x", "liveliness tokens (no payload)"),
 ]

@@ -206,8 +206,8 @@ RECORD_CHOICES = ("all", "truth")
 class RecorderNode:
     """Subscribes to everything of the run and hands each sample to the MCAP writer.
 
-    record="truth" (issue 16: a campaign row needs only the truth): only the `truth` and `event`
-    topics, without the Foxglove scene, transforms and log written alongside. `background`: the
+    record="truth" (issue 16: a campaign row needs only the truth): only the `truth`, `event` and
+    `faults` topics, without the Foxglove scene, transforms and log written alongside. `background`: the
     chunks are compressed on a worker thread (an in-process run: bus/mcap_writer.py)."""
 
     def __init__(self, bus: Bus, run: str, path: str | Path, config: dict[str, Any] | None = None,
@@ -230,7 +230,7 @@ class RecorderNode:
         # on a bus that carries the publishers' simulation time (bus/memory.py), take it from there
         stamped = {"stamped": True} if getattr(bus, "stamps", False) else {}
         self._k_event = self.keys.event
-        keys = (self.keys.all,) if record == "all" else (self.keys.truth, self.keys.event)
+        keys = (self.keys.all,) if record == "all" else (self.keys.truth, self.keys.event, self.keys.faults)
         self._subs = [bus.subscribe(k, self._on_sample, **stamped) for k in keys]
         self._flush_sub = bus.subscribe(flush_key(run), self._on_flush)
         self._token = bus.declare_liveliness(self.keys.alive("recorder"))

@@ -261,7 +261,7 @@ class Beacon(_message.Message):
     def __init__(self, id: _Optional[str] = ..., mode: _Optional[str] = ..., health: _Optional[str] = ..., estimate_summary: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class LinkCounter(_message.Message):
-    __slots__ = ("src", "dst", "type", "messages", "payload_bytes", "wire_bytes", "dropped_range", "dropped_occulted", "dropped_lost", "dropped_queue")
+    __slots__ = ("src", "dst", "type", "messages", "payload_bytes", "wire_bytes", "dropped_range", "dropped_occulted", "dropped_lost", "dropped_queue", "dropped_fault")
     SRC_FIELD_NUMBER: _ClassVar[int]
     DST_FIELD_NUMBER: _ClassVar[int]
     TYPE_FIELD_NUMBER: _ClassVar[int]
@@ -272,6 +272,7 @@ class LinkCounter(_message.Message):
     DROPPED_OCCULTED_FIELD_NUMBER: _ClassVar[int]
     DROPPED_LOST_FIELD_NUMBER: _ClassVar[int]
     DROPPED_QUEUE_FIELD_NUMBER: _ClassVar[int]
+    DROPPED_FAULT_FIELD_NUMBER: _ClassVar[int]
     src: str
     dst: str
     type: str
@@ -282,7 +283,8 @@ class LinkCounter(_message.Message):
     dropped_occulted: int
     dropped_lost: int
     dropped_queue: int
-    def __init__(self, src: _Optional[str] = ..., dst: _Optional[str] = ..., type: _Optional[str] = ..., messages: _Optional[int] = ..., payload_bytes: _Optional[int] = ..., wire_bytes: _Optional[int] = ..., dropped_range: _Optional[int] = ..., dropped_occulted: _Optional[int] = ..., dropped_lost: _Optional[int] = ..., dropped_queue: _Optional[int] = ...) -> None: ...
+    dropped_fault: int
+    def __init__(self, src: _Optional[str] = ..., dst: _Optional[str] = ..., type: _Optional[str] = ..., messages: _Optional[int] = ..., payload_bytes: _Optional[int] = ..., wire_bytes: _Optional[int] = ..., dropped_range: _Optional[int] = ..., dropped_occulted: _Optional[int] = ..., dropped_lost: _Optional[int] = ..., dropped_queue: _Optional[int] = ..., dropped_fault: _Optional[int] = ...) -> None: ...
 
 class LinkStats(_message.Message):
     __slots__ = ("header", "links", "rejected_packets", "tx_messages", "rx_messages")

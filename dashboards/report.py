@@ -26,6 +26,7 @@ from dashboards.metrics import SwarmMetrics
 from dashboards.run_config import run_camera, run_config
 from dashboards.run_metrics import SERIES, read_summary, store_metrics
 from dashboards.sections import SectionContext, sections_for
+from dashboards.sections.contact import overview_rows
 from dashboards.site import write_site
 from dashboards.truth_io import TruthArrays, read_truth
 from plant.sensors import CameraGeometry
@@ -83,7 +84,8 @@ def _write_report(run_dir: Path, cam: CameraGeometry | None, steady_from_s: floa
         s["figures"] = figures_of(out, s["figures"])
     spath.write_text(json.dumps(summary, indent=1))
     title = f"swarmhil report: {summary.get('scenario', truth.run)}"
-    return write_site(run_dir, out, title, _headline(summary, met), [], sections, metrics_series_frame(m),
+    return write_site(run_dir, out, title, overview_rows(summary) + _headline(summary, met), [], sections,
+                      metrics_series_frame(m),
                       summary["metrics"],
                       intro="<p>Metrics computed from the recorded truth (dashboards/metrics.py); the full numbers are in "
                             "<code>summary.json</code> under <code>metrics</code> and in <a href=\"data.html\">the data "

@@ -35,6 +35,8 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
         return f"sensing kind {sc.sensing['kind']!r} has no batch form"
     if beacon_from_config(sc.sections.get("beacon"), "") is not None:
         return "beacons"
+    if any(f.family == "sensor" for f in getattr(sc, "faults", ())):
+        return "sensing faults (they act on the stimulus messages)"
     comps = enabled_companions(sc, opts or {})
     if comps:
         return f"companions {', '.join(c.name for c in comps)}"

@@ -247,6 +247,7 @@ class MultiProcessRun:
         self.recorder_segment = 0  # recorder restarts so far: it writes run.NNN.mcap (bus/mcap_tools.py)
         self._event_seq = 0
         self.cpu_budgets: dict[str, Any] = {}  # agent -> deploy.cpu_budget.CpuBudget
+        self._paused: set[str] = set()  # agents a process_pause fault has SIGSTOPped
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
@@ -395,6 +396,22 @@ class MultiProcessRun:
         if p is not None and p.poll() is None:
             os.kill(p.pid, sig)  # by PID, never by name
 
+    def _act_on_fault(self, event: str, kind: str, targets: list[str]) -> None:
+        """A process fault the plant announced at its step (plant/node.py): the plant has already
+        taken the agent out of the lockstep; here its process is killed (process_crash: SIGKILL,
+        then [supervision] restart decides), or frozen and thawed (process_pause: SIGSTOP, SIGCONT)."""
+        for sid in targets:
+            name = f"agent-{sid}"
+            if kind == "process_crash" and event == "fault_start":
+                log.warning("fault: process_crash of %s (pid %s)", name, getattr(self.procs.get(name), "pid", None))
+                self._signal(name, signal.SIGKILL)
+            elif kind == "process_pause" and event == "fault_start":
+                self._signal(name, signal.SIGSTOP)
+                self._paused.add(name)
+            elif kind == "process_pause" and event == "fault_end" and name in self._paused:
+                self._signal(name, signal.SIGCONT)
+                self._paused.discard(name)
+
     def _stop(self, names: list[str], timeout_s: float = 10.0) -> None:
         for n in names:
             self._signal(n, signal.SIGTERM)
@@ -496,6 +513,9 @@ class MultiProcessRun:
         stalled: list[str] = []  # agents the plant dropped on a lockstep stall: killed, so restarted
         if self.sc.restart == "on-failure":
             watch.subscribe(keys.event, lambda _k, p: stalled.extend(_stalled_agent(p)))
+        process_faults: list[tuple[str, str, list[str]]] = []  # [[fault]] process_*: the plant's events, acted here
+        if any(f.family == "process" for f in self.sc.faults):
+            watch.subscribe(keys.faults, lambda _k, p: process_faults.extend(_process_fault(p)))
         reason, code, interrupted = "", 0, False
         joins = None
         old_term = _on_sigterm_raise()
@@ -537,6 +557,8 @@ class MultiProcessRun:
                             raise RunFailed(f"{n} (pid {p.pid}) exited with code {p.returncode} at start-up; "
                                             f"last lines of {self.out / 'logs' / (n + '.log')}:\n{self._tail(n)}")
                         log.warning("%s (pid %d) exited with code %s; the plant counts it dead", n, p.pid, p.returncode)
+                while process_faults:
+                    self._act_on_fault(*process_faults.pop(0))
                 while stalled:  # alive but silent past the stall timeout: end it, the restart policy follows
                     name = f"agent-{stalled.pop()}"
                     if name in self.procs and self.procs[name].poll() is None:
@@ -553,6 +575,8 @@ class MultiProcessRun:
             reason, code = str(exc), 1
             summary["external_join_timeout"] = True
         finally:
+            for name in sorted(self._paused):  # a stopped process would not see its SIGTERM
+                self._signal(name, signal.SIGCONT)
             router_up = self.procs["router"].poll() is None
             # an external agent that never joined: no step ran, nothing to wait for in the recording
             confirm = router_up and not summary.get("external_join_timeout")
@@ -654,6 +678,18 @@ def _stalled_agent(payload: bytes) -> list[str]:
     if ev.kind == "agent_dead" and ev.header.source == "plant" and ev.detail.startswith("lockstep stall"):
         return [ev.subject]
     return []
+
+
+def _process_fault(payload: bytes) -> list[tuple[str, str, list[str]]]:
+    """[(fault_start | fault_end, kind, targets)] when an event on `faults` is a process fault's."""
+    try:
+        ev = pb.Event.FromString(payload)
+        f = json.loads(ev.detail)
+    except Exception:  # noqa: BLE001 - not a fault event: nothing to do
+        return []
+    if ev.header.source != "plant" or not str(f.get("kind", "")).startswith("process_"):
+        return []
+    return [(ev.kind, f["kind"], list(f.get("targets", [])))]
 
 
 def _read_json(p: Path) -> dict[str, Any] | None:

@@ -17,7 +17,8 @@ from bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
-    "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision", "security",
+    "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision", "security", "fault",
+    "contact",
 }
 RESTART_POLICIES = ("never", "on-failure")
 PROPAGATORS = ("linear", "j2", "cw", "inertial")  # plant/dynamics/propagator.py
@@ -76,6 +77,8 @@ class Scenario:
     doc: dict[str, Any] = field(default_factory=dict)       # the document after --set, as validated
     sets: tuple[str, ...] = ()                              # the --set overrides applied
     epoch_utc: str = "2000-01-01T12:00:00Z"                 # t = 0 of the run (MCAP log_time = epoch + t)
+    faults: list[Any] = field(default_factory=list)         # [[fault]]: plant.faults specs (issue 27)
+    contact: Any = None                                     # [contact]: plant.contact.ContactConfig
 
     def spec(self, sc_id: str) -> Any:
         """The SpacecraftSpec of one spacecraft (generated ones get defaults)."""
@@ -92,6 +95,8 @@ class Scenario:
     def resolved(self) -> dict[str, Any]:
         """The fully resolved configuration (defaults filled in), JSON-ready: what a recording carries."""
         from importlib.metadata import PackageNotFoundError, version
+
+        from plant.faults import fault_summary
 
         try:
             ver = version("swarmhil")
@@ -131,6 +136,8 @@ class Scenario:
             "dispersion": self.sections.get("dispersion"),
             "spacecraft": [{**s.model_dump(), "roe_m": [float(x) for x in r]} for s, r in zip(self.spacecraft, self.roe_m)],
             "body": [b.model_dump() for b in self.bodies],
+            "faults": [fault_summary(f) for f in self.faults],
+            "contact": self.contact.model_dump() if self.contact is not None else None,
         }
 
     @property
@@ -411,6 +418,14 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     else:
         raise ScenarioError(f"{src}: no spacecraft: give [[spacecraft]] tables (id, roe_m) or a [dispersion] table")
     sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
+    sc.contact = _contact(src, doc.get("contact", {}))
+    if "fault" in doc:
+        from plant.faults import FaultError, parse_faults
+
+        try:
+            sc.faults = parse_faults(src, doc["fault"], sc.ids, step)
+        except FaultError as exc:
+            raise ScenarioError(str(exc)) from None
     cartesian = fidelity in ("cw", "inertial")
     if not cartesian and (sc.bodies or any(s.inertia_kgm2 is not None for s in sc.spacecraft)):
         raise _err(src, "[plant].fidelity", "must be 'cw' or 'inertial' for [[body]] tables or attitude "
@@ -419,6 +434,21 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if origin != "reference" and origin not in sc.ids + [b.id for b in sc.bodies if b.motion.kind == "propagated"]:
         raise _err(src, "[plant].frame_origin", "must be 'reference', a spacecraft id or a propagated body id", origin)
     return sc
+
+
+def _contact(src: str, table: Any) -> Any:
+    """[contact] (plant/contact.py): hard-body radius default, keep-out distance, point masses."""
+    from pydantic import ValidationError
+
+    from plant.bodies import format_validation_error
+    from plant.contact import ContactConfig
+
+    if not isinstance(table, dict):
+        raise _err(src, "[contact]", "must be a table", table)
+    try:
+        return ContactConfig.model_validate(table)
+    except ValidationError as exc:
+        raise ScenarioError(format_validation_error(src, "[contact]", exc, ContactConfig)) from None
 
 
 def _supervision(src: str, doc: dict[str, Any]) -> tuple[float, str, int]:

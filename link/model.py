@@ -10,7 +10,8 @@ What a packet goes through, in this order (link/node.py does the I/O around it):
    (`"head"`) packet is dropped;
 3. per addressed receiver, from the plant's truth at the time of sending: range gating
    (`distance <= range_m`, seed 000 section 2.2: communication range R_c), Earth occultation
-   (`line_of_sight_clear`), then a seeded loss draw (`loss_draw`);
+   (`line_of_sight_clear`), then the link faults of the scenario's `[[fault]]` (link/faults.py:
+   a partition drops, a degraded link adds loss and latency), then a seeded loss draw (`loss_draw`);
 4. delivery at the first receiver step whose time is >= end of transmission + `latency_s`
    (never the sending step itself: the receiver has already acted on it).
 
@@ -29,11 +30,13 @@ import numpy as np
 from bus import swarmhil_pb2 as pb
 from plant.dynamics.constants import R_EARTH_M  # the one definition of the shared constants
 
+FAULT_LOSS_SALT = 0xFA171055  # a degraded link's extra loss is drawn apart from the link's own (link/faults.py)
+
 TX_ROW = "*"  # LinkCounter.dst of a transmitter's own row (what it offered to its radio, queue drops)
 COUNTER_FIELDS = ("messages", "payload_bytes", "wire_bytes", "dropped_range", "dropped_occulted",
-                  "dropped_lost", "dropped_queue")
-DROP_CAUSES = ("range", "occulted", "lost", "queue")
-_MSG, _PAY, _WIRE, _RANGE, _OCC, _LOST, _QUEUE = range(7)
+                  "dropped_lost", "dropped_queue", "dropped_fault")
+DROP_CAUSES = ("range", "occulted", "lost", "queue", "fault")
+_MSG, _PAY, _WIRE, _RANGE, _OCC, _LOST, _QUEUE, _FAULT = range(8)
 
 
 class LinkConfigError(ValueError):
@@ -272,7 +275,7 @@ class Counters:
     def _row(self, src: str, dst: str, typ: str) -> list[int]:
         r = self.rows.get((src, dst, typ))
         if r is None:
-            r = self.rows[(src, dst, typ)] = [0] * 7
+            r = self.rows[(src, dst, typ)] = [0] * len(COUNTER_FIELDS)
         return r
 
     def add_tx(self, src: str, typ: str, payload_bytes: int, wire_bytes: int) -> None:
@@ -291,15 +294,15 @@ class Counters:
         self._row(src, dst, typ)[_RANGE + DROP_CAUSES.index(cause)] += 1
 
     def totals(self) -> dict[str, int]:
-        tx = np.zeros(7, dtype=np.int64)
-        rx = np.zeros(7, dtype=np.int64)
+        tx = np.zeros(len(COUNTER_FIELDS), dtype=np.int64)
+        rx = np.zeros(len(COUNTER_FIELDS), dtype=np.int64)
         for (_s, d, _t), r in self.rows.items():
             (tx if d == TX_ROW else rx)[:] += r
         return {
             "tx_messages": int(tx[_MSG]), "tx_payload_bytes": int(tx[_PAY]), "tx_wire_bytes": int(tx[_WIRE]),
             "rx_messages": int(rx[_MSG]), "rx_payload_bytes": int(rx[_PAY]), "rx_wire_bytes": int(rx[_WIRE]),
             "dropped_range": int(rx[_RANGE]), "dropped_occulted": int(rx[_OCC]), "dropped_lost": int(rx[_LOST]),
-            "dropped_queue": int(tx[_QUEUE]),
+            "dropped_queue": int(tx[_QUEUE]), "dropped_fault": int(rx[_FAULT]),
         }
 
     def sorted_rows(self) -> list[tuple[str, str, str, list[int]]]:
@@ -336,8 +339,9 @@ class LinkModel:
     (send step, source, tx index, receiver).
     """
 
-    def __init__(self, cfg: LinkConfig, ids: Sequence[str], step_s: float) -> None:
+    def __init__(self, cfg: LinkConfig, ids: Sequence[str], step_s: float, faults: Any = None) -> None:
         self.cfg = cfg
+        self.faults = faults if faults else None  # link/faults.py LinkFaults (issue 27)
         self.ids = list(ids)
         self.index = {s: i for i, s in enumerate(self.ids)}
         self.step_s = float(step_s)
@@ -401,16 +405,28 @@ class LinkModel:
         if cfg.occultation and reach.any():
             clear[reach] = line_of_sight_clear(np.broadcast_to(pos[i], (int(reach.sum()), 3)), pos[js[reach]],
                                                ref_radius_m, cfg.earth_radius_m + cfg.grazing_altitude_m)
-        for r, j, ok, los in zip(receivers, js.tolist(), reach.tolist(), clear.tolist()):
+        fault = None if self.faults is None else self.faults.at(p.send_step, i, js)
+        for n, (r, j, ok, los) in enumerate(zip(receivers, js.tolist(), reach.tolist(), clear.tolist())):
+            at, due_j = arrive_t, due
             if not ok:
                 self.counters.add_drop(p.src, r, p.type, "range")
+                continue
             elif not los:
                 self.counters.add_drop(p.src, r, p.type, "occulted")
-            elif cfg.loss_probability > 0 and loss_draw(cfg.seed, i, p.tx_index, j) < cfg.loss_probability:
+                continue
+            if fault is not None:
+                if fault.blocked[n] or (fault.loss_probability[n] > 0 and loss_draw(
+                        cfg.seed ^ FAULT_LOSS_SALT, i, p.tx_index, j) < fault.loss_probability[n]):
+                    self.counters.add_drop(p.src, r, p.type, "fault")
+                    continue
+                if fault.extra_latency_s[n] > 0:
+                    at = arrive_t + float(fault.extra_latency_s[n])
+                    due_j = max(p.send_step + 1, math.ceil(at / self.step_s - 1e-9))
+            if cfg.loss_probability > 0 and loss_draw(cfg.seed, i, p.tx_index, j) < cfg.loss_probability:
                 self.counters.add_drop(p.src, r, p.type, "lost")
             else:
                 self._scheduled.append(Delivery((p.send_step, i, p.tx_index, j), p.src, r, p.dst, p.type, p.payload,
-                                                p.send_step, p.send_t, arrive_t, due, wire_bytes=p.wire_bytes))
+                                                p.send_step, p.send_t, at, due_j, wire_bytes=p.wire_bytes))
 
     def _progress(self, until_t: float, window_step: int) -> None:
         self._on_air += self._offer_submitted(window_step)

@@ -47,7 +47,8 @@ from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, decode, header
 from bus.keys import Keys
 from bus.memory import MemoryBus
-from link.model import LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
+from link.faults import LinkFaults
+from link.model import COUNTER_FIELDS, LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
 
 log = logging.getLogger("swarmhil.channel")
 
@@ -78,20 +79,21 @@ def start(bus: Bus, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> "Chan
     else:
         watchdog_s, stall = 0.7 * sc.step_s / sc.speed, False
     return ChannelNode(bus, run, cfg, sc.ids, sc.step_s, ref_radius_m=sc.orbit.semi_major_axis_m,
-                       watchdog_s=None if isinstance(bus, MemoryBus) else watchdog_s, stall_is_error=stall)
+                       watchdog_s=None if isinstance(bus, MemoryBus) else watchdog_s, stall_is_error=stall,
+                       faults=LinkFaults(getattr(sc, "faults", None) or [], sc.ids, sc.step_s))
 
 
 class ChannelNode:
     def __init__(self, bus: Bus, run: str, cfg: LinkConfig, ids: list[str], step_s: float, *,
                  ref_radius_m: float = 6878137.0, watchdog_s: float | None = None,
-                 stall_is_error: bool = False) -> None:
+                 stall_is_error: bool = False, faults: Any = None) -> None:
         self.bus = bus
         self.run = run
         self.keys = Keys(run)
         self.cfg = cfg
         self.ids = list(ids)
         self.known = set(self.ids)
-        self.model = LinkModel(cfg, self.ids, step_s)
+        self.model = LinkModel(cfg, self.ids, step_s, faults)
         self.step_s = step_s
         self.ref_radius_m = ref_radius_m  # used when a truth message does not carry the reference orbit
         self.rejections = Rejections(NAME)
@@ -384,8 +386,7 @@ class ChannelNode:
             "max_truth_lag_steps": self.model.max_truth_lag_steps,
             "stats_published": self.stats_published,
             "events_published": self.events_published,
-            "link_columns": ["src", "dst", "type", "messages", "payload_bytes", "wire_bytes", "dropped_range",
-                             "dropped_occulted", "dropped_lost", "dropped_queue"],
+            "link_columns": ["src", "dst", "type", *COUNTER_FIELDS],
             "links": [[s, d, t, *r] for s, d, t, r in self.model.counters.sorted_rows()],
         }
 

@@ -66,6 +66,7 @@ class SpacecraftSpec(_Spec):
     # the agent process's CPU budget as a fraction of one core (a flight computer slower than this
     # machine), enforced with a cgroup CPU quota where the machine allows it (deploy/cpu_budget.py)
     cpu_fraction: float | None = Field(None, ge=0.01, le=64)
+    radius_m: float | None = Field(None, gt=0)         # hard-body radius (default: [contact].default_radius_m)
 
     @field_validator("id")
     @classmethod
@@ -164,6 +165,7 @@ class BodySpec(_Spec):
     area_m2: float = Field(1.0, gt=0)
     drag_coefficient: float = Field(2.2, ge=0)
     shape: Annotated[Union[Ellipsoid, Spheres], Field(discriminator="kind")] | None = None
+    radius_m: float | None = Field(None, gt=0)  # hard-body sphere when no shape (default: [contact].default_radius_m)
     motion: Annotated[Union[Kinematic, Propagated], Field(discriminator="kind")] = Field(default_factory=Kinematic)
 
     @field_validator("id")

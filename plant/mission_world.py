@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -95,6 +95,8 @@ class MissionWorld:
         self.delta_v_mps = np.zeros(n)
         self.last_accel_mps2 = np.zeros((n, 3))
         self.last_torque_nm = np.zeros((n, 3))
+        # issue 27: (applied accelerations, step) -> applied accelerations (plant/faults.py ActuationFaults)
+        self.actuation_faults: Callable[[np.ndarray, int], np.ndarray] | None = None
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
         # rows of the translational propagator: spacecraft, then propagated bodies
@@ -240,6 +242,8 @@ class MissionWorld:
         """Advance by dt with commands (scenario frame; torque in each body frame) held over the step."""
         c0 = time.perf_counter()
         a = self.limit(accel_mps2)
+        if self.actuation_faults is not None:
+            a = self.actuation_faults(a, self.steps_done)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
         rows = [a] + [manoeuvre_accel(b.motion.manoeuvres, self.t_s)[None] for b in self.prop_bodies]

@@ -19,6 +19,8 @@ from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
 from bus.truth_wire import HeaderEncoder, TruthEncoder
+from plant.contact import ContactMonitor
+from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -73,6 +75,20 @@ class PlantNode:
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
         self.sensor = make_sensing(scenario.sensing["kind"], scenario)
+        # [[fault]] (issue 27, plant/faults.py): actuator faults act in the world's actuator model,
+        # sensing faults on the stimuli; each fault's start and end is an Event on `faults`
+        self._faults = list(getattr(scenario, "faults", None) or [])
+        self._sensing_faults: SensingFaults | None = None
+        self._paused: set[str] = set()  # agents a process_pause fault holds out of the lockstep
+        if self._faults:
+            actuation = ActuationFaults(self._faults, scenario.ids, scenario.step_s)
+            if actuation:
+                self.world.actuation_faults = actuation
+            sensing = SensingFaults(self._faults, scenario.ids, scenario.step_s, scenario.seed)
+            self._sensing_faults = sensing if sensing else None
+        # hulls (issue 27, plant/contact.py): a contact or near-miss Event when two hulls touch or
+        # come within the keep-out distance
+        self.contact = ContactMonitor.of(scenario)
         # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
         # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
         # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
@@ -162,6 +178,40 @@ class PlantNode:
         self.bus.publish(self.keys.event, ev.SerializeToString())
         (log.info if kind.startswith("run_") else log.warning)("%s %s: %s", kind, subject, detail)
 
+    def _fault_events(self, final: bool) -> None:
+        """Each [[fault]] that starts or ends at this step: an Event on `faults` (kind fault_start or
+        fault_end, subject the fault's name, detail its table as JSON)."""
+        for kind, f in transitions(self._faults, self.step_s, self._step, final):
+            detail = json.dumps(fault_summary(f))
+            ev = pb.Event(header=self._hdr(self.keys.faults), kind=kind, subject=f.name, detail=detail)
+            self.bus.publish(self.keys.faults, ev.SerializeToString())
+            log.warning("%s %s: %s", kind, f.name, detail)
+            if f.family == "process" and not final:
+                self._process_fault(kind, f)
+
+    def _process_fault(self, kind: str, f: Any) -> None:
+        """A process fault at this step (the launcher acts on the process when it sees the event):
+        a crash makes the agent dead now; a pause takes it out of the lockstep for the window (its
+        spacecraft coasts) and back at the window's end if its liveliness token is still up."""
+        for sc in f.targets:
+            i = self.world.index[sc]
+            if f.kind == "process_crash":
+                if kind == "fault_start":
+                    self._mark_dead(sc, f"fault {f.name}: process_crash at step {self._step}")
+            elif kind == "fault_start" and self.world.alive[i]:
+                self.world.alive[i] = False
+                self._paused.add(sc)
+                self._event("agent_paused", sc, f"fault {f.name}: paused at step {self._step}")
+            elif kind == "fault_end" and sc in self._paused:
+                self._paused.discard(sc)
+                if self.AGENT_PREFIX + sc in self.present or self.local_agents is not None:
+                    self.world.alive[i] = True
+                    self.held[i] = 0.0
+                    self._event("agent_resumed", sc, f"fault {f.name}: resumed at step {self._step}")
+                else:
+                    self.world.alive[i] = True  # (so that it is marked dead, with the reason)
+                    self._mark_dead(sc, f"fault {f.name}: its liveliness token is gone at the end of its pause")
+
     def _mark_dead(self, sc: str, reason: str) -> None:
         i = self.world.index[sc]
         if not self.world.alive[i]:
@@ -209,6 +259,8 @@ class PlantNode:
         scalar access per field costs more than the rest of the step)."""
         k = self._step
         final = final or k >= self.sc.steps
+        if self._faults:
+            self._fault_events(final)
         u = self.world.u_rad
         pos, vel = self.world.lvlh()
         ids = self.world.ids
@@ -234,6 +286,9 @@ class PlantNode:
             self.bus.publish(self._k_truth, data, sim_time_ns(t_s))
         else:
             self.bus.publish(self._k_truth, data)
+        bodies = self.world.body_truth() if isinstance(self.world, MissionWorld) else []
+        for kind, pair, detail in self.contact.check(k, t_s, pos, bodies):
+            self._event(kind, pair, detail)
         if final:
             return
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
@@ -248,6 +303,8 @@ class PlantNode:
                 continue
             key = self._sense_keys[j]
             stim = self.sensor.stimulus(ctx, j, self._hdr(key))
+            if self._sensing_faults is not None:
+                stim = self._sensing_faults.apply(stim, j, ctx)
             self.bus.publish(key, stim.SerializeToString())
 
     def _mission_truth(self, pos: np.ndarray, vel: np.ndarray, alive: list[bool]) -> pb.Truth:
@@ -384,5 +441,6 @@ class PlantNode:
             "missed_deadlines": self.stats.missed_deadlines,
             "late_commands": self.stats.late_commands,
             "rejected_packets": {"plant": self.rejections.total, "plant_by_key": dict(self.rejections.by_key)},
+            "contact": self.contact.summary(),
         }
 

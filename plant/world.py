@@ -9,6 +9,7 @@ absolute orbits and converts them to the reference LVLH every step (plant/dynami
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 import numpy as np
 
@@ -35,6 +36,8 @@ class World:
         self.alive = np.ones(n, dtype=bool)
         self.delta_v_mps = np.zeros(n)
         self.last_accel_mps2 = np.zeros((n, 3))
+        # issue 27: (applied accelerations, step) -> applied accelerations (plant/faults.py ActuationFaults)
+        self.actuation_faults: Callable[[np.ndarray, int], np.ndarray] | None = None
         init = {"a_m": self.a_m, "inc_rad": inc_rad, "raan_rad": raan_rad, "u0_rad": self.u0_rad,
                 "roe_m": np.array(roe_m, dtype=float).reshape(n, 6)}
         if drag is not None:
@@ -74,6 +77,8 @@ class World:
         (`all_alive`: as for `limit`)."""
         c0 = time.perf_counter()
         a = self.limit(accel_mps2, all_alive)
+        if self.actuation_faults is not None:
+            a = self.actuation_faults(a, self.steps_done)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.sqrt(np.add.reduce(a * a, axis=1)) * dt_s  # np.linalg.norm(a, axis=1), its arithmetic
         self.propagator.step(a, dt_s)

@@ -1,0 +1,90 @@
+"""Report section `faults` (issue 27): the run's `[[fault]]` schedule and when each fault started and
+ended, read from the recording's `faults` topic (Events fault_start / fault_end, plant/node.py)."""
+from __future__ import annotations
+
+import html
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dashboards.metrics import visibility_series, weak_components
+from dashboards.run_config import camera_from_config
+from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
+
+
+def read_events(mcap: Path, topic: str, kinds: tuple[str, ...] | None = None) -> list[Any]:
+    """The swarmhil.v1.Event messages of one topic (`event`, `faults`), in log-time order, with the
+    standard reader; `kinds`: only those."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    with open(mcap, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return [m for _s, _c, _msg, m in reader.iter_decoded_messages(topics=[topic])
+                if kinds is None or m.kind in kinds]
+
+
+def table(head: list[str], rows: list[list[Any]]) -> str:
+    """An escaped HTML table."""
+    th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    trs = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><tr>{th}</tr>{trs}</table>"
+
+
+def recovery(t_s: np.ndarray, delta_v_mps: np.ndarray, n_components: np.ndarray | None, start_s: float,
+             end_s: float | None) -> dict[str, Any]:
+    """What the swarm did over a fault's window [start_s, end_s) and after it, from the truth:
+    ΔV spent by the whole swarm in the window; with a visibility digraph (paper 002's cameras), its
+    weakly connected components when the fault starts, the most during the window, when it ends,
+    and the time from the window's end to the first step with one component (0: connected at the
+    end; None: never again in the run). `n_components` (T,) per recorded step t_s."""
+    stop = float(t_s[-1]) if end_s is None else float(end_s)
+    k0 = int(np.searchsorted(t_s, start_s - 1e-9))
+    k1 = min(int(np.searchsorted(t_s, stop - 1e-9)), len(t_s) - 1)
+    out: dict[str, Any] = {"delta_v_in_window_mps": float(delta_v_mps[k1].sum() - delta_v_mps[k0].sum())}
+    if n_components is not None and k0 < len(t_s):
+        during = n_components[k0:max(k1, k0 + 1)]
+        after = np.flatnonzero(n_components[k1:] == 1)
+        out.update({"components_at_start": int(n_components[k0]), "components_max_in_window": int(during.max()),
+                    "components_at_end": int(n_components[k1]),
+                    "time_to_reconnect_s": float(t_s[k1 + after[0]] - t_s[k1]) if after.size else None})
+    return out
+
+
+def visibility_components(ctx: SectionContext) -> np.ndarray | None:
+    """Components of the recorded camera-visibility digraph per step (paper 002 runs), else None."""
+
+    cam = camera_from_config(ctx.config) if ctx.truth is not None else None
+    if cam is None or not controllers_of(ctx.config) <= {"null", "drift-null", "sabatini"}:
+        return None
+    return weak_components(visibility_series(ctx.truth.position_m, cam, ctx.truth.alive))[0]
+
+
+@register_section("faults", applies=lambda cfg: bool(cfg.get("faults")))
+def faults(ctx: SectionContext) -> SectionResult:
+    events = read_events(ctx.mcap, "faults", ("fault_start", "fault_end"))
+    seen: dict[str, dict[str, Any]] = {}
+    for e in events:
+        seen.setdefault(e.subject, {})[e.kind] = round(e.header.t, 9)
+    rows, metrics = [], {}
+    ncomp = visibility_components(ctx)
+    for f in ctx.config["faults"]:
+        name = f["name"]
+        what = {k: v for k, v in f.items() if k not in ("name", "kind", "start_s", "end_s")}
+        started, ended = seen.get(name, {}).get("fault_start"), seen.get(name, {}).get("fault_end")
+        rec = recovery(ctx.truth.t_s, ctx.truth.delta_v_mps, ncomp, f["start_s"], f["end_s"]) \
+            if ctx.truth is not None and started is not None else {}
+        rows.append([name, f["kind"], json.dumps(what), f["start_s"], f["end_s"] if f["end_s"] is not None else "run end",
+                     "no" if started is None else started, "-" if ended is None else ended,
+                     ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in rec.items())])
+        metrics[name] = {"kind": f["kind"], "started_t_s": started, "ended_t_s": ended, **rec}
+    intro = (f"<p>{len(ctx.config['faults'])} faults scheduled (docs/faults.md); started and ended: the simulated times "
+             f"of their events on the recording's <code>faults</code> topic; recovery: from the truth "
+             f"(dashboards/sections/faults.py <code>recovery</code>): the swarm's ΔV in the window and, for paper 002's "
+             f"camera swarms, the visibility digraph's weakly connected components and the time from the fault's end "
+             f"to one component.</p>")
+    return SectionResult("Faults", metrics, [], intro + table(
+        ["fault", "kind", "target and parameters", "start [s]", "end [s]", "started at [s]", "ended at [s]",
+         "recovery (truth)"], rows))

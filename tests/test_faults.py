@@ -1,0 +1,397 @@
+"""Faults as scenario data (issue 27): `[[fault]]` validation, and each fault's effect read back from
+the recording with the standard MCAP readers (tests/conftest.py read_mcap)."""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from conftest import read_mcap
+from deploy.scenario import ScenarioError, parse_scenario
+
+
+def doc(*faults: dict, n: int = 3, duration_s: float = 100.0) -> dict:
+    """A small Cartesian-free scenario: n spacecraft on the linear plant, 10 s steps."""
+    d = {"run": {"name": "faults", "duration_s": duration_s, "step_s": 10.0},
+         "spacecraft": [{"id": f"s{i}", "roe_m": [0.0, 100.0 * i, 0.0, 0.0, 0.0, 0.0]} for i in range(n)]}
+    if faults:
+        d["fault"] = [dict(f) for f in faults]
+    return d
+
+
+STUCK = {"kind": "thruster_stuck_off", "targets": ["s1"], "start_s": 20.0, "end_s": 60.0}
+
+
+@pytest.mark.parametrize("fault, message", [
+    ({**STUCK, "targets": ["s9"]}, "[[fault]][0] names unknown spacecraft id 's9'"),
+    ({**STUCK, "end_s": 10.0}, "[[fault]][0] end_s 10.0 must be after start_s 20.0"),
+    ({**STUCK, "kind": "thruster_melted"}, "[[fault]][0].kind is not a known fault kind"),
+    ({**STUCK, "start_s": "soon"}, "[[fault]][0].start_s"),
+    ({**STUCK, "duration_s": 5.0}, "[[fault]][0] give end_s or duration_s, not both"),
+    ({**STUCK, "factor": 2.0}, "[[fault]][0].factor is not a known field"),
+    ({"kind": "thruster_efficiency", "targets": ["s1"], "factor": -1.0}, "[[fault]][0].factor"),
+    ({"kind": "link_partition", "groups": [["s0", "s1"], ["s1"]]}, "puts 's1' in more than one group"),
+    ({"kind": "link_degraded", "between": [["s0"], ["s7"]]}, "names unknown spacecraft id 's7'"),
+    ({**STUCK, "start_s": 21.0, "end_s": 29.0}, "lasts less than one step of 10.0 s"),
+    ({"targets": ["s1"]}, "[[fault]][0].kind is required"),
+])
+def test_bad_faults_are_one_precise_line(fault: dict, message: str) -> None:
+    with pytest.raises(ScenarioError) as exc:
+        parse_scenario(doc(fault), "f.toml")
+    text = str(exc.value)
+    assert text.startswith("f.toml: ") and message in text and "\n" not in text, text
+
+
+def test_faults_are_typed_with_windows_in_steps() -> None:
+    from plant.faults import FaultWindow, ThrusterStuckOff, transitions
+
+    sc = parse_scenario(doc(STUCK, {"kind": "sensor_bias", "targets": ["s0", "s2"], "start_s": 15.0,
+                                    "duration_s": 30.0, "bias_m": [1.0, 2.0, 3.0]},
+                            {"kind": "link_partition", "name": "split", "groups": [["s0"]], "start_s": 50.0}), "f.toml")
+    stuck, bias, split = sc.faults
+    assert isinstance(stuck, ThrusterStuckOff) and stuck.name == "fault0" and split.name == "split"
+    assert FaultWindow.of(stuck, 10.0) == FaultWindow(2, 6)        # t = 20, 30, 40, 50 s
+    assert FaultWindow.of(bias, 10.0) == FaultWindow(2, 5)         # t = 20, 30, 40 (15 <= t < 45)
+    assert math.isinf(split.stop_s) and FaultWindow.of(split, 10.0).active(10**6)
+    assert [(e, f.name) for e, f in transitions(sc.faults, 10.0, 2, False)] == [("fault_start", "fault0"),
+                                                                             ("fault_start", "fault1")]
+    assert [(e, f.name) for e, f in transitions(sc.faults, 10.0, 10, True)] == [("fault_end", "split")]
+    assert sc.resolved()["faults"][1] == {"name": "fault1", "kind": "sensor_bias", "targets": ["s0", "s2"],
+                                          "start_s": 15.0, "end_s": 45.0, "bias_m": [1.0, 2.0, 3.0],
+                                          "bias_mps": [0.0, 0.0, 0.0]}
+    assert parse_scenario(doc(), "f.toml").faults == []
+
+
+# --- runs read back from the recording -------------------------------------------------------------
+def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.toml") -> object:
+    """Paper 002's shipped swarm (20 spacecraft, rel sensing), shortened, with these faults."""
+    import tomllib
+
+    from conftest import SCENARIOS
+
+    d = tomllib.loads((SCENARIOS / name).read_text())
+    d["run"]["duration_s"] = duration_s
+    d["fault"] = [dict(f) for f in faults]
+    return parse_scenario(d, name)
+
+
+def run(sc, out) -> list:
+    from deploy.launcher import run_in_process
+
+    run_in_process(sc, out, "faults")
+    return read_mcap(out / "run.mcap")
+
+
+def vec3(v) -> np.ndarray:
+    return np.array([v.x, v.y, v.z])
+
+
+def truth_accel(msgs: list, sid: str) -> dict[int, np.ndarray]:
+    """{step: acceleration applied to sid over [t_{step-1}, t_step)} from the recorded truth."""
+    return {int(m.header.step): vec3(b.accel_cmd_mps2) for t, _l, _p, m in msgs if t == "truth"
+            for b in m.bodies if b.id == sid}
+
+
+def commands(msgs: list, sid: str) -> dict[int, np.ndarray]:
+    return {int(m.header.step): vec3(m.accel_mps2) for t, _l, _p, m in msgs if t == f"sc/{sid}/act"}
+
+
+def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp_path) -> None:
+    """sc05 stuck off over [100, 200) s: the truth's applied acceleration is zero for steps 10..19
+    while its flight software commands thrust; sc06 stuck on at a given acceleration over the same
+    window; both follow their commands outside it."""
+    on = [2e-4, -1e-4, 5e-5]
+    sc = sabatini({"kind": "thruster_stuck_off", "targets": ["sc05"], "start_s": 100.0, "end_s": 200.0},
+                  {"kind": "thruster_stuck_on", "targets": ["sc06"], "start_s": 100.0, "duration_s": 100.0,
+                   "accel_mps2": on})
+    msgs = run(sc, tmp_path / "r")
+    window = range(10, 20)
+    for sid in ("sc05", "sc06"):
+        cmd, applied = commands(msgs, sid), truth_accel(msgs, sid)
+        assert any(np.any(cmd[k] != 0.0) for k in window), f"{sid} commanded no thrust in the window"
+        outside = [k for k in cmd if k not in window]
+        assert any(np.any(cmd[k] != 0.0) for k in outside)
+        for k in outside:  # the truth of step k + 1 holds what acted over step k: the (limited) command
+            np.testing.assert_array_equal(applied[k + 1], np.clip(cmd[k], -1e-3, 1e-3))
+        want = np.zeros(3) if sid == "sc05" else np.asarray(on)
+        for k in window:
+            np.testing.assert_array_equal(applied[k + 1], want)
+    # Foxglove's scene draws the struck spacecraft red while the fault lasts (steps 10-19), sc01 never
+    red = {(int(round(m.entities[0].timestamp.seconds - 946728000)) // 10, e.id) for t, _l, _p, m in msgs
+           if t == "foxglove/scene" for e in m.entities if e.spheres and e.spheres[0].color.r == 1.0
+           and e.spheres[0].color.g < 0.2}
+    assert red == {(k, s) for k in range(10, 20) for s in ("sc05", "sc06")}, sorted(red)
+    # the report's recovery figures, against the truth read independently here
+    from dashboards.sections import SectionContext
+    from dashboards.sections.faults import faults
+    from dashboards.truth_io import read_truth
+    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+
+    truth = read_truth(tmp_path / "r" / "run.mcap")
+    rec = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), truth)).metrics
+    dv = sum(float(np.linalg.norm(vec3(b.accel_cmd_mps2))) * 10.0 for t, _l, _p, m in msgs
+             if t == "truth" and 11 <= m.header.step <= 20 for b in m.bodies)
+    assert rec["fault0"]["delta_v_in_window_mps"] == pytest.approx(dv, rel=1e-9) and dv > 0
+    pos = positions(msgs)
+    cam = CameraGeometry(**sc.camera)
+    connected = [weakly_connected(visibility_matrix(np.array([pos[k][i] for i in sc.ids]), cam)) for k in range(31)]
+    assert (rec["fault1"]["components_max_in_window"] == 1) == all(connected[10:20])
+    assert (rec["fault1"]["time_to_reconnect_s"] == 0.0) == connected[20]
+
+
+def test_recovery_reads_the_window_and_the_reconnection() -> None:
+    from dashboards.sections.faults import recovery
+
+    t = np.arange(8) * 10.0
+    dv = np.outer(np.arange(8.0), [1.0, 2.0])        # the swarm spends 3 m/s a step
+    ncomp = np.array([1, 1, 2, 3, 2, 2, 1, 1])
+    assert recovery(t, dv, ncomp, 20.0, 40.0) == {"delta_v_in_window_mps": 6.0, "components_at_start": 2,
+                                                  "components_max_in_window": 3, "components_at_end": 2,
+                                                  "time_to_reconnect_s": 20.0}
+    assert recovery(t, dv, ncomp, 20.0, None)["time_to_reconnect_s"] == 0.0   # to the run's end: one component there
+    assert recovery(t, dv, np.array([1, 2, 2, 2, 2, 2, 2, 2]), 10.0, 30.0)["time_to_reconnect_s"] is None
+    assert recovery(t, dv, None, 0.0, 70.0) == {"delta_v_in_window_mps": 21.0}
+
+
+def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
+    from plant.faults import ActuationFaults, parse_faults
+
+    faults = parse_faults("t", [{"kind": "thruster_efficiency", "targets": ["b"], "factor": 0.25},
+                                {"kind": "thruster_misaligned", "targets": ["c"], "angle_deg": 90.0},
+                                {"kind": "thruster_stuck_off", "targets": ["a"], "start_s": 50.0}], ["a", "b", "c"], 10.0)
+    act = ActuationFaults(faults, ["a", "b", "c"], 10.0)
+    a = np.array([[1e-3, 0.0, 0.0]] * 3)
+    got = act(a, 0)
+    np.testing.assert_allclose(got, [[1e-3, 0, 0], [2.5e-4, 0, 0], [0, 1e-3, 0]], atol=1e-18)  # +x turned to +y about +z
+    np.testing.assert_array_equal(a, [[1e-3, 0.0, 0.0]] * 3)  # the input is not changed
+    np.testing.assert_allclose(act(a, 5)[0], 0.0)
+
+
+def positions(msgs: list) -> dict[int, dict[str, np.ndarray]]:
+    """{step: {id: position}} of the recorded truth."""
+    return {int(m.header.step): {b.id: vec3(b.position_m) for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+
+
+def stimuli(msgs: list, sid: str) -> dict[int, dict[str, np.ndarray]]:
+    """{step: {neighbour: sensed relative position}} of sid's recorded `rel` stimuli."""
+    return {int(m.header.step): {nb.id: vec3(nb.position_m) for nb in m.neighbours}
+            for t, _l, _p, m in msgs if t == f"sc/{sid}/sense/rel"}
+
+
+def test_sensing_faults_change_only_the_struck_spacecrafts_stimuli(tmp_path) -> None:
+    """Over [100, 200) s: sc03's stimuli are shifted by the bias and nobody else's (every other
+    observer's sensed relative positions are the truth's differences, the scenario's sensing being
+    ideal); sc07's are empty although it sees neighbours before; sc09's repeat those of step 10;
+    sc12's scatter about the truth by about the 2 m (1 sigma) of its noise fault."""
+    bias = [3.0, -2.0, 0.5]
+    win = {"start_s": 100.0, "end_s": 200.0}
+    sc = sabatini({"kind": "sensor_bias", "targets": ["sc03"], "bias_m": bias, **win},
+                  {"kind": "sensor_dropout", "targets": ["sc07"], **win},
+                  {"kind": "sensor_frozen", "targets": ["sc09"], **win},
+                  {"kind": "sensor_noise", "targets": ["sc12"], "position_sigma_m": 2.0, **win})
+    msgs = run(sc, tmp_path / "r")
+    truth = positions(msgs)
+    window = range(10, 20)
+    shifted = 0
+    for sid in sc.ids:
+        for k, seen in stimuli(msgs, sid).items():
+            if sid in ("sc07", "sc09", "sc12") and k in window:
+                continue
+            offset = np.asarray(bias) if sid == "sc03" and k in window else np.zeros(3)
+            for nb, rp in seen.items():
+                np.testing.assert_allclose(rp, truth[k][nb] - truth[k][sid] + offset, rtol=0, atol=1e-9)
+                shifted += sid == "sc03" and k in window
+    assert shifted >= 5, "sc03 saw too few neighbours in the window for the check to mean anything"
+    dropped = stimuli(msgs, "sc07")
+    assert any(dropped[k] for k in range(10)) and not any(dropped[k] for k in window) and dropped[20]
+    frozen = stimuli(msgs, "sc09")
+    assert frozen[10] and all(frozen[k].keys() == frozen[10].keys() for k in window)
+    for k in window:
+        for nb, rp in frozen[k].items():
+            np.testing.assert_array_equal(rp, frozen[10][nb])
+    assert any(not np.array_equal(frozen[19][nb], truth[19][nb] - truth[19]["sc09"]) for nb in frozen[19])
+    noisy = stimuli(msgs, "sc12")
+    err = np.array([rp - (truth[k][nb] - truth[k]["sc12"]) for k in window for nb, rp in noisy[k].items()])
+    assert len(err) >= 5 and 1.0 < float(np.sqrt(np.mean(err**2))) < 4.0, err
+
+
+def test_a_partition_delivers_nothing_across_the_groups_and_counts_the_drops(tmp_path) -> None:
+    """sabatini-20-beacon, sc01..sc10 apart from the others over [100, 200) s: no packet sent in the
+    window crosses the groups (read from every isl/rx topic), some did before it and do after it,
+    and the channel's LinkStats count the partition's drops on cross-group rows only."""
+    a = [f"sc{i:02d}" for i in range(1, 11)]
+    sc = sabatini({"kind": "link_partition", "groups": [a], "start_s": 100.0, "end_s": 200.0},
+                  name="sabatini-20-beacon.toml")
+    msgs = run(sc, tmp_path / "r")
+    cross = lambda s, d: (s in a) != (d in a)  # noqa: E731
+    delivered = [(m.sent_t, m.src, t.rsplit("/", 1)[1]) for t, _l, _p, m in msgs if t.startswith("isl/rx/")]
+    across = [(ts, s, d) for ts, s, d in delivered if cross(s, d)]
+    assert not [x for x in across if 100.0 <= x[0] < 200.0], "packets crossed the partition"
+    assert [x for x in across if x[0] < 100.0] and [x for x in across if x[0] >= 200.0]
+    stats = [m for t, _l, _p, m in msgs if t == "link/stats"][-1]
+    dropped = {(c.src, c.dst): c.dropped_fault for c in stats.links if c.dropped_fault}
+    assert dropped and all(cross(s, d) for s, d in dropped), dropped
+    assert sum(dropped.values()) >= 10
+    events = [(m.kind, int(m.header.step)) for t, _l, _p, m in msgs if t == "faults"]
+    assert events == [("fault_start", 10), ("fault_end", 20)]
+    logs = [m.message for t, _l, _p, m in msgs if t == "foxglove/log" and "fault_" in m.message]
+    assert len(logs) == 2 and logs[0].startswith("fault_start fault0: ")
+    from dashboards.sections import SectionContext
+    from dashboards.sections.faults import faults
+
+    res = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), None))
+    assert res.metrics == {"fault0": {"kind": "link_partition", "started_t_s": 100.0, "ended_t_s": 200.0}}
+    assert "<td>fault0</td><td>link_partition</td>" in res.html
+
+
+def test_degraded_links_add_loss_and_latency_between_their_sets() -> None:
+    from link.faults import LinkFaults
+    from plant.faults import parse_faults
+
+    ids = ["a", "b", "c", "d"]
+    faults = parse_faults("t", [{"kind": "link_degraded", "between": [["a"], ["b", "c"]], "loss_probability": 0.5,
+                                 "extra_latency_s": 30.0, "start_s": 10.0, "end_s": 20.0},
+                                {"kind": "link_degraded", "loss_probability": 0.5, "start_s": 10.0, "end_s": 20.0}],
+                          ids, 10.0)
+    lf = LinkFaults(faults, ids, 10.0)
+    assert lf.at(0, 0, np.array([1, 2, 3])) is None and lf.at(2, 0, np.array([1])) is None
+    got = lf.at(1, 0, np.array([1, 2, 3]))
+    np.testing.assert_allclose(got.loss_probability, [0.75, 0.75, 0.5])
+    np.testing.assert_allclose(got.extra_latency_s, [30.0, 30.0, 0.0])
+    assert not got.blocked.any()
+    np.testing.assert_allclose(lf.at(1, 2, np.array([0, 1])).extra_latency_s, [30.0, 0.0])  # c -> a, c -> b
+
+
+def raw(path, topic: str) -> list[bytes]:
+    """Every payload of a topic, as recorded (the standard reader, no decoding)."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == topic]
+
+
+def twice(sc, tmp_path, scenario: str) -> list:
+    """[(out, result)] of two multi-process runs of sc (each must succeed)."""
+    from conftest import SCENARIOS
+    from deploy.launcher import MultiProcessRun
+
+    runs = []
+    for i in range(2):
+        out = tmp_path / f"mp{i}"
+        res = MultiProcessRun(str(SCENARIOS / scenario), sc, out, sc.name, progress=False).execute()
+        assert res.exit_code == 0, res.reason
+        runs.append((out, res))
+    return runs
+
+
+def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
+    """Six spacecraft of sabatini-20-beacon as real processes over Zenoh (plant, link channel,
+    recorder, six agents), with a partition, a stuck thruster and a sensor bias: two multi-process
+    runs and the in-process run record byte-identical truth and fault events, and the faults acted
+    (the truth differs from the same run without them)."""
+    import tomllib
+
+    from conftest import SCENARIOS
+    from deploy.launcher import run_in_process
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20-beacon.toml").read_text())
+    d["run"]["duration_s"] = 300.0
+    d["dispersion"]["count"] = 6
+    plain = parse_scenario(copy.deepcopy(d), "six.toml")
+    d["fault"] = [{"kind": "link_partition", "groups": [["sc01", "sc02", "sc03"]], "start_s": 50.0, "end_s": 150.0},
+                  {"kind": "thruster_stuck_off", "targets": ["sc04"], "start_s": 100.0, "duration_s": 100.0},
+                  {"kind": "sensor_bias", "targets": ["sc02"], "bias_m": [5.0, 5.0, 0.0], "start_s": 60.0}]
+    sc = parse_scenario(d, "six.toml")
+    outs = [out for out, _res in twice(sc, tmp_path, "sabatini-20-beacon.toml")]
+    run_in_process(sc, tmp_path / "ip", sc.name)
+    run_in_process(plain, tmp_path / "plain", sc.name)
+    truths = [raw(o / "run.mcap", "truth") for o in (*outs, tmp_path / "ip")]
+    assert len(truths[0]) == 31 and truths[0] == truths[1] == truths[2]
+    assert raw(tmp_path / "plain" / "run.mcap", "truth") != truths[0]
+    faults = [raw(o / "run.mcap", "faults") for o in (*outs, tmp_path / "ip")]
+    assert len(faults[0]) == 6 and faults[0] == faults[1] == faults[2]  # three starts, three ends (the last at the run's end)
+
+
+# --- hulls and contact ---------------------------------------------------------------------------
+def closing(**contact) -> dict:
+    """Two spacecraft closing head-on at 1 m/s from 10 m (CW, no control), and a third drifting into
+    a body made of two spheres; 1 s steps."""
+    return {"run": {"name": "hulls", "duration_s": 20.0, "step_s": 1.0}, "plant": {"fidelity": "cw"},
+            "contact": contact,
+            "spacecraft": [{"id": "a", "position_m": [0.0, 0.0, 0.0], "velocity_mps": [0.0, 0.5, 0.0]},
+                           {"id": "b", "position_m": [0.0, 10.0, 0.0], "velocity_mps": [0.0, -0.5, 0.0],
+                            "radius_m": 1.0},
+                           {"id": "c", "position_m": [0.0, 40.0, 0.0], "velocity_mps": [0.0, 1.0, 0.0]}],
+            "body": [{"id": "rock", "shape": {"kind": "spheres", "centers_m": [[0.0, -3.0, 0.0], [0.0, 3.0, 0.0]],
+                                              "radii_m": [1.0, 1.0]},
+                      "motion": {"kind": "kinematic", "position_m": [0.0, 55.0, 0.0]}}]}
+
+
+def test_contacts_and_near_misses_are_recorded_and_flagged_in_the_overview(tmp_path) -> None:
+    """a (default hull 0.5 m) and b (1 m) touch when their centres are 1.5 m apart (t ~ 8.5 s: the
+    truth of step 9); they come within the 2 m keep-out at centres 3.5 m (step 7); c (0.5 m) meets
+    the rock's nearer sphere (1 m, centre y = 52) at y ~ 50.5 (step 11; within 2 m of it at step 9),
+    goes through, and meets the far sphere (y = 58) at y ~ 56.5 (step 17). Read from the recording,
+    and the report section and overview say so; with point masses no contact is looked for."""
+    from dashboards.sections import SectionContext
+    from dashboards.sections.contact import contact, overview_rows
+    from deploy.launcher import run_in_process
+    from deploy.scenario import parse_scenario
+
+    sc = parse_scenario(closing(keep_out_m=2.0), "hulls.toml")
+    run_in_process(sc, tmp_path / "r", "hulls")
+    msgs = read_mcap(tmp_path / "r" / "run.mcap")
+    ev = [(m.kind, m.subject, int(m.header.step)) for t, _l, _p, m in msgs if t == "event"
+          and m.kind in ("contact", "near_miss")]
+    assert ev == [("near_miss", "a|b", 7), ("contact", "a|b", 9), ("near_miss", "c|rock", 9),
+                  ("contact", "c|rock", 11), ("contact", "c|rock", 17)], ev
+    truth = {int(m.header.step): {b.id: vec3(b.position_m) for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+    for k, want in ((8, False), (9, True)):  # the truth agrees: 1.5 m is first crossed at step 9
+        assert bool(np.linalg.norm(truth[k]["a"] - truth[k]["b"]) < 1.5) is want
+    summary = {"metrics": {"contact": contact(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path,
+                                                             {}, sc.resolved(), None)).metrics}}
+    rows = dict(overview_rows(summary))
+    assert rows["CONTACTS between hulls"] == "3, first at t = 9 s: a - b"
+    assert rows["near misses (< 2 m keep-out)"] == "2, first at t = 7 s: a - b"
+
+    point = parse_scenario(closing(point_masses=True), "hulls.toml")
+    run_in_process(point, tmp_path / "p", "hulls")
+    assert not [m for t, _l, _p, m in read_mcap(tmp_path / "p" / "run.mcap") if t == "event" and m.kind == "contact"]
+    m = contact(SectionContext(tmp_path / "p", tmp_path / "p" / "run.mcap", tmp_path, {}, point.resolved(), None))
+    assert dict(overview_rows({"metrics": {"contact": m.metrics}})) == {
+        "contacts between hulls": "not looked for: the scenario declares point masses"}
+
+
+# --- process faults ------------------------------------------------------------------------------
+def test_process_crash_and_pause_act_at_their_steps_and_rerun_bit_identical(tmp_path) -> None:
+    """Six spacecraft of sabatini-20 as processes: sc03's flight software crashes at 50 s (step 5;
+    restart never): the dead event at that step, no command after, the truth coasts, the launcher's
+    SIGKILL in its exit code; sc04's is paused over [100, 150) s: out of the lockstep (no command,
+    truth not alive) for steps 10-14, then it resumes and commands again. Run twice: the same truth."""
+    import tomllib
+
+    from conftest import SCENARIOS
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
+    d["run"]["duration_s"] = 200.0
+    d["dispersion"]["count"] = 6
+    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
+                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
+    sc = parse_scenario(d, "six.toml")
+    truths = []
+    for out, res in twice(sc, tmp_path, "sabatini-20.toml"):
+        assert res.summary["exit_codes"]["agent-sc03"] == -9 and res.summary["exit_codes"]["agent-sc04"] == 0
+        truths.append(raw(out / "run.mcap", "truth"))
+    assert truths[0] == truths[1]
+    msgs = read_mcap(tmp_path / "mp0" / "run.mcap")
+    ev = [(m.kind, m.subject, int(m.header.step)) for t, _l, _p, m in msgs if t == "event" and m.kind.startswith("agent_")]
+    assert ev == [("agent_dead", "sc03", 5), ("agent_paused", "sc04", 10), ("agent_resumed", "sc04", 15)], ev
+    assert max(commands(msgs, "sc03")) == 4
+    assert sorted(commands(msgs, "sc04")) == [*range(10), *range(15, 20)]
+    alive = {int(m.header.step): {b.id: b.alive for b in m.bodies} for t, _l, _p, m in msgs if t == "truth"}
+    assert [k for k in alive if not alive[k]["sc04"]] == list(range(10, 15))
+    assert all(not alive[k]["sc03"] for k in range(5, 21)) and alive[4]["sc03"]
+    applied = truth_accel(msgs, "sc03")
+    assert all(not applied[k].any() for k in range(6, 21))
