@@ -96,7 +96,7 @@ class Scenario:
         """The fully resolved configuration (defaults filled in), JSON-ready: what a recording carries."""
         from importlib.metadata import PackageNotFoundError, version
 
-        from plant.faults import fault_summary
+        from plant.faults import fault_summary  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             ver = version("swarmhil")
@@ -420,7 +420,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
     sc.contact = _contact(src, doc.get("contact", {}))
     if "fault" in doc:
-        from plant.faults import FaultError, parse_faults
+        from plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             sc.faults = parse_faults(src, doc["fault"], sc.ids, step)
@@ -440,8 +440,8 @@ def _contact(src: str, table: Any) -> Any:
     """[contact] (plant/contact.py): hard-body radius default, keep-out distance, point masses."""
     from pydantic import ValidationError
 
-    from plant.bodies import format_validation_error
-    from plant.contact import ContactConfig
+    from plant.bodies import format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.contact import ContactConfig  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(table, dict):
         raise _err(src, "[contact]", "must be a table", table)

@@ -27,6 +27,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from plant.bodies import format_validation_error
+
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 IdList = Annotated[list[str], Field(min_length=1)]
 STEP_TOL = 1e-9  # a start or end within this fraction of a step of a step time falls on that step
@@ -228,7 +230,6 @@ def parse_faults(src: str, items: Any, ids: list[str], step_s: float) -> list[An
 
 def _one_line(src: str, where: str, exc: ValidationError, model: type[BaseModel]) -> str:
     """plant/bodies.py's one-line error, without the whole table as the value of a table-level error."""
-    from plant.bodies import format_validation_error
 
     whole = [e for e in exc.errors() if not e["loc"]]
     if whole:

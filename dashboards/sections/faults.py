@@ -55,7 +55,6 @@ def recovery(t_s: np.ndarray, delta_v_mps: np.ndarray, n_components: np.ndarray 
 
 def visibility_components(ctx: SectionContext) -> np.ndarray | None:
     """Components of the recorded camera-visibility digraph per step (paper 002 runs), else None."""
-
     cam = camera_from_config(ctx.config) if ctx.truth is not None else None
     if cam is None or not controllers_of(ctx.config) <= {"null", "drift-null", "sabatini"}:
         return None
