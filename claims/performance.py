@@ -46,10 +46,12 @@ ROWS: tuple[tuple[str, str, tuple[tuple[str, str], ...]], ...] = (
     ("ctl", "of which the `sabatini` controller step", (("agent/behaviour/sabatini.py", "step"),)),
     ("decode", "decode + validation of every received message (agents and plant)", (("bus/codec.py", "decode"),)),
     ("rec", "recorder: MCAP write, incl. the Foxglove scene of every truth", (("bus/recorder.py", "_on_sample"),)),
-    ("mcap", "of which `mcap` `Writer.add_message` (pure Python)", (("mcap/writer.py", "add_message"),)),
+    ("mcap", "of which the MCAP writer's `add_message` (pure Python: `mcap`'s `Writer` before, `bus/mcap_writer.py` "
+     "now)", (("mcap/writer.py", "add_message"), ("bus/mcap_writer.py", "add_message"))),
     ("rel", "plant: `rel` stimulus construction", (("plant/sensing/builtin.py", "stimulus"),)),
     ("cmd", "plant: command decode and command box", (("plant/node.py", "_on_command"),)),
-    ("dre-gain", "DRE gain lookup", (("agent/behaviour/dre.py", "gain"),)),
+    ("dre-gain", "DRE gain lookup (`GainTable.gain` before, `interpolate_periodic` now)",
+     (("agent/behaviour/dre.py", "gain"), ("agent/behaviour/dre.py", "interpolate_periodic"))),
     ("dre-table", "DRE gain tables (solve, or read from the disk cache)", (("agent/behaviour/dre.py", "gain_table"),)),
     ("scenario", "scenario load and validation", (("deploy/scenario.py", "load_scenario"),)),
 )
@@ -78,7 +80,8 @@ def profile(tree: Path) -> dict[str, Any]:
         st = pstats.Stats(str(prof))
         out = {k: cumulative(st, f) for k, _, f in ROWS}
         out["mcap_calls"] = sum(nc for (p, _l, n), (_cc, nc, *_r) in st.stats.items()  # type: ignore[attr-defined]
-                                if p.endswith("mcap/writer.py") and n == "add_message")
+                                if p.endswith("mcap/writer.py") and n == "add_message"
+                                or p.endswith("bus/mcap_writer.py") and n == "add_message")
         out["load_start"], out["load_end"] = load0, os.getloadavg()[0]
         return out
 
@@ -104,7 +107,7 @@ CLAIMS += [_c("now", "mcap_calls", "now: mcap add_message calls", ",.0f")]
 
 
 def _row(key: str, label: str) -> Row:
-    label = label.replace("(pure Python)", "(pure Python, {perf.now.mcap_calls} messages)")
+    label = label.replace("(pure Python:", "({perf.now.mcap_calls} messages, pure Python:")
     return Row((label, f"{{perf.before.{key}}}", f"{{perf.now.{key}}}"), params=("720",))
 
 

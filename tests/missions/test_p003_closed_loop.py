@@ -31,13 +31,13 @@ from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo  # noqa: E402
 from agent.missions.p003_surround import nash, sensing  # noqa: E402
 from agent.missions.p003_surround.funnel import funnel_half_width  # noqa: E402
-from claims.check import claim_failures  # noqa: E402
 from agent.missions.p003_surround.params import VARIANT_FAST_CT, FunnelParams, GameParams  # noqa: E402
 from agent.missions.p003_surround.structure import (  # noqa: E402
     SLOT_OFFSETS_M,
     slots_in_leader_frame,
     sphere_arrays,
 )
+from claims.check import claim_failures  # noqa: E402
 from plant.dynamics.frames import eci_to_lvlh, lvlh_angular_velocity, lvlh_basis  # noqa: E402
 
 MU_EARTH = 3.986004418e14
