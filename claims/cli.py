@@ -38,9 +38,15 @@ def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]
               help="Write the outcomes as JSON here.")
 @click.option("--cache", type=click.Path(file_okay=False),
               help="Keep each source's result here (per kernel set) and reuse it; not for checking.")
+@click.option("--untested", is_flag=True,
+              help="Skip the sources whose run a CI test makes and checks itself (claims/check.py; CI's --all).")
+@click.option("--only", default="", metavar="PREFIX",
+              help="Only the claims whose source name starts with PREFIX (e.g. p003.), to measure one module.")
+@click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
+              help="Run this many sources at a time, each in its own process (CI: 2, the machine's cores).")
 @click.option("--list", "list_", is_flag=True, help="List the claims (id, tier, tolerance, doc line) and exit.")
 def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check_docs: bool, record_: bool,
-           json_out: str | None, cache: str | None, list_: bool) -> None:
+           json_out: str | None, cache: str | None, untested: bool, only: str, jobs: int, list_: bool) -> None:
     """Rerun the numbers the docs state (claims/, docs/claims.md) and compare with the recorded ones.
 
     Exit 0 when every selected claim holds within its tolerance, every verdict computed from the
@@ -68,7 +74,10 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
     kset = kernel_set()
     click.echo(f"claims: tiers {', '.join(tiers)}; kernels {kset}", err=True)
     sc = SourceCache(reg.sources, Path(cache) if cache else None, lambda s: click.echo(s, err=True))
-    outs = rerun(reg.select(tiers), sc)
+    chosen = [c for c in reg.select(tiers) if c.source.startswith(only)
+              and not (untested and reg.sources[c.source].checked_by)]
+    sc.prefetch(dict.fromkeys(c.source for c in chosen), jobs)
+    outs = rerun(chosen, sc)
     measured = {o.claim.id: o.measured for o in outs if o.measured is not None}
     bad = 0
     for o in outs:
@@ -82,7 +91,7 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
     for ch in changes:
         click.echo(f"VERDICT {ch}")
     if json_out:
-        Path(json_out).write_text(json.dumps({"kernels": kset, "source_wall_s": sc.wall_s, "claims": {
+        Path(json_out).write_text(json.dumps({"kernels": kset, "source_wall_s": sc.wall_s, "source_cpu_s": sc.cpu_s, "claims": {
             o.claim.id: {"measured": o.measured, "recorded": o.claim.value, "ok": o.ok, "error": o.error}
             for o in outs}}, indent=1, default=list))
     if record_:

@@ -14,10 +14,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def mission_test_module(name: str) -> ModuleType:
     """tests/missions/NAME.py, imported once (its directory on sys.path, as pytest puts it)."""
-    key = f"claims_src_{name}"
+    return test_module(f"missions/{name}")
+
+
+def test_module(name: str) -> ModuleType:
+    """tests/NAME.py (NAME may hold a directory), imported once, its directory and tests/ on sys.path."""
+    key = f"claims_src_{name.replace('/', '_')}"
     if key in sys.modules:
         return sys.modules[key]
-    path = ROOT / "tests" / "missions" / f"{name}.py"
+    path = ROOT / "tests" / f"{name}.py"
     for d in (str(ROOT), str(path.parent), str(ROOT / "tests")):
         if d not in sys.path:
             sys.path.insert(0, d)

@@ -63,10 +63,18 @@ class Source:
     tier: str
     run: Callable[[Callable[[str], dict[str, Any]]], dict[str, Any]]
     what: str  # the command that regenerates it, for the docs and the runner's report
+    # The test that makes this very run in CI and checks its claims from it (`claims.check`), so
+    # CI's `swarmhil claims --all --untested` need not make it twice; `from_run` turns the run
+    # object that test holds into this source's result (`run` = from_run(the run)).
+    checked_by: str = ""
+    from_run: Callable[[Any], dict[str, Any]] | None = None
+    uses: tuple[str, ...] = ()  # the sources a derived source reads through `get` (none: a run of its own)
 
     def __post_init__(self) -> None:
         if self.tier not in TIERS:
             raise ValueError(f"source {self.name}: tier {self.tier!r} not in {TIERS}")
+        if bool(self.checked_by) != (self.from_run is not None):
+            raise ValueError(f"source {self.name}: checked_by and from_run go together")
 
 
 @dataclass(frozen=True)

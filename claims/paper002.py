@@ -48,7 +48,8 @@ SOURCES = [
     *[Source(_noise_key(f, s), "all", _noise_run(f, "sabatini-20-explicit", s),
              f"sabatini-20-explicit.toml --seed {s} --set sensing.roe_noise_fraction={f}")
       for f in (0.2, 0.3) for s in SEEDS],
-    Source("p002.noise", "all", _sweep, "the noise sweep and realisations above (derived)"),
+    Source("p002.noise", "all", _sweep, "the noise sweep and realisations above (derived)",
+           uses=("p002.s20", *[_noise_key(f) for f in NOISE], *[_noise_key(f, s) for f in (0.2, 0.3) for s in SEEDS])),
 ]
 
 

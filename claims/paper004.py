@@ -34,18 +34,27 @@ def slug(key: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", (key or "paper").lower()).strip("-")
 
 
+def case_result(run: Any) -> dict[str, Any]:
+    """A case's numbers: the room's `summary` of the run, without its wall time."""
+    out = mission_test_module(MODULE).summary(run)
+    out.pop("wall_s", None)
+    return {k: float(v) for k, v in out.items()}
+
+
 def _case_run(key: str) -> Callable[[Any], dict[str, Any]]:
     def run(_get: Any) -> dict[str, Any]:
         m = mission_test_module(MODULE)
-        kwargs = {} if not key else m.VARIANTS[key][0]
-        out = m.summary(m.simulate(**kwargs))
-        out.pop("wall_s", None)
-        return {k: float(v) for k, v in out.items()}
+        return case_result(m.simulate(**({} if not key else m.VARIANTS[key][0])))
     return run
 
 
-SOURCES = [Source(f"p004.{slug(k)}", "all", _case_run(k),
-                  f"python tests/missions/test_p004_closed_loop.py '{k or 'paper'}' (360 s, seed 4)") for _, k, _ in CASES]
+TEST = "tests/missions/test_p004_closed_loop.py"
+# the runs CI's system tests make (CI_VARIANTS there) check their own claims (claims/check.py)
+CHECKED_BY = {"": f"{TEST}::test_paper_case_full_360s", "no network (Phi = 0)": f"{TEST}::test_variants",
+              "thrust limit 10 m/s^2 per axis": f"{TEST}::test_variants"}
+SOURCES = [Source(f"p004.{slug(k)}", "all", _case_run(k), f"python {TEST} '{k or 'paper'}' (360 s, seed 4)",
+                  **({"checked_by": CHECKED_BY[k], "from_run": case_result} if k in CHECKED_BY else {}))
+           for _, k, _ in CASES]
 
 
 def _below(s: Mapping[str, Any]) -> float | str:

@@ -20,9 +20,9 @@ RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from claims import paper002, paper004
+    from claims import paper001, paper002, paper003, paper004, performance, reliability
 
-    return [paper002, paper004]
+    return [paper001, paper002, paper003, paper004, performance, reliability]
 
 
 def _value(v: Any) -> Any:

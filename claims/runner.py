@@ -49,6 +49,8 @@ class SourceCache:
         self.sources, self.dir, self.log = sources, cache_dir, log
         self.mem: dict[str, dict[str, Any]] = {}
         self.wall_s: dict[str, float] = {}
+        self.cpu_s: dict[str, float] = {}  # CPU time of the process that ran the source, while it ran
+        self.failed: dict[str, Exception] = {}
 
     def _file(self, name: str) -> Path | None:
         if self.dir is None:
@@ -56,23 +58,81 @@ class SourceCache:
         key = kernel_set().replace(" ", "_").replace("=", "-")
         return self.dir / key / f"{name}.json"
 
-    def get(self, name: str) -> dict[str, Any]:
+    def _load(self, name: str) -> bool:
+        """Whether the result is at hand (in memory, or read now from the disk cache)."""
         if name in self.mem:
-            return self.mem[name]
+            return True
         f = self._file(name)
         if f is not None and f.is_file():
             self.mem[name] = json.loads(f.read_text())
-            return self.mem[name]
-        self.log(f"source {name}: {self.sources[name].what}")
-        t0 = time.monotonic()
-        res = self.sources[name].run(self.get)
-        self.wall_s[name] = time.monotonic() - t0
-        self.log(f"source {name}: {self.wall_s[name]:.1f} s")
+            return True
+        return False
+
+    def _store(self, name: str, res: dict[str, Any], wall_s: float, cpu_s: float) -> None:
+        self.wall_s[name], self.cpu_s[name] = wall_s, cpu_s
+        self.log(f"source {name}: {wall_s:.1f} s wall, {cpu_s:.1f} s CPU")
         self.mem[name] = res
+        f = self._file(name)
         if f is not None:
             f.parent.mkdir(parents=True, exist_ok=True)
             f.write_text(json.dumps(res, indent=1, default=str))
+
+    def get(self, name: str) -> dict[str, Any]:
+        """The source's result; a source that failed fails again at once, without a second run."""
+        if name in self.failed:
+            raise self.failed[name]
+        if self._load(name):
+            return self.mem[name]
+        self.log(f"source {name}: {self.sources[name].what}")
+        t0, c0 = time.monotonic(), time.process_time()
+        try:
+            res = self.sources[name].run(self.get)
+        except Exception as exc:
+            self.failed[name] = exc
+            raise
+        self._store(name, res, time.monotonic() - t0, time.process_time() - c0)
         return res
+
+    def prefetch(self, names: Iterable[str], jobs: int) -> None:
+        """Run the sources `names` need that make a run of their own (no `uses`), `jobs` at a time in
+        worker processes (same environment, so the same kernel set); derived sources are then
+        computed from them in this process by `get`. Each source still runs once."""
+        need: list[str] = []
+        todo = list(names)
+        while todo:
+            n = todo.pop(0)
+            if n not in need:
+                need.append(n)
+                todo += list(self.sources[n].uses)
+        leaves = [n for n in need if not self.sources[n].uses and not self._load(n)]
+        if jobs <= 1 or len(leaves) < 2:
+            return
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futs = {pool.submit(_run_source, n): n for n in leaves}
+            for fut in as_completed(futs):
+                try:
+                    res, wall, cpu = fut.result()
+                except Exception as exc:  # noqa: BLE001 - reported by each of its claims
+                    self.failed[futs[fut]] = exc
+                    self.log(f"source {futs[fut]}: {type(exc).__name__}: {exc}")
+                    continue
+                self._store(futs[fut], res, wall, cpu)
+
+
+def _run_source(name: str) -> tuple[dict[str, Any], float, float]:
+    """A worker process: one source that makes its own run (it reads no other source)."""
+    from claims.registry import registry
+
+    def no_get(other: str) -> dict[str, Any]:
+        raise RuntimeError(f"source {name} reads {other}: declare it in `uses`")
+
+    reg = registry()
+    t0, c0 = time.monotonic(), time.process_time()
+    res = reg.sources[name].run(no_get)
+    return res, time.monotonic() - t0, time.process_time() - c0
 
 
 def rerun(claims: Iterable[Claim], cache: SourceCache) -> list[Outcome]:

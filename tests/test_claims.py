@@ -118,24 +118,65 @@ def test_quick_claims_hold_and_keep_their_verdicts():
 @pytest.mark.system
 @pytest.mark.timeout(2400)  # ~10-12 min on a quiet machine; pyproject's 600 s default would stop it
 def test_all_claims_hold():
-    """`swarmhil claims --all`: the minutes-long sources (paper 002's noise runs, ...)."""
-    res = subprocess.run([sys.executable, "-m", "deploy.cli", "claims", "--all"], cwd=ROOT, capture_output=True,
-                         text=True, timeout=1800)
+    """`swarmhil claims --all --untested --jobs 2`: the minutes-long sources (paper 002's noise runs,
+    ...), two at a time; the runs a CI test makes itself are checked by that test (`checked_by`)."""
+    res = subprocess.run([sys.executable, "-m", "deploy.cli", "claims", "--all", "--untested", "--jobs", "2"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=1800)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
 
 
-def test_pending_modules_build():
-    """Modules written but not yet registered (claims/coverage.py): their tables resolve and hold
-    no typed number, so registering them is only a matter of measuring."""
-    from claims import paper003
-    from claims.model import check_row_numbers
-    from claims.registry import modules
+def _test_function(node: str):  # type: ignore[no-untyped-def]
+    import ast
 
-    for mod in (paper003,):
-        assert mod not in modules()  # registered: drop it from this test
-        ids = {c.id for c in mod.CLAIMS}
-        for t in mod.TABLES:
-            assert set(t.placeholders()) == ids
-            for row in t.rows:
-                assert len(row.cells) == len(t.header) and check_row_numbers(row, t.measured) == []
-        assert {c.source for c in mod.CLAIMS} == {s.name for s in mod.SOURCES}
+    path, name = node.split("::")
+    tree = ast.parse((ROOT / path).read_text())
+    return next((f for f in ast.walk(tree) if isinstance(f, ast.FunctionDef) and f.name == name), None)
+
+
+def test_a_source_checked_by_a_test_is_checked_there():
+    """`--untested` skips a source only because the test it names makes the run and calls
+    `claim_failures` on it; that test is not a study test (CI runs it)."""
+    import ast
+
+    reg = _reg()
+    checked = [s for s in reg.sources.values() if s.checked_by]
+    assert len(checked) >= 10
+    for s in checked:
+        fn = _test_function(s.checked_by)
+        assert fn is not None, f"{s.name}: no test {s.checked_by}"
+        calls = {c.func.id for c in ast.walk(fn) if isinstance(c, ast.Call) and isinstance(c.func, ast.Name)}
+        assert "claim_failures" in calls, f"{s.checked_by} does not check {s.name}'s claims"
+        marks = [ast.unparse(d) for d in fn.decorator_list]
+        assert "pytest.mark.study" not in marks, f"{s.checked_by} is a study test: CI does not run it"
+
+
+def test_claim_failures_name_the_claims_a_run_misses():
+    """Positive control of claims/check.py: a leader-only run that missed its row fails by claim."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from claims.check import claim_failures
+
+    reg = _reg()
+    want = {k: reg.claims[f"p003.tt-g1.{k}"].value for k in ("tt-end", "ratio", "first10", "peak")}
+    t = np.arange(0.0, 300.05, 0.1)
+    err = np.full((t.size, 3), 20.0)
+    err[t >= want["first10"], :] = want["tt-end"]  # the right TT error and time, the wrong funnel ratio and thrust
+    run = SimpleNamespace(t_s=t, tt_err_m=err, funnel_m=np.full(t.size, 1000.0), leader_thrust_n=np.full(t.size, 1.0))
+    bad = claim_failures("p003.tt-g1", run)
+    assert [b.split(":")[0] for b in bad] == ["p003.tt-g1.ratio", "p003.tt-g1.peak"], bad
+
+
+def test_sources_run_in_worker_processes_once():
+    """`--jobs 2`: the sources are computed in two worker processes, with the same results."""
+    from claims.runner import SourceCache
+
+    reg = _reg()
+    names = [n for n in reg.sources if n.startswith("p002.init-")][:3]
+    assert len(names) == 3
+    par = SourceCache(reg.sources)
+    par.prefetch(names, 2)
+    assert set(par.mem) == set(names) and set(par.wall_s) == set(names)
+    seq = SourceCache(reg.sources)
+    assert all(seq.get(n) == par.mem[n] for n in names)

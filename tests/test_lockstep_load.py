@@ -111,10 +111,10 @@ def _burners(n: int) -> list[subprocess.Popen]:
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL) for _ in range(n)]
 
 
-@pytest.mark.system
-def test_lockstep_under_cpu_load_is_bit_identical(tmp_path: Path) -> None:
+def lockstep_quiet_and_loaded(tmp_path: Path) -> dict:
     """The same lockstep run of a camera + link scenario, undisturbed and beside 3 CPU burners per
-    core, gives byte-identical truth, commands and link deliveries."""
+    core: each run's summary, and the raw truth, command and ISL-delivery messages of each. Also
+    the bench source of docs/reliability.md's figures (claims/reliability.py)."""
     src = (SCENARIOS / "sabatini-20-camera-filter.toml").read_text()
     scen = tmp_path / "cam-link.toml"
     scen.write_text(src.replace('name = "sabatini-20-camera-filter"', 'name = "cam-link"')
@@ -122,8 +122,9 @@ def test_lockstep_under_cpu_load_is_bit_identical(tmp_path: Path) -> None:
                     + LOAD_SCENARIO_EXTRA)
     sc = load_scenario(scen)
     assert sc.sensing["kind"] == "scene" and "link" in sc.sections and len(sc.ids) == 4
-    got = {}
+    out: dict = {}
     for case in ("quiet", "loaded"):
+        load_start = os.getloadavg()[0]
         burners = _burners(3 * (os.cpu_count() or 2)) if case == "loaded" else []
         try:
             res = MultiProcessRun(str(scen), sc, tmp_path / case, "cam-link", progress=False).execute()
@@ -132,15 +133,30 @@ def test_lockstep_under_cpu_load_is_bit_identical(tmp_path: Path) -> None:
                 os.kill(b.pid, signal.SIGKILL)  # our own burners, by PID
                 b.wait()
         assert res.exit_code == 0, res.reason
-        s = res.summary
+        out[case] = {"summary": res.summary, "raw": _raw(tmp_path / case / "run.mcap", ("truth", "sc/", "isl/rx/")),
+                     "burners": len(burners), "load_start": load_start, "load_end": os.getloadavg()[0]}
+        print(f"\n{case}: {res.summary['wall_s']:.0f} s wall, {json.dumps(res.summary['channel']['totals'])}")
+    return out
+
+
+def compared_topics(raw: dict[str, list[bytes]]) -> list[str]:
+    """What must be byte-identical: the truth, each agent's commands, the ISL deliveries."""
+    return ["truth", *[t for t in raw if t.endswith("/act")], *[t for t in raw if t.startswith("isl/rx/")]]
+
+
+@pytest.mark.system
+def test_lockstep_under_cpu_load_is_bit_identical(tmp_path: Path) -> None:
+    """The same lockstep run of a camera + link scenario, undisturbed and beside 3 CPU burners per
+    core, gives byte-identical truth, commands and link deliveries."""
+    runs = lockstep_quiet_and_loaded(tmp_path)
+    for case in ("quiet", "loaded"):
+        s = runs[case]["summary"]
         assert s["dead_agents"] == {} and s["missed_deadlines"] == {}, s
         assert s["channel"]["stalls"] == 0, s["channel"]
-        got[case] = _raw(tmp_path / case / "run.mcap", ("truth", "sc/", "isl/rx/"))
-        print(f"\n{case}: {s['wall_s']:.0f} s wall, {json.dumps(s['channel']['totals'])}")
-    quiet, loaded = got["quiet"], got["loaded"]
+    quiet, loaded = runs["quiet"]["raw"], runs["loaded"]["raw"]
     assert len(quiet["truth"]) == 21
     acts = [t for t in quiet if t.endswith("/act")]
     rx = [t for t in quiet if t.startswith("isl/rx/")]
     assert len(acts) == 4 and rx and sum(len(quiet[t]) for t in rx) > 0
-    for topic in ["truth", *acts, *rx]:
+    for topic in compared_topics(quiet):
         assert loaded.get(topic) == quiet[topic], topic

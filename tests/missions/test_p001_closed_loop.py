@@ -16,6 +16,7 @@ from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo
 from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, structure_name
 from agent.missions.p001_lattice.sensing import OwnState
+from claims.check import claim_failures
 
 N_GEO = 7.2921e-5
 R_SENSE_M = 21.0
@@ -165,6 +166,7 @@ def test_paper_reading_seed1_forms_the_hexagon_centred_on_the_dock_vertex() -> N
     assert hx.eq16 < 0.0125  # paper: 0.0125
     assert 20000.0 < s["t_form_s"] < 25000.0  # paper: less than 25,000 s
     assert np.all(run.delta_v_mps < 3.0)
+    assert claim_failures("p001.paper-1-5s", run) == []  # docs/paper001.md's "(5 s)" figure (claims/check.py)
 
 
 def test_paper_reading_octahedral_release_is_trapped_in_a_branched_tree() -> None:
@@ -205,6 +207,7 @@ def test_release_to_structure_at_1s_steps(reading: str, seed) -> None:
                    params=READINGS[reading], record_every=10)
     s = check_timeline_and_limits(run)
     assert s["structure"] == MEASURED[reading][seed]
+    assert claim_failures(f"p001.{reading}-{seed}", run) == []  # its docs/paper001.md row (claims/check.py)
     if s["structure"] == "6-ring" and reading in ("paper", "centred"):
         hx = check_hexagon(run.pos_m[-1], SIDE_M)
         assert hx.is_hexagon and hx.thickness_m < 0.05 and s["t_form_s"] < 25000.0

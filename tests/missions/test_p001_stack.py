@@ -16,7 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from claims.check import claim_failures
 from conftest import ROOT, SCENARIOS, read_mcap
+from dashboards.truth_io import read_truth
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_p001_closed_loop import simulate, sphere_directions  # noqa: E402
@@ -71,6 +73,8 @@ def test_full_run_forms_the_hexagon_of_side_10_m(tmp_path: Path) -> None:
 
     _run(tmp_path / "full", "--in-process")
     _raw, pos, acc = _truth(tmp_path / "full")
+    # docs/paper001.md's stack table, from this run (claims/check.py)
+    assert claim_failures("p001.stack", read_truth(tmp_path / "full" / "run.mcap")) == []
     final = pos[-1]
     assert structure_name(final, 10.0) == "6-ring"
     hexa = check_hexagon(final, 10.0)

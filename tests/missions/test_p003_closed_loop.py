@@ -37,6 +37,7 @@ from agent.missions.p003_surround.structure import (  # noqa: E402
     slots_in_leader_frame,
     sphere_arrays,
 )
+from claims.check import claim_failures  # noqa: E402
 from plant.dynamics.frames import eci_to_lvlh, lvlh_angular_velocity, lvlh_basis  # noqa: E402
 
 MU_EARTH = 3.986004418e14
@@ -250,6 +251,7 @@ def fast_ct_run() -> Run:
 
 def test_fast_ct_variant_meets_the_papers_outcomes(fast_ct_run: Run) -> None:
     assert_paper_outcomes(fast_ct_run, ct_claim=True)
+    assert claim_failures("p003.fast-ct", fast_ct_run) == []  # docs/paper003.md's column, from this run
 
 
 def test_fast_ct_variant_looks_like_the_papers_figures(fast_ct_run: Run) -> None:
@@ -272,6 +274,7 @@ def test_literal_weights_keep_safety_and_show_the_slow_mode() -> None:
     rate = -np.polyfit(run.t_s[late], np.log(err), 1)[0]
     assert rate == pytest.approx(nash.slow_mode_rate(GameParams()), rel=0.15)
     assert run.ct_pos_err_m[-1].min() > 100.0
+    assert claim_failures("p003.literal", run) == []  # docs/paper003.md's column, from this run
 
 
 @pytest.mark.system
@@ -281,26 +284,30 @@ def test_table3_initialisations_stay_inside_the_funnel(group: int) -> None:
     run = run_closed_loop(q_tl0_m=q0, v_tl0_mps=v0, with_servicers=False)
     assert np.all(np.abs(run.tt_err_m[1:]) < run.funnel_m[1:, None])
     assert run.leader_thrust_n.max() <= FunnelParams().max_thrust_n + 1e-9
+    assert claim_failures(f"p003.tt-g{group}", run) == []  # its "Target tracking" row (claims/check.py)
 
 
 @pytest.mark.system
 def test_tt_bias_grows_with_the_escape_force() -> None:
     """Steady TT error ≈ a_T m_L k1 k2/(λ1 λ2) per axis (NOTES-003); with no escape force the LEO
     differential gravity of the 400 m radial offset (≈ 3 n^2 400 m) is what remains."""
-    err = [np.abs(run_closed_loop(escape_n=f, with_servicers=False).tt_err_m[-1]).max() for f in (0.0, 3.0, 10.0)]
+    runs = [run_closed_loop(escape_n=f, with_servicers=False) for f in (0.0, 3.0, 10.0)]
+    err = [np.abs(r.tt_err_m[-1]).max() for r in runs]
     assert err[0] < err[1] < err[2]
     assert err[2] > 10.0
+    for tag, r in (("leo0", runs[0]), ("g1", runs[1]), ("leo10", runs[2])):  # 3 N in LEO = Table 3 group 1
+        assert claim_failures(f"p003.tt-{tag}", r) == []  # its "Target tracking" row (claims/check.py)
 
 
 def tt_report() -> None:
     """Leader-only runs: Table 3 groups, escape-force sweep, GEO instead of LEO."""
+    from claims.paper003 import tt_result  # the row docs/paper003.md shows (claims/paper003.py)
+
     def line(label: str, run: Run) -> None:
-        err = np.abs(run.tt_err_m)
-        below = np.nonzero(err.max(axis=1) < 10.0)[0]
-        print(f"{label:28s} |q~_TL|max(300 s) = {err[-1].max():6.2f} m  funnel {run.funnel_m[-1]:.2f} m  "
-              f"max |q~|/funnel = {(err[1:].max(axis=1) / run.funnel_m[1:]).max():.3f}  "
-              f"first < 10 m at {run.t_s[below[0]] if below.size else float('nan'):.1f} s  "
-              f"peak |u_L| = {run.leader_thrust_n.max():.1f} N")
+        r = tt_result(run)
+        print(f"{label:28s} |q~_TL|max(300 s) = {r['tt_end_m']:6.2f} m  funnel {run.funnel_m[-1]:.2f} m  "
+              f"max |q~|/funnel = {r['ratio']:.3f}  first < 10 m at {r['first_below_10m_s']:.1f} s  "
+              f"peak |u_L| = {r['peak_n']:.1f} N")
     for g, (q0, v0) in TABLE3_GROUPS.items():
         line(f"Table 3 group {g}", run_closed_loop(q_tl0_m=q0, v_tl0_mps=v0, with_servicers=False))
     for f in (0.0, 1.0, 3.0, 10.0):
