@@ -22,7 +22,7 @@ from .apf import apf_force, buffer_force
 from .attitude import desired_attitude, pointing_torque, rate_damping_torque
 from .chase import chase_force
 from .estimate import TargetEstimate, alpha_beta, consensus
-from .gnc_tls import GncSettings, gnc_tls_fit, track_fit
+from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import saturate_norm
 from .modes import bounce_force, next_mode, random_force
 from .params import CaptureParams
@@ -79,9 +79,9 @@ class CaptureController:
         if len(pts) > self.p.fit_max_points:
             pts = pts[self.rng.permutation(len(pts))[: self.p.fit_max_points]]
         fit = None
-        if self.own is not None:  # track from the own estimate while it explains most points
+        if self.own is not None:  # warm fit from the own estimate while it explains most points
             try:
-                fit = track_fit(pts, self.own.ellipsoid(t), self.gnc)
+                fit = warm_fit(pts, self.own.ellipsoid(t), self.gnc)
                 if fit.inliers.mean() < self.p.track_min_inlier_fraction:
                     fit = None
             except ValueError:
