@@ -134,9 +134,11 @@ def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, n
     local = ell.rotation.T @ (p - ell.centre_m)
     x = closest_point_principal(local, ell.semi_axes_m)
     n = x / ell.semi_axes_m ** 2
-    n = n / np.linalg.norm(n)
-    d = float(np.linalg.norm(local - x))
-    inside = float(np.sum((local / ell.semi_axes_m) ** 2)) < 1.0
+    n = n / math.sqrt(float(n @ n))
+    gap = local - x
+    d = math.sqrt(float(gap @ gap))
+    scaled = local / ell.semi_axes_m
+    inside = float(scaled @ scaled) < 1.0
     return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 

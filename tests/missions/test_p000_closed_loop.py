@@ -67,10 +67,10 @@ def rk4_cw(r: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float) -> tuple[np.n
 
 
 def attitude_step(q: np.ndarray, w: np.ndarray, tau: np.ndarray, j: np.ndarray, dt: float,
-                  sub: int = 1) -> tuple[np.ndarray, np.ndarray]:
+                  sub: int = 1, jinv: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Eq. 3–4: RK4 on Euler's equation, exact quaternion update with the mid-step rate."""
     h = dt / sub
-    jinv = np.linalg.inv(j)
+    jinv = np.linalg.inv(j) if jinv is None else jinv
     for _ in range(sub):
         f = lambda x: jinv @ (tau - quat.cross3(x, j @ x))  # noqa: E731
         k1 = f(w)
@@ -129,6 +129,7 @@ def run_capture(n_agents: int = 10, semi_axes=(2.6, 1.9, 1.4), duration_s: float
     q = [quat.normalise(rng.normal(size=4)) for _ in ids]
     w = [np.zeros(3) for _ in ids]
     j = p.inertia
+    jinv = np.linalg.inv(j)
     half_fov = np.radians(p.fov_full_deg / 2)
     inbox: list[list[Packet]] = [[] for _ in ids]
     res = RunResult(np.inf, np.inf, np.zeros(0), [], [], 0, 0, 0, 0, 0, [], [], 0.0, dt_s, [])
@@ -187,7 +188,7 @@ def run_capture(n_agents: int = 10, semi_axes=(2.6, 1.9, 1.4), duration_s: float
                 for m in range(n_agents):
                     if m != i and d[i, m] <= p.r_c_m:
                         outbox[m].append(pkt)
-            q[i], w[i] = attitude_step(q[i], w[i], cmd.torque_nm, j, dt_s)
+            q[i], w[i] = attitude_step(q[i], w[i], cmd.torque_nm, j, dt_s, jinv=jinv)
         inbox = outbox
         r, v = rk4_cw(r, v, acc, dt_s)
     t_end = steps * dt_s
