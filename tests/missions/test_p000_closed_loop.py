@@ -253,6 +253,7 @@ def test_closed_loop_ten_agents_capture_case_i() -> None:
 
 
 @pytest.mark.system
+@pytest.mark.timeout(1800)  # one 550 s loop: 574 s wall at load ~20 (issue 29; 1222 s before, bench/bench_p000.py)
 def test_system_case_i_550s_paper_step() -> None:
     """Case (i) as the paper: 10 agents, 550 s at dt = 0.05 s, governed chase, event trigger."""
     res = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
@@ -263,6 +264,7 @@ def test_system_case_i_550s_paper_step() -> None:
 
 
 @pytest.mark.system
+@pytest.mark.timeout(3600)  # two 550 s loops (the default 600 s stopped it in the first at load ~15)
 def test_system_case_i_periodic_baseline_sends_more() -> None:
     """The same seed with the 1 Hz periodic broadcast: the link carries more state packets."""
     event = run_capture(duration_s=550.0, dt_s=0.05, seed=1)
