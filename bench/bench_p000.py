@@ -1,11 +1,24 @@
-"""Paper 000 benchmark (issue 12): wall time of a capture case multi-process (Zenoh, one process per
-agent + plant + link channel, lockstep) and in-process, in one invocation, with their ratio; and the
-time per GNC-TLS ellipsoid fit (cold `gnc_tls_fit` and the in-loop `track_fit`) on synthetic
-ellipsoids with outliers (median over fits). Not a test: figures go to docs/paper000-reproduction.md.
+"""Paper 000 benchmark: this tree's flight software against an older commit's, side by side in one
+invocation, as ratios old / new (issue 29). Not a test: figures go to docs/paper000-reproduction.md.
 
-    nice -n 10 .venv/bin/python bench/bench_p000.py                         # 550 s of case (ii), 20 agents
-    nice -n 10 .venv/bin/python bench/bench_p000.py --duration 60 --fits 12
-    nice -n 10 .venv/bin/python bench/bench_p000.py --no-runs                # GNC fits only
+Each side runs in its own subprocess on its own source tree (the older commit is exported with
+`git archive` into a temporary directory; both use this venv), one job after the other:
+
+- `fits`: CPU time of the GNC-TLS ellipsoid fits on the same synthetic ellipsoids with outliers
+  (the cold `gnc_tls_fit`; the in-loop update: `warm_fit`, or `track_fit` in older trees), median
+  over fits, and the fraction of cold fits within 2 % of the truth;
+- `room`: the room's closed loop (tests/missions/test_p000_closed_loop.run_capture, case (i), seed 1,
+  dt 0.05 s: the CI system test `test_system_case_i_550s_paper_step` at `--room-duration 550`);
+- `run`: an in-process run of a scenario on the stack (`deploy.launcher.run_in_process`: plant,
+  sensing kind, agents, recorder), by default 60 s of case (ii), capture-20.
+
+Wall and CPU time of each; the ratio is CPU old / CPU new (wall beside it: on a shared machine it
+carries the load, printed at the start and the end).
+
+    nice -n 10 .venv/bin/python bench/bench_p000.py                      # against a8239fd (before issue 29)
+    nice -n 10 .venv/bin/python bench/bench_p000.py --jobs fits --fits 20
+    nice -n 10 .venv/bin/python bench/bench_p000.py --room-duration 550 --jobs room
+    nice -n 10 .venv/bin/python bench/bench_p000.py --mp --duration 60   # multi-process vs in-process (this tree)
 """
 from __future__ import annotations
 
@@ -13,6 +26,7 @@ import argparse
 import json
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -21,7 +35,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+BEFORE = "a8239fd"  # main before issue 29's speed-up of paper 000's flight software
+CAPTURE_20 = "deploy/scenarios/capture-20.toml"
 
 
 def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tuple[np.ndarray, object]:
@@ -41,68 +56,149 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
     return pts, Ellipsoid(c, rot, axes)
 
 
-def bench_fits(fits: int, outliers: float) -> dict[str, float]:
-    """Median wall time [s] of a cold GNC-TLS fit and of a track update, half case (i), half case (ii)
-    shapes; and the fraction of cold fits whose sorted axes are within 2 %."""
+def job_fits(fits: int, outliers: float) -> dict[str, float]:
+    """Median CPU time [s] of a cold GNC-TLS fit and of the in-loop update from last period's
+    estimate (the truth moved by 5 cm and scaled by 2 %), half case (i), half case (ii) shapes."""
+    from agent.missions.p000_capture import gnc_tls as g
     from missions.p000_capture.contract import Ellipsoid
-    from agent.missions.p000_capture.gnc_tls import gnc_tls_fit, track_fit
 
-    cold, track, ok = [], [], 0
+    update = getattr(g, "warm_fit", None) or getattr(g, "track_fit")
+    cold, warm, ok = [], [], 0
     for s in range(fits):
         axes = np.array([2.6, 1.9, 1.4]) if s % 2 == 0 else np.array([4.0, 1.3, 1.0])
         pts, truth = synthetic(s, axes, outliers)
-        t0 = time.perf_counter()
-        fit = gnc_tls_fit(pts)
-        cold.append(time.perf_counter() - t0)
+        t0 = time.process_time()
+        fit = g.gnc_tls_fit(pts)
+        cold.append(time.process_time() - t0)
         ok += bool(np.allclose(np.sort(fit.ellipsoid.semi_axes_m), np.sort(axes), rtol=0.02))
-        prev = Ellipsoid(truth.centre_m + 0.05, truth.rotation, truth.semi_axes_m * 1.02)  # last period's estimate
-        t0 = time.perf_counter()
-        track_fit(pts, prev)
-        track.append(time.perf_counter() - t0)
+        prev = Ellipsoid(truth.centre_m + 0.05, truth.rotation, truth.semi_axes_m * 1.02)
+        t0 = time.process_time()
+        for _ in range(5):
+            update(pts, prev)
+        warm.append((time.process_time() - t0) / 5)
     return {"cold_fit_median_s": statistics.median(cold), "cold_fit_max_s": max(cold),
-            "track_fit_median_s": statistics.median(track), "cold_within_2pct": ok / fits}
+            "update_median_s": statistics.median(warm), "cold_within_2pct": ok / fits}
 
 
-def bench_runs(scenario: str, duration: float) -> dict[str, float]:
+def _timed(fn) -> tuple[dict[str, float], object]:
+    w0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return {"wall_s": time.perf_counter() - w0, "cpu_s": time.process_time() - c0}, out
+
+
+def job_room(duration: float) -> dict[str, float]:
+    sys.path.insert(0, str(Path.cwd() / "tests" / "missions"))
+    import test_p000_closed_loop as cl
+
+    t, res = _timed(lambda: cl.run_capture(duration_s=duration, dt_s=0.05, seed=1))
+    return {**t, "state_broadcasts": res.state_broadcasts, "min_surface_m": res.min_surface_m,
+            "axes_err_max": max(res.axes_err, default=float("nan"))}
+
+
+def job_run(scenario: str, duration: float) -> dict[str, float]:
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    sc = load_scenario(scenario).with_overrides(duration_s=duration)
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
+        t, _ = _timed(lambda: run_in_process(sc, Path(out), "bench-p000"))
+    return {**t, "steps": sc.steps, "agents": len(sc.ids)}
+
+
+def worker(a: argparse.Namespace) -> None:
+    """One job on the tree in the current directory; one JSON line on stdout."""
+    sys.path.insert(0, os.getcwd())
+    if a.job == "fits":
+        out = job_fits(a.fits, a.outliers)
+    elif a.job == "room":
+        out = job_room(a.room_duration)
+    else:
+        out = job_run(a.scenario, a.duration)
+    print(json.dumps(out))
+
+
+def run_side(tree: Path, job: str, a: argparse.Namespace) -> dict[str, float]:
+    cmd = [sys.executable, str(ROOT / "bench" / "bench_p000.py"), "--worker", job, "--fits", str(a.fits),
+           "--outliers", str(a.outliers), "--room-duration", str(a.room_duration), "--scenario", a.scenario,
+           "--duration", str(a.duration)]
+    p = subprocess.run(cmd, cwd=tree, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise SystemExit(f"{job} on {tree} failed: {p.stderr.strip().splitlines()[-1:]}")
+    return json.loads(p.stdout.strip().splitlines()[-1])
+
+
+def export(rev: str, into: Path) -> Path:
+    archive = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(into)], input=archive, check=True)
+    return into
+
+
+def bench_mp(scenario: str, duration: float) -> dict[str, float]:
+    """This tree: the scenario multi-process over Zenoh and in-process, wall of each."""
     from deploy.launcher import MultiProcessRun, run_in_process
     from deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
-    out = Path(tempfile.mkdtemp(prefix="swarmhil-bench-p000-"))
-    t0 = time.perf_counter()
-    res = MultiProcessRun(scenario, sc, out / "mp", "bench-p000-mp", progress=False,
-                          overrides={"duration": duration}).execute()
-    mp = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    run_in_process(sc, out / "ip", "bench-p000-ip")
-    ip = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as d:
+        out = Path(d)
+        t0 = time.perf_counter()
+        res = MultiProcessRun(scenario, sc, out / "mp", "bench-p000-mp", progress=False,
+                              overrides={"duration": duration}).execute()
+        mp = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        run_in_process(sc, out / "ip", "bench-p000-ip")
+        ip = time.perf_counter() - t0
     return {"steps": sc.steps, "agents": len(sc.ids), "multi_process_wall_s": mp,
             "multi_process_loop_s": res.summary.get("loop_wall_s", float("nan")), "in_process_wall_s": ip,
-            "mp_over_ip": mp / ip, "out": str(out)}
+            "mp_over_ip": mp / ip}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenario", default=str(ROOT / "deploy/scenarios/capture-20.toml"))
-    ap.add_argument("--duration", type=float, default=550.0, help="simulated seconds (paper: 550)")
-    ap.add_argument("--fits", type=int, default=20, help="synthetic GNC fits")
+    ap.add_argument("--against", default=BEFORE, help=f"the older commit (default {BEFORE})")
+    ap.add_argument("--jobs", default="fits,room,run", help="comma-separated: fits, room, run")
+    ap.add_argument("--fits", type=int, default=12, help="synthetic GNC fits")
     ap.add_argument("--outliers", type=float, default=0.1, help="outlier fraction of the synthetic fits")
-    ap.add_argument("--no-runs", action="store_true", help="only the GNC fits")
+    ap.add_argument("--room-duration", type=float, default=60.0, help="simulated seconds of the room loop")
+    ap.add_argument("--scenario", default=CAPTURE_20, help="scenario of the in-process run (from the tree's root)")
+    ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds of the in-process run")
+    ap.add_argument("--mp", action="store_true", help="only this tree: multi-process vs in-process")
+    ap.add_argument("--worker", choices=["fits", "room", "run"], help=argparse.SUPPRESS)
     a = ap.parse_args()
-    if a.duration <= 0 or a.fits < 1 or not 0 <= a.outliers < 1:
-        ap.error("--duration > 0, --fits >= 1, 0 <= --outliers < 1")
-    res: dict[str, object] = {"loadavg_start": os.getloadavg()}
-    res["fits"] = bench_fits(a.fits, a.outliers)
-    f = res["fits"]
-    print(f"GNC-TLS, 200 points, {a.outliers:.0%} outliers, {a.fits} fits: cold {f['cold_fit_median_s'] * 1e3:.0f} ms "
-          f"median (max {f['cold_fit_max_s'] * 1e3:.0f} ms, {f['cold_within_2pct']:.0%} within 2 %), "
-          f"track {f['track_fit_median_s'] * 1e3:.1f} ms median")
-    if not a.no_runs:
-        r = bench_runs(a.scenario, a.duration)
-        res["runs"] = r
+    jobs = [j for j in a.jobs.split(",") if j]
+    if (a.duration <= 0 or a.room_duration <= 0 or a.fits < 1 or not 0 <= a.outliers < 1
+            or not set(jobs) <= {"fits", "room", "run"}):
+        ap.error("--duration, --room-duration > 0, --fits >= 1, 0 <= --outliers < 1, --jobs of fits,room,run")
+    if a.worker:
+        worker(argparse.Namespace(**{**vars(a), "job": a.worker}))
+        return
+    res: dict[str, object] = {"loadavg_start": os.getloadavg(), "against": a.against}
+    if a.mp:
+        sys.path.insert(0, str(ROOT))
+        r = bench_mp(str(ROOT / a.scenario), a.duration)
+        res["mp"] = r
         print(f"{Path(a.scenario).name}: {r['agents']} agents, {r['steps']} steps: multi-process "
               f"{r['multi_process_wall_s']:.0f} s (plant loop {r['multi_process_loop_s']:.0f} s), in-process "
               f"{r['in_process_wall_s']:.0f} s, ratio {r['mp_over_ip']:.2f}")
+    else:
+        with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-old-") as d:
+            old_tree = export(a.against, Path(d))
+            for job in jobs:
+                old, new = run_side(old_tree, job, a), run_side(ROOT, job, a)
+                res[job] = {"old": old, "new": new}
+                if job == "fits":
+                    print(f"GNC-TLS, 200 points, {a.outliers:.0%} outliers, {a.fits} fits (CPU, median): cold "
+                          f"{old['cold_fit_median_s'] * 1e3:.0f} -> {new['cold_fit_median_s'] * 1e3:.0f} ms "
+                          f"(x{old['cold_fit_median_s'] / new['cold_fit_median_s']:.1f}; within 2 %: "
+                          f"{old['cold_within_2pct']:.0%} -> {new['cold_within_2pct']:.0%}), in-loop update "
+                          f"{old['update_median_s'] * 1e3:.1f} -> {new['update_median_s'] * 1e3:.2f} ms "
+                          f"(x{old['update_median_s'] / new['update_median_s']:.1f})")
+                else:
+                    what = (f"room loop, case (i), {a.room_duration:g} s" if job == "room"
+                            else f"{Path(a.scenario).name} in-process, {a.duration:g} s")
+                    print(f"{what}: CPU {old['cpu_s']:.1f} -> {new['cpu_s']:.1f} s "
+                          f"(x{old['cpu_s'] / new['cpu_s']:.2f}), wall {old['wall_s']:.1f} -> {new['wall_s']:.1f} s "
+                          f"(x{old['wall_s'] / new['wall_s']:.2f})")
     res["loadavg_end"] = os.getloadavg()
     print(json.dumps(res))
 

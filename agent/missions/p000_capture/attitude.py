@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import quaternion as quat
-from .limits import saturate_norm
+from .limits import norm3, saturate_norm
 
 BORESIGHT_BODY = np.array([1.0, 0.0, 0.0])  # sensor axis: body +x (§2.4)
 
@@ -12,7 +12,7 @@ BORESIGHT_BODY = np.array([1.0, 0.0, 0.0])  # sensor axis: body +x (§2.4)
 def desired_attitude(position_m: np.ndarray, target_centre_m: np.ndarray) -> np.ndarray:
     """q_d: shortest arc taking body +x onto the line of sight s = x̂_T − x (eq. 15)."""
     los = np.asarray(target_centre_m, dtype=float) - np.asarray(position_m, dtype=float)
-    if float(np.linalg.norm(los)) < 1e-9:
+    if norm3(los) < 1e-9:
         raise ValueError(f"line of sight undefined: agent at the target centre {position_m}")
     return quat.shortest_arc(BORESIGHT_BODY, los)
 

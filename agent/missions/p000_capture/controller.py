@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from missions.p000_capture.contract import signed_distance, surface_frame
+from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame
 
 from . import payload as pl
 from . import quaternion as quat
@@ -22,8 +22,8 @@ from .apf import apf_force, buffer_force
 from .attitude import desired_attitude, pointing_torque, rate_damping_torque
 from .chase import chase_force
 from .estimate import TargetEstimate, alpha_beta, consensus
-from .gnc_tls import GncSettings, gnc_tls_fit, track_fit
-from .limits import saturate_norm
+from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
+from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
 from .params import CaptureParams
 from .sensing import CaptureSensing
@@ -40,6 +40,7 @@ class CaptureController:
         self.rng = np.random.default_rng(zlib.crc32(sc_id.encode()))
         self.trigger = TriggerSettings()
         self.gnc = GncSettings(noise_bound_m=params.noise_bound_m)
+        self.inertia, self.k_q, self.k_w = params.inertia, params.k_q * np.eye(3), params.k_w * np.eye(3)
         self.mode = "search"
         self.own: TargetEstimate | None = None
         self.est: TargetEstimate | None = None
@@ -47,6 +48,8 @@ class CaptureController:
         self.pool: list[tuple[float, np.ndarray]] = []
         self.last_fit_t = -np.inf
         self.axes_history: list[np.ndarray] = []
+        self.settled = False
+        self._principal: tuple[bytes, Ellipsoid] | None = None  # the last shape matrix's axes
         self.rnd_force = np.zeros(3)
         self.rnd_t = -np.inf
         self.r_k = self.v_k = None
@@ -79,9 +82,9 @@ class CaptureController:
         if len(pts) > self.p.fit_max_points:
             pts = pts[self.rng.permutation(len(pts))[: self.p.fit_max_points]]
         fit = None
-        if self.own is not None:  # track from the own estimate while it explains most points
+        if self.own is not None:  # warm fit from the own estimate while it explains most points
             try:
-                fit = track_fit(pts, self.own.ellipsoid(t), self.gnc)
+                fit = warm_fit(pts, self.own.ellipsoid(t), self.gnc)
                 if fit.inliers.mean() < self.p.track_min_inlier_fraction:
                     fit = None
             except ValueError:
@@ -98,11 +101,12 @@ class CaptureController:
             return
         if self.est is not None:  # innovation gate on the centre (NOTES-000 trap 6)
             pred = self.est.centre_m + self.est.velocity_mps * (t - self.est.t_s)
-            if np.linalg.norm(ell.centre_m - pred) > 1.0 and self.own is not None:
+            if norm3(ell.centre_m - pred) > 1.0 and self.own is not None:
                 return
         c, v = alpha_beta(self.own, t, ell.centre_m)
         self.own = TargetEstimate(t, c, v, ell.shape_matrix, direct=True)
         self.axes_history = (self.axes_history + [np.sort(ell.semi_axes_m)])[-self.p.dock_settle_fits:]
+        self.settled = self._settled()
 
     def _settled(self) -> bool:
         h = self.axes_history
@@ -110,6 +114,17 @@ class CaptureController:
             return False
         h = np.array(h)
         return bool(np.all((h.max(axis=0) - h.min(axis=0)) <= self.p.dock_axes_tol * h.mean(axis=0)))
+
+    def _estimate_ellipsoid(self, t: float) -> Ellipsoid:
+        """The consensus estimate propagated to t (`TargetEstimate.ellipsoid`), with the principal
+        axes of its shape matrix computed once per distinct matrix: between fits and broadcasts the
+        consensus M is the same bits every step (raises ValueError if M is not an ellipsoid)."""
+        est = self.est
+        key = est.shape.tobytes()
+        if self._principal is None or self._principal[0] != key:
+            self._principal = (key, Ellipsoid.from_shape_matrix(est.centre_m, est.shape))
+        axes = self._principal[1]
+        return Ellipsoid(est.centre_m + est.velocity_mps * (t - est.t_s), axes.rotation, axes.semi_axes_m)
 
     # --- control ----------------------------------------------------------------------------
     def _broadcast_due(self, t: float, r: np.ndarray, v: np.ndarray, forced: bool, dt_s: float) -> bool:
@@ -140,7 +155,7 @@ class CaptureController:
         ell = None
         if self.est is not None:
             try:
-                ell = self.est.ellipsoid(t)
+                ell = self._estimate_ellipsoid(t)
             except ValueError:
                 ell = None
         slot = None
@@ -148,8 +163,8 @@ class CaptureController:
             sd, x_s, nrm = surface_frame(ell, r)
             slot = x_s + p.r_buffer_m * nrm  # eq. 14
         old_mode = self.mode
-        at_slot = slot is not None and float(np.linalg.norm(r - slot)) < p.dock_slot_tol_m
-        self.mode = next_mode(self.mode, detected, received, self._settled(), at_slot)
+        at_slot = slot is not None and norm3(r - slot) < p.dock_slot_tol_m
+        self.mode = next_mode(self.mode, detected, received, self.settled, at_slot)
         if self.mode != "search" and ell is None:
             self.mode = "search" if old_mode == "search" else self.mode
         entered = old_mode == "search" and self.mode != "search"
@@ -162,11 +177,11 @@ class CaptureController:
                 self.rnd_force, self.rnd_t = random_force(self.rng, p.random_alpha, p.f_thr_n), t
             force = bounce_force(r, p.search_box_m, p.f_thr_n) + self.rnd_force + f_col
             if s.surface_rel_m is not None:
-                d = float(np.linalg.norm(s.surface_rel_m))
+                d = norm3(s.surface_rel_m)
                 force = force + buffer_force(d, -s.surface_rel_m / max(d, 1e-9), v, p.k_r_target,
                                              p.r_buffer_m, p.buffer_damping_nspm)
             scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
-            torque = rate_damping_torque(s.omega_body_radps, p.inertia, p.k_w * np.eye(3), p.torque_max_nm, scan)
+            torque = rate_damping_torque(s.omega_body_radps, self.inertia, self.k_w, p.torque_max_nm, scan)
         else:
             forced = entered or not had_estimate
             if self._broadcast_due(t, r, v, forced, dt_s):
@@ -180,8 +195,8 @@ class CaptureController:
             force = self.held_force + f_col + buffer_force(sd, nrm, v - self.est.velocity_mps, p.k_r_target,
                                                            p.r_buffer_m, p.buffer_damping_nspm)
             q_d = desired_attitude(r, ell.centre_m)
-            torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, p.inertia,
-                                     p.k_q * np.eye(3), p.k_w * np.eye(3), p.torque_max_nm)
+            torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, self.inertia,
+                                     self.k_q, self.k_w, p.torque_max_nm)
         force = saturate_norm(force, p.force_max_n)
         extra = {} if ell is None else {  # what the agent believes, for the report (Figs. 7, 12)
             "p000_axes_est_m": np.sort(ell.semi_axes_m), "p000_centre_est_m": ell.centre_m,

@@ -49,7 +49,10 @@ def consensus(own: TargetEstimate | None, others: list[TargetEstimate], t_s: flo
         w = np.array([own_weight] + [(1.0 - own_weight) / len(others)] * len(others))
     else:
         w = np.full(len(ests), 1.0 / len(ests))
-    c = sum(wi * (e.centre_m + e.velocity_mps * (t_s - e.t_s)) for wi, e in zip(w, ests))
-    v = sum(wi * e.velocity_mps for wi, e in zip(w, ests))
-    m = sum(wi * e.shape for wi, e in zip(w, ests))
+    vel = np.array([e.velocity_mps for e in ests])
+    ages = t_s - np.array([e.t_s for e in ests])
+    # sums over the estimates, in their order (a reduction over axis 0 adds row after row)
+    c = (w[:, None] * (np.array([e.centre_m for e in ests]) + vel * ages[:, None])).sum(axis=0)
+    v = (w[:, None] * vel).sum(axis=0)
+    m = (w[:, None, None] * np.array([e.shape for e in ests])).sum(axis=0)
     return TargetEstimate(t_s, c, v, m, own is not None and own.direct)

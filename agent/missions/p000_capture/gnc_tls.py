@@ -1,20 +1,28 @@
 """Robust ellipsoid fit from landmark points: GNC-TLS (paper 000 §3.2.2, ref. [11]: Yang et al.
 2020, "Graduated Non-Convexity for Robust Spatial Perception", Algorithm 1 with the TLS weights).
 
-Non-minimal solver: weighted least squares over (centre, rotation vector, log semi-axes) of the
+Non-minimal solver: weighted least squares over (centre c, rotation R, log semi-axes s) of the
 radial residual r_i = ‖p_i − c‖(1 − 1/√((p_i−c)ᵀM(p_i−c))), the distance in metres along the
 ray from the centre to the surface. The parametrisation makes every solution an ellipsoid
 (NOTES-000 trap 5: algebraic or Sampson re-weighting can lock onto hyperboloids). A weak prior on
 equal log semi-axes (`sphere_prior_m`) keeps a fit from a single patch sphere-like rather than
 arbitrary (trap 6); it weighs as one point with that residual per unit of log-axis difference.
+
+The solver is a damped Gauss-Newton (Levenberg-Marquardt) step on the 9 parameters, with the
+rotation updated on the manifold, R ← R exp([δ]×), so the Jacobian is analytic in all nine and each
+iteration is a handful of numpy operations over the K points (`ellipsoid_lsq`). Two uses:
+
+- `gnc_tls_fit`, the acquisition (cold start, lost track): GNC-TLS from a few robust starts;
+- `warm_fit`, the in-loop update: TLS from the previous estimate with a bounded number of
+  iterations, converging to the same TLS solution as the cold fit when the previous estimate is
+  within the bound (tests/missions/test_p000_units.py, warm = cold).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from missions.p000_capture.contract import Ellipsoid
 
@@ -27,21 +35,41 @@ class GncSettings:
     sphere_prior_m: float = 0.02
     min_points: int = 12
     restarts: int = 3
-    inner_nfev: int = 30           # solver evaluations per GNC step (warm-started)
-    start_bound_m: float = 0.8    # bound of the start stage (sphere GNC, points used from a start)
+    inner_iterations: int = 10     # solver iterations per GNC step (warm-started from the last step)
+    polish_iterations: int = 50    # solver iterations on the final inliers
+    start_bound_m: float = 0.8     # bound of the start stage (sphere GNC, points used from a start)
+    warm_iterations: int = 6       # warm fit: solver iterations per TLS stage
+    warm_rounds: int = 3           # warm fit: re-weightings at c̄ until the inlier set holds
 
 
 @dataclass(frozen=True)
 class FitResult:
     ellipsoid: Ellipsoid
-    inliers: np.ndarray        # (K,) bool: final TLS weight > 0.5
+    inliers: np.ndarray        # (K,) bool: final residual within c̄
     weights: np.ndarray        # (K,)
     outer_iterations: int
     rms_inlier_m: float
 
 
+class Model(NamedTuple):
+    """An ellipsoid as the solver's state: centre c (3,), rotation R (3, 3, columns = principal
+    axes), log semi-axes s (3,)."""
+
+    centre_m: np.ndarray
+    rotation: np.ndarray
+    log_axes: np.ndarray
+
+    @classmethod
+    def of(cls, ell: Ellipsoid) -> "Model":
+        return cls(np.asarray(ell.centre_m, dtype=float), np.asarray(ell.rotation, dtype=float),
+                   np.log(ell.semi_axes_m))
+
+    def ellipsoid(self) -> Ellipsoid:
+        return Ellipsoid(self.centre_m, self.rotation, np.exp(self.log_axes))
+
+
 def rotvec_matrix(phi: np.ndarray) -> np.ndarray:
-    """Rodrigues: the rotation matrix of rotation vector φ."""
+    """Rodrigues: the rotation matrix exp([φ]×) of rotation vector φ."""
     angle = float(np.sqrt(phi @ phi))
     if angle < 1e-12:
         return np.eye(3)
@@ -50,30 +78,90 @@ def rotvec_matrix(phi: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
 
 
-def _unpack(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    c = theta[:3]
-    rot = rotvec_matrix(theta[3:6])
-    axes = np.exp(theta[6:9])
-    return c, rot, axes
-
-
-def radial_residuals(points_m: np.ndarray, centre_m: np.ndarray, shape: np.ndarray) -> np.ndarray:
+def radial_residuals(points_m: np.ndarray, model: Model) -> np.ndarray:
     """r_i = ‖p−c‖(1 − 1/√q), q = (p−c)ᵀM(p−c): signed distance along the ray from the centre."""
-    d = points_m - centre_m
-    rho = np.linalg.norm(d, axis=1)
-    q = np.einsum("ij,jk,ik->i", d, shape, d)
+    d = points_m - model.centre_m
+    local = (d @ model.rotation) * np.exp(-model.log_axes)
+    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
+    q = np.einsum("ij,ij->i", local, local)
     return rho * (1.0 - 1.0 / np.sqrt(np.maximum(q, 1e-12)))
 
 
-def _residuals(theta: np.ndarray, pts: np.ndarray, sqrt_w: np.ndarray, prior: float) -> np.ndarray:
-    c, rot, axes = _unpack(theta)
-    local = (pts - c) @ rot
-    rho = np.sqrt(np.einsum("ij,ij->i", local, local))
-    scaled = local / axes
-    q = np.einsum("ij,ij->i", scaled, scaled)
-    r = rho * (1.0 - 1.0 / np.sqrt(np.maximum(q, 1e-12)))
-    s = theta[6:9]
-    return np.concatenate((sqrt_w * r, prior * (s - s.mean())))
+def residuals_and_jacobian(points_t: np.ndarray, sqrt_w: np.ndarray, model: Model,
+                           prior: float) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted residuals (K + 3,) — the K radial ones, then the sphere prior prior·(s − mean s) —
+    and their Jacobian, transposed (9, K + 3), in (δc, δ, δs) with R ← R exp([δ]×):
+
+        ∂r/∂c = −(1 − q^-½) d/ρ − ρ q^-3/2 R (l/a²),   l = Rᵀd, d = p − c, ρ = ‖d‖, q = lᵀ(l/a²)
+        ∂r/∂δ = ρ q^-3/2 (l/a²) × l
+        ∂r/∂s_k = −ρ q^-3/2 l_k²/a_k²
+
+    `points_t` is (3, K): the points as rows of coordinates, so every term is a row operation.
+    """
+    c, rot, s = model
+    d = points_t - c[:, None]
+    local = rot.T @ d
+    inv_a2 = np.exp(-2.0 * s)
+    al = local * inv_a2[:, None]
+    q = np.maximum(np.einsum("ik,ik->k", local, al), 1e-12)
+    rho = np.sqrt(np.einsum("ik,ik->k", d, d))
+    q_h = 1.0 / np.sqrt(q)
+    dr_dq2 = sqrt_w * rho * q_h / q          # 2 ∂r/∂q, weighted
+    k = points_t.shape[1]
+    res = np.empty(k + 3)
+    res[:k] = sqrt_w * rho * (1.0 - q_h)
+    res[k:] = prior * (s - s.mean())
+    jac = np.zeros((9, k + 3))
+    jac[:3, :k] = (-(sqrt_w * (1.0 - q_h)) / np.maximum(rho, 1e-12)) * d - dr_dq2 * (rot @ al)
+    # (l/a²) × l = (l_y l_z (a_y⁻² − a_z⁻²), l_z l_x (a_z⁻² − a_x⁻²), l_x l_y (a_x⁻² − a_y⁻²))
+    jac[3:6, :k] = (dr_dq2 * local[_NEXT] * local[_AFTER]) * (inv_a2[_NEXT] - inv_a2[_AFTER])[:, None]
+    jac[6:, :k] = -dr_dq2 * local * al
+    jac[6:, k:] = prior * (np.eye(3) - 1.0 / 3.0)
+    return res, jac
+
+
+_NEXT = np.array([1, 2, 0])
+_AFTER = np.array([2, 0, 1])
+
+
+def _moved(model: Model, step: np.ndarray) -> Model:
+    return Model(model.centre_m + step[:3], model.rotation @ rotvec_matrix(step[3:6]), model.log_axes + step[6:])
+
+
+def ellipsoid_lsq(points_m: np.ndarray, weights: np.ndarray, model: Model, prior: float,
+                  max_iterations: int) -> Model:
+    """The non-minimal solver: weighted nonlinear least squares from `model`, at most
+    `max_iterations` accepted Levenberg-Marquardt steps (H + λ diag H) δ = −Jᵀr; stops when the
+    cost falls by less than 1e-10 of itself. Points of zero weight are left out."""
+    keep = weights > 0.0
+    pts = points_m[keep].T
+    sw = np.sqrt(weights[keep])
+    res, jac = residuals_and_jacobian(pts, sw, model, prior)
+    cost = float(res @ res)
+    lam = 1e-3
+    accepted = 0
+    while accepted < max_iterations:
+        h = jac @ jac.T
+        g = jac @ res
+        try:
+            step = np.linalg.solve(h + lam * np.diag(np.diag(h) + 1e-12), -g)
+        except np.linalg.LinAlgError:
+            break
+        trial = _moved(model, step)
+        res_t, jac_t = residuals_and_jacobian(pts, sw, trial, prior)
+        cost_t = float(res_t @ res_t)
+        if cost_t < cost:
+            done = cost - cost_t <= 1e-10 * cost
+            model, res, jac, cost = trial, res_t, jac_t, cost_t
+            lam = max(lam / 3.0, 1e-9)
+            accepted += 1
+            if done:
+                break
+        else:
+            lam *= 4.0
+            if lam > 1e8:
+                break
+    return model
 
 
 def sphere_fit(points_m: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -87,38 +175,6 @@ def sphere_fit(points_m: np.ndarray, weights: np.ndarray | None = None) -> tuple
     return c, float(np.sqrt(max(rho2, 1e-6)))
 
 
-def _jacobian(theta: np.ndarray, pts: np.ndarray, sqrt_w: np.ndarray, prior: float) -> np.ndarray:
-    """∂residual/∂θ: analytic for the centre and log axes, forward differences for the rotation."""
-    c, rot, axes = _unpack(theta)
-    d = pts - c
-    local = d @ rot
-    rho = np.sqrt(np.einsum("ij,ij->i", d, d))
-    al = local / axes ** 2
-    q = np.maximum(np.einsum("ij,ij->i", local, al), 1e-12)
-    dr_drho = 1.0 - q ** -0.5
-    dr_dq = 0.5 * rho * q ** -1.5
-    jac = np.zeros((len(pts) + 3, 9))
-    jac[:-3, :3] = (-dr_drho / np.maximum(rho, 1e-12))[:, None] * d + (dr_dq[:, None] * (-2.0 * al @ rot.T))
-    jac[:-3, 6:] = (-2.0 * dr_dq)[:, None] * local * al
-    jac[:-3, :3] *= sqrt_w[:, None]
-    jac[:-3, 6:] *= sqrt_w[:, None]
-    base = _residuals(theta, pts, sqrt_w, prior)[:-3]
-    for k in range(3, 6):
-        th = theta.copy()
-        th[k] += 1e-7
-        jac[:-3, k] = (_residuals(th, pts, sqrt_w, prior)[:-3] - base) / 1e-7
-    jac[-3:, 6:] = prior * (np.eye(3) - 1.0 / 3.0)
-    return jac
-
-
-def weighted_ellipsoid_fit(points_m: np.ndarray, weights: np.ndarray, theta0: np.ndarray,
-                           sphere_prior_m: float, max_nfev: int = 200) -> np.ndarray:
-    """The non-minimal solver: weighted nonlinear least squares from `theta0`."""
-    sol = least_squares(_residuals, theta0, jac=_jacobian, args=(points_m, np.sqrt(weights), sphere_prior_m),
-                        method="trf", max_nfev=max_nfev)
-    return sol.x
-
-
 def tls_weights(r2: np.ndarray, c2: float, mu: float) -> np.ndarray:
     """Closed-form GNC-TLS weight update (Yang et al. 2020, Prop. 2)."""
     w = np.empty_like(r2)
@@ -129,55 +185,6 @@ def tls_weights(r2: np.ndarray, c2: float, mu: float) -> np.ndarray:
     mid = (r2 > lo) & (r2 < hi)
     w[mid] = np.sqrt(c2 * mu * (mu + 1.0) / r2[mid]) - mu
     return np.clip(w, 0.0, 1.0)
-
-
-def theta_from(ell: Ellipsoid) -> np.ndarray:
-    rot = ell.rotation if np.linalg.det(ell.rotation) > 0 else ell.rotation * np.array([1, 1, -1])
-    return np.concatenate((ell.centre_m, Rotation.from_matrix(rot).as_rotvec(), np.log(ell.semi_axes_m)))
-
-
-def quadric_fit(points_m: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Weighted algebraic quadric fit with trace(M) = 1 (linear, globally optimal for its cost).
-
-    Returns (M (3,3), g (3,), j) packed as 10 numbers: Q(p) = pᵀMp + 2gᵀp + j.
-    """
-    x, y, z = points_m.T
-    design = np.stack([x * x - z * z, y * y - z * z, 2 * x * y, 2 * x * z, 2 * y * z,
-                       2 * x, 2 * y, 2 * z, np.ones_like(x)], axis=1)
-    sw = np.sqrt(weights)
-    sol, *_ = np.linalg.lstsq(design * sw[:, None], -(z * z) * sw, rcond=None)
-    a, b, d, e, f, g, h, i, j = sol
-    return np.array([a, b, 1.0 - a - b, d, e, f, g, h, i, j])
-
-
-def _quadric_parts(qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    a, b, c, d, e, f, g, h, i, j = qd
-    return np.array([[a, d, e], [d, b, f], [e, f, c]]), np.array([g, h, i]), float(j)
-
-
-def sampson_residuals(points_m: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """First-order geometric distance Q(p)/‖∇Q(p)‖ to a quadric (metres), and ‖∇Q(p)‖."""
-    m, g, j = _quadric_parts(qd)
-    mp = points_m @ m
-    q = np.einsum("ij,ij->i", mp, points_m) + 2.0 * points_m @ g + j
-    grad = np.maximum(np.linalg.norm(2.0 * (mp + g), axis=1), 1e-9)
-    return q / grad, grad
-
-
-def quadric_to_ellipsoid(qd: np.ndarray) -> Ellipsoid | None:
-    """The ellipsoid of a quadric, or None if the quadric is not a (real) ellipsoid."""
-    m, g, j = _quadric_parts(qd)
-    try:
-        c = -np.linalg.solve(m, g)
-    except np.linalg.LinAlgError:
-        return None
-    k = float(c @ m @ c - j)
-    if k == 0.0:
-        return None
-    shape = m / k
-    if np.linalg.eigvalsh(shape)[0] <= 0.0:
-        return None
-    return Ellipsoid.from_shape_matrix(c, shape)
 
 
 def gnc_tls(residual_fn, solve_fn, model, n_points: int, noise_bound_m: float,
@@ -240,6 +247,20 @@ def moment_start(points_m: np.ndarray) -> Ellipsoid:
     return Ellipsoid(c, vec, np.sqrt(3.0 * np.maximum(eig, 1e-4)))
 
 
+def _result(pts: np.ndarray, model: Model, noise_bound_m: float, outer_iterations: int) -> FitResult:
+    r2 = radial_residuals(pts, model) ** 2
+    inl = r2 <= noise_bound_m ** 2
+    rms = float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf")
+    return FitResult(model.ellipsoid(), inl, inl.astype(float), outer_iterations, rms)
+
+
+def _points(points_m: np.ndarray, settings: GncSettings) -> np.ndarray:
+    pts = np.asarray(points_m, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < settings.min_points:
+        raise ValueError(f"need at least {settings.min_points} points (K, 3), got shape {pts.shape}")
+    return pts
+
+
 def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
                 initial: Ellipsoid | None = None) -> FitResult:
     """Fit an ellipsoid to points with outliers by GNC-TLS from a few starts; keep the lowest
@@ -253,18 +274,15 @@ def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
     then GNC-TLS over it with μ0 set by the largest residual among those points.
     (A general quadric as the non-minimal solver fits outlier-laden data with hyperboloids.)
     """
-    pts = np.asarray(points_m, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < settings.min_points:
-        raise ValueError(f"need at least {settings.min_points} points (K, 3), got shape {pts.shape}")
+    pts = _points(points_m, settings)
     k = len(pts)
     c2 = settings.noise_bound_m ** 2
 
-    def residual(theta: np.ndarray) -> np.ndarray:
-        c, rot, axes = _unpack(theta)
-        return radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T)
+    def residual(model: Model) -> np.ndarray:
+        return radial_residuals(pts, model)
 
-    def solve(w: np.ndarray, theta: np.ndarray, max_nfev: int = settings.inner_nfev) -> np.ndarray:
-        return weighted_ellipsoid_fit(pts, w, theta, settings.sphere_prior_m, max_nfev)
+    def solve(w: np.ndarray, model: Model, iterations: int = settings.inner_iterations) -> Model:
+        return ellipsoid_lsq(pts, w, model, settings.sphere_prior_m, iterations)
 
     starts: list[Ellipsoid] = []
     if initial is not None:
@@ -278,51 +296,52 @@ def gnc_tls_fit(points_m: np.ndarray, settings: GncSettings = GncSettings(),
             s2, in2 = _sphere_stage(rest, settings.start_bound_m, settings)
             if in2.sum() >= settings.min_points:
                 starts.append(_two_cap_start(s1, s2))
-    best: tuple[float, np.ndarray, int] | None = None
+    best: tuple[float, Model, int] | None = None
 
-    def run(start: Ellipsoid) -> tuple[float, np.ndarray, int] | None:
-        theta0 = theta_from(start)
-        active = np.abs(residual(theta0)) <= settings.start_bound_m
+    def run(start: Model) -> tuple[float, Model, int] | None:
+        active = np.abs(residual(start)) <= settings.start_bound_m
         if active.sum() < settings.min_points:
             return None
-        theta0 = solve(active.astype(float), theta0)
-        theta, w, it = gnc_tls(residual, solve, theta0, k, settings.noise_bound_m, settings.mu_factor,
+        model = solve(active.astype(float), start)
+        model, w, it = gnc_tls(residual, solve, model, k, settings.noise_bound_m, settings.mu_factor,
                                settings.max_outer, active)
-        theta = solve(w, theta, 200) if w.sum() >= settings.min_points else theta  # polish on the inliers
-        return float(np.sum(np.minimum(residual(theta) ** 2, c2))), theta, it
+        if w.sum() >= settings.min_points:  # polish on the inliers
+            model = solve(w, model, settings.polish_iterations)
+        return float(np.sum(np.minimum(residual(model) ** 2, c2))), model, it
 
     for start in starts:
+        model = Model.of(start)
         for _ in range(settings.restarts + 1):  # restart from the result while the TLS cost drops
-            got = run(start)
+            got = run(model)
             if got is None or (best is not None and got[0] >= best[0]):
                 break
             best = got
-            start = Ellipsoid(*_unpack(got[1]))
+            model = got[1]
     if best is None:
         raise ValueError(f"no start kept {settings.min_points} points within {settings.start_bound_m} m")
-    _, theta, it = best
-    c, rot, axes = _unpack(theta)
-    r2 = residual(theta) ** 2
-    inl = r2 <= c2
-    rms = float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf")
-    return FitResult(Ellipsoid(c, rot, axes), inl, inl.astype(float), it, rms)
+    return _result(pts, best[1], settings.noise_bound_m, best[2])
 
 
-def track_fit(points_m: np.ndarray, previous: Ellipsoid, settings: GncSettings = GncSettings()) -> FitResult:
-    """Cheap update from the previous estimate: TLS with the bound shrunk in two steps
-    (3c̄, then c̄) instead of the full GNC schedule. Used while the previous estimate
-    still explains most points; `gnc_tls_fit` is the acquisition (cold start, lost track)."""
-    pts = np.asarray(points_m, dtype=float)
-    theta = theta_from(previous)
-    for bound in (3.0 * settings.noise_bound_m, settings.noise_bound_m):
-        c, rot, axes = _unpack(theta)
-        r = radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T)
-        w = (np.abs(r) <= bound).astype(float)
+def warm_fit(points_m: np.ndarray, previous: Ellipsoid, settings: GncSettings = GncSettings()) -> FitResult:
+    """The in-loop update, warm-started from the previous estimate: truncated least squares with the
+    bound shrunk in two steps (3c̄, then c̄) instead of the full GNC schedule, then re-weighted at c̄
+    until the inlier set holds (≤ `warm_rounds`), each solve ≤ `warm_iterations` iterations.
+
+    Its fixed point is the cold fit's (`gnc_tls_fit`: TLS at c̄, polished on its inliers) when the
+    previous estimate lies within the bound of it. Raises ValueError ("track lost") when fewer than
+    `min_points` points lie within a stage's bound of the estimate: the caller falls back to
+    `gnc_tls_fit`, the acquisition.
+    """
+    pts = _points(points_m, settings)
+    model = Model.of(previous)
+    c_bar = settings.noise_bound_m
+    inl = None
+    for bound in [3.0 * c_bar] + [c_bar] * settings.warm_rounds:
+        w = np.abs(radial_residuals(pts, model)) <= bound
         if w.sum() < settings.min_points:
             raise ValueError(f"track lost: {int(w.sum())} points within {bound} m of the previous estimate")
-        theta = weighted_ellipsoid_fit(pts, w, theta, settings.sphere_prior_m, settings.inner_nfev)
-    c, rot, axes = _unpack(theta)
-    r2 = radial_residuals(pts, c, rot @ np.diag(axes ** -2.0) @ rot.T) ** 2
-    inl = r2 <= settings.noise_bound_m ** 2
-    return FitResult(Ellipsoid(c, rot, axes), inl, inl.astype(float), 0,
-                     float(np.sqrt(np.mean(r2[inl]))) if inl.any() else float("inf"))
+        if bound == c_bar and inl is not None and np.array_equal(w, inl):
+            break
+        inl = w if bound == c_bar else None
+        model = ellipsoid_lsq(pts, w.astype(float), model, settings.sphere_prior_m, settings.warm_iterations)
+    return _result(pts, model, c_bar, 0)

@@ -55,21 +55,24 @@ def rotate(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
 
 
 def from_axis_angle(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / math.sqrt(float(axis @ axis))
     return np.concatenate(([np.cos(angle_rad / 2)], np.sin(angle_rad / 2) * axis))
 
 
 def shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Quaternion of the smallest rotation taking unit direction a onto b (paper 000 after eq. 15)."""
-    a = np.asarray(a, dtype=float) / np.linalg.norm(a)
-    b = np.asarray(b, dtype=float) / np.linalg.norm(b)
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    a = a / math.sqrt(float(a @ a))
+    b = b / math.sqrt(float(b @ b))
     c = float(a @ b)
     if c < -1.0 + 1e-12:  # opposite: any axis perpendicular to a
         perp = np.cross(a, [1.0, 0.0, 0.0])
         if np.linalg.norm(perp) < 1e-6:
             perp = np.cross(a, [0.0, 1.0, 0.0])
         return np.concatenate(([0.0], perp / np.linalg.norm(perp)))
-    return normalise(np.concatenate(([1.0 + c], np.cross(a, b))))
+    return normalise(np.concatenate(([1.0 + c], cross3(a, b))))
 
 
 def omega_matrix(omega: np.ndarray) -> np.ndarray:
@@ -85,7 +88,7 @@ def omega_matrix(omega: np.ndarray) -> np.ndarray:
 
 def propagate(q: np.ndarray, omega_body: np.ndarray, dt_s: float) -> np.ndarray:
     """Exact attitude update for a body rate held constant over dt: q ⊗ exp(½ ω dt)."""
-    w = float(np.linalg.norm(omega_body))
+    w = math.sqrt(float(omega_body @ omega_body))
     if w * dt_s < 1e-12:
         return q
     return normalise(multiply(q, from_axis_angle(omega_body, w * dt_s)))

@@ -3,7 +3,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
+
+from .limits import norm3
 
 
 @dataclass(frozen=True)
@@ -16,17 +20,18 @@ class TriggerSettings:
 
 def cw_disturbance_bound(position_m: np.ndarray, velocity_mps: np.ndarray, n_radps: float) -> float:
     """d_max = 3n²‖r‖ + 2n‖v‖ (§2.1.1, after eq. 8): the CW coupling bound used in eq. 28."""
-    return 3.0 * n_radps ** 2 * float(np.linalg.norm(position_m)) + 2.0 * n_radps * float(np.linalg.norm(velocity_mps))
+    return 3.0 * n_radps ** 2 * norm3(position_m) + 2.0 * n_radps * norm3(velocity_mps)
 
 
 def threshold(t_s: float, d_max: float, s: TriggerSettings) -> float:
     """c0 + c1 e^(−βt) + c_d d_max (eq. 28), t the global time as written."""
-    return s.c0 + s.c1 * np.exp(-s.beta_per_s * t_s) + s.c_d * d_max
+    return s.c0 + s.c1 * math.exp(-s.beta_per_s * t_s) + s.c_d * d_max
 
 
 def sample_error(r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.ndarray) -> float:
     """‖[P; V]‖ with P = r(t_k) − r(t), V = v(t_k) − v(t) (eq. 27–28)."""
-    return float(np.linalg.norm(np.concatenate((r_k - r, v_k - v))))
+    p, v_err = r_k - r, v_k - v
+    return math.sqrt(float(p @ p + v_err @ v_err))
 
 
 def fires(t_s: float, r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.ndarray,
