@@ -93,8 +93,10 @@ class FlightComputer:
         self.stim_cls = getattr(pb, types["sense"].rsplit(".", 1)[-1])
         self.act = session.declare_publisher(keys["act"], encoding=zenoh.Encoding(f"application/protobuf;{types['act']}"))
         self.tm = session.declare_publisher(keys["tm"], encoding=zenoh.Encoding(f"application/protobuf;{types['tm']}"))
-        self.token = session.liveliness().declare_token(keys["alive"])
+        # the subscriber before the token: the plant sends this step's stimulus as soon as it sees
+        # the token (at the start, and on a rejoin); one sent before the subscriber is up is lost
         self.sub = session.declare_subscriber(keys["sense"], self.on_stimulus)
+        self.token = session.liveliness().declare_token(keys["alive"])
 
     def header(self, key: str, step: int, t: float) -> Any:
         seq = self.seq[key]
