@@ -22,6 +22,10 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
+from deploy.fault_draws import FaultDrawError, draw_faults, load_fault_draws, read_fault_draws, with_drawn_faults
+
+__all__ = ["FaultDrawError", "draw_faults", "load_fault_draws", "run_campaign", "with_drawn_faults"]  # re-exported for the command
+
 ROW_DIR = "rows"
 RUN_DIR = "runs"
 FIRST_COLUMNS = ("seed", "status", "error", "wall_s", "cpu_s", "delta_v_total_mps", "steps", "dead_agents_count",
@@ -85,12 +89,15 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s: float | None = None,
-             metrics: bool = True, keep_recording: bool = True, record: str = "truth") -> dict[str, Any]:
+             metrics: bool = True, keep_recording: bool = True, record: str = "truth",
+             faults: str | None = None) -> dict[str, Any]:
     """One campaign run (on a worker): the in-process run of SCENARIO with --set SETS and this seed
     (record="truth": the batch mode where the scenario allows it, deploy/batch.py; "all": every
     message, one agent node per spacecraft), then its metrics (dashboards/metrics.py, as
-    `swarmhil report` computes them, without figures). Writes and returns its row; never raises
-    for a failed run (the row carries the error)."""
+    `swarmhil report` computes them, without figures). `faults`: a faults file (deploy/fault_draws.py):
+    the run flies with the faults drawn for its seed, and its row carries them with their recovery
+    (`faults`, JSON). Writes and returns its row; never raises for a failed run (the row carries the
+    error)."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     t0, c0 = time.monotonic(), time.thread_time()
     row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
@@ -100,6 +107,11 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         from deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
+        drawn: list[dict[str, Any]] = []
+        if faults:
+            drawn = draw_faults(load_fault_draws(faults, sc.ids), sc.ids, int(seed))
+            sc = with_drawn_faults(sc, drawn).with_overrides(seed=int(seed), duration_s=duration_s)
+            row["faults_n"] = len(drawn)
         res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record,
                              keep_truth=metrics)
         summary = res.summary
@@ -115,6 +127,10 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
                 write_report(rdir, cam=cam, figures=False)
             summary = json.loads((rdir / "summary.json").read_text())
         row.update(summary_row(summary))
+        if faults:
+            from dashboards.sections.faults import drawn_fault_recovery  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+            row["faults"] = json.dumps(drawn_fault_recovery(drawn, sc.resolved(), rdir) if metrics else drawn)
         if not keep_recording:
             (rdir / "run.mcap").unlink(missing_ok=True)
     except Exception as exc:  # noqa: BLE001 - a failed run is a row, not a lost campaign
@@ -291,6 +307,77 @@ REPORT_METRICS = (
 )
 
 
+def fault_stats(rows: list[dict[str, Any]], within_s: float) -> dict[str, dict[str, Any]]:
+    """Per fault kind, over the ok runs of a fault campaign: the faults drawn; those judged (the swarm
+    has a visibility graph, the fault ended in the run, and either the swarm was whole again within
+    `within_s` of its end or the run went on that long after it: a run that ends sooner, not yet
+    whole, says nothing); the recovered ones; their fraction with its Wilson 95 % interval
+    (scipy.stats.binomtest); the time to reconnect and the swarm's ΔV in the fault's window."""
+    from scipy.stats import binomtest
+
+    by_kind: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        if r.get("status") == "ok":
+            for f in json.loads(r.get("faults") or "[]"):
+                by_kind.setdefault(f["kind"], []).append(f)
+    out: dict[str, dict[str, Any]] = {}
+    for kind, fs in sorted(by_kind.items()):
+        ttr = [f.get("time_to_reconnect_s") for f in fs]
+        judged = [f for f, t in zip(fs, ttr) if f.get("ended_in_run") and "time_to_reconnect_s" in f and (
+            (t is not None and t <= within_s) or f["run_end_s"] - f["end_s"] >= within_s)]
+        ok = [f for f in judged if f["time_to_reconnect_s"] is not None and f["time_to_reconnect_s"] <= within_s]
+        ci = binomtest(len(ok), len(judged)).proportion_ci(0.95, "wilson") if judged else None
+        out[kind] = {"drawn": len(fs), "judged": len(judged), "recovered": len(ok),
+                     "fraction": len(ok) / len(judged) if judged else None,
+                     "ci95_low": None if ci is None else float(ci.low), "ci95_high": None if ci is None else float(ci.high),
+                     "time_to_reconnect_s": mean_ci95([t for t in ttr if t is not None]),
+                     "delta_v_in_window_mps": mean_ci95([f.get("delta_v_in_window_mps") for f in fs])}
+    return out
+
+
+def _fault_lines(rows: list[dict[str, Any]], meta: dict[str, Any], f: Callable[[Any], str]) -> list[str]:
+    """The fault campaign's part of report.md: recovery per kind, and the extra ΔV over the baseline."""
+    within = float(meta["recovery_within_s"])
+    stats = fault_stats(rows, within)
+    lines = [f"## Faults (drawn from {meta['faults']['file']})", "",
+             f"Recovered: the camera-visibility graph is one weakly connected component again within {f(within)} s "
+             f"of the fault's end (judged only where the swarm has that graph and the run lasted that long, or "
+             f"recovered sooner). Fraction with Wilson's 95 % interval.", "",
+             "| fault kind | drawn | judged | recovered | fraction | 95 % CI | time to reconnect, mean [s] | "
+             "swarm ΔV in window, mean [m/s] |", "|---|---:|---:|---:|---:|---|---:|---:|"]
+    for kind, s in stats.items():
+        ci = "" if s["ci95_low"] is None else f"[{s['ci95_low']:.3f}, {s['ci95_high']:.3f}]"
+        lines.append(f"| {kind} | {s['drawn']} | {s['judged']} | {s['recovered']} | {f(s['fraction'])} | {ci} | "
+                     f"{f(s['time_to_reconnect_s']['mean'])} | {f(s['delta_v_in_window_mps']['mean'])} |")
+    extra = mean_ci95([r.get("delta_v_extra_mps") for r in rows if r.get("status") == "ok"])
+    if extra["n"]:
+        ci = "" if extra["ci95_low"] is None else f", 95 % CI [{f(extra['ci95_low'])}, {f(extra['ci95_high'])}]"
+        lines += ["", f"Extra ΔV over the same seed without faults (OUT/baseline): mean {f(extra['mean'])} m/s{ci} "
+                      f"over {extra['n']} runs."]
+    return [*lines, ""]
+
+
+def _md_html(lines: list[str]) -> str:
+    """The few markdown forms of a report part (a `##` heading, paragraphs, one pipe table) as HTML."""
+    import html
+
+    out, table = [], []
+    for line in [*lines, ""]:
+        if line.startswith("|"):
+            if not set(line) <= set("|-: "):
+                table.append("<tr>" + "".join(f"<td>{html.escape(c.strip())}</td>" for c in line.strip("|").split("|"))
+                             + "</tr>")
+            continue
+        if table:
+            out.append("<table>" + "".join(table) + "</table>")
+            table = []
+        if line.startswith("## "):
+            out.append(f"<h2>{html.escape(line[3:])}</h2>")
+        elif line:
+            out.append(f"<p>{html.escape(line)}</p>")
+    return "".join(out)
+
+
 def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) -> tuple[Path, Path]:
     """OUT/report.md and OUT/report.html: runs ok / failed, mean and 95 % CI of dV and the metrics."""
     ok = [r for r in rows if r.get("status") == "ok"]
@@ -313,6 +400,8 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
           f"duration {duration} s; --set {list(meta.get('sets') or []) or 'none'}; "
           f"executor {meta.get('executor')}; campaign wall {f(meta.get('wall_s'))} s.", "",
           *head, *lines, ""]
+    if meta.get("faults"):
+        md += _fault_lines(rows, meta, f)
     if bad:
         md += ["## Failed runs", "", "| seed | error |", "|---:|---|",
                *[f"| {r['seed']} | {str(r.get('error')).replace('|', '/')} |" for r in bad], ""]
@@ -331,7 +420,8 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
             f"<h1>Campaign: {html.escape(str(meta.get('scenario')))}</h1><p>{len(rows)} runs ({len(ok)} ok, {len(bad)} failed), "
             f"seeds {html.escape(str(meta.get('seeds_text')))}, duration {html.escape(str(duration))} s.</p>"
             f"<table><tr><th>metric</th><th>n</th><th>mean</th><th>95 % CI</th><th>std</th><th>min</th><th>max</th></tr>"
-            f"{rows_html}</table>" + (f"<h2>Failed runs</h2><table>{bad_html}</table>" if bad else "") +
+            f"{rows_html}</table>" + (_md_html(_fault_lines(rows, meta, f)) if meta.get("faults") else "") +
+            (f"<h2>Failed runs</h2><table>{bad_html}</table>" if bad else "") +
             "<p>Table: campaign.parquet / campaign.csv.</p>")
     (Path(out) / "report.html").write_text(page)
     return Path(out) / "report.md", Path(out) / "report.html"
@@ -340,23 +430,38 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
 def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequence[str] = (),
                  duration_s: float | None = None, executor: str = "local", jobs: int = 2, scheduler: str | None = None,
                  metrics: bool = True, keep_recording: bool = True, retry_failed: bool = False,
-                 on_row: Callable[[dict[str, Any]], None] | None = None, record: str = "truth") -> dict[str, Any]:
+                 on_row: Callable[[dict[str, Any]], None] | None = None, record: str = "truth",
+                 faults: str | Path | None = None, baseline: bool = False) -> dict[str, Any]:
     """Run the seeds not finished yet in OUT, then write the table and the report of all of them.
+    `faults`: a faults file (deploy/fault_draws.py), each run flies the faults drawn for its seed;
+    with `baseline`, the same seeds without faults are run first into OUT/baseline (a campaign of
+    its own) and the report gives each run's extra ΔV over its baseline.
     Returns {"ran": [seeds run now], "skipped": [seeds already finished], "rows", "table", "report"}."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scenario = str(Path(scenario).resolve())
     meta_path = out / "campaign.json"
-    meta = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
+    meta: dict[str, Any] = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
+    base_rows: list[dict[str, Any]] | None = None
+    if faults is not None:
+        import hashlib
+
+        faults = str(Path(faults).resolve())
+        meta["faults"] = {"file": faults, "sha256": hashlib.sha256(Path(faults).read_bytes()).hexdigest()}
+        if baseline:
+            base_rows = run_campaign(scenario, seeds, out / "baseline", sets=sets, duration_s=duration_s,
+                                     executor=executor, jobs=jobs, scheduler=scheduler, metrics=metrics,
+                                     keep_recording=keep_recording, retry_failed=retry_failed, on_row=on_row,
+                                     record=record)["rows"]
     if meta_path.is_file():  # resuming: it must be the same campaign
         try:
             old = json.loads(meta_path.read_text())
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: not a campaign's record ({' '.join(str(exc).split())[:100]}); "
                              f"use another --out") from None
-        for k in ("scenario", "sets", "duration_s"):
-            if old.get(k) != meta[k]:
-                raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta[k]!r}; "
+        for k in ("scenario", "sets", "duration_s", "faults"):
+            if old.get(k) != meta.get(k):
+                raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta.get(k)!r}; "
                                  f"use another --out")
     done = finished_seeds(out, retry_failed)
     todo = [int(s) for s in seeds if int(s) not in done]
@@ -364,7 +469,8 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     meta.update({"executor": executor, "seeds": [int(s) for s in seeds], "record": record})
     _write_atomic(meta_path, json.dumps(meta, indent=1))
     t0 = time.monotonic()
-    calls = {s: (scenario, tuple(sets), s, str(out), duration_s, metrics, keep_recording, record) for s in todo}
+    calls = {s: (scenario, tuple(sets), s, str(out), duration_s, metrics, keep_recording, record, faults)
+             for s in todo}
 
     def got(_seed: int, row: dict[str, Any]) -> None:
         if not row_path(out, row["seed"]).is_file():  # the worker could not write it (died, other filesystem)
@@ -376,7 +482,15 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     wall = time.monotonic() - t0
     rows = load_rows(out, seeds)
     meta.update({"wall_s": wall, "seeds_text": _seeds_text([int(s) for s in seeds])})
+    if base_rows is not None:
+        base = {r["seed"]: r for r in base_rows if r.get("status") == "ok"}
+        for r in rows:
+            b = base.get(r["seed"])
+            if r.get("status") == "ok" and b is not None:
+                r["delta_v_extra_mps"] = r["delta_v_total_mps"] - b["delta_v_total_mps"]
     table = write_table(out, rows)
+    if faults is not None:
+        meta["recovery_within_s"] = read_fault_draws(faults).recovery.within_s
     report = write_report(out, rows, meta)
     return {"ran": todo, "skipped": skipped, "rows": rows, "table": table, "report": report, "wall_s": wall}
 

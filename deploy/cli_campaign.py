@@ -40,20 +40,36 @@ import click
 @click.option("--record", type=click.Choice(["truth", "all"]), default="truth", show_default=True,
               help="truth: record the truth and events only, and run the flight software of all spacecraft as "
                    "one batch where the scenario allows (same truth, several times faster); all: every message.")
+@click.option("--faults", "faults", type=click.Path(exists=True, dir_okay=False),
+              help="A faults file (docs/faults.md): each run flies a fault schedule drawn from it with its seed; the "
+                   "report gives the fraction recovered per fault kind.")
+@click.option("--baseline", is_flag=True,
+              help="With --faults: also run the same seeds without faults (OUT/baseline) for the extra ΔV per run.")
 def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...], executor: str, scheduler: str | None,
              jobs: int | None, duration: float | None, out: str | None, metrics: bool, keep_recordings: bool,
-             retry_failed: bool, record: str) -> None:
+             retry_failed: bool, record: str, faults: str | None, baseline: bool) -> None:
     """Run SCENARIO with N seeds (batch mode) and write a Parquet/CSV table and a report."""
     from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.campaign import run_campaign  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from deploy.campaign import FaultDrawError, draw_faults, load_fault_draws, run_campaign, with_drawn_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("pyarrow", "swarmhil campaign (its Parquet table)")  # before any run, not after them
     if executor == "dask" or scheduler:
         require("dask.distributed", "--executor dask")
 
-    try:  # fail fast on a bad scenario or --set, before starting any worker
+    if baseline and not faults:
+        click.echo("error: --baseline needs --faults (it is the same campaign without them)", err=True)
+        sys.exit(2)
+    try:  # fail fast on a bad scenario, --set or faults file, before starting any worker
         sc = load_scenario(scenario, list(sets)).with_overrides(duration_s=duration)
+        if faults:
+            try:
+                draws = load_fault_draws(faults, sc.ids)
+                for seed in (first_seed, first_seed + n_seeds - 1):  # a drawn fault that does not fit the scenario
+                    with_drawn_faults(sc, draw_faults(draws, sc.ids, seed))
+            except FaultDrawError as exc:
+                click.echo(f"error: {exc}", err=True)
+                sys.exit(2)
     except ScenarioError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
@@ -70,7 +86,8 @@ def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...]
     try:
         res = run_campaign(scenario, seeds, out_dir, sets=sets, duration_s=duration, executor=executor,
                            jobs=jobs or os.cpu_count() or 1, scheduler=scheduler, metrics=metrics,
-                           keep_recording=keep_recordings, retry_failed=retry_failed, on_row=show, record=record)
+                           keep_recording=keep_recordings, retry_failed=retry_failed, on_row=show, record=record,
+                           faults=faults, baseline=baseline)
     except ValueError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)

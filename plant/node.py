@@ -185,7 +185,7 @@ class PlantNode:
             detail = json.dumps(fault_summary(f))
             ev = pb.Event(header=self._hdr(self.keys.faults), kind=kind, subject=f.name, detail=detail)
             self.bus.publish(self.keys.faults, ev.SerializeToString())
-            log.warning("%s %s: %s", kind, f.name, detail)
+            log.info("%s %s: %s", kind, f.name, detail)  # scheduled: the run does what it was asked
             if f.family == "process" and not final:
                 self._process_fault(kind, f)
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from dashboards.metrics import visibility_series, weak_components
 from dashboards.run_config import camera_from_config
+from dashboards.run_metrics import SERIES
 from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
 
 
@@ -53,10 +54,19 @@ def recovery(t_s: np.ndarray, delta_v_mps: np.ndarray, n_components: np.ndarray 
     return out
 
 
+SWARM_GRAPH_CONTROLLERS = {"null", "drift-null", "sabatini"}  # paper 002's laws: the swarm is its camera graph
+
+
+def has_swarm_graph(config: dict[str, Any]) -> bool:
+    """Whether a run's swarm is held together by its camera-visibility digraph (paper 002 runs):
+    then "recovered" means that graph is one weakly connected component again."""
+    return camera_from_config(config) is not None and controllers_of(config) <= SWARM_GRAPH_CONTROLLERS
+
+
 def visibility_components(ctx: SectionContext) -> np.ndarray | None:
     """Components of the recorded camera-visibility digraph per step (paper 002 runs), else None."""
     cam = camera_from_config(ctx.config) if ctx.truth is not None else None
-    if cam is None or not controllers_of(ctx.config) <= {"null", "drift-null", "sabatini"}:
+    if cam is None or not has_swarm_graph(ctx.config):
         return None
     return weak_components(visibility_series(ctx.truth.position_m, cam, ctx.truth.alive))[0]
 
@@ -87,3 +97,20 @@ def faults(ctx: SectionContext) -> SectionResult:
     return SectionResult("Faults", metrics, [], intro + table(
         ["fault", "kind", "target and parameters", "start [s]", "end [s]", "started at [s]", "ended at [s]",
          "recovery (truth)"], rows))
+
+
+def drawn_fault_recovery(drawn: list[dict[str, Any]], config: dict[str, Any], run_dir: Path) -> list[dict[str, Any]]:
+    """A fault campaign's run (deploy/campaign.py): each drawn fault table with its `recovery` from
+    the run's metric series (dashboards/run_metrics.py SERIES: t_s, total ΔV, components; the
+    components only where the swarm has a visibility graph), its end, whether it ended inside the
+    run, and the run's end."""
+    series = np.load(Path(run_dir) / SERIES)
+    t_s, dv = series["t_s"], series["delta_v_total_mps"][:, None]
+    ncomp = series["n_components"] if has_swarm_graph(config) else None
+    out = []
+    for f in drawn:
+        end_s = f["start_s"] + f["duration_s"]
+        ended = end_s <= float(t_s[-1])
+        rec = recovery(t_s, dv, ncomp, f["start_s"], end_s if ended else None)
+        out.append({**f, "end_s": end_s, "ended_in_run": ended, "run_end_s": float(t_s[-1]), **rec})
+    return out
