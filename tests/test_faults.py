@@ -155,6 +155,53 @@ def test_recovery_reads_the_window_and_the_reconnection() -> None:
     assert recovery(t, dv, None, 0.0, 70.0) == {"delta_v_in_window_mps": 21.0}
 
 
+def test_excursion_reads_a_mission_error_around_the_window() -> None:
+    from dashboards.sections.faults import excursion
+
+    t = np.arange(8) * 10.0
+    e = np.array([5.0, 4.0, 3.0, 9.0, 7.0, 6.0, 8.0, 2.0])
+    assert excursion(t, e, 20.0, 50.0) == {"at_start": 3.0, "max_in_window": 9.0, "at_end": 6.0, "excursion": 6.0,
+                                           "max_after": 8.0, "at_run_end": 2.0}
+    assert excursion(t, e, 60.0, None) == {"at_start": 8.0, "max_in_window": 8.0, "at_end": 2.0, "excursion": 0.0,
+                                           "at_run_end": 2.0}
+
+
+@pytest.mark.system
+def test_servicing_fault_scenario_reports_the_tracking_error_around_each_fault(tmp_path) -> None:
+    """deploy/scenarios/servicing-6-faults.toml cut to 100 s (its measurement dropout of s3 over
+    [60, 90) s): the report's faults section gives paper 004's largest tracking error around the
+    window, equal to max_i |q0 - q_i| recounted here from the recorded truth (defunct body and
+    servicers); the stuck-off fault after the run's end never started."""
+    from conftest import SCENARIOS
+    from dashboards.report import write_report
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    sc = load_scenario(SCENARIOS / "servicing-6-faults.toml").with_overrides(duration_s=100.0)
+    out = tmp_path / "s6f"
+    run_in_process(sc, out, "s6f", progress=False)
+    write_report(out)  # the site, with the mission sections
+    import json
+
+    met = json.loads((out / "summary.json").read_text())["metrics"]["faults"]
+    assert met["s2-thrusters"]["started_t_s"] is None  # at 250 s: after this run's end
+    blind = met["s3-blind"]
+    assert (blind["started_t_s"], blind["ended_t_s"]) == (60.0, 90.0)
+    t, err = [], []
+    for topic, _l, _p, m in read_mcap(out / "run.mcap"):
+        if topic == "truth":
+            pos = {b.id: np.array([b.position_m.x, b.position_m.y, b.position_m.z]) for b in m.bodies}
+            t.append(m.header.t)
+            err.append(max(np.linalg.norm(pos["defunct"] - pos[f"s{i}"]) for i in range(1, 7)))
+    t, err = np.array(t), np.array(err)
+    key = "largest servicer tracking error {} [m]"
+    k0, k1 = int(np.searchsorted(t, 60.0 - 1e-9)), int(np.searchsorted(t, 90.0 - 1e-9))
+    assert blind[key.format("at_start")] == pytest.approx(err[k0], rel=1e-12)
+    assert blind[key.format("max_in_window")] == pytest.approx(err[k0:k1].max(), rel=1e-12)
+    assert blind[key.format("at_run_end")] == pytest.approx(err[-1], rel=1e-12)
+    assert blind[key.format("excursion")] > 10.0 * blind[key.format("at_start")]  # blind, it leaves (docs/faults.md)
+
+
 def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
     from plant.faults import ActuationFaults, parse_faults
 

@@ -60,6 +60,35 @@ def controllers_of(config: dict[str, Any]) -> set[str]:
     return names
 
 
+@dataclass(frozen=True)
+class ErrorSeries:
+    """A mission's own error metric over a run (what its section calls the error: paper 004's
+    tracking error, ...), per recorded step, for the faults section's excursions."""
+
+    name: str                    # what it is, for the report ("largest servicer tracking error")
+    unit: str
+    t_s: Any                     # (T,) seconds
+    values: Any                  # (T,)
+
+
+ErrorMetric = Callable[[SectionContext], ErrorSeries]
+_ERROR_METRICS: dict[str, tuple[Callable[[dict[str, Any]], bool], ErrorMetric]] = {}
+
+
+def register_error_metric(name: str, applies: Callable[[dict[str, Any]], bool]) -> Callable[[ErrorMetric], ErrorMetric]:
+    """A mission's section declares its error metric (issue 27: recovery per mission)."""
+    def deco(fn: ErrorMetric) -> ErrorMetric:
+        _ERROR_METRICS[name] = (applies, fn)
+        return fn
+
+    return deco
+
+
+def error_metrics_for(config: dict[str, Any]) -> list[tuple[str, ErrorMetric]]:
+    _load()
+    return [(name, fn) for name, (applies, fn) in sorted(_ERROR_METRICS.items()) if applies(config)]
+
+
 def uses_controller(config: dict[str, Any], *names: str) -> bool:
     return bool(controllers_of(config) & set(names))
 

@@ -12,7 +12,8 @@ import numpy as np
 from dashboards.metrics import visibility_series, weak_components
 from dashboards.run_config import camera_from_config
 from dashboards.run_metrics import SERIES
-from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
+from dashboards.sections import (SectionContext, SectionResult, controllers_of, error_metrics_for,
+                                 register_section)
 
 
 def read_events(mcap: Path, topic: str, kinds: tuple[str, ...] | None = None) -> list[Any]:
@@ -54,6 +55,22 @@ def recovery(t_s: np.ndarray, delta_v_mps: np.ndarray, n_components: np.ndarray 
     return out
 
 
+def excursion(t_s: np.ndarray, values: np.ndarray, start_s: float, end_s: float | None) -> dict[str, Any]:
+    """A mission error metric around a fault's window [start_s, end_s): its value when the fault
+    starts, the largest in the window, its value at the end, the largest after it, its value when
+    the run ends, and the excursion (largest in the window minus the value at the start)."""
+    stop = float(t_s[-1]) if end_s is None else float(end_s)
+    k0 = min(int(np.searchsorted(t_s, start_s - 1e-9)), len(t_s) - 1)
+    k1 = min(int(np.searchsorted(t_s, stop - 1e-9)), len(t_s) - 1)
+    during = values[k0:max(k1, k0 + 1)]
+    out = {"at_start": float(values[k0]), "max_in_window": float(during.max()), "at_end": float(values[k1]),
+           "excursion": float(during.max() - values[k0])}
+    if k1 + 1 < len(values):
+        out["max_after"] = float(values[k1 + 1:].max())
+    out["at_run_end"] = float(values[-1])
+    return out
+
+
 SWARM_GRAPH_CONTROLLERS = {"null", "drift-null", "sabatini"}  # paper 002's laws: the swarm is its camera graph
 
 
@@ -79,12 +96,16 @@ def faults(ctx: SectionContext) -> SectionResult:
         seen.setdefault(e.subject, {})[e.kind] = round(e.header.t, 9)
     rows, metrics = [], {}
     ncomp = visibility_components(ctx)
+    errors = [fn(ctx) for _n, fn in error_metrics_for(ctx.config)] if ctx.truth is not None else []
     for f in ctx.config["faults"]:
         name = f["name"]
         what = {k: v for k, v in f.items() if k not in ("name", "kind", "start_s", "end_s")}
         started, ended = seen.get(name, {}).get("fault_start"), seen.get(name, {}).get("fault_end")
         rec = recovery(ctx.truth.t_s, ctx.truth.delta_v_mps, ncomp, f["start_s"], f["end_s"]) \
             if ctx.truth is not None and started is not None else {}
+        for err in errors if started is not None else ():
+            for k, v in excursion(err.t_s, err.values, f["start_s"], f["end_s"]).items():
+                rec[f"{err.name} {k} [{err.unit}]"] = v
         rows.append([name, f["kind"], json.dumps(what), f["start_s"], f["end_s"] if f["end_s"] is not None else "run end",
                      "no" if started is None else started, "-" if ended is None else ended,
                      ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in rec.items())])
@@ -93,7 +114,9 @@ def faults(ctx: SectionContext) -> SectionResult:
              f"of their events on the recording's <code>faults</code> topic; recovery: from the truth "
              f"(dashboards/sections/faults.py <code>recovery</code>): the swarm's ΔV in the window and, for paper 002's "
              f"camera swarms, the visibility digraph's weakly connected components and the time from the fault's end "
-             f"to one component.</p>")
+             f"to one component; where the mission's section defines an error metric "
+             f"({html.escape(', '.join(e.name for e in errors)) or 'none in this run'}), its value at the fault's start, "
+             f"largest in the window, at the end and largest after it (<code>excursion</code>).</p>")
     return SectionResult("Faults", metrics, [], intro + table(
         ["fault", "kind", "target and parameters", "start [s]", "end [s]", "started at [s]", "ended at [s]",
          "recovery (truth)"], rows))

@@ -32,7 +32,8 @@ import numpy as np
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
-from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from dashboards.sections import (ErrorSeries, SectionContext, SectionResult, register_error_metric,
+                                 register_section, uses_controller)
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 from missions.p004_lbdnn.contract import mission_from_params
 
@@ -186,6 +187,19 @@ def compute(ctx: SectionContext) -> tuple[dict[str, Any], dict[str, Any]]:
     }
     arrays = {"t": t, "e": e, "u": u, "dv": dv, "rel": pos - q0[:, None, :], "ids": sv}
     return met, arrays
+
+
+@register_error_metric(NAME, applies=lambda cfg: uses_controller(cfg, CONTROLLER))
+def largest_tracking_error(ctx: SectionContext) -> ErrorSeries:
+    """max_i ‖q0 − q_i‖ over the servicers per step (§6's tracking error, eq. (5)): the faults
+    section's per-mission excursion."""
+    truth, cfg = ctx.truth, ctx.config
+    body = read_body(ctx.mcap, defunct_id(cfg), truth.run)
+    keep = np.array([int(k) in body for k in truth.step])
+    q0 = np.array([body[int(k)][0] for k in truth.step if int(k) in body]).reshape(-1, 3)
+    cols = [truth.ids.index(s) for s in _servicers(cfg, truth.ids)]
+    e = tracking_errors(q0, truth.position_m[keep][:, cols])
+    return ErrorSeries("largest servicer tracking error", "m", truth.t_s[keep], e.max(axis=1))
 
 
 # --- figures ----------------------------------------------------------------------------------------
