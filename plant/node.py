@@ -22,6 +22,7 @@ from bus.truth_wire import HeaderEncoder, TruthEncoder
 from plant.config import PlantConfig
 from plant.contact import ContactMonitor
 from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
+from plant.flight import LocalFlightSoftware
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -44,7 +45,7 @@ class PlantNode:
 
     def __init__(self, bus: Bus, run: str, config: PlantConfig, *, expect_processes: tuple[str, ...] = ("recorder",),
                  barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
-                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None,
+                 local_agents: LocalFlightSoftware | None = None,
                  on_truth: Callable[..., None] | None = None) -> None:
         """`config`: the plant's configuration (plant/config.py; deploy/scenario.py `plant_config`
         builds it from a scenario)."""
@@ -93,10 +94,10 @@ class PlantNode:
         # hulls (issue 27, plant/contact.py): a contact or near-miss Event when two hulls touch or
         # come within the keep-out distance
         self.contact = ContactMonitor.of(config)
-        # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
-        # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
-        # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
-        # stand for the live agents' answers
+        # batch mode (issue 16): the flight software of every spacecraft in this process, through the
+        # plant's interface (plant/flight.py; deploy/batch.py implements it), called with the sensing
+        # kind's stimuli as arrays (`batch`, computed when it calls `sense()`) instead of one message
+        # per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
         self._local_all = False  # every spacecraft alive at the step of _local_cmd
@@ -300,7 +301,7 @@ class PlantNode:
         if self.local_agents is not None:
             self._local_all = all(alive)
             rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
-            self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
+            self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
             if not alive[j]:
@@ -417,7 +418,7 @@ class PlantNode:
                 break
             if self._rejoin:
                 self._apply_rejoins()
-            if self.local_agents is None:  # (the batch mode's commands come back from the hook)
+            if self.local_agents is None:  # (the batch mode's commands come back from local_agents)
                 self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()
