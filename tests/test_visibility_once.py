@@ -1,6 +1,7 @@
-"""The camera visibility rule and the weak-component count, as the plant, the reports and the viewer
-use them (issue 25: each was written three times), give the same values as the rule and the count
-written plainly here (pair by pair; scipy's connected_components), on random geometry with the
+"""The camera visibility rule and the weak-component count, written once in plant/sensors.py (issue
+25: each was written three times, in the plant, the reports and the viewer; this test compared the
+three before they were merged), give, as the plant, the reports and the viewer call them, the values
+of the rule and the count written plainly here (pair by pair; scipy's connected_components), on random geometry with the
 cases at the edges: on the field-of-view boundary, at the detection range, coincident, behind the
 camera, dead observers and dead targets, NaN and inf positions, the paper's and another camera."""
 from __future__ import annotations
@@ -10,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+from plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components, weakly_connected
 
 CAMS = [CameraGeometry(), CameraGeometry(detection_range_m=150.0, image_px=640, focal_px=300.0)]
 
@@ -55,8 +56,7 @@ def _weak_count(vis: np.ndarray, nodes: np.ndarray) -> int:
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
 def test_the_plant_the_reports_and_the_viewer_see_the_same_and_count_the_same() -> None:
     pytest.importorskip("rerun")
-    from dashboards.metrics import visibility_series, weak_components
-    from dashboards.rerun_bridge import CameraRule, visibility as viewer_visibility, weak_components as viewer_components
+    from dashboards.rerun_bridge import CameraRule
 
     rng = np.random.default_rng(25)
     edges = 0
@@ -72,11 +72,13 @@ def test_the_plant_the_reports_and_the_viewer_see_the_same_and_count_the_same() 
         for t in range(3):
             assert np.array_equal(visibility_matrix(pos[t], cam, alive[t]), want[t])   # the plant, per step
         assert np.array_equal(visibility_series(pos, cam, alive), want)                # the reports
-        assert np.array_equal(viewer_visibility(pos, alive, rule), want)               # the viewer
+        assert np.array_equal(visibility_series(pos, rule, alive), want)               # the viewer's CameraRule
         # components: the reports count every node (a dead one is still seen), the viewer the alive ones
         all_nodes = np.ones(n, dtype=bool)
         assert weak_components(want)[0].tolist() == [_weak_count(want[t], all_nodes) for t in range(3)]
-        assert viewer_components(want, alive).tolist() == [_weak_count(want[t], alive[t]) for t in range(3)]
+        n_alive, labels = weak_components(want, alive)
+        assert n_alive.tolist() == [_weak_count(want[t], alive[t]) for t in range(3)]
+        assert np.all((labels >= 0) == alive) and all(len(set(labels[t][alive[t]])) == n_alive[t] for t in range(3))
         for t in range(3):
             assert weakly_connected(want[t]) == (_weak_count(want[t], all_nodes) == 1)
     assert edges > 100  # the edge cases (FOV boundary, range) are seen, not only missed

@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.metrics import visibility_series, weak_components
 from dashboards.run_config import camera_from_config
 from dashboards.run_metrics import SERIES
 from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
+from plant.sensors import visibility_series, weak_components
 
 
 def read_events(mcap: Path, topic: str, kinds: tuple[str, ...] | None = None) -> list[Any]:
