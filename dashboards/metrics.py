@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from plant.sensors import CameraGeometry, in_view
+from plant.sensors import CameraGeometry, visibility_series, weak_components
 
 D_MIN_M = 100.0  # paper 002 section 3.2
 D_MIN_TRANS_M = 30.0
@@ -34,42 +34,6 @@ PARALLEL_MIN = 0.8  # Algorithm 1
 
 
 # --- graph --------------------------------------------------------------------------------------
-def visibility_series(position_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
-    """(T, N, N) bool: V[t, j, k] when j sees k at step t (plant/sensors.visibility_matrix of each
-    step; here for many steps per numpy call, the same comparisons: tests/test_metrics.py)."""
-    T, N, _ = position_m.shape
-    out = np.empty((T, N, N), dtype=bool)
-    for t0 in range(0, T, 256):
-        p = position_m[t0:t0 + 256]
-        in_view(p[:, None, :, :] - p[:, :, None, :], cam, out[t0:t0 + 256])
-    out[:, np.arange(N), np.arange(N)] = False
-    if alive is not None:
-        out &= np.asarray(alive, dtype=bool)[:, :, None]
-    return out
-
-
-def weak_components(vis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(n_components (T,), labels (T, N)) of the weakly connected components of each step's digraph."""
-    # all steps at once (issue 16: scipy per step was most of a campaign run's metrics time): every
-    # node takes the smallest index of its undirected neighbourhood until nothing changes, so each
-    # ends with the smallest node index of its component; components are then numbered in order of
-    # that index, which is scipy's connected_components numbering (tests/test_metrics.py)
-    T, N, _ = vis.shape
-    if T == 0 or N == 0:
-        return np.zeros(T, dtype=int), np.zeros((T, N), dtype=int)
-    adj = np.asarray(vis, dtype=bool)
-    adj = adj | adj.transpose(0, 2, 1)
-    lab = np.broadcast_to(np.arange(N), (T, N)).copy()
-    while True:
-        new = np.minimum(lab, np.where(adj, lab[:, None, :], N).min(axis=2))
-        if np.array_equal(new, lab):
-            break
-        lab = new
-    is_root = lab == np.arange(N)
-    rank = np.cumsum(is_root, axis=1) - 1
-    return is_root.sum(axis=1).astype(int), np.take_along_axis(rank, lab, axis=1).astype(int)
-
-
 def window_union(vis: np.ndarray, t_s: np.ndarray, window_s: float) -> np.ndarray:
     """(T, N, N) bool: j saw k at some step of (t - window_s, t]; e.g. one orbital period, so that a
     link lost over part of every relative orbit still counts."""

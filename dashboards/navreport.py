@@ -37,10 +37,10 @@ from typing import Any, Sequence
 import numpy as np
 
 from dashboards.kit import figures_of, render
-from dashboards.metrics import visibility_series, weak_components
 from dashboards.run_config import run_camera
 from dashboards.run_metrics import summary_with_metrics
 from dashboards.truth_io import TruthArrays, read_truth, run_id_of
+from plant.sensors import visibility_series, weak_components
 
 H = 3600.0
 TELEMETRY_SCHEMA = "swarmhil.v1.Telemetry"

@@ -75,6 +75,7 @@ from dashboards.rerun_bodies import (
     shape_ellipsoids,
     wxyz_to_xyzw,
 )
+from plant.sensors import visibility_series, weak_components
 
 rr = require("rerun", "the Rerun viewer (--viz, replay)")
 rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")
@@ -114,7 +115,8 @@ def id_colours(n: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class CameraRule:
-    """The camera of paper 002 as a visibility rule: range and square FOV about +y LVLH."""
+    """The camera of paper 002 as the viewer knows it from a recording: range and tan of the half
+    FOV (square, about +y LVLH); the rule itself is plant/sensors.py in_view (a VisibilityRule)."""
 
     detection_range_m: float = 500.0
     tan_half_fov: float = 0.54   # (image_px / 2) / focal_px = 540 / 1000
@@ -128,42 +130,6 @@ class CameraRule:
 
     def as_dict(self) -> dict[str, float]:
         return {"detection_range_m": self.detection_range_m, "tan_half_fov": self.tan_half_fov}
-
-
-def visibility(pos_m: np.ndarray, alive: np.ndarray, rule: CameraRule) -> np.ndarray:
-    """V[..., j, k]: k within range of j and inside j's square FOV about +y (paper 002 sec. 3.1, 5).
-
-    rel = r_k - r_j; visible iff rel_y > 0, |rel_x| <= tan*rel_y, |rel_z| <= tan*rel_y,
-    |rel| <= range. A dead observer sees nothing; a dead body is still seen. pos_m (..., N, 3),
-    alive (..., N).
-    """
-    rel = pos_m[..., None, :, :] - pos_m[..., :, None, :]
-    ahead = rel[..., 1]
-    tan = rule.tan_half_fov
-    vis = ((ahead > 0.0) & (np.abs(rel[..., 0]) <= tan * ahead) & (np.abs(rel[..., 2]) <= tan * ahead)
-           & (np.einsum("...i,...i->...", rel, rel) <= rule.detection_range_m ** 2))
-    n = pos_m.shape[-2]
-    vis &= ~np.eye(n, dtype=bool)
-    return vis & np.asarray(alive, bool)[..., :, None]
-
-
-def weak_components(vis: np.ndarray, alive: np.ndarray) -> np.ndarray:
-    """Number of weakly connected components of the digraph among alive nodes, per step.
-
-    vis (M, N, N), alive (M, N) -> (M,) int. Label propagation on the undirected graph: every node
-    takes the smallest label among itself and its neighbours until nothing changes (<= N rounds).
-    """
-    m, n, _ = vis.shape
-    adj = (vis | np.swapaxes(vis, 1, 2)) & alive[:, :, None] & alive[:, None, :]
-    big = n + 1
-    labels = np.where(alive, np.arange(n)[None, :], big)
-    for _ in range(n):
-        nb = np.where(adj, labels[:, None, :], big).min(axis=2)
-        new = np.minimum(labels, nb)
-        if np.array_equal(new, labels):
-            break
-        labels = new
-    return np.array([len(np.unique(row[row < big])) for row in labels])
 
 
 def roe_rel_to_position_m(roe_rel_m: np.ndarray, u_rad: Any, n_radps: float) -> np.ndarray:
@@ -561,14 +527,14 @@ class SwarmLogger:
         per_step = np.full(m, n)
         self._send(Paths.SWARM, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(per_step))
         self._send(Paths.TRAILS, steps, t_s, rr.Points3D.columns(positions=pos.reshape(-1, 3)).partition(per_step))
-        vis = visibility(pos, alive, self.camera)
+        vis = visibility_series(pos, self.camera, alive)
         s_idx, j_idx, k_idx = np.nonzero(vis)
         strips = np.stack([pos[s_idx, j_idx], pos[s_idx, k_idx]], axis=1)
         self._send(Paths.VISIBILITY, steps, t_s,
                    rr.LineStrips3D.columns(strips=strips, radii=np.full(len(strips), LINE_RADIUS_UI, np.float32),
                                            colors=np.tile(np.array(VISIBILITY_COLOUR, np.uint8), (len(strips), 1)))
                    .partition(np.bincount(s_idx, minlength=m)))
-        self._send(Paths.WCC, steps, t_s, rr.Scalars.columns(scalars=weak_components(vis, alive).astype(float)))
+        self._send(Paths.WCC, steps, t_s, rr.Scalars.columns(scalars=weak_components(vis, alive)[0].astype(float)))
         self._send(Paths.DV_TOTAL, steps, t_s, rr.Scalars.columns(scalars=np.stack([f.delta_v_mps for f in frames]).sum(axis=1)))
         for ti, tid in enumerate(f0.target_ids):
             self._send(Paths.target(tid), steps, t_s,

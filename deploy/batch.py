@@ -4,7 +4,8 @@ spacecraft in one loop, without a message between them.
 `run_in_process(..., record="truth")` uses it when the scenario allows (`why_not_batch`): the
 plant node (plant/node.py) computes each step's truth and publishes it (and its events) to the
 recorder as always, but instead of one stimulus message per spacecraft it hands the sensing
-kind's stimuli as arrays (`batch`) to `BatchHook`, which runs the spacecraft's flight software
+kind's stimuli as arrays (`batch`) to `BatchHook` (through the plant's interface for it,
+plant/flight.py LocalFlightSoftware), which runs the spacecraft's flight software
 together (agent/batch.py: the same controllers, through `step_batch`) and returns their commands.
 The values are those of the message path (protobuf doubles carry float64 exactly), so the truth
 is the same, bit for bit, as that of the per-agent in-process run and of the multi-process run
@@ -21,6 +22,8 @@ import numpy as np
 from agent.batch import BatchAgents
 from agent.controller import ObservationBatch, OrbitInfo
 from bus.keys import Keys
+from plant.flight import LocalFlightSoftware, StimulusBatch
+from plant.sensing.registry import SensingContext
 
 
 def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
@@ -43,8 +46,8 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     return None
 
 
-class BatchHook:
-    """The plant's `local_agents`: arrays of stimuli in, the (N, 3) commands in force out."""
+class BatchHook(LocalFlightSoftware):
+    """The plant's `local_agents` (plant/flight.py): arrays of stimuli in, the (N, 3) commands in force out."""
 
     def __init__(self, bus: Any, run: str, sc: Any) -> None:
         from deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -62,7 +65,7 @@ class BatchHook:
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
         self._empty: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # observers -> (offsets, (0, 3))
 
-    def __call__(self, ctx: Any, rows: np.ndarray, sense: Callable[[], Any]) -> np.ndarray:
+    def commands(self, ctx: SensingContext, rows: np.ndarray, sense: Callable[[], StimulusBatch]) -> np.ndarray:
         """`sense()` gives the stimuli of the observers `rows` (RelBatch); not called when no
         controller of the batch looks at its observation (`observes = False`, agent/controller.py)."""
         ids = self.ids

@@ -79,14 +79,13 @@ def _pair_value(kind: str, a: Any, b: Any) -> float | None:
 
 def connectivity_windows(run_directory: Path, window_s: float) -> dict[str, Any] | None:
     """Per-step weak connectivity of a run in windows [k w, (k+1) w) of simulated time, from its
-    recorded truth (dashboards/metrics.py: the same visibility digraph and components as the
+    recorded truth (plant/sensors.py: the same visibility digraph and components as the
     run's metrics), and the mean number of visibility edges per step; None without a recording."""
     mcap = Path(run_directory) / "run.mcap"
     if not mcap.is_file():
         return None
-    from dashboards.metrics import visibility_series, weak_components  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from dashboards.truth_io import read_truth  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from plant.sensors import CameraGeometry, visibility_series, weak_components  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     cam_cfg = json.loads((Path(run_directory) / "summary.json").read_text())["config"]["camera"]
     truth = read_truth(mcap)

@@ -27,7 +27,7 @@ from bus import swarmhil_pb2 as pb
 from bus.keys import Keys
 from deploy.companions import enabled_companions
 from deploy.external import JoinTimeout, external_ids, join_hosts, start_external
-from deploy.scenario import Scenario, resolved_document
+from deploy.scenario import Scenario, plant_config, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
 
@@ -140,7 +140,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
         if why is None:
             hook = BatchHook(bus, run, sc)
     summary["record"] = record
-    plant = PlantNode(bus, run, sc, expect_processes=("recorder", *[c.name for c in comps]),
+    plant = PlantNode(bus, run, plant_config(sc), expect_processes=("recorder", *[c.name for c in comps]),
                       barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update if progress else None,
                       local_agents=hook)
     log = None

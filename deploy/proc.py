@@ -20,7 +20,7 @@ from typing import Any
 from bus.faults import faults_for
 from bus.faults import wrap as with_faults
 from bus.zenoh_bus import ZenohBus
-from deploy.scenario import load_scenario, resolved_document
+from deploy.scenario import load_scenario, plant_config, resolved_document
 from deploy.stopping import Stop, stop_on_signals
 
 # An agent's Zenoh lease: a frozen (SIGSTOPped) agent's liveliness token goes after this long.
@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         bus = with_faults(ZenohBus(args.router, credential=cred, direct=faults_for("plant") is None), "plant")
         _watch_router(bus, stop)
         comps = tuple(c for c in args.companions.split(",") if c)
-        node = PlantNode(bus, args.run, sc, expect_processes=("recorder", *comps),
+        node = PlantNode(bus, args.run, plant_config(sc), expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
         from deploy.external import plant_ready_timeout_s  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 

@@ -296,6 +296,27 @@ def resolved_document(sc: Scenario) -> dict[str, Any]:
     return {"source": sc.source, "sets": list(sc.sets), "doc": sc.doc}
 
 
+def plant_config(sc: Scenario) -> Any:
+    """The plant's configuration (plant/config.py PlantConfig): what of the scenario the plant reads,
+    frozen; the plant is given this, never the Scenario (the agent's counterpart is agent_config)."""
+    from plant.config import PlantConfig, PlantOrbit, freeze  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+    o = sc.orbit
+    roe = np.array(sc.roe_m, dtype=float)
+    roe.setflags(write=False)
+    return PlantConfig(
+        ids=tuple(sc.ids), steps=sc.steps, step_s=sc.step_s, seed=sc.seed, mode=sc.mode,  # type: ignore[arg-type]
+        speed=sc.speed, stall_timeout_s=sc.stall_timeout_s,
+        orbit=PlantOrbit(semi_major_axis_m=o.semi_major_axis_m, inclination_rad=o.inclination_rad,
+                         raan_rad=o.raan_rad, u0_rad=o.u0_rad, mean_motion_radps=o.mean_motion_radps,
+                         eccentricity=o.eccentricity, argp_rad=o.argp_rad),
+        fidelity=sc.fidelity, drag=freeze(sc.drag), max_accel_mps2=sc.max_accel_mps2,
+        actuator_limit=sc.actuator_limit, plant_options=freeze(sc.plant_options), roe_m=roe,
+        spacecraft=tuple(sc.spacecraft), bodies=tuple(sc.bodies), camera=freeze(sc.camera),
+        sensing=freeze(sc.sensing), controllers=tuple((c, freeze(p)) for c, p in map(sc.controller_of, sc.ids)),
+        faults=tuple(sc.faults), contact=sc.contact)
+
+
 def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:

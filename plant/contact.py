@@ -18,10 +18,13 @@ records again only after it has left that zone.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
+
+if TYPE_CHECKING:  # (plant/config.py imports this module's ContactConfig)
+    from plant.config import PlantConfig
 
 DEFAULT_RADIUS_M = 0.5
 
@@ -97,12 +100,12 @@ class ContactMonitor:
     near_misses: list[dict[str, Any]] = field(default_factory=list)
 
     @staticmethod
-    def of(sc: Any) -> "ContactMonitor":
-        cfg = getattr(sc, "contact", None) or ContactConfig()
+    def of(sc: PlantConfig) -> "ContactMonitor":
+        cfg = sc.contact or ContactConfig()
         r0 = 0.0 if cfg.point_masses else cfg.default_radius_m
         radii = np.array([r0 if cfg.point_masses or getattr(s, "radius_m", None) is None else s.radius_m
                           for s in sc.spacecraft], dtype=float)
-        bodies = list(getattr(sc, "bodies", []) or [])
+        bodies = list(sc.bodies)
         body_r = {b.id: r0 if cfg.point_masses or getattr(b, "radius_m", None) is None else b.radius_m for b in bodies}
         return ContactMonitor(list(sc.ids), radii, bodies, body_r, cfg)
 

@@ -35,6 +35,7 @@ from typing import Any, Callable
 import numpy as np
 
 from plant.bodies import BodySpec, manoeuvre_accel
+from plant.config import PlantConfig
 from plant.dynamics import roe_linear
 from plant.dynamics.absolute_j2 import kepler_to_eci
 from plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, quat_multiply
@@ -77,7 +78,8 @@ class BodyTruth:
 
 
 class MissionWorld:
-    def __init__(self, sc: Any) -> None:
+    def __init__(self, sc: PlantConfig) -> None:
+        """`sc`: the plant's configuration (plant/config.py)."""
         o = sc.orbit
         self.ids = list(sc.ids)
         self.index = {sid: i for i, sid in enumerate(self.ids)}
@@ -165,7 +167,7 @@ class MissionWorld:
                                                max_torque_nm=tmax if np.all(np.isfinite(tmax)) else None)
 
     @staticmethod
-    def _max_accel(s: Any, sc: Any) -> float:
+    def _max_accel(s: Any, sc: PlantConfig) -> float:
         if s.max_accel_mps2 is not None:
             return float(s.max_accel_mps2)
         if s.max_force_n is not None:

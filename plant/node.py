@@ -19,8 +19,10 @@ from bus.base import Bus
 from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
 from bus.keys import Keys
 from bus.truth_wire import HeaderEncoder, TruthEncoder
+from plant.config import PlantConfig
 from plant.contact import ContactMonitor
 from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
+from plant.flight import LocalFlightSoftware
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -41,25 +43,28 @@ class PlantStats:
 class PlantNode:
     AGENT_PREFIX = "agent-"
 
-    def __init__(self, bus: Bus, run: str, scenario: Any, *, expect_processes: tuple[str, ...] = ("recorder",),
+    def __init__(self, bus: Bus, run: str, config: PlantConfig, *, expect_processes: tuple[str, ...] = ("recorder",),
                  barriers: tuple[str, ...] = (), progress: Callable[[int, float], None] | None = None,
-                 local_agents: Callable[[SensingContext, np.ndarray, Callable[[], Any]], np.ndarray] | None = None,
+                 local_agents: LocalFlightSoftware | None = None,
                  on_truth: Callable[..., None] | None = None) -> None:
+        """`config`: the plant's configuration (plant/config.py; deploy/scenario.py `plant_config`
+        builds it from a scenario)."""
         self.bus = bus
         self.keys = Keys(run)
         self._k_truth, self._k_clock = self.keys.truth, self.keys.clock  # (built once: keys of every step)
         self.run_id = run
-        self.sc = scenario
-        o = scenario.orbit
-        if scenario.fidelity in ("linear", "j2"):  # paper 002's ROE plants (bit-identical since issue 2)
+        self.cfg = config
+        o = config.orbit
+        if config.fidelity in ("linear", "j2"):  # paper 002's ROE plants (bit-identical since issue 2)
             self.world: World | MissionWorld = World(
-                scenario.ids, scenario.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
-                raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=scenario.fidelity, drag=scenario.drag,
-                max_accel_mps2=scenario.max_accel_mps2)
+                list(config.ids), config.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
+                raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=config.fidelity, drag=config.drag,
+                max_accel_mps2=config.max_accel_mps2)
         else:
-            self.world = MissionWorld(scenario)
-        self.step_s = scenario.step_s
-        self.pacer: Pacer = Lockstep(scenario.stall_timeout_s) if scenario.mode == "lockstep" else RealTime(scenario.step_s, scenario.speed)
+            self.world = MissionWorld(config)
+        self.step_s = config.step_s
+        self.pacer: Pacer = (Lockstep(config.stall_timeout_s) if config.mode == "lockstep"
+                             else RealTime(config.step_s, config.speed))
         self.box = CommandBox()
         self.rejections = Rejections("plant")
         self.stats = PlantStats()
@@ -69,41 +74,41 @@ class PlantNode:
         self.present: set[str] = set()      # processes whose liveliness token is up
         self.seen_alive: set[str] = set()   # agents that were up once
         self._rejoin: set[str] = set()      # dead agents whose token is back: alive again at the next step
-        self.held = np.zeros((len(scenario.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
+        self.held = np.zeros((len(config.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
         self._seq: dict[str, int] = {}
         self._step = 0
         self.timing: dict[str, float] = {}
-        self._sense_keys = [self.keys.sense(sid, scenario.sensing["kind"]) for sid in scenario.ids]
-        self.sensor = make_sensing(scenario.sensing["kind"], scenario)
+        self._sense_keys = [self.keys.sense(sid, config.sensing["kind"]) for sid in config.ids]
+        self.sensor = make_sensing(config.sensing["kind"], config)
         # [[fault]] (issue 27, plant/faults.py): actuator faults act in the world's actuator model,
         # sensing faults on the stimuli; each fault's start and end is an Event on `faults`
-        self._faults = list(getattr(scenario, "faults", None) or [])
+        self._faults = list(config.faults)
         self._sensing_faults: SensingFaults | None = None
         self._paused: set[str] = set()  # agents a process_pause fault holds out of the lockstep
         if self._faults:
-            actuation = ActuationFaults(self._faults, scenario.ids, scenario.step_s)
+            actuation = ActuationFaults(self._faults, list(config.ids), config.step_s)
             if actuation:
                 self.world.actuation_faults = actuation
-            sensing = SensingFaults(self._faults, scenario.ids, scenario.step_s, scenario.seed)
+            sensing = SensingFaults(self._faults, list(config.ids), config.step_s, config.seed)
             self._sensing_faults = sensing if sensing else None
         # hulls (issue 27, plant/contact.py): a contact or near-miss Event when two hulls touch or
         # come within the keep-out distance
-        self.contact = ContactMonitor.of(scenario)
-        # batch mode (issue 16, deploy/batch.py): the flight software of every spacecraft in this
-        # process, called with the sensing kind's stimuli as arrays (`batch`, computed when the hook
-        # calls `sense()`) instead of one message per spacecraft; returns the (N, 3) commands, which
-        # stand for the live agents' answers
+        self.contact = ContactMonitor.of(config)
+        # batch mode (issue 16): the flight software of every spacecraft in this process, through the
+        # plant's interface (plant/flight.py; deploy/batch.py implements it), called with the sensing
+        # kind's stimuli as arrays (`batch`, computed when it calls `sense()`) instead of one message
+        # per spacecraft; returns the (N, 3) commands, which stand for the live agents' answers
         self.local_agents = local_agents
         self._local_cmd: np.ndarray | None = None
         self._local_all = False  # every spacecraft alive at the step of _local_cmd
-        self._all_rows = np.arange(len(scenario.ids))  # the observers when all are alive
+        self._all_rows = np.arange(len(config.ids))  # the observers when all are alive
         self._all_rows.setflags(write=False)
         # on_truth(step, t_s, u_rad, position, velocity, delta_v, alive, accel_cmd, roe): the values
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
         self.on_truth = on_truth
         if local_agents is not None and not hasattr(self.sensor, "batch"):
-            raise ValueError(f"sensing kind {scenario.sensing['kind']!r} has no batch form")
+            raise ValueError(f"sensing kind {config.sensing['kind']!r} has no batch form")
         # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
         # same bytes); on an in-process bus, samples stamped with their simulation time, and the
         # tick built only when someone receives it (bus/memory.py)
@@ -258,7 +263,7 @@ class PlantNode:
         """Tick, truth and stimuli of the current step (arrays turned into lists once: numpy
         scalar access per field costs more than the rest of the step)."""
         k = self._step
-        final = final or k >= self.sc.steps
+        final = final or k >= self.cfg.steps
         if self._faults:
             self._fault_events(final)
         u = self.world.u_rad
@@ -296,7 +301,7 @@ class PlantNode:
         if self.local_agents is not None:
             self._local_all = all(alive)
             rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
-            self._local_cmd = self.local_agents(ctx, rows, lambda: self.sensor.batch(ctx, rows))
+            self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             return
         for j, sid in enumerate(ids):
             if not alive[j]:
@@ -369,7 +374,7 @@ class PlantNode:
         missing = sorted(self._expected() - got.keys())
         if lockstep and missing:
             self._event("lockstep_stall", "plant", f"step {k}: no command or barrier from {missing[:10]} within "
-                                                   f"the stall timeout ({self.sc.stall_timeout_s:.0f} s wall); "
+                                                   f"the stall timeout ({self.cfg.stall_timeout_s:.0f} s wall); "
                                                    f"agents among them are dropped")
         for b in self.barriers:
             if f"sync:{b}" not in got and not lockstep:
@@ -381,7 +386,7 @@ class PlantNode:
             elif self.world.alive[i]:
                 self.stats.missed_deadlines[sid] = self.stats.missed_deadlines.get(sid, 0) + 1
                 if lockstep:
-                    self._mark_dead(sid, f"lockstep stall: no command for step {k} within {self.sc.stall_timeout_s:.0f} s "
+                    self._mark_dead(sid, f"lockstep stall: no command for step {k} within {self.cfg.stall_timeout_s:.0f} s "
                                          f"while its liveliness token was up")
                 else:
                     self._event("deadline_missed", sid, f"no command for step {k}; holding the previous one")
@@ -403,17 +408,17 @@ class PlantNode:
 
     def run(self, should_stop: Callable[[], bool] = lambda: False) -> dict[str, Any]:
         """Run every step (or until should_stop() is true: the run then ends early, cleanly)."""
-        self._event("run_start", "plant", json.dumps({"agents": len(self.world.ids), "steps": self.sc.steps, "mode": self.sc.mode}))
+        self._event("run_start", "plant", json.dumps({"agents": len(self.world.ids), "steps": self.cfg.steps, "mode": self.cfg.mode}))
         self.pacer.start()
         wall0 = time.monotonic()
         t_pub = t_loop = 0.0
-        for k in range(self.sc.steps):
+        for k in range(self.cfg.steps):
             if should_stop():
-                self._event("run_stopped", "plant", f"stopped at step {k} of {self.sc.steps}")
+                self._event("run_stopped", "plant", f"stopped at step {k} of {self.cfg.steps}")
                 break
             if self._rejoin:
                 self._apply_rejoins()
-            if self.local_agents is None:  # (the batch mode's commands come back from the hook)
+            if self.local_agents is None:  # (the batch mode's commands come back from local_agents)
                 self.box.open(k)
             c0 = time.perf_counter()
             self.publish_step()

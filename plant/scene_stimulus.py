@@ -6,16 +6,16 @@ Pointing error per observer: the scenario's constant `[sensing].pointing_error_r
 """
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 
 from bus import swarmhil_pb2 as pb
+from plant.config import PlantConfig
 from plant.scene import matrix_to_quaternion_wxyz, scene
 
 
 class SceneStimulusBuilder:
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.ids = list(scenario.ids)
         self.max_range_m = float(scenario.camera["detection_range_m"])
         self.tan_half_fov = (scenario.camera["image_px"] / 2.0) / scenario.camera["focal_px"]

@@ -7,8 +7,23 @@ which points along-track (+y LVLH, paper 002 section 3.1 / 5).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+
+
+ALONG_TRACK = (0.0, 1.0, 0.0)
+
+
+class VisibilityRule(Protocol):
+    """What the rule reads of a camera: CameraGeometry (a scenario's [camera]) or the viewer's
+    CameraRule (dashboards/rerun_bridge.py: a recording's range and tan of the half FOV)."""
+
+    @property
+    def detection_range_m(self) -> float: ...
+
+    @property
+    def tan_half_fov(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -16,7 +31,11 @@ class CameraGeometry:
     detection_range_m: float = 500.0
     image_px: int = 1080
     focal_px: float = 1000.0
-    boresight: tuple[float, float, float] = (0.0, 1.0, 0.0)  # LVLH, along-track
+    boresight: tuple[float, float, float] = ALONG_TRACK  # LVLH, along-track
+
+    def __post_init__(self) -> None:
+        if tuple(self.boresight) != ALONG_TRACK:
+            raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
 
     @property
     def tan_half_fov(self) -> float:
@@ -24,7 +43,7 @@ class CameraGeometry:
         return (self.image_px / 2.0) / self.focal_px
 
 
-def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None = None) -> np.ndarray:
+def visibility_matrix(pos_m: np.ndarray, cam: VisibilityRule, alive: np.ndarray | None = None) -> np.ndarray:
     """V[j, k] = True when k is within range and inside j's square FOV (boresight +y LVLH).
 
     For boresight +y: rel = r_k - r_j must have rel_y > 0, |rel_x| <= tan * rel_y,
@@ -39,12 +58,24 @@ def visibility_matrix(pos_m: np.ndarray, cam: CameraGeometry, alive: np.ndarray 
     return vis
 
 
-def in_view(rel: np.ndarray, cam: CameraGeometry, out: np.ndarray) -> np.ndarray:
-    """out[..., j, k] = r_k - r_j (rel[..., j, k, :]) is within range and inside j's square FOV
-    (`visibility_matrix`'s rule, for any leading axes: dashboards/metrics.py evaluates many steps
-    at once)."""
-    if cam.boresight != (0.0, 1.0, 0.0):
-        raise NotImplementedError("only the along-track (+y) boresight of paper 002 is modelled")
+def visibility_series(position_m: np.ndarray, cam: VisibilityRule, alive: np.ndarray | None = None) -> np.ndarray:
+    """(T, N, N) bool: V[t, j, k] when j sees k at step t (`visibility_matrix` of each step, for many
+    steps per numpy call: the same comparisons). position_m (T, N, 3), alive (T, N). The reports
+    (dashboards/metrics.py) and the viewer (dashboards/rerun_bridge.py) use it."""
+    T, N, _ = position_m.shape
+    out = np.empty((T, N, N), dtype=bool)
+    for t0 in range(0, T, 256):
+        p = position_m[t0:t0 + 256]
+        in_view(p[:, None, :, :] - p[:, :, None, :], cam, out[t0:t0 + 256])
+    out[:, np.arange(N), np.arange(N)] = False
+    if alive is not None:
+        out &= np.asarray(alive, dtype=bool)[:, :, None]
+    return out
+
+
+def in_view(rel: np.ndarray, cam: VisibilityRule, out: np.ndarray) -> np.ndarray:
+    """out[..., j, k] = r_k - r_j (rel[..., j, k, :]) is within range and inside j's square FOV about
+    +y LVLH (paper 002 sec. 3.1, 5): the camera visibility rule, written once (for any leading axes)."""
     ahead = rel[..., 1]
     lim = cam.tan_half_fov * ahead
     np.greater(ahead, 0.0, out=out)
@@ -54,22 +85,41 @@ def in_view(rel: np.ndarray, cam: CameraGeometry, out: np.ndarray) -> np.ndarray
     return out
 
 
-def weakly_connected(vis: np.ndarray) -> bool:
-    """True when the digraph vis (N x N, bool) is weakly connected (one component, N >= 1).
+def weak_components(vis: np.ndarray, nodes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(n_components (T,), labels (T, N)) of the weakly connected components of each step's digraph
+    vis (T, N, N), written once: the scenario check (`weakly_connected`), the reports and the viewer.
 
-    Breadth-first over the undirected graph with numpy (exact, like scipy's connected_components,
-    which it replaced so that a process loading a scenario does not import scipy.sparse, issue 16).
+    `nodes` (T, N) bool: count the components of the subgraph of those nodes only (the viewer: the
+    alive spacecraft); the others get label -1. Default: every node (the reports: a dead spacecraft
+    is still seen). All steps at once (issue 16: scipy per step was most of a campaign run's metrics
+    time): every node takes the smallest index of its undirected neighbourhood until nothing
+    changes, so each ends with the smallest node index of its component; components are numbered
+    in order of that index, which is scipy's connected_components numbering (tests/test_metrics.py).
     """
+    T, N, _ = vis.shape
+    if T == 0 or N == 0:
+        return np.zeros(T, dtype=int), np.zeros((T, N), dtype=int)
     adj = np.asarray(vis, dtype=bool)
-    n = adj.shape[0]
-    if n == 0:
-        return False
-    adj = adj | adj.T
-    reach = np.zeros(n, dtype=bool)
-    reach[0] = True
-    frontier = reach.copy()
-    while frontier.any():
-        new = adj[frontier].any(axis=0) & ~reach
-        reach |= new
-        frontier = new
-    return bool(reach.all())
+    adj = adj | adj.transpose(0, 2, 1)
+    if nodes is not None:
+        keep = np.asarray(nodes, dtype=bool)
+        adj = adj & keep[:, :, None] & keep[:, None, :]
+    lab = np.broadcast_to(np.arange(N), (T, N)).copy()
+    while True:
+        new = np.minimum(lab, np.where(adj, lab[:, None, :], N).min(axis=2))
+        if np.array_equal(new, lab):
+            break
+        lab = new
+    is_root = lab == np.arange(N)
+    if nodes is not None:
+        is_root &= keep
+    rank = np.cumsum(is_root, axis=1) - 1
+    labels = np.take_along_axis(rank, lab, axis=1).astype(int)
+    if nodes is not None:
+        labels[~keep] = -1
+    return is_root.sum(axis=1).astype(int), labels
+
+
+def weakly_connected(vis: np.ndarray) -> bool:
+    """True when the digraph vis (N x N, bool) is weakly connected (one component, N >= 1)."""
+    return bool(weak_components(np.asarray(vis, dtype=bool)[None])[0][0] == 1)

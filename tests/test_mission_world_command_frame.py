@@ -9,7 +9,7 @@ import copy
 import numpy as np
 import pytest
 
-from deploy.scenario import ScenarioError, parse_scenario
+from deploy.scenario import ScenarioError, parse_scenario, plant_config
 from plant.dynamics.absolute_j2 import kepler_to_eci
 from plant.dynamics.constants import MU_EARTH_M3PS2
 from plant.dynamics.frames import lvlh_basis
@@ -30,7 +30,7 @@ DOC = {
 def _world(**plant: object) -> MissionWorld:
     doc = copy.deepcopy(DOC)
     doc["plant"].update(plant)
-    return MissionWorld(parse_scenario(doc, "command-frame-test"))
+    return MissionWorld(plant_config(parse_scenario(doc, "command-frame-test")))
 
 
 def test_eci_commands_are_applied_unrotated_and_recorded_in_the_scenario_frame() -> None:
@@ -68,7 +68,7 @@ def test_eccentric_reference_orbit() -> None:
     doc["orbit"].update(eccentricity=e, argp_deg=argp, u0_deg=u0, raan_deg=10.0)
     sc = parse_scenario(doc, "t")
     assert sc.resolved()["orbit"]["eccentricity"] == e and sc.resolved()["orbit"]["argp_deg"] == pytest.approx(argp)
-    _, r, v = MissionWorld(sc).eci()
+    _, r, v = MissionWorld(plant_config(sc)).eci()
     want_r, want_v = kepler_to_eci(a, e, np.radians(30.0), np.radians(10.0), np.radians(argp), np.radians(u0 - argp))
     assert np.abs(r[0] - want_r).max() < 1e-6 and np.abs(v[0] - want_v).max() < 1e-9
     energy = 0.5 * v[0] @ v[0] - MU_EARTH_M3PS2 / np.linalg.norm(r[0])

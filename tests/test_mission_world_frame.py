@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from deploy.scenario import parse_scenario
+from deploy.scenario import parse_scenario, plant_config
 from plant.mission_world import MissionWorld
 
 
@@ -22,7 +22,7 @@ def _world() -> tuple[MissionWorld, float]:
         ],
     }
     sc = parse_scenario(doc, "frame-origin-test")
-    return MissionWorld(sc), sc.step_s
+    return MissionWorld(plant_config(sc)), sc.step_s
 
 
 @pytest.mark.parametrize("thrust", [[0.0, 0.0, 0.0], [0.3, -0.5, 2.0]])

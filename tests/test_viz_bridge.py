@@ -18,8 +18,7 @@ from bus import swarmhil_pb2 as pb
 from bus.codec import vec
 from bus.keys import Keys
 from dashboards.replay import read_rrd
-from dashboards.rerun_bridge import (DEAD_COLOUR, MODE_COLOURS, CameraRule, Paths, SwarmLogger, mode_colour,
-                                     visibility, weak_components)
+from dashboards.rerun_bridge import DEAD_COLOUR, MODE_COLOURS, CameraRule, Paths, SwarmLogger, mode_colour
 from plant.sensors import CameraGeometry, visibility_matrix
 
 RUN = "viztest"
@@ -29,38 +28,10 @@ N_RADPS = float(np.sqrt(3.986004418e14 / A_M**3))
 STEP_S = 10.0
 
 
-def test_visibility_matches_the_plant_rule() -> None:
-    rng = np.random.default_rng(1)
-    rule, cam = CameraRule(), CameraGeometry()
-    for _ in range(50):
-        pos = rng.normal(scale=[60.0, 300.0, 60.0], size=(12, 3))
-        alive = rng.random(12) > 0.2
-        np.testing.assert_array_equal(visibility(pos, alive, rule), visibility_matrix(pos, cam, alive))
-    # batched over steps gives the same as one step at a time
-    pos = rng.normal(scale=[60.0, 300.0, 60.0], size=(5, 12, 3))
-    alive = np.ones((5, 12), bool)
-    batch = visibility(pos, alive, rule)
-    for s in range(5):
-        np.testing.assert_array_equal(batch[s], visibility_matrix(pos[s], cam, alive[s]))
-
-
+# the viewer's visibility and component count are the plant's (plant/sensors.py): tests/test_visibility_once.py
 def test_camera_rule_from_scenario_is_half_image_over_focal() -> None:
     rule = CameraRule.from_scenario({"detection_range_m": 300.0, "image_px": 1080, "focal_px": 1000.0})
     assert rule.detection_range_m == 300.0 and rule.tan_half_fov == pytest.approx(0.54)
-
-
-def test_weak_components_match_scipy() -> None:
-    from scipy.sparse.csgraph import connected_components
-
-    rng = np.random.default_rng(2)
-    vis = rng.random((40, 15, 15)) < 0.08
-    alive = rng.random((40, 15)) > 0.15
-    got = weak_components(vis, alive)
-    for s in range(40):
-        idx = np.flatnonzero(alive[s])
-        sub = vis[s][np.ix_(idx, idx)]
-        want = connected_components(sub, directed=True, connection="weak")[0] if len(idx) else 0
-        assert got[s] == want
 
 
 def test_unknown_modes_get_a_stable_colour() -> None:

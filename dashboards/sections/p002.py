@@ -24,6 +24,7 @@ from dashboards.kit import approach, check, fmt, head_table, line_figure, pct, s
 from dashboards.metrics import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN, SwarmMetrics, relative_to_com
 from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
 from dashboards.truth_io import TruthArrays
+from plant.sensors import weak_components
 
 NAME = "p002-swarm"
 PAPER002_CONTROLLERS = {"null", "drift-null", "sabatini"}
@@ -80,9 +81,7 @@ def draw_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, label: str):  # 
     ids = truth.ids
     n = len(ids)
     comp_colors = _colors(max(1, m.n_components[row]))
-    from scipy.sparse.csgraph import connected_components
-
-    _nc, labels = connected_components(vis, directed=True, connection="weak")
+    labels = weak_components(vis[None])[1][0]  # (scipy's connected_components numbering)
     node_c = [comp_colors[lab % len(comp_colors)] for lab in labels]
     fig, ax = plt.subplots(1, 2, figsize=(12, 5.4), gridspec_kw={"width_ratios": [1.6, 1]})
     a = ax[0]

@@ -4,7 +4,7 @@ model (issue 11). A mission adds a kind by registering a class here, without edi
     @register_sensing("my-kind", validate=MyParams.model_validate)
     class MyKind:
         message = pb.Measurements
-        def __init__(self, scenario): ...
+        def __init__(self, config: PlantConfig): ...   # plant/config.py
         def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements: ...
 
 The kind's message goes out on `sc/<id>/sense/<kind>`; `rel` and `scene` have their own messages

@@ -10,13 +10,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
+from plant.config import PlantConfig
 from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
 from plant.sensing.registry import SensingContext, register_sensing
 from plant.sensors import CameraGeometry, visibility_matrix
@@ -25,7 +25,7 @@ from plant.sensors import CameraGeometry, visibility_matrix
 class _SensorNoise:
     """Paper 002 section 5: Gaussian noise as a fraction of each ROE component of the pair (seeded)."""
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.frac = float(scenario.sensing["roe_noise_fraction"])
         self.n = scenario.orbit.mean_motion_radps
         self.rng = np.random.default_rng([int(scenario.seed), 0x5E45])
@@ -47,7 +47,7 @@ class _SensorNoise:
 class RelKind:
     message = pb.RelStimulus
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.cam = CameraGeometry(**scenario.camera)
         self.noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
 
@@ -104,7 +104,7 @@ class RelBatch:
 class SceneKind:
     message = pb.SceneStimulus
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         from plant.scene_stimulus import SceneStimulusBuilder  # scene sensing only: the scene model and scipy's Rotation
 
         self.builder = SceneStimulusBuilder(scenario)
@@ -132,7 +132,7 @@ class RelativeKind:
 
     message = pb.Measurements
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.p = RelativeParams.model_validate(scenario.sensing.get("params", {}))
         self.rng = np.random.default_rng([int(scenario.seed), 0x4E1A])
 

@@ -39,6 +39,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
 from missions.p000_capture import contract as c
+from plant.config import PlantConfig
 from plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p000-landmarks"
@@ -106,7 +107,7 @@ def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.nd
 class P000LandmarkKind:
     message = pb.Measurements
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.p = P000Params.model_validate(scenario.sensing.get("params", {}))
         body = next((b for b in scenario.bodies if b.id == self.p.target_id), None)
         if body is None:

@@ -17,13 +17,13 @@ axis), seeded by [run].seed; a target beyond `range_m` is not measured (the item
 """
 from __future__ import annotations
 
-from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
+from plant.config import PlantConfig
 from plant.sensing.registry import SensingContext, register_sensing
 
 TARGET_PREFIX = "p003.target_rel"
@@ -45,7 +45,7 @@ class P003Params(BaseModel):
 class P003RelativeKind:
     message = pb.Measurements
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.p = P003Params.model_validate(scenario.sensing.get("params", {}))
         if self.p.leader_id not in scenario.ids:
             raise ValueError(f"[sensing.params].leader_id {self.p.leader_id!r} is not a spacecraft; "

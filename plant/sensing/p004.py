@@ -23,7 +23,6 @@ neighbour is not measured.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -31,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
 from missions.p004_lbdnn.contract import CONTROLLER, KEY_D, KEY_Y, ServicerConfig, mission_from_params
+from plant.config import PlantConfig
 from plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p004-partial"
@@ -52,7 +52,7 @@ def measurement_noise(seed: int, step: int, index: int, n_neighbours: int, m_row
     return rng.normal(0.0, std_m, (n_neighbours, 3)), rng.normal(0.0, std_m, m_rows)
 
 
-def servicer_configs(scenario: Any) -> dict[str, ServicerConfig]:
+def servicer_configs(scenario: PlantConfig) -> dict[str, ServicerConfig]:
     """{id: ServicerConfig} of every spacecraft flown by p004-lbdnn, from its own controller params."""
     out = {}
     for sid in scenario.ids:
@@ -68,7 +68,7 @@ def servicer_configs(scenario: Any) -> dict[str, ServicerConfig]:
 class P004PartialKind:
     message = pb.Measurements
 
-    def __init__(self, scenario: Any) -> None:
+    def __init__(self, scenario: PlantConfig) -> None:
         self.p = P004Params.model_validate(scenario.sensing.get("params", {}))
         if scenario.fidelity != "inertial":
             raise ValueError(f"{KIND} measures in ECI axes: [plant].fidelity must be 'inertial' "

@@ -10,6 +10,7 @@ from google.protobuf.message import Message
 
 from bus import swarmhil_pb2 as pb
 from bus.discovery import import_all
+from plant.config import PlantConfig
 
 
 @dataclass
@@ -39,15 +40,15 @@ class SensingKind(Protocol):
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> Message: ...
 
 
-_KINDS: dict[str, Callable[[Any], SensingKind]] = {}
+_KINDS: dict[str, Callable[[PlantConfig], SensingKind]] = {}
 _VALIDATORS: dict[str, Callable[[dict[str, Any]], Any]] = {}
 # modules that register kinds on import (built-ins and the missions' plant-side sensors)
 _PROVIDERS = ["plant.sensing.builtin"]
 
 
 def register_sensing(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
-                     ) -> Callable[[Callable[[Any], SensingKind]], Callable[[Any], SensingKind]]:
-    def deco(factory: Callable[[Any], SensingKind]) -> Callable[[Any], SensingKind]:
+                     ) -> Callable[[Callable[[PlantConfig], SensingKind]], Callable[[PlantConfig], SensingKind]]:
+    def deco(factory: Callable[[PlantConfig], SensingKind]) -> Callable[[PlantConfig], SensingKind]:
         _KINDS[name] = factory
         if validate is not None:
             _VALIDATORS[name] = validate
@@ -84,7 +85,7 @@ def validate_sensing_params(kind: str, params: dict[str, Any]) -> None:
         raise ValueError(f"sensing kind {kind!r} takes no [sensing.params] (got {sorted(params)})")
 
 
-def make_sensing(kind: str, scenario: Any) -> SensingKind:
+def make_sensing(kind: str, scenario: PlantConfig) -> SensingKind:
     _load()
     if kind not in _KINDS:
         raise ValueError(f"unknown sensing kind {kind!r}; known: {sorted(_KINDS)}")

@@ -118,14 +118,14 @@ def _ctx(sc, steps: int = 0, torque: np.ndarray | None = None):
 def test_sensing_kind_measures_what_the_room_reads() -> None:
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario
+    from deploy.scenario import ScenarioError, load_scenario, plant_config
     from agent.missions.p000_capture import quaternion as quat
     from agent.missions.p000_capture.sensing import CaptureSensing
     from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_landmarks
     from plant.sensing import make_sensing
     from plant.sensing.p000 import dcm, inertial_to_cw
 
-    sc = load_scenario(CASE_I)
+    sc = plant_config(load_scenario(CASE_I))
     # 200 steps (10 s) with a torque on every craft: the attitude moves, the CW frame has turned n t
     tau = np.tile([0.002, -0.001, 0.003], (10, 1))
     ctx, w = _ctx(sc, 200, tau)
@@ -173,7 +173,7 @@ def test_sensing_kind_measures_what_the_room_reads() -> None:
     with pytest.raises(ScenarioError, match="sensing.params"):
         load_scenario(CASE_I, sets=["sensing.params.bogus=1"])
     with pytest.raises(ValueError, match="target_id"):
-        make_sensing("p000-landmarks", load_scenario(CASE_I, sets=['sensing.params.target_id="nope"']))
+        make_sensing("p000-landmarks", plant_config(load_scenario(CASE_I, sets=['sensing.params.target_id="nope"'])))
 
 
 # --- reading a run back ---------------------------------------------------------------------------

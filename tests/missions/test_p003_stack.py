@@ -137,12 +137,13 @@ def metrics(run: dict) -> dict:
 def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario
+    from deploy.scenario import ScenarioError, load_scenario, plant_config
     from agent.missions.p003_surround import sensing
     from plant.mission_world import MissionWorld
     from plant.sensing import SensingContext, make_sensing
 
-    sc = load_scenario(SCENARIO, sets=["sensing.params.position_noise_m=0.5", "sensing.params.velocity_noise_mps=0.01"])
+    sc = plant_config(load_scenario(SCENARIO, sets=["sensing.params.position_noise_m=0.5",
+                                                    "sensing.params.velocity_noise_mps=0.01"]))
     w = MissionWorld(sc)
     pos, vel = w.lvlh()
     ctx = SensingContext(0, 0.0, w.u_rad, w.ids, pos, vel, w.alive, w)
@@ -159,11 +160,11 @@ def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
     assert np.abs(target.velocity_mps - [5.0, 5.0, 5.0]).max() < 0.06
     me = sensing.read(a[3], sensing.LEADER_REL_KEY)  # ssat3: Table 1 row 3
     assert np.abs(me.position_m - [210.0, 30.0, 100.0]).max() < 3.0
-    ideal = make_sensing("p003-relative", load_scenario(SCENARIO))
+    ideal = make_sensing("p003-relative", plant_config(load_scenario(SCENARIO)))
     got = measurements_to_dict(ideal.stimulus(ctx, 0, pb.Header(step=0)))
     assert np.allclose(got["p003.target_rel.position_m/tsat"], [900.0, 500.0, 500.0], atol=1e-6)
     with pytest.raises(ValueError, match="frame_origin"):
-        make_sensing("p003-relative", load_scenario(SCENARIO, sets=['plant.frame_origin="reference"']))
+        make_sensing("p003-relative", plant_config(load_scenario(SCENARIO, sets=['plant.frame_origin="reference"'])))
     with pytest.raises(ScenarioError, match="sensing.params"):
         load_scenario(SCENARIO, sets=["sensing.params.bogus=1"])
 

@@ -71,7 +71,7 @@ def paper_orbit() -> tuple[float, float]:
 def test_scenario_holds_the_loops_initial_state() -> None:
     from test_p004_closed_loop import AREA_M2, MASS_KG, initial_state
 
-    from deploy.scenario import load_scenario
+    from deploy.scenario import load_scenario, plant_config
     from plant.mission_world import MissionWorld
 
     doc = tomllib.loads(SCENARIO.read_text())
@@ -86,7 +86,7 @@ def test_scenario_holds_the_loops_initial_state() -> None:
     body = doc["body"][0]
     assert (body["id"], body["mass_kg"], body["area_m2"]) == (DEFUNCT, MASS_KG[0], AREA_M2[0])
     # the plant starts where the loop starts (ECI), to rounding
-    w = MissionWorld(load_scenario(SCENARIO))
+    w = MissionWorld(plant_config(load_scenario(SCENARIO)))
     ids, r, v = w.eci()
     x = initial_state(SEED).reshape(7, 6)
     order = [ids.index(DEFUNCT)] + [ids.index(s) for s in SERVICERS]
@@ -100,14 +100,14 @@ def test_scenario_holds_the_loops_initial_state() -> None:
 def test_sensing_kind_measures_neighbours_and_the_defunct_craft_in_eci() -> None:
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario
+    from deploy.scenario import ScenarioError, load_scenario, plant_config
     from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
     from missions.p004_lbdnn.contract import PAPER_C
     from plant.mission_world import MissionWorld
     from plant.sensing import SensingContext, make_sensing
     from plant.sensing.p004 import measurement_noise
 
-    sc = load_scenario(SCENARIO)
+    sc = plant_config(load_scenario(SCENARIO))
     w = MissionWorld(sc)
     pos, vel = w.lvlh()
     ctx = SensingContext(7, 0.0, w.u_rad, w.ids, pos, vel, w.alive, w)
@@ -134,13 +134,13 @@ def test_sensing_kind_measures_neighbours_and_the_defunct_craft_in_eci() -> None
     draws = np.concatenate([measurement_noise(SEED, k, 0, 2, 1, math.sqrt(0.5))[0].ravel() for k in range(2000)])
     assert abs(draws.std() - math.sqrt(0.5)) < 0.03 and abs(draws.mean()) < 0.03
     # the graph and C_i come from the controller params: b_s4 = 0 removes s4's y
-    sc_b = load_scenario(SCENARIO, sets=["controller.params.b.s4=0"])
+    sc_b = plant_config(load_scenario(SCENARIO, sets=["controller.params.b.s4=0"]))
     m4 = measurements_to_dict(make_sensing("p004-partial", sc_b).stimulus(ctx, 3, pb.Header(step=7)))
     assert set(m4) == {"p004.d_m/s3", "p004.d_m/s5"}
     with pytest.raises(ScenarioError, match="sensing.params"):
         load_scenario(SCENARIO, sets=["sensing.params.bogus=1"])
     with pytest.raises(ValueError, match="defunct_id"):
-        make_sensing("p004-partial", load_scenario(SCENARIO, sets=['sensing.params.defunct_id="s1"']))
+        make_sensing("p004-partial", plant_config(load_scenario(SCENARIO, sets=['sensing.params.defunct_id="s1"'])))
 
 
 # --- reading a run back ---------------------------------------------------------------------------
