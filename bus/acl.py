@@ -18,7 +18,7 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `plant` | `clock`, `truth`, `sc/*/sense/*`, `event`, `faults` | `alive/plant` | `sc/*/act`, `sync/*`, liveliness `alive/*` |
 | `channel` | `isl/rx/*`, `link/stats`, `sync/channel`, `event` | `alive/channel` | `clock`, `truth`, `isl/tx/*`, `sc/*/act`, liveliness `alive/*` |
 | `recorder` | `swarmctl/<run>/recorder/ack` | `alive/recorder` | `**` (the whole run), `swarmctl/<run>/recorder/flush` |
-| `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `link/stats`, `isl/rx/*`, `sc/*/sense/*` (landmark returns) |
+| `viz` | nothing | `alive/viz` | `truth`, `sc/*/tm`, `sc/*/tm/image`, `event`, `faults` (marks struck spacecraft), `link/stats`, `isl/rx/*`, `sc/*/sense/*` (landmark returns) |
 | `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls), `faults` (process faults), liveliness `alive/*` (external flight software joining) |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
@@ -107,8 +107,8 @@ def grants(keys: Keys, user: str) -> Grants:
         return Grants(put=[ack], token=[keys.alive("recorder")], sub=[keys.all, flush], live_sub=[])
     if user == "viz":
         return Grants(put=[], token=[keys.alive("viz")],
-                      sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.link_stats, f"{b}/isl/rx/*",
-                           f"{b}/sc/*/sense/*"],
+                      sub=[keys.truth, keys.tm_all, f"{b}/sc/*/tm/image", keys.event, keys.faults, keys.link_stats,
+                           f"{b}/isl/rx/*", f"{b}/sc/*/sense/*"],
                       live_sub=[])
     if user == "launcher":  # events: agent_restart, recorder_restart (its supervision)
         # liveliness: it waits for external flight software to join (deploy/external.py)

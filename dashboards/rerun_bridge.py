@@ -46,12 +46,16 @@ the reference orbit (x radial, y along-track, z cross-track):
     link/bytes/{payload,wire}     Scalars, cumulative bytes over every link (LinkStats)
     link/dropped                  Scalars, cumulative drops of every cause (LinkStats)
     world/sc/<id>/camera/image    EncodedImage, foxglove CompressedImage frames on sc/<id>/tm/image
-    events                        TextLog of Event messages (agent_dead, deadline_missed, ...)
+    events                        TextLog of Event messages (agent_dead, deadline_missed, ...) and of
+                                  the `faults` topic (fault_start / fault_end, WARN)
+    world/faulty                  Points3D, a magenta ring on each spacecraft a [[fault]] strikes while
+                                  it lasts, labelled with its kind (docs/faults.md)
 
 The blueprint is sent once, when the logger is made: its camera views come from the configuration.
 """
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
@@ -95,6 +99,8 @@ TARGET_COLOUR = (255, 215, 0)
 VISIBILITY_COLOUR = (170, 170, 170)
 LINK_COLOUR = (0, 230, 255)
 ERROR_COLOUR = (255, 80, 80)
+FAULT_COLOUR = (255, 0, 200)  # a spacecraft struck by a [[fault]] while it lasts (magenta ring)
+FAULT_RADIUS_UI = -11.0
 THRUST_COLOUR = (255, 120, 0)
 CAMERA_COLOUR = (200, 200, 255)
 CONE_COLOUR = (120, 200, 255, 110)
@@ -210,6 +216,7 @@ class Paths:
     LINK_WIRE_B = "link/bytes/wire"
     LINK_DROPPED = "link/dropped"
     EVENTS = "events"
+    FAULTY = "world/faulty"           # the spacecraft a [[fault]] strikes, while it lasts (issue 27)
 
     THRUST = "world/thrust"
     DV_BY_SC = "metrics/delta_v_by_spacecraft"
@@ -374,6 +381,7 @@ class SwarmLogger:
         self._static_ids: tuple[str, ...] | None = None
         self._static_targets: set[str] = set()
         self._cameras: set[str] = set()
+        self._faults: dict[str, dict[str, Any]] = {}  # fault name -> kind, targets, start and end step (faults topic)
         self.flushes = 0
         self.last_step = -1
         self.blueprints_sent = 0
@@ -387,7 +395,7 @@ class SwarmLogger:
         except ValueError as exc:
             self.rejections.add(key, str(exc))
             return False
-        if kind not in ("truth", "tm", "tm_image", "event", "link_stats", "isl_rx"):
+        if kind not in ("truth", "tm", "tm_image", "event", "faults", "link_stats", "isl_rx"):
             if kind != "sense" or self.spec.landmark_kind is None or sense_kind != self.spec.landmark_kind:
                 return False
         self.counts[kind] += 1
@@ -407,6 +415,7 @@ class SwarmLogger:
         """Decode everything queued and log it."""
         raw, self._raw = self._raw, defaultdict(list)
         self._truth_queued = 0
+        self._log_fault_events(raw.get("faults", []))  # before the frames: they mark the struck spacecraft
         frames = self._decode_truths(raw.get("truth", []))
         for sid, payload in raw.get("isl_rx", []):
             self._queue_delivery(sid, payload)
@@ -550,6 +559,52 @@ class SwarmLogger:
                    rr.Arrows3D.columns(origins=pos.reshape(-1, 3), vectors=(acc * self._thrust_m_per_mps2(acc)).reshape(-1, 3))
                    .partition(per_step))
         self._log_links([int(s) for s in steps])
+        if self._faults:
+            self._log_faulty(f0.ids, steps, t_s, pos)
+
+    def _log_faulty(self, ids: list[str], steps: np.ndarray, t_s: np.ndarray, pos: np.ndarray) -> None:
+        """world/faulty: a ring on each spacecraft a fault strikes at that step (its targets, from the
+        `faults` topic's fault_start up to its fault_end), labelled with the fault's kind; an empty
+        list at steps without one, so the ring goes when the fault ends."""
+        struck = np.zeros(pos.shape[:2], dtype=bool)
+        labels: list[list[str]] = [[""] * len(ids) for _ in steps]
+        col = {sid: i for i, sid in enumerate(ids)}
+        for f in self._faults.values():
+            live = (steps >= f["start"]) & ((steps < f["end"]) if f["end"] is not None else True)
+            for sid in f["targets"]:
+                if sid in col:
+                    struck[live, col[sid]] = True
+                    for m in np.flatnonzero(live):
+                        labels[m][col[sid]] = ", ".join(x for x in (labels[m][col[sid]], f["kind"]) if x)
+        m_idx, i_idx = np.nonzero(struck)
+        self._send(Paths.FAULTY, steps, t_s,
+                   rr.Points3D.columns(positions=pos[m_idx, i_idx], labels=[labels[m][i] for m, i in zip(m_idx, i_idx)],
+                                       radii=np.full(len(m_idx), FAULT_RADIUS_UI, np.float32),
+                                       colors=np.tile(np.array(FAULT_COLOUR, np.uint8), (len(m_idx), 1)))
+                   .partition(np.bincount(m_idx, minlength=len(steps))))
+
+    def _log_fault_events(self, items: list[tuple[str | None, bytes]]) -> None:
+        """The `faults` topic: each fault_start / fault_end into the event log (WARN) and into the
+        windows world/faulty is drawn from (detail: the fault's table as JSON, plant/node.py)."""
+        steps, times, texts = [], [], []
+        for _sid, payload in items:
+            ev = self._decode(pb.Event, "faults", payload)
+            if ev is None:
+                continue
+            step = int(ev.header.step)
+            steps.append(step)
+            times.append(ev.header.t)
+            texts.append(f"{ev.kind} {ev.subject}: {ev.detail}")
+            try:
+                table = json.loads(ev.detail)
+            except ValueError:
+                table = {}
+            f = self._faults.setdefault(ev.subject, {"kind": str(table.get("kind", "fault")), "start": step,
+                                                     "end": None, "targets": list(table.get("targets") or [])})
+            if ev.kind == "fault_end":
+                f["end"] = step
+        if steps:
+            self._send(Paths.EVENTS, steps, times, rr.TextLog.columns(text=texts, level=["WARN"] * len(texts)))
 
     def _thrust_m_per_mps2(self, acc: np.ndarray) -> float:
         """Arrow length per m/s^2: the display length at the acceleration limit of the configuration,

@@ -243,7 +243,7 @@ class VizNode:
         keys = Keys(run)
         # truth first: the logger counts step k complete once truth k+2 is in, and every telemetry of
         # step k reaches Zenoh before that truth, so draining truth before the rest never splits a step
-        key_exprs = (keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.link_stats,
+        key_exprs = (keys.truth, keys.tm_all, f"{keys.base}/sc/*/tm/image", keys.event, keys.faults, keys.link_stats,
                      f"{keys.base}/isl/rx/*")
         landmark_kind = getattr(getattr(self.logger, "spec", None), "landmark_kind", None)
         if landmark_kind:   # paper 000: the landmark returns in the sensing stimuli

@@ -7,6 +7,8 @@ values are read back from the .rrd with Rerun's own reader, blueprints counted b
 """
 from __future__ import annotations
 
+import json
+
 import io
 
 import numpy as np
@@ -129,6 +131,11 @@ def logged(tmp_path_factory: pytest.TempPathFactory) -> dict:
             img = CompressedImage(format="png", data=png_bytes())
             img.timestamp.seconds = 10
             lg.ingest(f"{K.base}/sc/a1/tm/image", img.SerializeToString())
+        if step in (2, 4):  # a2's thrusters stuck off over steps [2, 4) (plant/node.py's faults events)
+            fault = json.dumps({"name": "f0", "kind": "thruster_stuck_off", "targets": ["a2"], "start_s": 2 * STEP_S,
+                                "end_s": 4 * STEP_S})
+            lg.ingest(K.faults, pb.Event(header=hdr("plant", step), kind="fault_start" if step == 2 else "fault_end",
+                                         subject="f0", detail=fault).SerializeToString())
         if step == 3:
             lg.ingest(K.event, ev.SerializeToString())
             st = pb.LinkStats(header=hdr("channel", 3), tx_messages=5, rx_messages=4,
@@ -219,6 +226,17 @@ def test_links_are_short_lived_and_stats_events_images_logged(logged: dict) -> N
     img = rows["/world/sc/a1/camera/image"]
     assert img["EncodedImage:media_type"][1] == ["image/png"]
     assert bytes(img["EncodedImage:blob"][1][0]) == png_bytes()
+
+
+def test_a_struck_spacecraft_is_marked_while_its_fault_lasts(logged: dict) -> None:
+    rows = logged["rows"]
+    faulty = rows["/world/faulty"]
+    a2 = IDS.index("a2")
+    assert {s: [tuple(p) for p in faulty["Points3D:positions"][s]] for s in range(2, 6)} == {
+        2: [tuple(positions(2)[a2].astype(np.float32))], 3: [tuple(positions(3)[a2].astype(np.float32))], 4: [], 5: []}
+    assert faulty["Points3D:labels"][3] == ["thruster_stuck_off"]
+    assert rows["/events"]["TextLog:text"][2][0].startswith("fault_start f0: {")
+    assert rows["/events"]["TextLog:level"][4] == ["WARN"]
 
 
 def test_foreign_samples_are_rejected_not_logged(logged: dict) -> None:

@@ -150,15 +150,26 @@ def _cli_run(scenario: Path, out: Path, duration_s: float) -> None:
 
 
 def test_multi_process_run_with_viz_save(tmp_path: Path) -> None:
-    """`swarmhil run ... --viz save`: the bridge as its own process over Zenoh."""
+    """`swarmhil run ... --viz save`: the bridge as its own process over Zenoh; the demo with sc02's
+    thrusters stuck off over [100, 200) s, which the viewer marks on sc02 over those steps (it
+    subscribes to `faults`), live and in the replay."""
+    scenario = tmp_path / "demo-fault.toml"
+    scenario.write_text((SCENARIOS / "demo.toml").read_text() + '\n[[fault]]\nname = "f"\nkind = "thruster_stuck_off"\n'
+                        'targets = ["sc02"]\nstart_s = 100.0\nend_s = 200.0\n')
     out = tmp_path / "mp"
-    _cli_run(SCENARIOS / "demo.toml", out, 300.0)
+    _cli_run(scenario, out, 300.0)
     rrd_verify(out / "run.rrd")
     assert check_positions_equal_truth(out / "run.rrd", out / "run.mcap") == 31
     check_scene(out / "run.rrd", out / "run.mcap")
     rep = replay_verified(out / "run.mcap", tmp_path / "replay.rrd")
     check_same_views(out / "run.rrd", rep)
     check_scene(rep, out / "run.mcap")
+    truth = mcap_truth(out / "run.mcap")
+    for rrd in (out / "run.rrd", rep):
+        faulty = read_rrd(rrd)["/world/faulty"]["Points3D:positions"]
+        marked = {s: [tuple(p) for p in v] for s, v in faulty.items() if len(v)}
+        expect = {s: [tuple(truth[s][1][truth[s][0].index("sc02")].astype(np.float32))] for s in range(10, 20)}
+        assert marked == expect, sorted(marked)
 
 
 def test_p000_capture_with_viz_save_and_replay(tmp_path: Path) -> None:
