@@ -444,7 +444,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         from plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
-            sc.faults = parse_faults(src, doc["fault"], sc.ids, step)
+            sc.faults = parse_faults(src, doc["fault"], sc.ids, step, {b.id: b.motion.kind for b in sc.bodies})
         except FaultError as exc:
             raise ScenarioError(str(exc)) from None
     cartesian = fidelity in ("cw", "inertial")

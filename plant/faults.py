@@ -16,7 +16,10 @@ Where each family acts:
 - sensing (`sensor_*`): in the plant, on the stimulus message of the struck spacecraft, after the
   sensing kind made it (`SensingFaults`); the flight software sees only the changed stimulus;
 - link (`link_*`): in the link channel (link/faults.py);
-- process (`process_*`): by the launcher, at a simulated step (deploy/launcher.py).
+- process (`process_*`): by the launcher, at a simulated step (deploy/launcher.py);
+- body (`body_*`): in the mission world's bodies (plant/mission_world.py): a manoeuvre of a
+  propagated body is added to its dynamics, a kinematic body's pose is integrated in closed form
+  over the window (`kinematic_pose`).
 """
 from __future__ import annotations
 
@@ -159,6 +162,33 @@ class LinkDegraded(_Fault):
     extra_latency_s: float = Field(0.0, ge=0)
 
 
+class _BodyTargeted(_Fault):
+    bodies: IdList                          # [[body]] ids
+
+
+class BodyManoeuvre(_BodyTargeted):
+    """The bodies accelerate by `accel_mps2` (scenario frame) over the window: added to a propagated
+    body's dynamics, integrated in closed form for a kinematic one (a target's manoeuvre)."""
+
+    kind: Literal["body_manoeuvre"]
+    accel_mps2: Vec3
+
+
+class BodySpin(_BodyTargeted):
+    """Kinematic bodies spin at `spin_rate_radps` about `spin_axis` (scenario frame; default: their
+    own axis) over the window, then at their own rate again (a target's spin change)."""
+
+    kind: Literal["body_spin"]
+    spin_rate_radps: float
+    spin_axis: Vec3 | None = None
+
+    @model_validator(mode="after")
+    def _axis(self) -> "BodySpin":
+        if self.spin_axis is not None and not any(self.spin_axis):
+            raise ValueError("spin_axis must not be zero")
+        return self
+
+
 class ProcessCrash(_Targeted):
     """The flight software of `targets` is killed at start_s (SIGKILL by the launcher); it restarts or
     not per [supervision]."""
@@ -175,7 +205,8 @@ class ProcessPause(_Targeted):
 MODELS: dict[str, type[_Fault]] = {
     m.model_fields["kind"].annotation.__args__[0]: m  # type: ignore[union-attr]
     for m in (ThrusterStuckOff, ThrusterStuckOn, ThrusterEfficiency, ThrusterMisaligned, SensorDropout, SensorBias,
-              SensorNoise, SensorFrozen, LinkPartition, LinkDegraded, ProcessCrash, ProcessPause)}
+              SensorNoise, SensorFrozen, LinkPartition, LinkDegraded, ProcessCrash, ProcessPause, BodyManoeuvre,
+              BodySpin)}
 KINDS = tuple(sorted(MODELS))
 
 
@@ -183,8 +214,10 @@ class FaultError(ValueError):
     """A bad [[fault]] table; the message is one line naming the file, the table and the field."""
 
 
-def parse_faults(src: str, items: Any, ids: list[str], step_s: float) -> list[Any]:
-    """Validate the `[[fault]]` tables of a scenario against its spacecraft ids and step."""
+def parse_faults(src: str, items: Any, ids: list[str], step_s: float,
+                 bodies: dict[str, str] | None = None) -> list[Any]:
+    """Validate the `[[fault]]` tables of a scenario against its spacecraft ids, its bodies
+    ({[[body]] id: motion kind}) and its step."""
     if not isinstance(items, list):
         raise FaultError(f"{src}: [[fault]] must be an array of tables (got {items!r})")
     known = set(ids)
@@ -207,6 +240,13 @@ def parse_faults(src: str, items: Any, ids: list[str], step_s: float) -> list[An
         for sid in f.spacecraft():
             if sid not in known:
                 raise FaultError(f"{src}: {where} names unknown spacecraft id {sid!r}; known: {_some(ids)}")
+        for bid in getattr(f, "bodies", ()):
+            motion = (bodies or {}).get(bid)
+            if motion is None:
+                raise FaultError(f"{src}: {where} names unknown body id {bid!r}; known [[body]] ids: "
+                                 f"{_some(sorted(bodies or {}))}")
+            if isinstance(f, BodySpin) and motion != "kinematic":
+                raise FaultError(f"{src}: {where}: body_spin needs a kinematic body; {bid!r} is {motion}")
         if isinstance(f, LinkPartition):
             flat = [s for g in f.groups for s in g]
             dup = sorted({s for s in flat if flat.count(s) > 1})
@@ -306,6 +346,7 @@ def apply_actuation_fault(fault: Any, accel_mps2: np.ndarray, rows: np.ndarray) 
 
 
 ACTUATION = (ThrusterStuckOff, ThrusterStuckOn, ThrusterEfficiency, ThrusterMisaligned)
+BODY = (BodyManoeuvre, BodySpin)
 SENSING = (SensorDropout, SensorBias, SensorNoise, SensorFrozen)
 
 
@@ -408,3 +449,57 @@ class SensingFaults:
             v = tv + f.factor * (_vec(nb.velocity_mps) - tv) + rng.normal(0.0, 1.0, 3) * f.velocity_sigma_mps
             _set(nb.position_m, p)
             _set(nb.velocity_mps, v)
+
+
+# --- bodies (in the mission world) -------------------------------------------------------------------
+@dataclass(frozen=True)
+class BodyFault:
+    """A body fault as a window in simulated seconds [t0_s, t1_s) on its step grid (FaultWindow)."""
+
+    fault: Any
+    t0_s: float
+    t1_s: float
+    window: "FaultWindow"
+
+
+def body_faults(faults: list[Any], step_s: float) -> dict[str, list[BodyFault]]:
+    """{body id: its body faults}, windows turned into the times of their first and stop steps."""
+    out: dict[str, list[BodyFault]] = {}
+    for f in faults:
+        if isinstance(f, BODY):
+            w = FaultWindow.of(f, step_s)
+            t1 = math.inf if w.stop_step >= BIG_STEP else w.stop_step * step_s
+            for bid in f.bodies:
+                out.setdefault(bid, []).append(BodyFault(f, w.start_step * step_s, t1, w))
+    return out
+
+
+def manoeuvre_displacement(accel_mps2: np.ndarray, t0_s: float, t1_s: float, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(position, velocity) added by a constant acceleration over [t0, t1) by time t (closed form):
+    ½ a (t - t0)² inside the window, then ½ a T² + a T (t - t1) with T = t1 - t0."""
+    a = np.asarray(accel_mps2, float)
+    if t_s <= t0_s:
+        return np.zeros(3), np.zeros(3)
+    if t_s <= t1_s:
+        d = t_s - t0_s
+        return 0.5 * a * d * d, a * d
+    T = t1_s - t0_s
+    return 0.5 * a * T * T + a * T * (t_s - t1_s), a * T
+
+
+def spin_segments(axis: np.ndarray, rate_radps: float, faults: list[BodyFault], t_s: float
+                  ) -> list[tuple[np.ndarray, float, float]]:
+    """The body's spin from 0 to t as time-ordered (axis, rate, duration) segments: its own spin,
+    replaced by a body_spin fault's over that fault's window (the one that started last wins)."""
+    spins = [bf for bf in faults if isinstance(bf.fault, BodySpin)]
+    cuts = sorted({0.0, t_s, *(x for bf in spins for x in (bf.t0_s, bf.t1_s) if 0.0 < x < t_s)})
+    out = []
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        live = [bf for bf in spins if bf.t0_s <= a < bf.t1_s]
+        if live:
+            f = max(live, key=lambda bf: bf.t0_s).fault
+            ax = np.asarray(f.spin_axis if f.spin_axis is not None else axis, float)
+            out.append((ax / np.linalg.norm(ax), float(f.spin_rate_radps), b - a))
+        else:
+            out.append((np.asarray(axis, float), float(rate_radps), b - a))
+    return out

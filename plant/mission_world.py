@@ -42,6 +42,7 @@ from plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, qu
 from plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh_vector_to_eci
 from plant.dynamics.limits import limit_norm, limit_per_axis
 from plant.dynamics.propagator import make_propagator
+from plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
 
 
 def lvlh_to_eci(r_ref_m: np.ndarray, v_ref_mps: np.ndarray, rho_m: np.ndarray,
@@ -99,6 +100,8 @@ class MissionWorld:
         self.last_torque_nm = np.zeros((n, 3))
         # issue 27: (applied accelerations, step) -> applied accelerations (plant/faults.py ActuationFaults)
         self.actuation_faults: Callable[[np.ndarray, int], np.ndarray] | None = None
+        # issue 27: {body id: body_manoeuvre / body_spin faults} (plant/faults.py body_faults)
+        self.body_faults: dict[str, list[BodyFault]] = {}
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
         # rows of the translational propagator: spacecraft, then propagated bodies
@@ -223,6 +226,9 @@ class MissionWorld:
             out.append(BodyTruth(b, p[n + k], v[n + k], np.array([1.0, 0, 0, 0]), np.zeros(3)))
         for b in self.kin_bodies:
             m = b.motion
+            if b.id in self.body_faults:
+                out.append(BodyTruth(b, *kinematic_pose(m, self.body_faults[b.id], self.t_s)))
+                continue
             pos = np.asarray(m.position_m) + np.asarray(m.velocity_mps) * self.t_s
             axis = np.asarray(m.spin_axis)
             q_spin = quat_from_axis_angle(axis, m.spin_rate_radps * self.t_s)  # scalar-last
@@ -248,7 +254,8 @@ class MissionWorld:
             a = self.actuation_faults(a, self.steps_done)
         self.last_accel_mps2 = a
         self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
-        rows = [a] + [manoeuvre_accel(b.motion.manoeuvres, self.t_s)[None] for b in self.prop_bodies]
+        rows = [a] + [(manoeuvre_accel(b.motion.manoeuvres, self.t_s) + self._fault_accel(b.id))[None]
+                      for b in self.prop_bodies]
         acc = np.vstack(rows)
         if self.fidelity == "inertial":
             r, v = self.propagator.state()
@@ -270,6 +277,35 @@ class MissionWorld:
         self.steps_done += 1
         self.t_s = self.steps_done * dt_s
         self.wall_s += time.perf_counter() - c0
+
+
+    def _fault_accel(self, body_id: str) -> np.ndarray:
+        """The body_manoeuvre accelerations of a propagated body at this step (scenario frame)."""
+        a = np.zeros(3)
+        for bf in self.body_faults.get(body_id, ()):
+            if isinstance(bf.fault, BodyManoeuvre) and bf.window.active(self.steps_done):
+                a = a + np.asarray(bf.fault.accel_mps2, float)
+        return a
+
+
+def kinematic_pose(m: Any, faults: list[BodyFault], t_s: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(position, velocity, attitude wxyz, body rates) of a kinematic body at t under body faults:
+    its constant velocity plus each body_manoeuvre's closed-form displacement
+    (plant/faults.py manoeuvre_displacement), and its spin segments composed in time order,
+    q(t) = exp(a_k r_k T_k) ⊗ ... ⊗ exp(a_0 r_0 T_0) ⊗ q0 (spin_segments)."""
+    pos = np.asarray(m.position_m, float) + np.asarray(m.velocity_mps, float) * t_s
+    vel = np.asarray(m.velocity_mps, float).copy()
+    for bf in faults:
+        if isinstance(bf.fault, BodyManoeuvre):
+            dp, dv = manoeuvre_displacement(np.asarray(bf.fault.accel_mps2, float), bf.t0_s, bf.t1_s, t_s)
+            pos, vel = pos + dp, vel + dv
+    q = wxyz_to_xyzw(m.attitude_q)
+    axis, rate = np.asarray(m.spin_axis, float), float(m.spin_rate_radps)
+    for axis, rate, dt in spin_segments(axis, rate, faults, t_s):
+        q = quat_multiply(quat_from_axis_angle(axis, rate * dt), q)
+    q_wxyz = xyzw_to_wxyz(q)
+    return pos, vel, q_wxyz, _rotate_to_body(q_wxyz, axis * rate)
 
 
 def _rotate_to_body(q_wxyz: np.ndarray, vec_frame: np.ndarray) -> np.ndarray:

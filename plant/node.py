@@ -21,7 +21,7 @@ from bus.keys import Keys
 from bus.truth_wire import HeaderEncoder, TruthEncoder
 from plant.config import PlantConfig
 from plant.contact import ContactMonitor
-from plant.faults import ActuationFaults, SensingFaults, fault_summary, transitions
+from plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
 from plant.flight import LocalFlightSoftware
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
@@ -89,6 +89,8 @@ class PlantNode:
             actuation = ActuationFaults(self._faults, list(config.ids), config.step_s)
             if actuation:
                 self.world.actuation_faults = actuation
+            if hasattr(self.world, "body_faults"):  # the mission world: bodies (a target's manoeuvre or spin change)
+                self.world.body_faults = body_faults(self._faults, config.step_s)
             sensing = SensingFaults(self._faults, list(config.ids), config.step_s, config.seed)
             self._sensing_faults = sensing if sensing else None
         # hulls (issue 27, plant/contact.py): a contact or near-miss Event when two hulls touch or

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 
 import numpy as np
 import pytest
@@ -200,6 +201,100 @@ def test_servicing_fault_scenario_reports_the_tracking_error_around_each_fault(t
     assert blind[key.format("max_in_window")] == pytest.approx(err[k0:k1].max(), rel=1e-12)
     assert blind[key.format("at_run_end")] == pytest.approx(err[-1], rel=1e-12)
     assert blind[key.format("excursion")] > 10.0 * blind[key.format("at_start")]  # blind, it leaves (docs/faults.md)
+
+
+def test_body_manoeuvre_and_spin_in_closed_form_match_independent_integration() -> None:
+    """plant/faults.py manoeuvre_displacement against scipy's integration of x'' = a over the window,
+    and plant/mission_world.py kinematic_pose's composed spin against scipy's Rotation, about one
+    axis (angles add) and about two."""
+    from scipy.integrate import solve_ivp
+    from scipy.spatial.transform import Rotation
+
+    from plant.bodies import Kinematic
+    from plant.faults import BodyFault, FaultWindow, manoeuvre_displacement, parse_faults
+    from plant.mission_world import kinematic_pose
+
+    a = np.array([1e-3, -2e-3, 5e-4])
+    sol = solve_ivp(lambda t, y: np.r_[y[3:], a * (10.0 <= t < 30.0)], (0.0, 50.0), np.zeros(6), max_step=0.01,
+                    rtol=1e-10, atol=1e-12, dense_output=True)
+    for t in (5.0, 20.0, 30.0, 45.0):
+        dp, dv = manoeuvre_displacement(a, 10.0, 30.0, t)
+        assert np.allclose(dp, sol.sol(t)[:3], atol=1e-6) and np.allclose(dv, sol.sol(t)[3:], atol=1e-8), t
+    faults = parse_faults("x", [{"kind": "body_spin", "bodies": ["tgt"], "spin_rate_radps": 0.05, "start_s": 10.0,
+                                 "end_s": 30.0},
+                                {"kind": "body_manoeuvre", "bodies": ["tgt"], "accel_mps2": a.tolist(), "start_s": 10.0,
+                                 "end_s": 30.0}], [], 0.5, {"tgt": "kinematic"})
+    bfs = [BodyFault(f, 10.0, 30.0, FaultWindow.of(f, 0.5)) for f in faults]
+    m = Kinematic(position_m=[1.0, 2.0, 3.0], velocity_mps=[0.1, 0.0, 0.0], attitude_q=[1.0, 0.0, 0.0, 0.0],
+                  spin_axis=[0.0, 0.0, 1.0], spin_rate_radps=0.01)
+    pos, vel, q, w = kinematic_pose(m, bfs, 40.0)
+    assert np.allclose(pos, [1.0 + 4.0, 2.0, 3.0] + sol.sol(40.0)[:3], atol=1e-6) and np.allclose(vel, [0.1, 0, 0] + a * 20.0)
+    angle = 0.01 * 10.0 + 0.05 * 20.0 + 0.01 * 10.0  # one axis: the angles add
+    assert np.allclose(Rotation.from_quat(q, scalar_first=True).as_rotvec(), [0.0, 0.0, angle], atol=1e-12)
+    assert np.allclose(w, [0.0, 0.0, 0.01])  # its own rate again after the window
+    tilted = parse_faults("x", [{"kind": "body_spin", "bodies": ["tgt"], "spin_rate_radps": 0.05, "spin_axis": [1.0, 0, 0],
+                                 "start_s": 10.0, "end_s": 30.0}], [], 0.5, {"tgt": "kinematic"})
+    _p, _v, q2, w2 = kinematic_pose(m, [BodyFault(tilted[0], 10.0, 30.0, FaultWindow.of(tilted[0], 0.5))], 20.0)
+    expect = Rotation.from_rotvec([0.5, 0, 0]) * Rotation.from_rotvec([0, 0, 0.1])  # z for 10 s, then x for 10 s
+    assert np.allclose(Rotation.from_quat(q2, scalar_first=True).as_matrix(), expect.as_matrix(), atol=1e-12)
+    assert np.allclose(Rotation.from_quat(q2, scalar_first=True).apply(w2), [0.05, 0.0, 0.0])  # in the frame: about x
+
+
+@pytest.mark.parametrize("fault, message", [
+    ({"kind": "body_spin", "bodies": ["rock"], "spin_rate_radps": 0.1}, "names unknown body id 'rock'"),
+    ({"kind": "body_spin", "bodies": ["tgt"], "spin_rate_radps": 0.1, "spin_axis": [0, 0, 0]}, "spin_axis must not be zero"),
+    ({"kind": "body_spin", "bodies": ["prop"], "spin_rate_radps": 0.1}, "body_spin needs a kinematic body; 'prop' is propagated"),
+    ({"kind": "body_manoeuvre", "bodies": ["tgt"]}, ".accel_mps2 Field required"),
+])
+def test_bad_body_faults_are_one_precise_line(fault: dict, message: str) -> None:
+    from plant.faults import FaultError, parse_faults
+
+    with pytest.raises(FaultError, match=re.escape(message)):
+        parse_faults("x.toml", [fault], ["s0"], 1.0, {"tgt": "kinematic", "prop": "propagated"})
+
+
+def test_a_targets_spin_change_and_manoeuvre_are_in_the_recorded_truth(tmp_path) -> None:
+    """capture-10 (kinematic tumbling target, 0.05 s steps) for 4 s with a body_spin over [1, 2) s and
+    a body_manoeuvre over [1, 3) s of the target: its recorded pose equals the run without faults
+    before 1 s, and kinematic_pose's closed form after (recounted here with scipy's Rotation)."""
+    from scipy.spatial.transform import Rotation
+
+    from conftest import SCENARIOS
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    text = (SCENARIOS / "capture-10.toml").read_text()
+    faulty = tmp_path / "c10f.toml"
+    faulty.write_text(text + '\n[[fault]]\nkind = "body_spin"\nbodies = ["target"]\nspin_rate_radps = 0.3\n'
+                      'spin_axis = [1.0, 0.0, 0.0]\nstart_s = 1.0\nend_s = 2.0\n\n[[fault]]\nkind = "body_manoeuvre"\n'
+                      'bodies = ["target"]\naccel_mps2 = [0.0, 0.02, 0.0]\nstart_s = 1.0\nend_s = 3.0\n')
+
+    def target(path):
+        out = {}
+        for topic, _l, _p, m in read_mcap(path):
+            if topic == "truth":
+                b = next(b for b in m.bodies if b.id == "target")
+                out[round(m.header.t, 9)] = (np.array([b.position_m.x, b.position_m.y, b.position_m.z]),
+                                             np.array([b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z]))
+        return out
+
+    runs = {}
+    for name, path in (("plain", SCENARIOS / "capture-10.toml"), ("fault", faulty)):
+        run_in_process(load_scenario(path).with_overrides(duration_s=4.0), tmp_path / name, name, progress=False)
+        runs[name] = target(tmp_path / name / "run.mcap")
+    plain, fault = runs["plain"], runs["fault"]
+    assert sorted(plain) == sorted(fault) and len(fault) == 81
+    for t in plain:
+        if t <= 1.0:
+            assert np.array_equal(plain[t][0], fault[t][0]) and np.array_equal(plain[t][1], fault[t][1]), t
+    w0, axis0 = 0.012566370614359171, np.array([0.2, 0.1, 1.0]) / np.linalg.norm([0.2, 0.1, 1.0])
+    for t in (2.0, 3.5):
+        dy = 0.5 * 0.02 * (min(t, 3.0) - 1.0) ** 2 + 0.02 * 2.0 * max(t - 3.0, 0.0)
+        assert np.allclose(fault[t][0] - plain[t][0], [0.0, dy, 0.0], atol=1e-9), t
+        rot = (Rotation.from_rotvec(axis0 * w0 * (t - 2.0)) * Rotation.from_rotvec([0.3, 0.0, 0.0])
+               * Rotation.from_rotvec(axis0 * w0 * 1.0))
+        got = Rotation.from_quat(fault[t][1], scalar_first=True)
+        assert (got * rot.inv()).magnitude() < 1e-9, t
 
 
 def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
