@@ -40,6 +40,7 @@ SCENARIO = "sabatini-20-beacon.toml"
 SETS = ("dispersion.count=3", "run.duration_s=100.0")
 STEPS = 10
 IMAGE = "swarmhil:test-containers"
+BASE = "local/python:3.11-bookworm"
 CONTAINERS = CACHE / "containers"
 UID = 10001  # the image's user (deploy/Dockerfile)
 RUN_DIRS = (Path("/run/docker"), Path("/run/containerd"))  # made by dockerd and containerd whatever their roots
@@ -132,6 +133,11 @@ def _host_network_override(doc: dict, path: Path) -> Path:
     return path
 
 
+def _swarmhil(*args: str, env: dict[str, str] | None = None) -> None:
+    r = subprocess.run([sys.executable, "-m", "deploy.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
+    assert r.returncode == 0, f"swarmhil {' '.join(args)}: {r.stderr[-3000:]}"
+
+
 def _states(dc: list[str], env: dict[str, str]) -> list[dict]:
     ps = subprocess.run([*dc, "ps", "-a", "--format", "json"], env=env, capture_output=True, text=True, timeout=60)
     assert ps.returncode == 0, ps.stderr
@@ -149,14 +155,11 @@ def test_compose_project_in_containers_equals_swarmhil_run(tmp_path: Path) -> No
 
     from bus.zenoh_bus import endpoint, free_loopback_port
     from deploy.compose import write_compose
-    from deploy.image import base_rootfs, build, import_base, wheelhouse
     from deploy.scenario import load_scenario
 
     sets = [a for s in SETS for a in ("--set", s)]
     single = tmp_path / "single"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / SCENARIO), *sets, "--run-id", RUN,
-                        "--out", str(single), "--no-progress"], cwd=ROOT, capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr[-3000:]
+    _swarmhil("run", str(SCENARIOS / SCENARIO), *sets, "--run-id", RUN, "--out", str(single), "--no-progress")
 
     proj = tmp_path / "proj"
     write_compose(load_scenario(SCENARIOS / SCENARIO, SETS), SCENARIO, RUN, proj / "compose.yml")
@@ -173,13 +176,16 @@ def test_compose_project_in_containers_equals_swarmhil_run(tmp_path: Path) -> No
     try:
         t["engine"] = time.monotonic() - t0
         t0 = time.monotonic()
-        base = import_base(engine.docker, base_rootfs(CONTAINERS / "base-rootfs.tar"))
+        denv = {**os.environ, "DOCKER_HOST": engine.host}  # the documented commands (docs/containers.md)
+        _swarmhil("image", "base", "--rootfs", str(CONTAINERS / "base-rootfs.tar"), "--tag", BASE, "--docker",
+                  engine.cli, env=denv)
         t["base image"] = time.monotonic() - t0
         t0 = time.monotonic()
-        wheels = wheelhouse(CONTAINERS / "wheelhouse")
+        _swarmhil("image", "wheelhouse", str(CONTAINERS / "wheelhouse"))
         t["wheelhouse"] = time.monotonic() - t0
         t0 = time.monotonic()
-        build(engine.docker, IMAGE, base=base, wheels=wheels)  # offline: --network none
+        _swarmhil("image", "build", "--tag", IMAGE, "--base", BASE, "--wheelhouse", str(CONTAINERS / "wheelhouse"),
+                  "--docker", engine.cli, env=denv)  # offline: pip --no-index, docker build --network none
         t["project image"] = time.monotonic() - t0
 
         t0 = time.monotonic()
