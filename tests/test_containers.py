@@ -223,7 +223,10 @@ def test_compose_project_in_containers_equals_swarmhil_run(tmp_path: Path) -> No
     assert plant["steps"] == STEPS and not plant["dead_agents"] and not plant["missed_deadlines"], plant
     msgs = read_mcap(proj / "data" / "run.mcap")
     assert any(tp == "event" and m.kind == "run_end" for tp, _l, _p, m in msgs)
+    counts = {}
     for key in ("truth", "act", "isl/rx/"):
         got = topics(proj / "data" / "run.mcap", key)
         assert got, key
         assert got == topics(single / "run.mcap", key), key
+        counts[key] = len(got)
+    print(f"containers: equal to swarmhil run, bit for bit: {counts}")
