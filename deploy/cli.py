@@ -420,6 +420,7 @@ from deploy.cli_nav import report_nav as _report_nav_cmd; main.add_command(_repo
 from deploy.cli_campaign import campaign as _campaign_cmd; main.add_command(_campaign_cmd)  # noqa: E402,E702
 from deploy.cli_campaign import campaign_compare as _campaign_compare_cmd; main.add_command(_campaign_compare_cmd)  # noqa: E402,E702
 from claims.cli import claims as _claims_cmd; main.add_command(_claims_cmd)  # noqa: E402,E702
+from deploy.cli_image import image as _image_cmd; main.add_command(_image_cmd)  # noqa: E402,E702
 
 
 if __name__ == "__main__":

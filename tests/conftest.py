@@ -51,6 +51,12 @@ def read_mcap(path: Path | str):
     return out
 
 
+
+def topics(path: Path | str, part: str) -> list[tuple[str, bytes]]:
+    """The messages of every topic that starts with or contains `/part`, serialized and sorted: two runs'
+    truth (`truth`), commands (`act`) or link deliveries (`isl/rx/`) compared bit for bit."""
+    return sorted((t, m.SerializeToString()) for t, _l, _p, m in read_mcap(path) if t.startswith(part) or f"/{part}" in t)
+
 def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monkeypatch: pytest.MonkeyPatch,
                    factor: float = 5.0, floor_ms: int = 1500) -> None:
     """Each (endpoint, credential) of `bad` (None: no credential) is refused by the router at `ep`, and the refusal

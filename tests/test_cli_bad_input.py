@@ -168,6 +168,12 @@ CASES = [
     ("claims unknown option", lambda f: ["claims", "--no-such-tier"], "--no-such-tier", 2),
     ("compose external spacecraft", lambda f: ["compose", str(SCENARIOS / "hil-3.toml"), "--out", str(f["d"] / "c.yml")],
      "external flight software", 2),
+    ("image wheelhouse into a file", lambda f: ["image", "wheelhouse", str(f["garbage"])], "OUT", 2),
+    ("image base without docker", lambda f: ["image", "base", "--rootfs", str(f["garbage"]), "--docker",
+                                             str(f["d"] / "no-docker")], "no-docker", 1),
+    ("image build missing wheelhouse", lambda f: ["image", "build", "--wheelhouse", str(f["d"] / "no-wheels")],
+     "--wheelhouse", 2),
+    ("image build without docker", lambda f: ["image", "build", "--docker", str(f["d"] / "no-docker")], "no-docker", 1),
     ("claims unwritable json", lambda f: ["claims", "--check-docs", "--json", "/proc/swarmhil-no/such"], "--json", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
 ]

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import SCENARIOS, read_mcap
+from conftest import SCENARIOS, topics
 from system_tools import require_command, require_root
 
 pytestmark = pytest.mark.system
@@ -74,10 +74,6 @@ def _host_of(service: str) -> str:
     return "a" if service.startswith("agent-") else "p"
 
 
-def _topics(path: Path, part: str) -> list[tuple[str, bytes]]:
-    return sorted((t, m.SerializeToString()) for t, _l, _p, m in read_mcap(path) if t.startswith(part) or f"/{part}" in t)
-
-
 def test_three_host_run_equals_the_single_host_run(tmp_path: Path) -> None:
     import yaml
 
@@ -119,7 +115,7 @@ def test_three_host_run_equals_the_single_host_run(tmp_path: Path) -> None:
     assert plant["delta_v_total_mps"] > 0  # the agents' commands moved the spacecraft
     multi_mcap, single_mcap = out.parent / "data" / "run.mcap", tmp_path / "single" / "run.mcap"
     for key in ("truth", "act", "isl/rx/"):
-        got = _topics(multi_mcap, key)
+        got = topics(multi_mcap, key)
         assert got, key
-        assert got == _topics(single_mcap, key), key
+        assert got == topics(single_mcap, key), key
     assert plant["delta_v_mps"] == single.summary["delta_v_mps"]
