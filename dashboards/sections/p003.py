@@ -20,7 +20,8 @@ import numpy as np
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
-from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from dashboards.sections import (ErrorSeries, SectionContext, SectionResult, register_error_metric,
+                                 register_section, uses_controller)
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
 
 LEADER_CONTROLLER = "p003-leader"
@@ -283,8 +284,8 @@ def _table(rows: list[tuple[str, str]]) -> str:
     return "<table>" + "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows) + "</table>"
 
 
-@register_section("p003-surround", applies=lambda cfg: uses_controller(cfg, LEADER_CONTROLLER))
-def surround(ctx: SectionContext) -> SectionResult:
+def _run_metrics(ctx: SectionContext) -> tuple[SurroundSetup, dict[str, Any], str, np.ndarray]:
+    """(setup, surround_metrics of the run, target id, target positions per truth step) from the recording."""
     tr = ctx.truth
     su = setup_from_config(ctx.config, tr.ids)
     steps, target_pos, _target_vel, tid = read_target(ctx.mcap, ctx.summary.get("run"))
@@ -292,8 +293,22 @@ def surround(ctx: SectionContext) -> SectionResult:
     if not np.array_equal(steps[np.clip(rows, 0, len(steps) - 1)], tr.step):
         raise ValueError("the target's truth does not cover every spacecraft truth step")
     target_pos = target_pos[rows]
+    return su, surround_metrics(tr.t_s, tr.position_m, tr.velocity_mps, tr.accel_mps2[:-1], target_pos, su), tid, target_pos
+
+
+@register_error_metric("p003-surround", applies=lambda cfg: uses_controller(cfg, LEADER_CONTROLLER))
+def funnel_ratio(ctx: SectionContext) -> ErrorSeries:
+    """max_axis |q~_TL| / funnel half-width per step (eq. 12's bound; >= 1: outside the funnel),
+    from the second recorded step (the bound is infinite at t = 0)."""
+    m = _run_metrics(ctx)[1]
+    return ErrorSeries("leader's TT error over the funnel bound", "ratio", m["t"][1:], m["tt_ratio"])
+
+
+@register_section("p003-surround", applies=lambda cfg: uses_controller(cfg, LEADER_CONTROLLER))
+def surround(ctx: SectionContext) -> SectionResult:
+    tr = ctx.truth
+    su, m, tid, target_pos = _run_metrics(ctx)
     t = tr.t_s
-    m = surround_metrics(t, tr.position_m, tr.velocity_mps, tr.accel_mps2[:-1], target_pos, su)
     ids = tr.ids
     leader = ids[su.leader]
     names = [ids[i] for i in su.servicers]

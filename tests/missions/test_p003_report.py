@@ -104,3 +104,38 @@ def test_report_has_the_surround_section(tmp_path: Path) -> None:
         png = run_dir / "report" / f
         assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, f
         assert f'src="{f}"' in page, f
+
+
+def test_faults_section_gives_the_funnel_ratio_around_a_leader_fault(tmp_path: Path) -> None:
+    """surround-6 for 20 s with the leader's thrusters stuck off over [5, 15) s: the faults section
+    gives paper 003's error metric (the leader's TT error over the funnel bound, registered by
+    dashboards/sections/p003.py) around the window, equal to the ratio recounted here from the
+    recorded truth (recompute's formula)."""
+    from dashboards.report import write_report
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    path = tmp_path / "s6f.toml"
+    path.write_text(SCENARIO.read_text() + '\n[[fault]]\nname = "lead-off"\nkind = "thruster_stuck_off"\n'
+                    'targets = ["lsat"]\nstart_s = 5.0\nend_s = 15.0\n')
+    out = tmp_path / "run"
+    run_in_process(load_scenario(path).with_overrides(duration_s=DURATION_S), out, "s6f", progress=False)
+    write_report(out)
+    rec = json.loads((out / "summary.json").read_text())["metrics"]["faults"]["lead-off"]
+    t, err = [], []
+    from conftest import read_mcap
+
+    for topic, _l, _p, m in read_mcap(out / "run.mcap"):
+        if topic == "truth":
+            pos = {b.id: np.array([b.position_m.x, b.position_m.y, b.position_m.z]) for b in m.bodies}
+            t.append(m.header.t)
+            err.append(pos["tsat"] - pos["lsat"] - np.array([400.0, 0.0, 0.0]))
+    t = np.array(t)
+    ratio = np.array([np.abs(err[k]).max() / math.tan(((1 - 0.1) * math.exp(-5e-5 * t[k]) + 0.1) * math.pi / 2)
+                      for k in range(1, len(t))])
+    t1 = t[1:]
+    inside = (t1 >= 5.0 - 1e-9) & (t1 < 15.0 - 1e-9)
+    key = "leader's TT error over the funnel bound {} [ratio]"
+    assert math.isclose(rec[key.format("max_in_window")], ratio[inside].max(), rel_tol=1e-9)
+    assert math.isclose(rec[key.format("at_start")], ratio[inside][0], rel_tol=1e-9)
+    assert math.isclose(rec[key.format("at_run_end")], ratio[-1], rel_tol=1e-9)
