@@ -297,7 +297,8 @@ def test_system_case_ii_twenty_agents() -> None:
 @pytest.mark.study
 def test_system_literal_chase_law_flies_into_the_target() -> None:
     """NOTES-000 trap 1, shown: eq. 25–26 as printed (no approach governor) under F_max = 0.1 N
-    overshoots the slot by metres; measured (seed 1) an agent 1.35 m inside the true surface."""
+    overshoots the slot by metres: an agent ends up inside the true surface (seed 1: docs/paper000.md
+    "Paper vs measured", claims/paper000.py)."""
     res = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"chase_law": "literal"})
     print(report(res, "literal chase law"))
     assert res.min_surface_m < 0.0
