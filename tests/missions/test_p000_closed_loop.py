@@ -309,8 +309,12 @@ def test_case_result_feeds_every_paper000_claim() -> None:
     short run (5 s at 0.1 s, seconds), so a renamed field fails here and not after a 550 s run."""
     from claims.paper000 import CLAIMS, POLICIES, case_result
 
-    out = case_result(run_capture(duration_s=5.0, dt_s=0.1, seed=1))
+    run = run_capture(duration_s=5.0, dt_s=0.1, seed=1)
+    out = case_result(run)
     assert out["n_agents"] == 10 and out["state_packets"] >= 0
     for c in CLAIMS:
         if c.source in {f"p000.i-{k}" for k in POLICIES}:
             c.compute(out)
+    # positive control of the system tests' check: a run that is not the 550 s one misses its row
+    bad = {b.split(":")[0] for b in claim_failures("p000.i-event", run)}
+    assert {"p000.i-event.entry-last", "p000.i-event.state-packets"} <= bad, bad
