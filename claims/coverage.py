@@ -43,7 +43,7 @@ REQUIRED: tuple[Required, ...] = (
              "issue 29's faster fit (not remeasured); the room-loop column is paper000-numbers (study tier; not "
              "yet registered)"),
     Required("docs/paper001.md", "Paper vs measured", None,
-             "30 releases at 1 s steps to 32,000 s: claims/paper001_study.py is written (its shape tested) but "
+             "30 releases at 1 s steps to 32,000 s: claims/paper001_study.py is written (its shape and its recorded rows tested) but "
              "not registered. Measured 2026-12-03 with `swarmhil claims --study --only p001.<reading>-<release> "
              "--cache DIR`: 34-50 s of CPU per release, 68-270 s of wall at load average 7-10, i.e. ~22 min of "
              "CPU per kernel set; 5 releases recorded (paper oct, 0, 1, 2; ae 3), the other 25 not run in time"),
