@@ -42,12 +42,11 @@ REQUIRED: tuple[Required, ...] = (
              "last measured 319 s wall multi-process at load ~6 and 633-712 s in-process at load ~15, before "
              "issue 29's faster fit (not remeasured); the room-loop column is paper000-numbers (study tier; not "
              "yet registered)"),
-    Required("docs/paper001.md", "Paper vs measured", None,
-             "30 releases at 1 s steps to 32,000 s: claims/paper001_study.py is written (its shape and its recorded rows tested) but "
-             "not registered. Measured 2026-12-03 with `swarmhil claims --study --only p001.<reading>-<release> "
-             "--cache DIR`: 34-50 s of CPU per release, 68-270 s of wall at load average 7-10, i.e. ~22 min of "
-             "CPU per kernel set; 26 releases recorded with the default kernels (all but centred 4-7 at 00:20 UTC), "
-             "paper oct and 1 also under the other kernel set; not registered in time"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-verdicts"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-paper"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-centred"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-literal"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-ae"),
     Required("docs/paper001.md", "The claims table, checked on the stack (full tersoff-6, seed 1, 5 s steps, 40,000 s)",
              "paper001-stack"),
     Required("docs/paper003.md", "Paper's numbers vs measured", "paper003-numbers"),
