@@ -18,7 +18,6 @@ class Required:
     why_not: str = ""  # when not covered yet: what it takes
 
 
-STUDY = "its runs take hours (study tier); not yet registered"
 BENCH = "timings (bench tier); not yet registered"
 
 REQUIRED: tuple[Required, ...] = (
@@ -32,13 +31,22 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/paper002-reproduction.md", "How dV depends on the initial dispersion (Table 1 is missing)",
              "paper002-draws"),
     Required("docs/paper000-reproduction.md", "The paper's claims against the measurements", None,
-             STUDY + " (550 s cases, ~17 min each, three seeds per case)"),
-    Required("docs/paper000.md", "Paper vs measured", None, STUDY + " (550 s at 0.05 s, three policies)"),
-    Required("docs/paper000.md", "Case (i) over the link, 550 s", None, STUDY + " (multi-process, 550 s)"),
-    Required("docs/paper001.md", "Paper vs measured", None,
-             "30 releases at 1 s steps to 32,000 s (20-80 s of CPU each): claims/paper001_study.py is written "
-             "(its shape tested) but not registered; on 2026-12-03 the shared machine (load average 10-45) ran "
-             "only a few of them"),
+             "recordings of stack runs (`swarmhil run deploy/scenarios/capture-10.toml` / capture-20, read by "
+             "`swarmhil report`): cases (i) and (ii), three seeds, event trigger and 1 Hz, about ten 550 s runs; "
+             "capture-20 in-process costs 51-54 s of CPU per 60 s simulated (bench/bench_p000.py after issue 29, "
+             "docs/paper000-reproduction.md Benchmark), ~8 min of CPU per 550 s case (ii) run: over an hour of "
+             "CPU per kernel set, not run on 2026-12-03 (study tier; not yet registered)"),
+    Required("docs/paper000.md", "Paper vs measured", "paper000-numbers"),
+    Required("docs/paper000.md", "Case (i) over the link, 550 s", None,
+             "stack runs of capture-10, 550 s: multi-process over Zenoh (event) and in-process (event, 1 Hz); "
+             "last measured 319 s wall multi-process at load ~6 and 633-712 s in-process at load ~15, before "
+             "issue 29's faster fit (not remeasured); the room-loop column is paper000-numbers (study tier; not "
+             "yet registered)"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-verdicts"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-paper"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-centred"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-literal"),
+    Required("docs/paper001.md", "Paper vs measured", "paper001-ae"),
     Required("docs/paper001.md", "The claims table, checked on the stack (full tersoff-6, seed 1, 5 s steps, 40,000 s)",
              "paper001-stack"),
     Required("docs/paper003.md", "Paper's numbers vs measured", "paper003-numbers"),

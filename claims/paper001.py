@@ -5,7 +5,7 @@ in-process and its report's metrics (tier `study`, ~1 min of CPU), beside the ro
 its claims from it (`checked_by`).
 
 The release study ("Paper vs measured": every release of every reading, 30 runs) is
-claims/paper001_study.py, built on the sources here and registered once its runs are measured.
+claims/paper001_study.py, built on the sources here (registered).
 """
 from __future__ import annotations
 

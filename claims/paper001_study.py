@@ -3,9 +3,10 @@ steps to 32,000 s for every release of every reading (30 runs, tier `study`: 20-
 ~7-25 min of wall each on the shared machine at a load average of 10-45), the per-reading tables
 and the verdict table made from them; the relaxed TB hexagon's eq. 16 (`quick`, no run).
 
-Not registered yet (claims/coverage.py NOT_YET): its runs are not all measured. To register it,
-add it to claims/registry.py `modules()`, then `swarmhil claims --study --only p001. --jobs 2
---record` (and the same under the other kernel set) and `swarmhil claims --write`.
+Registered 2026-12-03: the 30 releases recorded with the default kernels (30-50 s of CPU each);
+under the other kernel set only paper 1 and oct so far (identical). To complete: `swarmhil claims
+--study --only p001.paper --record` (and centred, literal, ae) under OPENBLAS_CORETYPE=Sandybridge
+NPY_DISABLE_CPU_FEATURES=X86_V3.
 """
 from __future__ import annotations
 

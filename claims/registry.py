@@ -20,9 +20,9 @@ RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from claims import paper001, paper002, paper003, paper004, performance, reliability
+    from claims import paper000, paper001, paper001_study, paper002, paper003, paper004, performance, reliability
 
-    return [paper001, paper002, paper003, paper004, performance, reliability]
+    return [paper000, paper001, paper001_study, paper002, paper003, paper004, performance, reliability]
 
 
 def _value(v: Any) -> Any:

@@ -22,6 +22,7 @@ from agent.missions.p000_capture import quaternion as quat
 from agent.missions.p000_capture.controller import CaptureController
 from agent.missions.p000_capture.params import CaptureParams
 from agent.missions.p000_capture.sensing import CaptureSensing
+from claims.check import claim_failures
 from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 
 N_RADPS = float(np.sqrt(3.986004418e14 / 6878137.0 ** 3))  # 500 km circular LEO
@@ -269,6 +270,7 @@ def test_system_case_i_550s_paper_step() -> None:
     check_paper_outcome(res, min_out_of_search=10, min_settled=10)
     assert res.state_broadcasts < res.chase_agent_steps * res.dt_s  # fewer than 1 Hz periodic
     assert sorted(x for x in res.chase_entry_s if x is not None)[-1] < 325.6  # enclosure by Fig. 3(d)
+    assert claim_failures("p000.i-event", res) == []  # its docs/paper000.md column (claims/paper000.py)
 
 
 @pytest.mark.system
@@ -279,6 +281,7 @@ def test_system_case_i_periodic_baseline_sends_more() -> None:
     periodic = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"broadcast": "periodic"})
     print(report(event, "event"), report(periodic, "periodic 1 Hz"), sep="\n")
     assert event.state_broadcasts < periodic.state_broadcasts
+    assert claim_failures("p000.i-periodic", periodic) == []  # its docs/paper000.md column (claims/paper000.py)
 
 
 @pytest.mark.system
@@ -294,7 +297,24 @@ def test_system_case_ii_twenty_agents() -> None:
 @pytest.mark.study
 def test_system_literal_chase_law_flies_into_the_target() -> None:
     """NOTES-000 trap 1, shown: eq. 25–26 as printed (no approach governor) under F_max = 0.1 N
-    overshoots the slot by metres; measured (seed 1) an agent 1.35 m inside the true surface."""
+    overshoots the slot by metres: an agent ends up inside the true surface (seed 1: docs/paper000.md
+    "Paper vs measured", claims/paper000.py)."""
     res = run_capture(duration_s=550.0, dt_s=0.05, seed=1, params={"chase_law": "literal"})
     print(report(res, "literal chase law"))
     assert res.min_surface_m < 0.0
+
+
+def test_case_result_feeds_every_paper000_claim() -> None:
+    """claims/paper000.py reads a run through `case_result`: every claim of a column computes from a
+    short run (5 s at 0.1 s, seconds), so a renamed field fails here and not after a 550 s run."""
+    from claims.paper000 import CLAIMS, POLICIES, case_result
+
+    run = run_capture(duration_s=5.0, dt_s=0.1, seed=1)
+    out = case_result(run)
+    assert out["n_agents"] == 10 and out["state_packets"] >= 0
+    for c in CLAIMS:
+        if c.source in {f"p000.i-{k}" for k in POLICIES}:
+            c.compute(out)
+    # positive control of the system tests' check: a run that is not the 550 s one misses its row
+    bad = {b.split(":")[0] for b in claim_failures("p000.i-event", run)}
+    assert {"p000.i-event.entry-last", "p000.i-event.state-packets"} <= bad, bad

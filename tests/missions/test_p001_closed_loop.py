@@ -209,9 +209,8 @@ def test_release_to_structure_at_1s_steps(reading: str, seed) -> None:
     s = check_timeline_and_limits(run)
     assert s["structure"] == MEASURED[reading][seed]
     source = f"p001.{reading}-{seed}"
-    if source in registry().sources:  # paper-1: a stack-table claim; the release study's rows
-        # (claims/paper001_study.py) are not registered yet, so the other releases have no claim to check
-        assert claim_failures(source, run) == []  # its docs/paper001.md row (claims/check.py)
+    assert source in registry().sources  # every release is a source (claims/paper001.py, paper001_study.py)
+    assert claim_failures(source, run) == []  # its docs/paper001.md row (claims/check.py)
     if s["structure"] == "6-ring" and reading in ("paper", "centred"):
         hx = check_hexagon(run.pos_m[-1], SIDE_M)
         assert hx.is_hexagon and hx.thickness_m < 0.05 and s["t_form_s"] < 25000.0
