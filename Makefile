@@ -33,9 +33,11 @@ demo: setup
 test: setup
 	$(PY) -m pytest -q
 
-# The linter (ruff; its rules are in pyproject.toml [tool.ruff]), clean on the tree. CI runs it.
+# The linter (ruff; its rules are in pyproject.toml [tool.ruff]) and the type check of the interfaces
+# (mypy; the files it checks are in pyproject.toml [tool.mypy]), both clean on the tree. CI runs it.
 lint: setup
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 # The tests most sensitive to the floating-point kernels, again under another kernel set than this
 # CPU's own (docs/determinism.md): OpenBLAS's Sandybridge kernels and numpy without its X86_V3

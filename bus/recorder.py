@@ -145,25 +145,28 @@ class McapRecorder:
         if known is None:  # a run has few distinct keys: parse each once
             known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
         cls, topic = known
+        t: int | None
+        msg: Message | None
         if t_ns is not None and self._scene is None and cls is not None:
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)
-        t_ns = self._last_t_ns if t is None else t
+        at_ns = self._last_t_ns if t is None else t
         if reason:
             self.undecodable += 1
             wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
                                            header=pb.Header(run=self.run, source="recorder", t=self._last_t_ns / 1e9))
             cls, payload, msg = pb.UndecodableSample, wrapped.SerializeToString(), None
         else:
-            self._last_t_ns = max(self._last_t_ns, t_ns)
-        self._add(topic, cls, payload, t_ns, wall_ns)
+            self._last_t_ns = max(self._last_t_ns, at_ns)
+        assert cls is not None  # a sample of an unknown key is parse_sample's reason, wrapped above
+        self._add(topic, cls, payload, at_ns, wall_ns)
         if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
             self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
             self._last_flush = time.monotonic()
         if self._scene is not None:
-            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(t_ns, 0)):
-                self._add(d_topic, d_cls, d_payload, t_ns, wall_ns)
+            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
+                self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

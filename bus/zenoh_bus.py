@@ -12,6 +12,7 @@ import logging
 import queue
 import socket
 import threading
+from collections.abc import Sequence
 from typing import Any
 
 import zenoh
@@ -73,7 +74,7 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
     return cfg
 
 
-def open_router(listen: str, overrides: dict[str, Any] | None = None, also: list[str] = ()) -> zenoh.Session:
+def open_router(listen: str, overrides: dict[str, Any] | None = None, also: Sequence[str] = ()) -> zenoh.Session:
     """A Python session in router mode: the run's router (no zenohd binary needed).
 
     `overrides` carries the run's authentication dictionary and access control (bus/acl.py); `also`:

@@ -381,7 +381,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
                                         "params"})
     from plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-    sensing = {
+    sensing: dict[str, Any] = {
         "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), tuple(known_sensing())),
         "roe_noise_fraction": _num(src, "[sensing].roe_noise_fraction", sens.get("roe_noise_fraction", 0.0), 0.0, 10.0),
         "pointing_error_rad": _vec3(src, "[sensing].pointing_error_rad", sens.get("pointing_error_rad", [0.0, 0.0, 0.0])),
@@ -605,7 +605,7 @@ def _drag(src: str, drag: Any) -> dict[str, Any] | None:
         raise _err(src, f"[plant].drag.{unknown[0]}", f"is not a known field; known: {sorted(known)}", drag[unknown[0]])
     out: dict[str, Any] = {}
     for k, v in drag.items():
-        name = aliases.get(k, k)
+        name = str(aliases.get(k, k))  # TOML keys are strings
         if name == "rotating_atmosphere":
             if not isinstance(v, bool):
                 raise _err(src, f"[plant].drag.{k}", "must be true or false", v)
@@ -646,7 +646,7 @@ def _bodies(src: str, items: Any, ids: set[str]) -> list[Any]:
 
     if not isinstance(items, list):
         raise _err(src, "[[body]]", "must be an array of tables", items)
-    out = []
+    out: list[BodySpec] = []
     for i, item in enumerate(items):
         try:
             b = BodySpec.model_validate(item)
@@ -717,7 +717,7 @@ def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.
     tries = d.get("max_tries", 2000)
     if isinstance(tries, bool) or not isinstance(tries, int) or not 1 <= tries <= 1_000_000:
         raise _err(src, "[dispersion].max_tries", "must be an integer in 1..1000000", tries)
-    cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
+    cam = CameraGeometry(sc.camera["detection_range_m"], int(sc.camera["image_px"]), sc.camera["focal_px"])
     for _ in range(tries):
         roe = draw_roe(rng, disp)
         if not want_connected:

@@ -81,7 +81,7 @@ class LinkFaults:
         keep = np.ones(len(dst))
         latency = np.zeros(len(dst))
         for a, b, f in degr:
-            on = np.ones(len(dst), dtype=bool) if a is None else between_mask(a, b, src, dst)
+            on = np.ones(len(dst), dtype=bool) if a is None or b is None else between_mask(a, b, src, dst)
             keep *= np.where(on, 1.0 - f.loss_probability, 1.0)
             latency += np.where(on, f.extra_latency_s, 0.0)
         return PacketFaults(blocked, 1.0 - keep, latency)

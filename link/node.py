@@ -258,7 +258,7 @@ class ChannelNode:
             cmd = pb.ActuatorCommand.FromString(payload)  # only its header matters here
         except (DecodeError, ValueError, RuntimeWarning):
             return  # the plant validates and counts bad commands
-        if cmd.header.source != sc or cmd.header.run != self.run:
+        if sc is None or cmd.header.source != sc or cmd.header.run != self.run:
             return
         k = int(cmd.header.step)
         with self._lock:
@@ -333,7 +333,7 @@ class ChannelNode:
     def _watchdog(self) -> None:
         while not self._stop.wait(0.05):
             with self._lock:
-                due = (not self._window_done and not self._finished and self.step >= 0
+                due = (not self._window_done and not self._finished and self.step >= 0 and self._watchdog_s is not None
                        and time.monotonic() - self._tick_wall > self._watchdog_s)
                 step = self.step
             if due:

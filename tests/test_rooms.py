@@ -299,10 +299,26 @@ def test_function_local_imports_of_the_project_say_why() -> None:
     assert len(found) <= LOCAL_IMPORTS_MAX, f"{len(found)} function-local imports of project modules (max {LOCAL_IMPORTS_MAX})"
 
 
-def test_lint_is_clean_and_ci_runs_it() -> None:
-    """`make lint` (ruff with pyproject.toml's rules) passes on the tree, and .ci/run has it as a stage."""
+def test_lint_is_clean_and_ci_runs_it(tmp_path: Path) -> None:
+    """`make lint` (ruff with pyproject.toml's rules, then mypy on the interfaces listed in its
+    [tool.mypy]) passes on the tree, and .ci/run has it as a stage."""
     p = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "."], cwd=ROOT, capture_output=True,
                        text=True, timeout=120)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-1000:]
+    p = subprocess.run([sys.executable, "-m", "mypy", "--cache-dir", str(tmp_path / "mypy")], cwd=ROOT,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and "Success" in p.stdout, p.stdout[-3000:] + p.stderr[-1000:]
     assert 'stage "lint" make lint' in (ROOT / ".ci" / "run").read_text()
-    assert "\nlint: setup\n\t$(VENV)/bin/ruff check .\n" in (ROOT / "Makefile").read_text()
+    assert "\nlint: setup\n\t$(VENV)/bin/ruff check .\n\t$(VENV)/bin/mypy\n" in (ROOT / "Makefile").read_text()
+
+
+def test_type_check_covers_the_interfaces() -> None:
+    """The type check's file list names the interfaces issue 25 asks for (the bus, the flight-software
+    and sensing interfaces, the typed configs, every room's contract), and each entry matches a file."""
+    files = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]["files"]
+    for must in ("bus/", "agent/controller.py", "plant/config.py", "plant/flight.py", "plant/sensing/registry.py",
+                 "deploy/agent_image.py", "missions/*/contract.py"):
+        assert must in files, must
+    for entry in files:
+        assert list(ROOT.glob(entry.rstrip("/"))), f"{entry} matches nothing"
+    assert len(list(ROOT.glob("missions/*/contract.py"))) >= 2
