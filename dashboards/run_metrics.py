@@ -1,7 +1,7 @@
 """A run's swarm metrics written beside its recording: summary.json["metrics"] and
 metrics_series.npz (reading and analysis only: no figures, no pages).
 
-`write_report` (dashboards/report.py) and the navigation comparison (dashboards/navreport.py) both
+`write_report` (dashboards/report.py) and the navigation comparison (dashboards/navreport/) both
 start here; a campaign's batch run hands in the truth arrays it already holds (`write_metrics`).
 The camera of a run is read from the run itself (dashboards/run_config.py `run_camera`).
 """

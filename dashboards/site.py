@@ -12,7 +12,7 @@ template set (dashboards/templates/), linked from RUN/report/index.html by a bar
 Figures with many lines are interactive (Plotly; plotly.js is one file of the site, no CDN) with
 their static PNG/SVG/PDF linked; the others are PNG images with their SVG/PDF linked. This module
 only assembles pages: reading is dashboards/frames.py, analysis dashboards/metrics.py and
-navreport.py, figures dashboards/figstyle.py and interactive.py, the page helpers the report kit
+dashboards/navreport/, figures dashboards/figstyle.py and interactive.py, the page helpers the report kit
 dashboards/kit.py.
 """
 from __future__ import annotations
@@ -25,11 +25,14 @@ from typing import Any
 from mcap.reader import make_reader
 
 from bus.keys import split_topic
-from dashboards.bandwidth import bandwidth_section, read_link_traffic
+from dashboards.bandwidth.page import bandwidth_section
+from dashboards.bandwidth.read import read_link_traffic
 from dashboards.frames import metrics_frame, read_frames, write_tables
 from dashboards.interactive import write_plotly_js
 from dashboards.kit import SiteFigure, figures_of, nav_bar, render
-from dashboards.navreport import analyse_run, nav_figures, nav_table_rows
+from dashboards.navreport.analysis import analyse_run
+from dashboards.navreport.figures import nav_figures
+from dashboards.navreport.page import nav_table_rows
 
 MAX_EVENT_ROWS = 5000  # rows of the event page; data/events.csv has them all
 
@@ -109,4 +112,4 @@ def _navigation(run_dir: Path, out: Path) -> tuple[list[tuple[str, str]], list[S
     if nav.rows.n == 0 and nav.decisions.step.size == 0:
         return None
     figs = figures_of(out, nav_figures(nav, out, prefix="nav_"))
-    return [(k, html.escape(v)) for k, v in nav_table_rows(nav.summary)], figs, "<p>Definitions: dashboards/navreport.py.</p>"
+    return [(k, html.escape(v)) for k, v in nav_table_rows(nav.summary)], figs, "<p>Definitions: dashboards/navreport/ (package docstring).</p>"

@@ -1,6 +1,6 @@
 """`swarmhil report-bandwidth RUN_DIR [--compare RUN_DIR_B]`: the link bandwidth report (issue 5).
 
-The main report can include the same content through `dashboards.bandwidth.write_bandwidth_report`
+The main report can include the same content through `dashboards.bandwidth.page.write_bandwidth_report`
 (or `bandwidth_section` for an HTML section).
 """
 from __future__ import annotations
@@ -22,29 +22,29 @@ def report_bandwidth(run_dir: str, compare: str | None, out: str | None) -> None
     """Bytes and messages per agent and per link, drops by cause, totals: from RUN_DIR/run.mcap alone,
     checked against the channel's own counters (exit code 1 when they disagree). A run without a
     link (no [link] in its scenario) gets an empty report that says so, exit code 0."""
-    from dashboards.bandwidth import consistency, read_link_traffic, write_bandwidth_comparison, write_bandwidth_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from dashboards.bandwidth import accounting, page, read  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     for r in [run_dir, compare] if compare else [run_dir]:
         check_run_dir(r)
-    runs = {r: read_link_traffic(r) for r in ([run_dir, compare] if compare else [run_dir])}
+    runs = {r: read.read_link_traffic(r) for r in ([run_dir, compare] if compare else [run_dir])}
     if not compare and not runs[run_dir].has_link:
         path = _write_no_link_report(runs[run_dir], Path(out) if out else Path(run_dir) / "report" / "bandwidth.html")
         click.echo(f"{runs[run_dir].run}: no inter-satellite link in this run ([link] absent or disabled in its "
                    f"scenario): nothing to count; wrote an empty report {path}")
         return
     if compare:
-        path = write_bandwidth_comparison(runs[run_dir], runs[compare],
+        path = page.write_bandwidth_comparison(runs[run_dir], runs[compare],
                                           Path(out) if out else Path(run_dir) / "report" / "bandwidth_compare.html")
     else:
-        path = write_bandwidth_report(run_dir, out, traffic=runs[run_dir])
+        path = page.write_bandwidth_report(run_dir, out, traffic=runs[run_dir])
     click.echo(f"wrote {path}")
     bad = False
     for r, lt in runs.items():
         if not lt.has_link:
             click.echo(f"{lt.run}: no inter-satellite link in this run: counted as zero traffic")
             continue
-        checks = consistency(lt)
+        checks = accounting.consistency(lt)
         for name, rec, stats, summ, ok in checks:
             if not ok:
                 bad = True
@@ -62,10 +62,10 @@ def _write_no_link_report(lt: Any, path: Path) -> Path:
     """The bandwidth page of a run without a link: it says so, and has no table or figure."""
     import html
 
-    from dashboards.bandwidth import _page  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from dashboards.bandwidth.page import write_page  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    return _page(f"swarmhil bandwidth: {lt.run}",
+    return write_page(f"swarmhil bandwidth: {lt.run}",
                  f"<p>Run <code>{html.escape(lt.run)}</code> has no inter-satellite link (no <code>[link]</code> "
                  "table in its scenario, or it is disabled): no transmission, delivery or link counter was "
                  "recorded, so there is nothing to count.</p>", path)

@@ -4,7 +4,7 @@ For each run: the navigation error of every track against truth (RUN_DIR/navrepo
 nav_summary.json, nav_table.md, PNGs). Then one comparison table over the runs, the first being the
 dV reference (DIR/comparison.md, .json, .html): total dV, weak connectivity, separations, closest
 approach, navigation error. Everything is computed from each RUN_DIR/run.mcap alone
-(dashboards/navreport.py; swarm metrics from dashboards/metrics.py).
+(dashboards/navreport/; swarm metrics from dashboards/metrics.py).
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import click
 @click.option("--label", "labels", multiple=True, help="Row label per RUN_DIR, in order (default: scenario name).")
 def report_nav(run_dirs: tuple[str, ...], out: str, labels: tuple[str, ...]) -> None:
     """Navigation error against truth per run, and a comparison table across the runs."""
-    from dashboards.navreport import write_comparison, write_nav_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from dashboards.navreport.page import write_comparison, write_nav_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 

@@ -1,4 +1,4 @@
-"""The bandwidth report (dashboards/bandwidth.py) and `swarmhil report-bandwidth`."""
+"""The bandwidth report (dashboards/bandwidth/) and `swarmhil report-bandwidth`."""
 from __future__ import annotations
 
 import json
@@ -55,7 +55,9 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
-    from dashboards.bandwidth import consistency, link_matrix, per_agent_series, read_link_traffic, write_bandwidth_report
+    from dashboards.bandwidth.accounting import consistency, link_matrix, per_agent_series
+    from dashboards.bandwidth.page import write_bandwidth_report
+    from dashboards.bandwidth.read import read_link_traffic
 
     run = runs[0]
     lt = read_link_traffic(run)
@@ -80,7 +82,9 @@ def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
 
 
 def test_comparison_mode(runs: tuple[Path, Path], tmp_path: Path) -> None:
-    from dashboards.bandwidth import read_link_traffic, totals, write_bandwidth_comparison
+    from dashboards.bandwidth.accounting import totals
+    from dashboards.bandwidth.page import write_bandwidth_comparison
+    from dashboards.bandwidth.read import read_link_traffic
 
     a, b = runs
     out = write_bandwidth_comparison(a, b, tmp_path / "cmp" / "compare.html")

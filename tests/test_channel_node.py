@@ -190,7 +190,8 @@ class RogueBus(MemoryBus):
 def test_bad_packets_are_rejected_counted_and_recorded_while_the_run_continues(tmp_path: Path,
                                                                                monkeypatch: pytest.MonkeyPatch) -> None:
     from deploy.launcher import run_in_process
-    from dashboards.bandwidth import consistency, read_link_traffic
+    from dashboards.bandwidth.accounting import consistency
+    from dashboards.bandwidth.read import read_link_traffic
 
     monkeypatch.setattr("bus.memory.MemoryBus", RogueBus)
     sc = load_scenario(write_small(tmp_path, duration=100.0))

@@ -131,7 +131,9 @@ def test_no_delivery_beyond_range_and_binomial_loss(zenoh_run: Path) -> None:
 
 
 def test_report_totals_equal_the_recording_and_the_channel_counters(zenoh_run: Path) -> None:
-    from dashboards.bandwidth import consistency, read_link_traffic, totals, write_bandwidth_report
+    from dashboards.bandwidth.accounting import consistency, totals
+    from dashboards.bandwidth.page import write_bandwidth_report
+    from dashboards.bandwidth.read import read_link_traffic
 
     rec = _recording(zenoh_run)
     overhead = rec["config"][0]["overhead_bytes"]

@@ -1,4 +1,4 @@
-"""Navigation error from a recording (dashboards/navreport.py): association with truth, errors, NEES.
+"""Navigation error from a recording (dashboards/navreport/): association with truth, errors, NEES.
 
 A short real in-process run of the filter scenario (6 spacecraft, 300 s) and of the ideal-sensing
 scenario; the references are computed here independently, from the messages decoded with the
@@ -16,9 +16,9 @@ import pytest
 from scipy.stats import chi2
 
 from conftest import SCENARIOS, read_mcap, weakly_connected_by_hand
-from dashboards.navreport import (
-    TrackRows, associate, nees_of, read_tracks, write_comparison, write_nav_report, analyse_run,
-)
+from dashboards.navreport.analysis import analyse_run, associate, nees_of
+from dashboards.navreport.page import write_comparison, write_nav_report
+from dashboards.navreport.read import TrackRows, read_tracks
 from deploy.launcher import run_in_process
 from deploy.scenario import parse_scenario
 

@@ -35,6 +35,8 @@ import tomllib
 from collections.abc import Iterator
 from pathlib import Path
 
+import pytest
+
 from conftest import ROOT
 
 CONTRACT_MAY_IMPORT = {"numpy", "bus"}
@@ -322,3 +324,22 @@ def test_type_check_covers_the_interfaces() -> None:
     for entry in files:
         assert list(ROOT.glob(entry.rstrip("/"))), f"{entry} matches nothing"
     assert len(list(ROOT.glob("missions/*/contract.py"))) >= 2
+
+
+JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "figures", "page"),
+             "dashboards/bandwidth": ("read", "accounting", "figures", "page")}
+
+
+@pytest.mark.parametrize("package", sorted(JOB_ORDER))
+def test_report_modules_import_only_the_jobs_before_them(package: str) -> None:
+    """A report package split by job (docs/architecture.md): `read` <- analysis <- `figures` <- `page`;
+    each module imports only the ones before it, and the package's __init__ imports nothing."""
+    order = JOB_ORDER[package]
+    dotted = package.replace("/", ".")
+    assert sorted(p.stem for p in (ROOT / package).glob("*.py")) == sorted((*order, "__init__"))
+    assert not [n for _line, n in imported(ROOT / package / "__init__.py")]
+    for i, job in enumerate(order):
+        for line, name in imported(ROOT / package / f"{job}.py"):
+            if name.startswith(dotted + "."):
+                other = name[len(dotted) + 1:].split(".")[0]
+                assert other in order[:i], f"{package}/{job}.py:{line} imports {name}: {other} is not before {job}"
