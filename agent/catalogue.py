@@ -13,7 +13,7 @@ from typing import Any
 
 import agent.controllers  # noqa: F401  (registers the built-in controllers: numpy only, scipy on use)
 from agent.controller import Controller, OrbitInfo, registered_factory, registered_names, registered_validator
-from bus.discovery import import_all
+from bus.discovery import import_all, import_role
 
 MISSIONS = "agent.missions"
 
@@ -22,6 +22,7 @@ def load_controllers() -> None:
     """Import every mission package under agent/missions/ (each registers its controllers by
     decorator when imported: adding a mission edits nothing here; the built-ins are imported above)."""
     import_all(MISSIONS, packages_only=True)
+    import_role("fsw")
 
 
 def validate_params(name: str, params: dict[str, Any]) -> None:

@@ -44,7 +44,9 @@ PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", 
 LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
 LOCAL_IMPORTS_MAX = 153  # function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py)
-ROOMS_WITH_CONTRACT = ("p000_capture", "p004_lbdnn")
+ROOMS_WITH_CONTRACT = ("p000_capture", "p003_surround", "p004_lbdnn")
+ROOMS_MOVED = ("p003_surround",)  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 step 1)
+PAPER_002 = ("p002", "sabatini")  # paper 002's room is another step (docs/architecture.md "Later steps" (2))
 
 
 def module_name(path: Path) -> list[str]:
@@ -87,31 +89,72 @@ def sources(top: str) -> list[Path]:
     return files
 
 
-def only_contracts(name: str) -> bool:
-    """From `missions`, a module may import the packages and the rooms' contracts, nothing else."""
+def only_contracts(name: str, own: str = "") -> bool:
+    """From `missions`, a module may import the packages and the rooms' contracts, nothing else
+    (and, with `own` = "missions.<room>.<part>", its own part: an fsw its fsw modules)."""
     parts = name.split(".")
-    return parts[0] != "missions" or len(parts) <= 2 or parts[2] == "contract"
+    return (parts[0] != "missions" or len(parts) <= 2 or parts[2] == "contract"
+            or bool(own) and (name == own or name.startswith(own + ".")))
 
 
-def violations(top: str, forbidden: set[str]) -> list[str]:
+def violations(top: str, forbidden: set[str], files: list[Path] | None = None) -> list[str]:
+    """Imports of `forbidden` top-level packages, or of a room's part other than a contract (or
+    the importer's own part), in the modules under `top` (or in `files`)."""
     bad = []
-    for path in sources(top):
+    for path in sources(top) if files is None else files:
+        mod = module_name(path)
+        own = ".".join(mod[:3]) if mod[0] == "missions" and len(mod) > 2 else ""
         for line, name in imported(path):
-            if name.split(".")[0] in forbidden or not only_contracts(name):
+            if name.split(".")[0] in forbidden or not only_contracts(name, own):
                 bad.append(f"{path.relative_to(ROOT)}:{line}: {name}")
     return bad
 
 
+def room_parts(role: str) -> list[Path]:
+    """Every module of the part `role` of every room: missions/<room>/<role>.py or <role>/**."""
+    return sorted([*(ROOT / "missions").glob(f"*/{role}.py"), *(ROOT / "missions").glob(f"*/{role}/**/*.py")])
+
+
 def test_the_plant_imports_no_flight_software() -> None:
     assert not violations("plant", {"agent"})
-    # the rule is exercised: the sensing kinds of papers 000 and 004 read their contracts
+    assert not violations("missions", {"agent", "dashboards", "deploy"}, room_parts("sense"))
+    # the rule is exercised: the sensing kinds of papers 000, 003 and 004 read their contracts
     for kind, room in (("p000", "p000_capture"), ("p004", "p004_lbdnn")):
         names = {n for _, n in imported(ROOT / "plant" / "sensing" / f"{kind}.py")}
         assert f"missions.{room}.contract" in names, (kind, sorted(names))
+    for room in ROOMS_MOVED:
+        names = {n for _, n in imported(ROOT / "missions" / room / "sense.py")}
+        assert f"missions.{room}.contract" in names and "plant.sensing.registry" in names, (room, sorted(names))
 
 
 def test_the_flight_software_imports_no_plant_report_or_launcher() -> None:
     assert not violations("agent", {"plant", "dashboards", "deploy"})
+    fsw = room_parts("fsw")
+    assert {p.relative_to(ROOT / "missions").parts[0] for p in fsw} >= set(ROOMS_MOVED), fsw
+    assert not violations("missions", {"plant", "dashboards", "deploy"}, fsw)
+    # and the rule is exercised: an fsw may import its own modules, not another room's nor a sense
+    assert only_contracts("missions.p003_surround.fsw.nash", "missions.p003_surround.fsw")
+    assert not only_contracts("missions.p003_surround.sense", "missions.p003_surround.fsw")
+    assert not only_contracts("missions.p004_lbdnn.fsw", "missions.p003_surround.fsw")
+
+
+def test_a_report_imports_no_flight_software_nor_sensing() -> None:
+    reports = room_parts("report")
+    assert {p.relative_to(ROOT / "missions").parts[0] for p in reports} >= set(ROOMS_MOVED), reports
+    assert not violations("missions", {"agent", "deploy"}, reports)
+    assert not [f"{p}: {n}" for p in reports for _, n in imported(p) if n.startswith("plant.sensing")]
+
+
+def test_each_mission_lives_in_its_room() -> None:
+    """No product module outside missions/ is named after a moved paper (paper 002's room is
+    another step), and each moved room has its contract, fsw, sense and report."""
+    mods = product_modules()
+    bad = [m for m in mods if not m.startswith("missions.")
+           and any(p[:4] in m or p in m for p in ROOMS_MOVED)]
+    assert not bad, bad
+    for room in ROOMS_MOVED:
+        for part in ("contract", "fsw", "sense", "report"):
+            assert f"missions.{room}.{part}" in mods, (room, part)
 
 
 def test_contracts_import_only_bus_and_numpy() -> None:
@@ -146,6 +189,29 @@ def test_contracts_are_light_and_fsw_loads_no_plant() -> None:
     tops = {m.split(".")[0] for m in mods}
     assert not tops & {"plant", "dashboards", "deploy", "pydantic"}, sorted(tops & {"plant", "dashboards", "deploy", "pydantic"})
     assert "agent.missions.p004_lbdnn.controller" in mods and "missions.p004_lbdnn.contract" in mods
+
+
+def parts_loaded(mods: set[str]) -> set[str]:
+    """The roles of the rooms' parts among loaded modules ({"fsw", "sense", ...})."""
+    return {m.split(".")[2] for m in mods if m.startswith("missions.") and m.count(".") >= 2}
+
+
+def test_each_process_loads_its_own_part_of_the_rooms() -> None:
+    """In a fresh interpreter: the agent's catalogue (every controller) loads every room's fsw and
+    no sense, report, plant, dashboards or deploy module; the plant's sensing registry loads the
+    senses and no fsw or report; the reporter's sections load the reports and no fsw or sense."""
+    mods = loaded_after("from agent.catalogue import known_controllers; known_controllers()")
+    assert parts_loaded(mods) == {"contract", "fsw"}, parts_loaded(mods)
+    assert not {m.split(".")[0] for m in mods} & {"plant", "dashboards", "deploy"}
+    assert {f"missions.{r}.fsw" for r in ROOMS_MOVED} <= mods
+    mods = loaded_after("from plant.sensing import known_sensing; known_sensing()")
+    assert parts_loaded(mods) == {"contract", "sense"}, parts_loaded(mods)
+    assert not {m.split(".")[0] for m in mods} & {"agent", "dashboards", "deploy"}
+    assert {f"missions.{r}.sense" for r in ROOMS_MOVED} <= mods
+    mods = loaded_after("from dashboards.sections import sections_for; sections_for({})")
+    assert parts_loaded(mods) == {"contract", "report"}, parts_loaded(mods)
+    assert "deploy" not in {m.split(".")[0] for m in mods}
+    assert {f"missions.{r}.report" for r in ROOMS_MOVED} <= mods
 
 
 def test_rooms_are_installed_and_in_the_image() -> None:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from bus.discovery import import_all
+from bus.discovery import import_all, import_role
 
 
 @dataclass
@@ -95,6 +95,7 @@ def uses_controller(config: dict[str, Any], *names: str) -> bool:
 
 def _load() -> None:
     import_all(__name__)
+    import_role("report")
 
 
 def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:

@@ -9,7 +9,7 @@ import numpy as np
 from google.protobuf.message import Message
 
 from bus import swarmhil_pb2 as pb
-from bus.discovery import import_all
+from bus.discovery import import_all, import_role
 from plant.config import PlantConfig
 
 
@@ -69,6 +69,7 @@ def _load() -> None:
     for m in list(_PROVIDERS):
         importlib.import_module(m)
     import_all("plant.sensing", skip=("registry",))
+    import_role("sense")
 
 
 def known_sensing() -> list[str]:

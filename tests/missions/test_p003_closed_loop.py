@@ -29,15 +29,19 @@ if str(ROOT) not in sys.path:
 
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo  # noqa: E402
-from agent.missions.p003_surround import nash, sensing  # noqa: E402
-from agent.missions.p003_surround.funnel import funnel_half_width  # noqa: E402
-from agent.missions.p003_surround.params import VARIANT_FAST_CT, FunnelParams, GameParams  # noqa: E402
-from agent.missions.p003_surround.structure import (  # noqa: E402
+from claims.check import claim_failures  # noqa: E402
+from missions.p003_surround.contract import (  # noqa: E402
+    LEADER_REL_KEY,
     SLOT_OFFSETS_M,
+    TARGET_REL_KEY,
+    VARIANT_FAST_CT,
+    FunnelParams,
+    GameParams,
+    funnel_half_width,
     slots_in_leader_frame,
     sphere_arrays,
 )
-from claims.check import claim_failures  # noqa: E402
+from missions.p003_surround.fsw import nash, sensing  # noqa: E402
 from plant.dynamics.frames import eci_to_lvlh, lvlh_angular_velocity, lvlh_basis  # noqa: E402
 
 MU_EARTH = 3.986004418e14
@@ -154,7 +158,7 @@ def run_closed_loop(duration_s: float = 300.0, dt_s: float = 0.1, altitude_m: fl
         # flight software
         rx, inbox = inbox, []
         obs = Observation(k, t, n * t, [], np.zeros((0, 3)), np.zeros((0, 3)),
-                          extra={sensing.TARGET_REL_KEY: sensing.RelativeState(q_tl, v_tl).to_dict()},
+                          extra={TARGET_REL_KEY: sensing.RelativeState(q_tl, v_tl).to_dict()},
                           isl_rx=[p for p in rx if p.src != "lsat"])
         cmd = leader.step(obs)
         acc = [cmd.accel_mps2]
@@ -164,7 +168,7 @@ def run_closed_loop(duration_s: float = 300.0, dt_s: float = 0.1, altitude_m: fl
         us, sat = [], []
         for i, ctl in enumerate(sats):
             obs_i = Observation(k, t, n * t, [], np.zeros((0, 3)), np.zeros((0, 3)),
-                                extra={sensing.LEADER_REL_KEY: sensing.RelativeState(q_s[i], v_s[i]).to_dict()},
+                                extra={LEADER_REL_KEY: sensing.RelativeState(q_s[i], v_s[i]).to_dict()},
                                 isl_rx=[p for p in rx if p.src != ids[i + 1]])
             c = ctl.step(obs_i)
             acc.append(c.accel_mps2)

@@ -1,4 +1,4 @@
-"""`swarmhil report` of a paper 003 run: the "p003-surround" section (dashboards/sections/p003.py).
+"""`swarmhil report` of a paper 003 run: the "p003-surround" section (missions/p003_surround/report.py).
 
 A 20 s in-process run of deploy/scenarios/surround-6.toml, then `python -m deploy.cli report RUN`
 as its own process; the section's metrics in summary.json must equal a recomputation written out here
@@ -29,7 +29,7 @@ FIGURES = ("p003_tt_funnel.png", "p003_ct_errors.png", "p003_paths3d.png", "p003
 
 def recompute(run: dict) -> dict:
     """The section's headline metrics from the recorded truth, written out independently."""
-    from agent.missions.p003_surround.structure import SLOT_OFFSETS_M
+    from missions.p003_surround.contract import SLOT_OFFSETS_M
 
     doc = tomllib.loads(SCENARIO.read_text())
     crafts = {s["id"]: s for s in doc["spacecraft"]}
@@ -109,7 +109,7 @@ def test_report_has_the_surround_section(tmp_path: Path) -> None:
 def test_faults_section_gives_the_funnel_ratio_around_a_leader_fault(tmp_path: Path) -> None:
     """surround-6 for 20 s with the leader's thrusters stuck off over [5, 15) s: the faults section
     gives paper 003's error metric (the leader's TT error over the funnel bound, registered by
-    dashboards/sections/p003.py) around the window, equal to the ratio recounted here from the
+    missions/p003_surround/report.py) around the window, equal to the ratio recounted here from the
     recorded truth (recompute's formula)."""
     from dashboards.report import write_report
     from deploy.launcher import run_in_process

@@ -66,7 +66,7 @@ def escape_manoeuvres(escape_n: float = ESCAPE_N) -> list[dict]:
 
 
 def test_scenario_holds_the_generated_escape_and_structure() -> None:
-    from agent.missions.p003_surround.structure import sphere_arrays
+    from missions.p003_surround.contract import sphere_arrays
 
     doc = tomllib.loads(SCENARIO.read_text())
     body = doc["body"][0]
@@ -126,8 +126,8 @@ def load_run(run_dir: Path) -> dict:
 
 def metrics(run: dict) -> dict:
     """The figures of docs/paper003.md from recorded truth: the report section's own computation
-    (dashboards/sections/p003.py surround_metrics) with the run's recorded configuration."""
-    from dashboards.sections.p003 import setup_from_config, surround_metrics
+    (missions/p003_surround/report.py surround_metrics) with the run's recorded configuration."""
+    from missions.p003_surround.report import setup_from_config, surround_metrics
 
     su = setup_from_config(run.get("config"), run["ids"])
     return surround_metrics(run["t"], run["pos"], run["vel"], run["accel"][1:], run["target_pos"], su)
@@ -138,7 +138,8 @@ def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
     from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from agent.missions.p003_surround import sensing
+    from missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
+    from missions.p003_surround.fsw import sensing
     from plant.mission_world import MissionWorld
     from plant.sensing import SensingContext, make_sensing
 
@@ -155,10 +156,10 @@ def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
     assert all(x.keys() == y.keys() and all(np.array_equal(x[k], y[k]) for k in x) for x, y in zip(a, b))  # seeded
     assert set(a[0]) == {"p003.target_rel.position_m/tsat", "p003.target_rel.velocity_mps/tsat"}
     assert set(a[1]) == {"p003.leader_rel.position_m/lsat", "p003.leader_rel.velocity_mps/lsat"}
-    target = sensing.read(a[0], sensing.TARGET_REL_KEY)
+    target = sensing.read(a[0], TARGET_REL_KEY)
     assert np.abs(target.position_m - [900.0, 500.0, 500.0]).max() < 3.0  # 0.5 m noise, 6 sigma
     assert np.abs(target.velocity_mps - [5.0, 5.0, 5.0]).max() < 0.06
-    me = sensing.read(a[3], sensing.LEADER_REL_KEY)  # ssat3: Table 1 row 3
+    me = sensing.read(a[3], LEADER_REL_KEY)  # ssat3: Table 1 row 3
     assert np.abs(me.position_m - [210.0, 30.0, 100.0]).max() < 3.0
     ideal = make_sensing("p003-relative", plant_config(load_scenario(SCENARIO)))
     got = measurements_to_dict(ideal.stimulus(ctx, 0, pb.Header(step=0)))
@@ -184,7 +185,7 @@ def loop_prediction(duration_s: float):
     """The in-process closed loop of test_p003_closed_loop.py with the scenario's CT weights."""
     from test_p003_closed_loop import run_closed_loop
 
-    from agent.missions.p003_surround.params import VARIANT_FAST_CT
+    from missions.p003_surround.contract import VARIANT_FAST_CT
 
     game = tomllib.loads(SCENARIO.read_text())["controller"]["params"]["game"]
     assert game == VARIANT_FAST_CT
@@ -193,7 +194,7 @@ def loop_prediction(duration_s: float):
 
 def assert_stack_run(mp: dict, ip: dict, duration_s: float, loop_tol_m: float) -> dict:
     """Everything the brief asks of a stack run; returns the metrics of the multi-process run."""
-    from agent.missions.p003_surround.params import FunnelParams, GameParams
+    from missions.p003_surround.contract import FunnelParams, GameParams
 
     steps = int(round(duration_s / 0.1))
     s = mp["summary"]
@@ -253,8 +254,8 @@ def guard_margins(run: dict) -> tuple[float, float]:
     """max over the leader's steps of |q~_TL|/x1* and |q'_TL - q'_v|/x2*, where x* = tan(k e*) is the
     error at which funnel.sampled_limit's saturation starts (e* for the run's 0.1 s hold), recomputed
     from the truth (ideal sensing: the leader measured exactly this). Below 1: the guard never acted."""
-    from agent.missions.p003_surround.funnel import performance, sampled_limit, virtual_velocity
-    from agent.missions.p003_surround.params import FunnelParams
+    from missions.p003_surround.contract import FunnelParams, performance
+    from missions.p003_surround.fsw.funnel import sampled_limit, virtual_velocity
 
     p, lead = FunnelParams(), run["ids"].index("lsat")
     dt = float(run["t"][1] - run["t"][0])

@@ -9,18 +9,24 @@ import pytest
 
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo
-from agent.missions.p003_surround import nash, packets, sensing
-from agent.missions.p003_surround.funnel import funnel_half_width, performance, tt_control
-from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict
-from agent.missions.p003_surround.relative_dynamics import natural_rel_accel
-from agent.missions.p003_surround.structure import (
+from missions.p003_surround.contract import (
     ACSB_SPHERES,
+    LEADER_REL_KEY,
     SLOT_OFFSETS_M,
     SQRT2,
+    TARGET_REL_KEY,
+    FunnelParams,
+    GameParams,
+    from_dict,
+    funnel_half_width,
+    performance,
     slots_in_leader_frame,
     sphere_arrays,
 )
-from agent.missions.p003_surround.threat import (
+from missions.p003_surround.fsw import nash, packets, sensing
+from missions.p003_surround.fsw.funnel import tt_control
+from missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
+from missions.p003_surround.fsw.threat import (
     pair_threat_grads,
     pair_threats,
     structure_threat,
@@ -158,7 +164,7 @@ def funnel_loop(dt_s: float, duration_s: float = 300.0, dq0_m: np.ndarray | None
     Returns the worst max_axis |q~|/tan(k1 π/2) over the samples after t = 0 (the bound at the
     sample's time) and when, the error at the end, the peak |u_L| and the number of steps on which a
     transformed error reached its discrete-time saturation."""
-    from agent.missions.p003_surround.funnel import sampled_limit
+    from missions.p003_surround.fsw.funnel import sampled_limit
 
     q_des = np.asarray(p.q_des_m)
     q = q_des + np.array([1.0e4, -3.0e3, 50.0]) + (0.0 if dq0_m is None else np.asarray(dq0_m))
@@ -243,7 +249,7 @@ def test_sampled_limit_is_where_one_held_sample_stops_overshooting() -> None:
     """e* of funnel.sampled_limit: g tan(e*) = tan(k e*) (one held sample of the law brings its error
     exactly to 0 there), e* = π/2 at k = 1, and the saturation starts within about g of the bound
     tan(k π/2) (relative; 4 g at k = μ = 0.1)."""
-    from agent.missions.p003_surround.funnel import sampled_limit
+    from missions.p003_surround.fsw.funnel import sampled_limit
 
     assert sampled_limit(1.0, 0.0075) == np.pi / 2
     for k in (0.9999, 0.999, 0.99, 0.5, 0.1):
@@ -286,10 +292,10 @@ def test_packets_round_trip() -> None:
 
 def test_sensing_dicts() -> None:
     s = sensing.RelativeState(np.array([1.0, 2, 3]), np.array([0.1, 0.2, 0.3]))
-    back = sensing.read({sensing.LEADER_REL_KEY: s.to_dict()}, sensing.LEADER_REL_KEY)
+    back = sensing.read({LEADER_REL_KEY: s.to_dict()}, LEADER_REL_KEY)
     np.testing.assert_array_equal(back.position_m, s.position_m)
     with pytest.raises(KeyError, match="p003.target_rel"):
-        sensing.read({}, sensing.TARGET_REL_KEY)
+        sensing.read({}, TARGET_REL_KEY)
     with pytest.raises(ValueError, match="position_m"):
         sensing.RelativeState(np.array([1.0, np.nan, 0]), np.zeros(3))
 
@@ -305,14 +311,14 @@ def test_registered_controllers_step() -> None:
     orbit = OrbitInfo(6878137.0, 1.1e-3)
     leader = make_controller("p003-leader", "lsat", orbit, {})
     obs = Observation(0, 0.0, 0.0, [], np.zeros((0, 3)), np.zeros((0, 3)),
-                      extra={sensing.TARGET_REL_KEY: {"position_m": [900, 500, 500], "velocity_mps": [5, 5, 5]}})
+                      extra={TARGET_REL_KEY: {"position_m": [900, 500, 500], "velocity_mps": [5, 5, 5]}})
     cmd = leader.step(obs)
     assert np.linalg.norm(cmd.accel_mps2) * 60.0 <= 180.0 + 1e-9
     assert cmd.transmissions[0].type == packets.TT_TYPE
     sat = make_controller("p003-servicer", "ssat3", orbit, {})
     assert sat.index == 2
     obs = Observation(1, 0.1, 0.0, [], np.zeros((0, 3)), np.zeros((0, 3)),
-                      extra={sensing.LEADER_REL_KEY: {"position_m": [210, 30, 100], "velocity_mps": [1, 3, 2]}},
+                      extra={LEADER_REL_KEY: {"position_m": [210, 30, 100], "velocity_mps": [1, 3, 2]}},
                       isl_rx=[type("P", (), {"src": "lsat", "type": t.type, "payload": t.payload, "sent_t": 0.0})()
                               for t in cmd.transmissions])
     c = sat.step(obs)
@@ -325,7 +331,7 @@ def mechanism_report(dt_s: float = 0.002, duration_s: float = 300.0) -> None:
     """Where the loop meets its bounds: the first step whose velocity error q' - q'_v is beyond
     tan(k2 π/2) (e2 > π/2, the output then at the saturation), its size there, the first step past
     the position bound, the share of steps saturated after it and outside after 10 s."""
-    from agent.missions.p003_surround.funnel import sampled_limit
+    from missions.p003_surround.fsw.funnel import sampled_limit
 
     p, tr = FunnelParams(), []
     run = funnel_loop(dt_s, duration_s, trace=tr)
@@ -352,7 +358,7 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
     # [guarded|unguarded] [DURATION_S] [DT_S ...]  |  bits [guarded|unguarded] DURATION_S DT_S  |  trace [...]
     import sys
 
-    from agent.missions.p003_surround import funnel
+    from missions.p003_surround.fsw import funnel
 
     args = sys.argv[1:]
     mode = args.pop(0) if args and args[0] in ("bits", "trace") else "table"

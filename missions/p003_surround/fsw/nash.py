@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from agent.missions.p003_surround.params import GameParams
-from agent.missions.p003_surround.threat import (
+from missions.p003_surround.contract import GameParams
+from missions.p003_surround.fsw.threat import (
     pair_threat_grads,
     pair_threats,
     structure_threat,

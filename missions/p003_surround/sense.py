@@ -7,7 +7,7 @@
 
 The scenario frame must be the leader's LVLH (`[plant] frame_origin = "<leader_id>"`), so each
 measurement is a difference of two truth rows. Measurements (bus/codec.py add_measurement), names
-as in agent/missions/p003_surround/sensing.py:
+in missions/p003_surround/contract.py:
 
     leader:    "p003.target_rel.position_m", "p003.target_rel.velocity_mps"  (subject: target id)
     servicer:  "p003.leader_rel.position_m", "p003.leader_rel.velocity_mps"  (subject: leader id)
@@ -24,10 +24,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
 from plant.config import PlantConfig
+from missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
 from plant.sensing.registry import SensingContext, register_sensing
-
-TARGET_PREFIX = "p003.target_rel"
-LEADER_PREFIX = "p003.leader_rel"
 
 
 class P003Params(BaseModel):
@@ -76,10 +74,10 @@ class P003RelativeKind:
             rp, rv = target.position_m - pos[lead], target.velocity_mps - vel[lead]
             if np.linalg.norm(rp) <= self.p.range_m:
                 rp, rv = self._noisy(rp, rv)
-                add_measurement(msg, f"{TARGET_PREFIX}.position_m", rp, self.p.target_id)
-                add_measurement(msg, f"{TARGET_PREFIX}.velocity_mps", rv, self.p.target_id)
+                add_measurement(msg, f"{TARGET_REL_KEY}.position_m", rp, self.p.target_id)
+                add_measurement(msg, f"{TARGET_REL_KEY}.velocity_mps", rv, self.p.target_id)
         else:
             rp, rv = self._noisy(pos[j] - pos[lead], vel[j] - vel[lead])
-            add_measurement(msg, f"{LEADER_PREFIX}.position_m", rp, self.p.leader_id)
-            add_measurement(msg, f"{LEADER_PREFIX}.velocity_mps", rv, self.p.leader_id)
+            add_measurement(msg, f"{LEADER_REL_KEY}.position_m", rp, self.p.leader_id)
+            add_measurement(msg, f"{LEADER_REL_KEY}.velocity_mps", rv, self.p.leader_id)
         return msg

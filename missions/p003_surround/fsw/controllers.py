@@ -1,9 +1,9 @@
 """The two flight-software controllers of paper 003, registered as "p003-leader" and
 "p003-servicer" (agent.controller registry).
 
-Leader (LSat): measures q_TL, q'_TL (sensing.TARGET_REL_KEY), runs the funnel TT controller
+Leader (LSat): measures q_TL, q'_TL (TARGET_REL_KEY), runs the funnel TT controller
 (eq. 15-17), thrusts -u_L (<= 180 N) and broadcasts a `p003.tt` packet each step.
-Servicer (SSat i): measures q_Li, q'_Li (sensing.LEADER_REL_KEY), receives the leader's `p003.tt`
+Servicer (SSat i): measures q_Li, q'_Li (LEADER_REL_KEY), receives the leader's `p003.tt`
 and the other servicers' `p003.ct`, and thrusts u_i = u_Li + u_ci* + u_id (eq. 6): the synchronous
 term m_i a_L, the Nash CT control (eq. 21) and the cancellation of the natural relative motion,
 limited to 20 N; it keeps its block ξ_i of the immersion variable (eq. 20) and broadcasts it.
@@ -17,11 +17,23 @@ from typing import Any
 import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from agent.missions.p003_surround import nash, packets, sensing
-from agent.missions.p003_surround.funnel import clip_norm, leader_accel, tt_control
-from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict, q_des
-from agent.missions.p003_surround.relative_dynamics import natural_rel_accel
-from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays
+from missions.p003_surround.fsw import nash, packets, sensing
+from missions.p003_surround.fsw.funnel import clip_norm, leader_accel, tt_control
+from missions.p003_surround.contract import (
+    LEADER_CONTROLLER,
+    LEADER_REL_KEY,
+    SERVICER_CONTROLLER,
+    SLOT_OFFSETS_M,
+    TARGET_REL_KEY,
+    FunnelParams,
+    GameParams,
+    from_dict,
+    q_des,
+    servicer_index,
+    slots_in_leader_frame,
+    sphere_arrays,
+)
+from missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
 
 XI0_PAPER: np.ndarray = np.array([
     [5.0, 0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0, 0], [0, 4.0, 0, 0, 0, 0],
@@ -48,7 +60,7 @@ class LeaderController:
         self.t_prev: float | None = None
 
     def step(self, obs: Observation) -> Command:
-        target = sensing.read(obs.extra, sensing.TARGET_REL_KEY)
+        target = sensing.read(obs.extra, TARGET_REL_KEY)
         # the hold of the discrete-time guard: the measured interval between steps (p.sample_s first)
         hold = self.p.sample_s if self.t_prev is None or obs.t_s <= self.t_prev else obs.t_s - self.t_prev
         self.t_prev = obs.t_s
@@ -108,7 +120,7 @@ class ServicerController:
 
     def step(self, obs: Observation) -> Command:
         self._receive(obs)
-        me = sensing.read(obs.extra, sensing.LEADER_REL_KEY)
+        me = sensing.read(obs.extra, LEADER_REL_KEY)
         i, g, m = self.index, self.g, self.g.mass_kg
         self.x_err[i] = np.concatenate([me.position_m - self.slots_m[i], me.velocity_mps])
         centres = self._sphere_centres(obs.t_s)
@@ -137,22 +149,12 @@ class ServicerController:
         self.xi[self.index] = self.xi[self.index] + dt * rate
 
 
-def servicer_index(sc_id: str, params: dict[str, Any]) -> int:
-    """`params["index"]` if given, else the trailing digits of the id minus one ("ssat3" -> 2)."""
-    if "index" in params:
-        return int(params["index"])
-    digits = "".join(ch for ch in sc_id if ch.isdigit())
-    if not digits:
-        raise ValueError(f"cannot tell the servicer index of {sc_id!r}: give params['index']")
-    return int(digits) - 1
-
-
-@register("p003-leader")
+@register(LEADER_CONTROLLER)
 def make_leader(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LeaderController:
     return LeaderController(from_dict(FunnelParams, params.get("funnel")))
 
 
-@register("p003-servicer")
+@register(SERVICER_CONTROLLER)
 def make_servicer(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> ServicerController:
     return ServicerController(servicer_index(sc_id, params), orbit,
                               from_dict(FunnelParams, params.get("funnel")),

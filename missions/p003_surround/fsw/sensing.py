@@ -1,10 +1,12 @@
 """What each craft measures, as typed `obs.extra` entries (relative sensing only, §2).
 
+The keys are the contract's (missions/p003_surround/contract.py `TARGET_REL_KEY`, `LEADER_REL_KEY`):
+
 - leader: `obs.extra["p003.target_rel"]` = the target's position and velocity relative to the
   leader, q_TL = r_T - r_L and q'_TL, in the leader's LVLH (Assumption 1);
 - servicer i: `obs.extra["p003.leader_rel"]` = its own position and velocity relative to the
   leader, q_Li = r_i - r_L and q'_Li, in the leader's LVLH.
-On the stack (plant/sensing/p003.py, sensing kind `p003-relative`) each arrives as two named
+On the stack (missions/p003_surround/sense.py, sensing kind `p003-relative`) each arrives as two named
 arrays, `obs.extra["<key>.position_m/<subject>"]` and `obs.extra["<key>.velocity_mps/<subject>"]`
 (subject: the target's or the leader's id, whichever it is); an in-process loop may instead hand
 one dict {"position_m": [3 floats], "velocity_mps": [3 floats]} (or the dataclass) under `<key>`.
@@ -15,9 +17,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-TARGET_REL_KEY = "p003.target_rel"
-LEADER_REL_KEY = "p003.leader_rel"
 
 
 @dataclass(frozen=True)

@@ -23,9 +23,20 @@ from dashboards.figstyle import save as _save
 from dashboards.sections import (ErrorSeries, SectionContext, SectionResult, register_error_metric,
                                  register_section, uses_controller)
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-
-LEADER_CONTROLLER = "p003-leader"
-SERVICER_CONTROLLER = "p003-servicer"
+from missions.p003_surround.contract import (
+    LEADER_CONTROLLER,
+    SERVICER_CONTROLLER,
+    SLOT_OFFSETS_M,
+    FunnelParams,
+    GameParams,
+    from_dict,
+    funnel_half_width,
+    performance,
+    servicer_index,
+    slots_in_leader_frame,
+    sphere_arrays,
+    transformed_error,
+)
 
 
 @dataclass(frozen=True)
@@ -58,9 +69,6 @@ def _sc_params(cfg: dict[str, Any], s: dict[str, Any]) -> dict[str, Any]:
 def setup_from_config(cfg: dict[str, Any] | None, ids: list[str]) -> SurroundSetup:
     """The setup of a run from its resolved configuration; without one (old recording), the §5
     defaults with "lsat" the leader, every other spacecraft a servicer and the Table 2 spheres."""
-    from agent.missions.p003_surround.controllers import servicer_index  # the fsw's models, until they move to the room's contract (issue 25)
-    from agent.missions.p003_surround.params import FunnelParams, GameParams, from_dict  # the fsw's models, until they move to the room's contract (issue 25)
-    from agent.missions.p003_surround.structure import SLOT_OFFSETS_M, slots_in_leader_frame, sphere_arrays  # the fsw's models, until they move to the room's contract (issue 25)
 
     cfg = cfg or {}
     scs = {str(s["id"]): s for s in cfg.get("spacecraft") or []}
@@ -114,7 +122,6 @@ def surround_metrics(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, accel_step
 
     accel_steps (K-1, N, 3): the command applied over each step [t_k, t_k+1). Thrust = |a| m with the
     configured masses. The funnel bound is infinite at t = 0, so ratios start at the second row."""
-    from agent.missions.p003_surround.funnel import funnel_half_width, performance, transformed_error  # the fsw's models, until they move to the room's contract (issue 25)
 
     fp = su.funnel
     lead, sats = su.leader, su.servicers

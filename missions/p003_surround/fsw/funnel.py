@@ -17,23 +17,7 @@ import math
 
 import numpy as np
 
-from agent.missions.p003_surround.params import FunnelParams
-
-
-def performance(t_s: float, mu: float, a_per_s: float) -> float:
-    """k_r(t) = (1 - μ_r) exp(-a_r t) + μ_r (after eq. 15)."""
-    return (1.0 - mu) * float(np.exp(-a_per_s * t_s)) + mu
-
-
-def funnel_half_width(t_s: float, mu: float, a_per_s: float) -> float:
-    """The bound tan(k_r(t) π/2) of Remark 6 (inf at t = 0)."""
-    k = performance(t_s, mu, a_per_s)
-    return float(np.inf) if k >= 1.0 else float(np.tan(k * np.pi / 2.0))
-
-
-def transformed_error(err: np.ndarray, k: float) -> np.ndarray:
-    """e = arctan(err) / k (eq. 15; its inverse is eq. 32-33: err = tan(k e))."""
-    return np.arctan(np.asarray(err, dtype=float)) / k
+from missions.p003_surround.contract import FunnelParams, performance, transformed_error
 
 
 def sampled_limit(k: float, gain_hold: float) -> float:

@@ -1,9 +1,0 @@
-"""Paper 003 (Wei et al., Sensors 2025, 25, 5606): a leader and six servicers surround a huge
-escaping target with relative sensors only.
-
-Frame: everything is in the leader's LVLH (x radial outward, y along-track, z orbit normal).
-Modules: `params` (§5 values and open choices), `structure` (Table 1-2 ACSB spheres and slots),
-`funnel` (eq. 15-17), `threat` (eq. 7-8), `nash` (eq. 12, 18-21), `relative_dynamics` (u_id),
-`sensing` (obs.extra keys), `packets` (link payloads), `controllers` (the registered controllers).
-"""
-from agent.missions.p003_surround import controllers  # noqa: F401  (registers p003-leader/servicer)
