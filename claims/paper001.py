@@ -106,9 +106,9 @@ STACK_S = 40000.0
 
 
 def stack_metrics(truth: Any) -> dict[str, Any]:
-    """`swarmhil report`'s `p001-formation` metrics (dashboards/sections/p001.py `formation_metrics`)
+    """`swarmhil report`'s `p001-formation` metrics (missions/p001_lattice/report.py `formation_metrics`)
     of a tersoff-6 truth, plus who saturated when."""
-    from dashboards.sections.p001 import formation_metrics, lattice_params
+    from missions.p001_lattice.report import formation_metrics, lattice_params
 
     from claims.runs import scenario
 

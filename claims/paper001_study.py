@@ -31,8 +31,8 @@ def _tb_relaxed(_get: Any) -> dict[str, Any]:
     (tests/missions/test_p001_lattice.py checks the same)."""
     from scipy.optimize import minimize_scalar
 
-    from agent.missions.p001_lattice.geometry import hexagon_vertices, mean_relative_error
-    from agent.missions.p001_lattice.tersoff import energy, tersoff_params
+    from missions.p001_lattice.contract import hexagon_vertices, mean_relative_error
+    from missions.p001_lattice.fsw.tersoff import energy, tersoff_params
 
     p = tersoff_params("normalised")
     hexa = hexagon_vertices(1.0)

@@ -14,8 +14,8 @@ from scipy.linalg import expm
 
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo
-from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, structure_name
-from agent.missions.p001_lattice.sensing import OwnState
+from missions.p001_lattice.contract import check_hexagon, hexagon_vertices, structure_name
+from missions.p001_lattice.fsw.sensing import OwnState
 from claims.check import claim_failures
 from claims.registry import registry
 

@@ -8,14 +8,14 @@ from scipy.optimize import minimize_scalar
 
 from agent.catalogue import known_controllers, make_controller
 from agent.controller import Observation, OrbitInfo
-from agent.missions.p001_lattice.cw import ballistic_velocity, far_accel
-from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, mean_relative_error
-from agent.missions.p001_lattice.layers import Layer, next_layer
-from agent.missions.p001_lattice.params import LatticeParams
-from agent.missions.p001_lattice.sensing import OwnState
-from agent.missions.p001_lattice.tersoff import energy, forces, gradient, tersoff_params
-from agent.missions.p001_lattice.units import A_E_MPS2, TB_GAIN
-from agent.missions.p001_lattice.wells import planar_well, point_well, saturate
+from missions.p001_lattice.fsw.cw import ballistic_velocity, far_accel
+from missions.p001_lattice.contract import check_hexagon, hexagon_vertices, mean_relative_error
+from missions.p001_lattice.fsw.layers import Layer, next_layer
+from missions.p001_lattice.contract import LatticeParams
+from missions.p001_lattice.fsw.sensing import OwnState
+from missions.p001_lattice.fsw.tersoff import energy, forces, gradient, tersoff_params
+from missions.p001_lattice.contract import A_E_MPS2, TB_GAIN
+from missions.p001_lattice.fsw.wells import planar_well, point_well, saturate
 
 N_GEO = 7.2921e-5
 READINGS = ["normalised", "literal"]

@@ -66,7 +66,7 @@ def _eq16(p: np.ndarray, side: float) -> float:
 
 
 def test_section_metrics_match_the_recording(run: Path) -> None:
-    from agent.missions.p001_lattice.geometry import check_hexagon, structure_name
+    from missions.p001_lattice.contract import check_hexagon, structure_name
 
     met = json.loads((run / "summary.json").read_text())["metrics"]["p001-formation"]
     rec = _recorded(run)

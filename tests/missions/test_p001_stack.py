@@ -69,7 +69,7 @@ def test_multi_process_equals_in_process_and_the_rooms_own_loop(runs: tuple[Path
 
 @pytest.mark.system
 def test_full_run_forms_the_hexagon_of_side_10_m(tmp_path: Path) -> None:
-    from agent.missions.p001_lattice.geometry import check_hexagon, structure_name
+    from missions.p001_lattice.contract import check_hexagon, structure_name
 
     _run(tmp_path / "full", "--in-process")
     _raw, pos, acc = _truth(tmp_path / "full")

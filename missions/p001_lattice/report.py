@@ -5,9 +5,9 @@ ctx.truth (positions, velocities, commanded accelerations in the CW/LVLH frame o
 point) and ctx.config (the resolved configuration: the controller's params give the radii of the
 three spheres, l, u_max and the desired phase; the actuator table gives the plant's limit).
 
-This module imports the pure room module agent/missions/p001_lattice/geometry.py (eq. 16, the
-geometric hexagon test, structure_name) and params.py (the paper's defaults for any parameter the
-scenario left unset): both are numpy-only functions of arrays, no flight-software state.
+This module imports the room's contract (missions/p001_lattice/contract.py: eq. 16, the geometric
+hexagon test, structure_name, and the parameter model with the paper's defaults for any parameter
+the scenario left unset): numpy-only functions of arrays, no flight-software state.
 
 Metrics (summary.json["metrics"]["p001-formation"]):
   gathering      per agent, the first recorded time |r| < r_middle (100 m) and |r| < r_inner (15 m)
@@ -26,14 +26,19 @@ from typing import Any
 
 import numpy as np
 
-from agent.missions.p001_lattice.geometry import check_hexagon, hexagon_vertices, mean_relative_error, structure_name
-from agent.missions.p001_lattice.params import LatticeParams
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from missions.p001_lattice.contract import (
+    CONTROLLER,
+    LatticeParams,
+    check_hexagon,
+    hexagon_vertices,
+    mean_relative_error,
+    structure_name,
+)
 
-CONTROLLER = "p001-lattice"
 PAPER_V_MAX_MPS = 0.18
 PAPER_EQ16 = 0.0125
 PAPER_T_FORM_S = 25000.0

@@ -10,14 +10,12 @@ from typing import Any
 import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, register
-from agent.missions.p001_lattice.cw import far_accel
-from agent.missions.p001_lattice.geometry import hexagon_vertices
-from agent.missions.p001_lattice.layers import Layer, next_layer
-from agent.missions.p001_lattice.params import LatticeParams
-from agent.missions.p001_lattice.sensing import OwnState
-from agent.missions.p001_lattice.tersoff import forces, tersoff_params
-from agent.missions.p001_lattice.units import TB_GAIN
-from agent.missions.p001_lattice.wells import damping, planar_well, point_well, saturate
+from missions.p001_lattice.fsw.cw import far_accel
+from missions.p001_lattice.fsw.layers import Layer, next_layer
+from missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
+from missions.p001_lattice.fsw.sensing import OwnState
+from missions.p001_lattice.fsw.tersoff import forces, tersoff_params
+from missions.p001_lattice.fsw.wells import damping, planar_well, point_well, saturate
 
 
 def tb_accel(rel_position_m: np.ndarray, side_m: float, tb, accel_unit_mps2: float) -> np.ndarray:
@@ -32,7 +30,7 @@ def tb_accel(rel_position_m: np.ndarray, side_m: float, tb, accel_unit_mps2: flo
 class LatticeController:
     """One spacecraft's flight software for paper 001 (far / near / shaping layers, latched)."""
 
-    name = "p001-lattice"
+    name = CONTROLLER
 
     def __init__(self, params: LatticeParams) -> None:
         self.p = params
@@ -69,7 +67,7 @@ def _check(params: dict[str, Any]) -> None:
     LatticeParams.from_dict({"mean_motion_radps": 7.2921e-5, **params})
 
 
-@register("p001-lattice", validate=_check)
+@register(CONTROLLER, validate=_check)
 def _p001_lattice(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LatticeController:
     merged = {"mean_motion_radps": orbit.mean_motion_radps, **params}
     return LatticeController(LatticeParams.from_dict(merged))

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from agent.missions.p001_lattice.units import BRENNER_RE_ANGSTROM
+from missions.p001_lattice.contract import BRENNER_RE_ANGSTROM, CUTOFF_READINGS
 
 
 @dataclass(frozen=True)
@@ -33,9 +33,6 @@ class TersoffParams:
     d0: float = 2.5
     r1: float = 1.95
     r2: float = 2.25
-
-
-CUTOFF_READINGS = ("normalised", "literal")
 
 
 def tersoff_params(cutoff_reading: str = "normalised") -> TersoffParams:
