@@ -68,7 +68,7 @@ class PlantConfig:
     camera: Mapping[str, float]               # [camera]: the camera sensing kinds' geometry
     sensing: Mapping[str, Any]                # [sensing]: kind, its noise, [sensing.params]
     controllers: tuple[tuple[str, Mapping[str, Any]], ...]  # (controller, params) per id: for a sensor
-    #   the flight software's parameters define (paper 004's graph, plant/sensing/p004.py)
+    #   the flight software's parameters define (paper 004's graph, missions/p004_lbdnn/sense.py)
     faults: tuple[Any, ...] = ()              # [[fault]]: plant/faults.py specs (frozen pydantic models)
     contact: ContactConfig | None = None      # [contact]
 

@@ -1,5 +1,6 @@
 """Paper 004's room: collaborative servicing under partial feedback (docs/paper004.md).
 
-`contract`: what the plant's sensing kind `p004-partial` (plant/sensing/p004.py) and the flight
-software (agent/missions/p004_lbdnn/) share. Imports nothing (missions/__init__.py).
+`contract` (what the plant's sensing kind and the flight software share: names, parameter model),
+`fsw/` (the servicers' flight software), `sense` (the plant's sensing kind `p004-partial`),
+`report` (the report section). Imports nothing (missions/__init__.py).
 """

@@ -1,8 +1,8 @@
 """Paper 004's contract: what the plant's sensing kind and the servicers' flight software share.
 
 Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
-plant/sensing/p004.py (the sensor `p004-partial`), agent/missions/p004_lbdnn/ (the flight
-software) and the paper's report (dashboards/sections/p004.py). docs/architecture.md "Mission rooms
+missions/p004_lbdnn/sense.py (the sensor `p004-partial`), missions/p004_lbdnn/fsw/ (the flight
+software) and the paper's report (missions/p004_lbdnn/report.py). docs/architecture.md "Mission rooms
 (issue 25)".
 
 **Names.** `CONTROLLER` is the name the flight software registers and the sensing kind looks for
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 CONTROLLER = "p004-lbdnn"
-"""The servicers' controller name (registered by agent/missions/p004_lbdnn/controller.py)."""
+"""The servicers' controller name (registered by missions/p004_lbdnn/fsw/controller.py)."""
 KEY_D = "p004.d_m"
 """d_ij = q_j - q_i + noise, (3,) metres, inertial axes: obs.extra[f"{KEY_D}/{j}"] per neighbour j (eq. 9)."""
 KEY_Y = "p004.y_m"

@@ -28,7 +28,7 @@ from scipy.integrate import solve_ivp
 
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo
-from agent.missions.p004_lbdnn.sensing import DefunctMeasurement
+from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement
 from claims.check import claim_failures
 from claims.paper004 import slug
 from missions.p004_lbdnn.contract import SERVICERS, MissionConfig, mission_from_params
@@ -120,7 +120,7 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
              params: dict | None = None, noise_fn=None) -> Run:
     """noise_fn(step, index, n_neighbours, m_rows) -> (d noise (n, 3), y noise (m,)): the
     measurement noise (default: one generator seeded seed + 100, drawn in servicer order); the
-    stack test passes the plant's sensing kind's draws (plant/sensing/p004.py measurement_noise)."""
+    stack test passes the plant's sensing kind's draws (missions/p004_lbdnn/sense.py measurement_noise)."""
     params = dict(params or {})
     mission: MissionConfig = mission_from_params({k: v for k, v in params.items() if k != "weight_bytes"})
     g = mission.gains

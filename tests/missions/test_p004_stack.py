@@ -29,7 +29,7 @@ for p in (ROOT, ROOT / "tests", ROOT / "tests" / "missions"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-from dashboards.sections.p004 import first_time_below, servicing_figures, tracking_errors  # noqa: E402
+from missions.p004_lbdnn.report import first_time_below, servicing_figures, tracking_errors  # noqa: E402
 
 SCENARIO = ROOT / "deploy" / "scenarios" / "servicing-6.toml"
 SERVICERS = ("s1", "s2", "s3", "s4", "s5", "s6")
@@ -101,11 +101,11 @@ def test_sensing_kind_measures_neighbours_and_the_defunct_craft_in_eci() -> None
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
     from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
+    from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
     from missions.p004_lbdnn.contract import PAPER_C
     from plant.mission_world import MissionWorld
     from plant.sensing import SensingContext, make_sensing
-    from plant.sensing.p004 import measurement_noise
+    from missions.p004_lbdnn.sense import measurement_noise
 
     sc = plant_config(load_scenario(SCENARIO))
     w = MissionWorld(sc)
@@ -179,7 +179,7 @@ def load_run(run_dir: Path) -> dict:
 
 def metrics(run: dict) -> dict:
     """The paper's figures from recorded truth: ‖e_i‖ = ‖q0 − q_i‖ (frame-independent), ‖u_i‖ of the
-    agents' commands (sc/<id>/act), Δv — computed by the report section (dashboards/sections/p004.py)
+    agents' commands (sc/<id>/act), Δv — computed by the report section (missions/p004_lbdnn/report.py)
     from this test's own reading of the MCAP."""
     u = np.linalg.norm(np.array([run["cmd"][s] for s in run["ids"]]), axis=2).T   # (K-1 or K, 6)
     return servicing_figures(run["t"], tracking_errors(run["defunct_pos"], run["pos"]), u, run["delta_v"][-1])
@@ -200,7 +200,7 @@ def loop_prediction(duration_s: float, monkeypatch: pytest.MonkeyPatch):
     import test_p004_closed_loop as loop
 
     from plant.dynamics import constants
-    from plant.sensing.p004 import measurement_noise
+    from missions.p004_lbdnn.sense import measurement_noise
 
     monkeypatch.setattr(loop, "RHO0", constants.ATMOSPHERE_RHO0_KGPM3)
     monkeypatch.setattr(loop, "H0", constants.ATMOSPHERE_H0_M)

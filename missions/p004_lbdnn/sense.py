@@ -7,7 +7,7 @@ For every servicer i flown by `p004-lbdnn`:
     "p004.y_m/<defunct>" y_i = C_i (q0 - q_i) + noise, (m_i,) m, when b_i = 1 (eq. 10)
 
 (bus/codec.py add_measurement; the agent sees them as obs.extra["<name>/<subject>"], read by
-agent/missions/p004_lbdnn/sensing.py). Positions are the plant's inertial propagator state
+missions/p004_lbdnn/fsw/sensing.py). Positions are the plant's inertial propagator state
 (`MissionWorld.eci()`), so the scenario must fly `[plant] fidelity = "inertial"`; q0 is the
 `[[body]]` named by `defunct_id` (propagated).
 

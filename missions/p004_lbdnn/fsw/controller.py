@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 
 from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from agent.missions.p004_lbdnn import adaptation, lbdnn, observer, packet, rho_filter
-from agent.missions.p004_lbdnn.control_law import control
-from agent.missions.p004_lbdnn.sensing import DefunctMeasurement, neighbour_positions
+from missions.p004_lbdnn.fsw import adaptation, lbdnn, observer, packet, rho_filter
+from missions.p004_lbdnn.fsw.control_law import control
+from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
 from missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
 
 

@@ -3,7 +3,7 @@
 Relative positions to graph neighbours d_ij = q_j - q_i (eq. 9) arrive either in
 `obs.rel_position_m` (rows in the order of `obs.neighbour_ids`; the in-process test loop) or, on
 the stack, as named arrays `obs.extra["p004.d_m/<j>"]` (the plant's sensing kind `p004-partial`,
-plant/sensing/p004.py; `neighbour_positions`); both in **inertial axes** (ECI), the frame of the
+missions/p004_lbdnn/sense.py; `neighbour_positions`); both in **inertial axes** (ECI), the frame of the
 Cartesian reading of paper 004 (NOTES-004), and so is the commanded acceleration. The partial
 measurement of the defunct craft y_i = C_i (q0 - q_i) (eq. 10), for servicers with b_i = 1,
 arrives in `obs.extra` under `KEY_Y` (or `KEY_Y + "/<defunct id>"` from the sensing kind). The
