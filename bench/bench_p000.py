@@ -59,7 +59,7 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
 def job_fits(fits: int, outliers: float) -> dict[str, float]:
     """Median CPU time [s] of a cold GNC-TLS fit and of the in-loop update from last period's
     estimate (the truth moved by 5 cm and scaled by 2 %), half case (i), half case (ii) shapes."""
-    from agent.missions.p000_capture import gnc_tls as g
+    from missions.p000_capture.fsw import gnc_tls as g
     from missions.p000_capture.contract import Ellipsoid
 
     update = getattr(g, "warm_fit", None) or getattr(g, "track_fit")

@@ -108,7 +108,7 @@ def lvlh_attitude_wxyz(q_wxyz: np.ndarray, n_radps: float, t_s: float) -> np.nda
 
     plant/mission_world.py flies attitude in an inertial frame aligned with the scenario's LVLH at
     t = 0; the LVLH frame of a circular reference has turned by n t about +z since, so
-    q_lvlh = q_z(-n t) (x) q_inertial (Hamilton), as plant/sensing/p000.py inertial_to_cw.
+    q_lvlh = q_z(-n t) (x) q_inertial (Hamilton), as missions/p000_capture/sense.py inertial_to_cw.
     """
     q = np.asarray(q_wxyz, float)
     h = -0.5 * float(n_radps) * float(t_s)

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 CAMERA_KINDS = ("rel", "scene")           # plant/sensing/builtin.py: paper 002's camera
-LANDMARK_KINDS = {"p000-landmarks": ("p000_landmarks_body_m", "p000_landmark_ids")}   # plant/sensing/p000.py
+LANDMARK_KINDS = {"p000-landmarks": ("p000_landmarks_body_m", "p000_landmark_ids")}   # missions/p000_capture/sense.py
 UNLIMITED_ACCEL_MPS2 = 1.0                # a limit above this is no limit (servicing-6: 1e9)
 
 # agent/camera/model.py R_LVLH_FROM_CAM (flight-software copy; the viewer does not import agent/):

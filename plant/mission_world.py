@@ -22,7 +22,7 @@ Same interface as plant/world.py's `World` (which keeps the `linear` / `j2` ROE 
 - attitude: craft with `inertia_kgm2` get Euler's equations (plant/dynamics/attitude.py) in an
   inertial frame aligned with the origin's LVLH at t = 0. The LVLH frame turns by n t from it
   (0.61 rad in paper 000's 550 s at 500 km): a sensor reporting attitude in the rotating frame must
-  rotate it (plant/sensing/p000.py does).
+  rotate it (missions/p000_capture/sense.py does).
 - kinematic bodies: position p0 + v t, attitude q(t) = R(axis, w t) q0 (constant spin about a fixed
   axis of the scenario frame).
 """

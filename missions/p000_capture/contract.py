@@ -1,9 +1,9 @@
 """Paper 000's contract: what the plant's sensing kind and the capture flight software share.
 
 Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
-plant/sensing/p000.py (the sensor, on the truth), agent/missions/p000_capture/ (the flight
-software), and the paper's report and seeds (dashboards/sections/p000.py, dashboards/p000_sweep.py,
-deploy/p000_seeds.py). docs/architecture.md "Mission rooms (issue 25)".
+missions/p000_capture/sense.py (the sensor, on the truth), missions/p000_capture/fsw/ (the flight
+software), and the paper's report and seeds (missions/p000_capture/report/__init__.py, missions/p000_capture/report/sweep.py,
+missions/p000_capture/seeds.py). docs/architecture.md "Mission rooms (issue 25)".
 
 **Measurement names** (paper 000 §2.2, §3.2.2): the plant sends one `swarmhil.v1.Measurements` per
 spacecraft and step; the agent reads the named arrays as `Observation.extra[name]`:
@@ -23,7 +23,7 @@ Neighbours' relative states come in the message's neighbour rows (Observation.re
 surface (x−c)ᵀM(x−c) = 1 and M = R diag(a⁻²) Rᵀ; R's columns are the principal axes in LVLH, a the
 semi-axes. The plant uses it for the true surface (landmark set, proximity return), the flight
 software for its estimate (fit, closest point, buffer slot of eq. 14 in
-agent/missions/p000_capture/ellipsoid.py), the report for the signed distance to the true surface.
+missions/p000_capture/fsw/ellipsoid.py), the report for the signed distance to the true surface.
 """
 from __future__ import annotations
 
@@ -159,3 +159,11 @@ def surface_landmarks(semi_axes_m: np.ndarray, count: int) -> tuple[np.ndarray, 
     pts = u * a
     normals = pts / a ** 2
     return pts, normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def dcm(q: np.ndarray) -> np.ndarray:
+    """Body -> frame rotation matrix of a scalar-first unit quaternion."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])

@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 from agent.controller import Observation, OrbitInfo
-from agent.missions.p000_capture import payload as pl
-from agent.missions.p000_capture import quaternion as quat
-from agent.missions.p000_capture.controller import CaptureController
-from agent.missions.p000_capture.params import CaptureParams
-from agent.missions.p000_capture.sensing import CaptureSensing
+from missions.p000_capture.fsw import payload as pl
+from missions.p000_capture.fsw import quaternion as quat
+from missions.p000_capture.fsw.controller import CaptureController
+from missions.p000_capture.fsw.params import CaptureParams
+from missions.p000_capture.fsw.sensing import CaptureSensing
 from claims.check import claim_failures
 from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 

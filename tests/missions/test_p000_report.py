@@ -1,4 +1,4 @@
-"""`swarmhil report` of a paper 000 run: the "p000-capture" section (dashboards/sections/p000.py).
+"""`swarmhil report` of a paper 000 run: the "p000-capture" section (missions/p000_capture/report/__init__.py).
 
 23 s of deploy/scenarios/capture-10.toml in-process (~6 s wall: the first three agents enter chase at
 21.70-21.75 s, so the run has chase entries, state broadcasts and landmark packets; 3 s has no
@@ -34,9 +34,10 @@ FIGURES = ("p000_paths3d.png", "p000_surface.png", "p000_pairs.png", "p000_messa
 
 def recompute(run: dict) -> dict:
     """The section's headline metrics from the recording, written out independently."""
-    from agent.missions.p000_capture import quaternion as quat
+    from missions.p000_capture.fsw import quaternion as quat
     from missions.p000_capture.contract import Ellipsoid, signed_distance
-    from plant.sensing.p000 import dcm, inertial_to_cw
+    from missions.p000_capture.contract import dcm
+    from missions.p000_capture.sense import inertial_to_cw
 
     doc = tomllib.loads(CASE_I.read_text())
     axes = np.array(doc["body"][0]["shape"]["semi_axes_m"], dtype=float)

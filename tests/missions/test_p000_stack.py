@@ -1,6 +1,6 @@
 """Paper 000 on the multi-process stack: deploy/scenarios/capture-10.toml (case i) and capture-20.toml
-(case ii), the p000-capture flight software (agent/missions/p000_capture/) fed by the plant's
-p000-landmarks sensor (plant/sensing/p000.py), the broadcast link at R_c = 9.5 m (link/node.py).
+(case ii), the p000-capture flight software (missions/p000_capture/fsw/) fed by the plant's
+p000-landmarks sensor (missions/p000_capture/sense.py), the broadcast link at R_c = 9.5 m (link/node.py).
 
 The fast test flies 30 s of case (i) over Zenoh (one process per agent + plant + link channel) and
 in-process, and checks: truth bit for bit between the modes; force and torque limits by norm in the
@@ -39,7 +39,7 @@ def initial_state(n: int, semi_axes: tuple[float, float, float], seed: int = 1):
     """The room loop's initial state (run_capture: positions, then attitudes, from default_rng(seed))."""
     from test_p000_closed_loop import Target, initial_positions
 
-    from agent.missions.p000_capture import quaternion as quat
+    from missions.p000_capture.fsw import quaternion as quat
 
     rng = np.random.default_rng(seed)
     r = initial_positions(rng, n, Target(np.array(semi_axes, float)), 1.0)
@@ -72,8 +72,8 @@ def test_scenarios_hold_the_papers_cases_and_the_room_loops_initial_state(path: 
 
 @pytest.mark.parametrize("path,n,axes", [(CASE_I, 10, (2.6, 1.9, 1.4)), (CASE_II, 20, (4.0, 1.3, 1.0))])
 def test_seeded_scenarios_draw_the_room_loops_initial_state(path: Path, n: int, axes, tmp_path: Path) -> None:
-    """deploy/p000_seeds.py: seed 1 gives the committed file; seed s the room loop's seed-s draw."""
-    from deploy.p000_seeds import seeded_scenario
+    """missions/p000_capture/seeds.py: seed 1 gives the committed file; seed s the room loop's seed-s draw."""
+    from missions.p000_capture.seeds import seeded_scenario
     from deploy.scenario import load_scenario
 
     text = path.read_text()
@@ -85,18 +85,18 @@ def test_seeded_scenarios_draw_the_room_loops_initial_state(path: Path, n: int, 
         assert [s["position_m"] for s in doc["spacecraft"]] == r.tolist()
         assert [s["attitude_q"] for s in doc["spacecraft"]] == q.tolist()
         out = tmp_path / f"s{seed}.toml"
-        p = subprocess.run([sys.executable, "-m", "deploy.p000_seeds", str(path), str(seed), str(out)], cwd=ROOT,
+        p = subprocess.run([sys.executable, "-m", "missions.p000_capture.seeds", str(path), str(seed), str(out)], cwd=ROOT,
                            capture_output=True, text=True, timeout=60)
         assert p.returncode == 0 and tomllib.loads(out.read_text()) == doc, p.stderr
         assert load_scenario(out).seed == seed
-    bad = subprocess.run([sys.executable, "-m", "deploy.p000_seeds", str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"),
+    bad = subprocess.run([sys.executable, "-m", "missions.p000_capture.seeds", str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"),
                           "2", str(tmp_path / "x.toml")], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
 
 def test_capture_params_ignore_the_loaders_max_accel() -> None:
     """deploy/scenario.py passes [actuator].max_accel_mps2 to every controller (the one room edit)."""
-    from agent.missions.p000_capture.params import CaptureParams
+    from missions.p000_capture.fsw.params import CaptureParams
 
     assert CaptureParams.from_dict({"max_accel_mps2": 1e-3}) == CaptureParams()
     with pytest.raises(ValueError, match="unknown"):
@@ -119,11 +119,12 @@ def test_sensing_kind_measures_what_the_room_reads() -> None:
     from bus import swarmhil_pb2 as pb
     from bus.codec import measurements_to_dict
     from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from agent.missions.p000_capture import quaternion as quat
-    from agent.missions.p000_capture.sensing import CaptureSensing
+    from missions.p000_capture.fsw import quaternion as quat
+    from missions.p000_capture.fsw.sensing import CaptureSensing
     from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_landmarks
     from plant.sensing import make_sensing
-    from plant.sensing.p000 import dcm, inertial_to_cw
+    from missions.p000_capture.contract import dcm
+    from missions.p000_capture.sense import inertial_to_cw
 
     sc = plant_config(load_scenario(CASE_I))
     # 200 steps (10 s) with a torque on every craft: the attitude moves, the CW frame has turned n t
@@ -217,8 +218,8 @@ def load_run(run_dir: Path) -> dict:
 
 def metrics(run: dict) -> dict:
     """The figures of docs/paper000.md "On the stack" from the recorded truth, telemetry and link
-    (the shared computations are the report section's, dashboards/sections/p000.py)."""
-    from dashboards.sections.p000 import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
+    (the shared computations are the report section's, missions/p000_capture/report/__init__.py)."""
+    from missions.p000_capture.report import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
 
     s = run["summary"]
     axes = target_axes(s["config"])
@@ -267,7 +268,7 @@ def assert_stack_run(mp: dict, ip: dict, steps: int) -> dict:
     # 3. attitude: unit quaternions; J dω = τ dt exactly (J = 0.075 I: ω × Jω = 0); the quaternion
     #    turns by the mean rate over the step (to the commutator term ~ dt³ |ω × ω̇| / 12: measured
     #    4e-7 against a turn of up to ~5e-3 per step)
-    from agent.missions.p000_capture import quaternion as quat
+    from missions.p000_capture.fsw import quaternion as quat
 
     assert np.abs(np.linalg.norm(mp["q"], axis=2) - 1).max() < 1e-12
     dw = np.diff(mp["w"], axis=0)

@@ -29,8 +29,7 @@ from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p000_capture.contract import Ellipsoid, signed_distance
-from plant.sensing.p000 import dcm
+from missions.p000_capture.contract import Ellipsoid, dcm, signed_distance
 
 CONTROLLER = "p000-capture"
 MAX_SURFACE_ROWS = 2000  # signed distance on at most this many recorded steps (always the last)
@@ -234,7 +233,7 @@ def settle_time(t: np.ndarray, err: np.ndarray, tol: float) -> list[float | None
 
 
 def capture_params(cfg: dict[str, Any] | None, sid: str):
-    from agent.missions.p000_capture.params import CaptureParams  # the fsw's parameter model, until it moves to the room's contract (issue 25)
+    from missions.p000_capture.fsw.params import CaptureParams  # the fsw's parameter model, until it moves to the room's contract (issue 25)
 
     cfg = cfg or {}
     scs = {str(s["id"]): s for s in cfg.get("spacecraft") or []}

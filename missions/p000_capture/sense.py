@@ -68,14 +68,6 @@ def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
                      pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw])
 
 
-def dcm(q: np.ndarray) -> np.ndarray:
-    """Body -> frame rotation matrix of a scalar-first unit quaternion."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def inertial_to_cw(q_body_to_inertial: np.ndarray, n_radps: float, t_s: float) -> np.ndarray:
     """Body -> CW-frame attitude from the body -> (inertial frame aligned with CW at t = 0) one."""
     h = -0.5 * n_radps * t_s
@@ -127,7 +119,7 @@ class P000LandmarkKind:
 
     def _step_truth(self, ctx: SensingContext) -> dict[str, Any]:
         bt = next(b for b in ctx.world.body_truth() if b.spec.id == self.p.target_id)
-        rot = dcm(bt.attitude_q)
+        rot = c.dcm(bt.attitude_q)
         q, w = ctx.world.attitude_wxyz()
         return {"ell": c.Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
                 "nrm": self.nrm_body @ rot.T, "q": q, "w": w, "n": float(ctx.world.n_radps)}
@@ -146,7 +138,7 @@ class P000LandmarkKind:
             nb.position_m.x, nb.position_m.y, nb.position_m.z = (pos[k] - r).tolist()
             nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = (vel[k] - vel[j]).tolist()
         q_cw = inertial_to_cw(tr["q"][j], tr["n"], ctx.t_s)
-        rot = dcm(q_cw)
+        rot = c.dcm(q_cw)
         rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
         ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
         add_measurement(msg, c.Q_BODY_TO_LVLH, q_cw)
