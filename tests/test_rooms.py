@@ -138,8 +138,7 @@ def test_the_flight_software_imports_no_plant_report_or_launcher() -> None:
 def test_a_report_imports_no_flight_software_nor_sensing() -> None:
     reports = room_parts("report")
     assert {p.relative_to(ROOT / "missions").parts[0] for p in reports} >= set(ROOMS_MOVED), reports
-    assert [v for v in violations("missions", {"agent", "deploy"}, reports)
-            if "missions.p000_capture.fsw.params" not in v] == []  # CaptureParams moves to the contract next commit
+    assert not violations("missions", {"agent", "deploy"}, reports)
     assert not [f"{p}: {n}" for p in reports for _, n in imported(p) if n.startswith("plant.sensing")]
 
 

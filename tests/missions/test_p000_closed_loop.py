@@ -20,7 +20,7 @@ from agent.controller import Observation, OrbitInfo
 from missions.p000_capture.fsw import payload as pl
 from missions.p000_capture.fsw import quaternion as quat
 from missions.p000_capture.fsw.controller import CaptureController
-from missions.p000_capture.fsw.params import CaptureParams
+from missions.p000_capture.contract import CaptureParams
 from missions.p000_capture.fsw.sensing import CaptureSensing
 from claims.check import claim_failures
 from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks

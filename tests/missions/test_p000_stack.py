@@ -96,7 +96,7 @@ def test_seeded_scenarios_draw_the_room_loops_initial_state(path: Path, n: int, 
 
 def test_capture_params_ignore_the_loaders_max_accel() -> None:
     """deploy/scenario.py passes [actuator].max_accel_mps2 to every controller (the one room edit)."""
-    from missions.p000_capture.fsw.params import CaptureParams
+    from missions.p000_capture.contract import CaptureParams
 
     assert CaptureParams.from_dict({"max_accel_mps2": 1e-3}) == CaptureParams()
     with pytest.raises(ValueError, match="unknown"):

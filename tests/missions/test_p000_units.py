@@ -19,7 +19,7 @@ from missions.p000_capture.fsw.estimate import TargetEstimate, consensus
 from missions.p000_capture.fsw.gnc_tls import gnc_tls_fit
 from missions.p000_capture.fsw.limits import saturate_norm
 from missions.p000_capture.fsw.modes import bounce_force, next_mode
-from missions.p000_capture.fsw.params import CaptureParams
+from missions.p000_capture.contract import CaptureParams
 from missions.p000_capture.fsw.sensing import CaptureSensing
 from missions.p000_capture.fsw.trigger import TriggerSettings, fires, threshold
 from missions.p000_capture.contract import Ellipsoid, closest_point_principal, signed_distance, surface_landmarks

@@ -25,7 +25,7 @@ from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
-from .params import CaptureParams
+from missions.p000_capture.contract import CaptureParams
 from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires
 

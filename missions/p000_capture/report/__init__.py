@@ -29,9 +29,8 @@ from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p000_capture.contract import Ellipsoid, dcm, signed_distance
+from missions.p000_capture.contract import CONTROLLER, CaptureParams, Ellipsoid, dcm, signed_distance
 
-CONTROLLER = "p000-capture"
 MAX_SURFACE_ROWS = 2000  # signed distance on at most this many recorded steps (always the last)
 
 
@@ -233,7 +232,6 @@ def settle_time(t: np.ndarray, err: np.ndarray, tol: float) -> list[float | None
 
 
 def capture_params(cfg: dict[str, Any] | None, sid: str):
-    from missions.p000_capture.fsw.params import CaptureParams  # the fsw's parameter model, until it moves to the room's contract (issue 25)
 
     cfg = cfg or {}
     scs = {str(s["id"]): s for s in cfg.get("spacecraft") or []}
