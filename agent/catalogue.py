@@ -2,8 +2,9 @@
 
 agent/controller.py is the interface (Observation, Command, the batch forms) and the registry a
 controller module registers into (`register`); it discovers nothing. This module sits above it and
-above every controller: it imports the built-in controllers (agent/controllers.py), and every
-mission room under agent/missions/ (bus/discovery.py) when a name is looked up that is not registered yet.
+above every controller: it imports the built-in controllers (agent/controllers.py), and the flight
+software of every mission room, `missions/<room>/fsw` (bus/discovery.py `import_role`: never a
+room's `sense` or `report`), when a name is looked up that is not registered yet.
 An agent image imports only its own controller's module (deploy/agent_image.py), so `make_controller`
 loads the rest only when the name is missing.
 """
@@ -13,15 +14,13 @@ from typing import Any
 
 import agent.controllers  # noqa: F401  (registers the built-in controllers: numpy only, scipy on use)
 from agent.controller import Controller, OrbitInfo, registered_factory, registered_names, registered_validator
-from bus.discovery import import_all, import_role
-
-MISSIONS = "agent.missions"
+from bus.discovery import import_role
 
 
 def load_controllers() -> None:
-    """Import every mission package under agent/missions/ (each registers its controllers by
-    decorator when imported: adding a mission edits nothing here; the built-ins are imported above)."""
-    import_all(MISSIONS, packages_only=True)
+    """Import every mission room's flight software, missions/<room>/fsw (each registers its
+    controllers by decorator when imported: adding a mission edits nothing here; the built-ins are
+    imported above)."""
     import_role("fsw")
 
 

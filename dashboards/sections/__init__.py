@@ -7,7 +7,9 @@ section whose `applies(config)` is true for the run's recorded configuration, pu
 
 A section reads only the recording (ctx.truth from dashboards/truth_io.py, ctx.config the resolved
 configuration, ctx.mcap for anything else) and writes its PNGs into ctx.out. Every module of this
-package is imported on first use, so adding a section is adding a module.
+package (the sections every run may have, and paper 002's) and every mission room's report,
+missions/<room>/report (bus/discovery.py `import_role`), is imported on first use, so adding a
+section is adding a module.
 """
 from __future__ import annotations
 

@@ -64,8 +64,9 @@ def add_provider(module: str) -> None:
 
 
 def _load() -> None:
-    """Import the providers, then every module of this package (a mission's plant-side sensor is a
-    new module in plant/sensing/, registered by decorator: nothing else is edited)."""
+    """Import the providers, every module of this package (the built-in kinds), and every mission
+    room's sensing kind, missions/<room>/sense (bus/discovery.py `import_role`; a kind registers by
+    decorator: nothing else is edited)."""
     for m in list(_PROVIDERS):
         importlib.import_module(m)
     import_all("plant.sensing", skip=("registry",))
