@@ -11,9 +11,10 @@ truth position and attitude in LVLH) with these children, all static in the body
   (plant/world.py): their frame is LVLH (identity), so the frustum looks along-track. With debug
   frames on ([nav].debug_image_period_s > 0) the agents' frames (`sc/<id>/tm/image`) are logged
   under it as `world/sc/<id>/camera/image`; the pinhole's size is that of the downsampled image.
-- sensor cone (paper 000, sensing kind `p000-landmarks`): line strips of the full cone
-  `fov_full_deg` about body +x out to `range_m` (R_l), and the landmark returns of each step
-  (`p000_landmarks_body_m`, in the body frame) as points, outliers (`p000_landmark_ids` = -1) red.
+- sensor cone (a landmark kind, registered by its room's report: paper 000's `p000-landmarks`):
+  line strips of the full cone `fov_full_deg` about body +x out to `range_m`, and the landmark
+  returns of each step (the kind's points name, in the body frame) as points, outliers (its ids
+  name = -1) red.
 - body axes (TransformAxes3D), x red, y green, z blue.
 
 Bodies that are not spacecraft get a frame `world/targets/<id>` with their truth attitude and their
@@ -31,8 +32,24 @@ from typing import Any
 
 import numpy as np
 
+from bus.discovery import import_role
+
 CAMERA_KINDS = ("rel", "scene")           # plant/sensing/builtin.py: paper 002's camera
-LANDMARK_KINDS = {"p000-landmarks": ("p000_landmarks_body_m", "p000_landmark_ids")}   # missions/p000_capture/sense.py
+LANDMARK_KINDS: dict[str, tuple[str, str]] = {}
+"""Sensing kinds whose Measurements carry landmark returns in the body frame: kind -> (name of the
+(K, 3) points, name of the (K,) ids, -1 an outlier). A room's report registers its own
+(`register_landmark_kind`; paper 000's), the viewer loads the reports when it reads a run."""
+
+
+def register_landmark_kind(kind: str, points_name: str, ids_name: str) -> None:
+    """The viewer's hook for a mission's landmark sensor (called by the room's report on import)."""
+    LANDMARK_KINDS[kind] = (points_name, ids_name)
+
+
+def landmark_kinds() -> dict[str, tuple[str, str]]:
+    """Every registered landmark kind, after importing every room's report (bus/discovery.py)."""
+    import_role("report")
+    return LANDMARK_KINDS
 UNLIMITED_ACCEL_MPS2 = 1.0                # a limit above this is no limit (servicing-6: 1e9)
 
 # agent/camera/model.py R_LVLH_FROM_CAM (flight-software copy; the viewer does not import agent/):
@@ -78,10 +95,11 @@ class SceneSpec:
                                 float(c.get("detection_range_m", 500.0)))
             image_ids = ids if images else ()
         cone = None
-        if kind in LANDMARK_KINDS:
+        landmarks = kind not in CAMERA_KINDS and kind in landmark_kinds()
+        if landmarks:
             cone = (math.radians(float(params.get("fov_full_deg", 75.0))) / 2.0, float(params.get("range_m", 8.5)))
         shapes = {str(b["id"]): b["shape"] for b in cfg.get("body") or [] if isinstance(b, dict) and b.get("shape")}
-        return cls(camera, image_ids, cone, kind if kind in LANDMARK_KINDS else None, shapes, accel_limit(cfg))
+        return cls(camera, image_ids, cone, kind if landmarks else None, shapes, accel_limit(cfg))
 
 
 def accel_limit(cfg: dict[str, Any]) -> float | None:

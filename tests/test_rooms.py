@@ -119,7 +119,7 @@ def test_the_plant_imports_no_flight_software() -> None:
     assert not violations("plant", {"agent"})
     assert not violations("missions", {"agent", "dashboards", "deploy"}, room_parts("sense"))
     # the rule is exercised: the sensing kinds of papers 000, 003 and 004 read their contracts
-    for room in set(ROOMS_MOVED) - {"p001_lattice"}:  # paper 001 flies the built-in `neighbours` kind
+    for room in set(ROOMS_MOVED) - {"p001_lattice"}:  # paper 001 flies the built-in `relative` kind
         names = {n for _, n in imported(ROOT / "missions" / room / "sense.py")}
         assert f"missions.{room}.contract" in names and "plant.sensing.registry" in names, (room, sorted(names))
 
@@ -406,3 +406,21 @@ def test_report_modules_import_only_the_jobs_before_them(package: str) -> None:
             if name.startswith(dotted + "."):
                 other = name[len(dotted) + 1:].split(".")[0]
                 assert other in order[:i], f"{package}/{job}.py:{line} imports {name}: {other} is not before {job}"
+
+
+    assert "\nlint: setup\n\t$(VENV)/bin/ruff check .\n" in (ROOT / "Makefile").read_text()
+
+
+def test_the_viewer_draws_a_rooms_landmarks_through_its_hook() -> None:
+    """The viewer names no mission: paper 000's report registers its landmark kind
+    (dashboards/rerun_bodies.py `register_landmark_kind`), which the viewer finds when it reads a
+    run's configuration (and no kind before the reports are loaded)."""
+    assert "p000_landmark" not in (ROOT / "dashboards" / "rerun_bodies.py").read_text()  # the names are the contract's
+    code = ("import json\nfrom dashboards.rerun_bodies import LANDMARK_KINDS, SceneSpec\nbefore = dict(LANDMARK_KINDS)\n"
+            "s = SceneSpec.from_config({'sensing': {'kind': 'p000-landmarks', 'params': {'range_m': 7.0}}})\n"
+            "print(json.dumps([before, s.landmark_kind, s.cone, LANDMARK_KINDS['p000-landmarks']]))")
+    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr
+    before, kind, cone, names = json.loads(p.stdout)
+    assert before == {} and kind == "p000-landmarks" and cone[1] == 7.0
+    assert names == ["p000_landmarks_body_m", "p000_landmark_ids"]

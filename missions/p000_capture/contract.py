@@ -40,6 +40,8 @@ import numpy as np
 
 CONTROLLER = "p000-capture"
 """The controller the flight software registers and the report looks for."""
+SENSING_KIND = "p000-landmarks"
+"""The plant's sensing kind of this room (sense.py), which the viewer draws as a sensor cone."""
 
 PREFIX = "p000_"
 """The prefix of every measurement name of paper 000."""

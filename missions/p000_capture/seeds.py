@@ -62,7 +62,7 @@ def main(argv: list[str]) -> int:
     try:
         out = seeded_scenario(Path(argv[0]).read_text(), int(argv[1]))
     except (OSError, ValueError, KeyError, tomllib.TOMLDecodeError) as exc:
-        print(f"p000_seeds: {exc}", file=sys.stderr)
+        print(f"missions.p000_capture.seeds: {exc}", file=sys.stderr)
         return 2
     Path(argv[2]).write_text(out)
     return 0

@@ -42,7 +42,7 @@ from missions.p000_capture import contract as c
 from plant.config import PlantConfig
 from plant.sensing.registry import SensingContext, register_sensing
 
-KIND = "p000-landmarks"
+KIND = c.SENSING_KIND
 NOISE_TAG = 0x0C0
 
 

@@ -2,5 +2,5 @@
 
 `contract` (the controller name, units, parameter model, formation measures), `fsw/` (the flight
 software), `report` (the report section). No sensing kind of its own (the plant's built-in
-`neighbours`). Imports nothing (missions/__init__.py).
+`relative`). Imports nothing (missions/__init__.py).
 """

@@ -3,7 +3,7 @@
 Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
 missions/p001_lattice/fsw/ (the flight software), missions/p001_lattice/report.py (the report
 section) and claims/paper001*.py. docs/architecture.md "Mission rooms (issue 25)". Paper 001 has no
-sensing kind of its own: the plant's built-in `neighbours` kind (plant/sensing/builtin.py) gives the
+sensing kind of its own: the plant's built-in `relative` kind (plant/sensing/builtin.py) gives the
 own state the flight software reads (fsw/sensing.py).
 
 **Name.** `CONTROLLER` is the name the flight software registers and the report looks for.

@@ -27,9 +27,21 @@ from bus.keys import split_topic
 from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
+from dashboards.rerun_bodies import register_landmark_kind
 from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
 from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p000_capture.contract import CONTROLLER, CaptureParams, Ellipsoid, dcm, signed_distance
+from missions.p000_capture.contract import (
+    CONTROLLER,
+    LANDMARK_IDS,
+    LANDMARKS_BODY_M,
+    SENSING_KIND,
+    CaptureParams,
+    Ellipsoid,
+    dcm,
+    signed_distance,
+)
+
+register_landmark_kind(SENSING_KIND, LANDMARKS_BODY_M, LANDMARK_IDS)  # the viewer's sensor cone and returns
 
 MAX_SURFACE_ROWS = 2000  # signed distance on at most this many recorded steps (always the last)
 

@@ -209,7 +209,7 @@ def main(argv: list[str]) -> int:
             try:
                 print(json.dumps(closest_approach(Path(d), every=2)))
             except (OSError, ValueError, KeyError) as exc:
-                print(f"p000_sweep: {d}: {exc}", file=sys.stderr)
+                print(f"missions.p000_capture.report.sweep: {d}: {exc}", file=sys.stderr)
                 return 2
         return 0
     if len(argv) != 1 or not Path(argv[0]).is_dir():
@@ -217,7 +217,7 @@ def main(argv: list[str]) -> int:
         return 2
     rows = load_runs(Path(argv[0]))
     if not rows:
-        print(f"p000_sweep: no reported c<n>-s<seed>-<policy> runs under {argv[0]}", file=sys.stderr)
+        print(f"missions.p000_capture.report.sweep: no reported c<n>-s<seed>-<policy> runs under {argv[0]}", file=sys.stderr)
         return 2
     print(outcome_table(rows))
     for case in sorted({r["case"] for r in rows}):
