@@ -5,9 +5,12 @@ ones resolved; plus literal module names handed to `importlib.import_module` / `
 rule is checked whether or not a code path runs:
 
 - no module under `plant/` imports `agent` (the plant never imports flight software), and from
-  `missions` only rooms' contracts;
-- no module under `agent/` imports `plant`, `dashboards` or `deploy`, and from `missions` only
-  rooms' contracts;
+  `missions` only rooms' contracts; nor does any room's `sense` (nor `dashboards`, `deploy`);
+- no module under `agent/` or in a room's `fsw/` imports `plant`, `dashboards` or `deploy`, and from
+  `missions` only rooms' contracts (an `fsw` also its own modules);
+- a room's `report` imports no `agent`, `deploy`, sensing kind, or room part but contracts and itself;
+- each of papers 000, 001, 003, 004 lives in its room: no product module outside `missions/` is
+  named after it (paper 002's room is a later step);
 - a room's `contract` imports nothing but the standard library, numpy and `bus`;
 - the `__init__` of `missions` and of every room imports nothing.
 
@@ -23,7 +26,10 @@ And over the import graph of the product modules (every package the wheel instal
 
 And at run time, in a fresh interpreter: a contract loads no project module but `bus` and
 `missions`, and no pydantic or scipy; the flight software of papers 000 and 004 loads no `plant`,
-`dashboards` or `deploy` module.
+`dashboards` or `deploy` module; each process loads its own part of the rooms through
+bus/discovery.py `import_role` (the agent's catalogue only `fsw`, the plant's sensing registry only
+`sense`, the reporter's sections only `report`, with the contracts); the viewer gets a room's
+landmark kind through the hook its report registers.
 """
 from __future__ import annotations
 
