@@ -3,12 +3,15 @@
 agent/controller.py is the interface (Observation, Command, the batch forms) and the registry a
 controller module registers into (`register`); it discovers nothing. This module sits above it and
 above every controller: it imports the built-in controllers (agent/controllers.py), and every
-mission room under agent/missions/ (bus/discovery.py) when a name is looked up that is not registered yet.
+mission room under agent/missions/ (bus/discovery.py), and the `fsw` package of every room under
+missions/ that has one (paper 002's), when a name is looked up that is not registered yet.
 An agent image imports only its own controller's module (deploy/agent_image.py), so `make_controller`
 loads the rest only when the name is missing.
 """
 from __future__ import annotations
 
+import importlib
+import importlib.util
 from typing import Any
 
 import agent.controllers  # noqa: F401  (registers the built-in controllers: numpy only, scipy on use)
@@ -16,12 +19,18 @@ from agent.controller import Controller, OrbitInfo, registered_factory, register
 from bus.discovery import import_all
 
 MISSIONS = "agent.missions"
+ROOMS = "missions"
 
 
 def load_controllers() -> None:
-    """Import every mission package under agent/missions/ (each registers its controllers by
-    decorator when imported: adding a mission edits nothing here; the built-ins are imported above)."""
+    """Import every mission package under agent/missions/ and every room's flight software
+    missions/<room>/fsw (each registers its controllers by decorator when imported: adding a
+    mission edits nothing here; the built-ins are imported above). Only a room's `fsw` is imported,
+    never its sense or report (docs/architecture.md "Mission rooms")."""
     import_all(MISSIONS, packages_only=True)
+    for room in import_all(ROOMS, packages_only=True):
+        if importlib.util.find_spec(f"{ROOMS}.{room}.fsw") is not None:
+            importlib.import_module(f"{ROOMS}.{room}.fsw")
 
 
 def validate_params(name: str, params: dict[str, Any]) -> None:

@@ -7,7 +7,8 @@ rule is checked whether or not a code path runs:
 - no module under `plant/` imports `agent` (the plant never imports flight software), and from
   `missions` only rooms' contracts;
 - no module under `agent/` imports `plant`, `dashboards` or `deploy`, and from `missions` only
-  rooms' contracts;
+  rooms' contracts; nor does a room's flight software (`missions/<room>/fsw`), which may also
+  import its own `fsw`;
 - a room's `contract` imports nothing but the standard library, numpy and `bus`;
 - the `__init__` of `missions` and of every room imports nothing.
 
@@ -22,7 +23,7 @@ And over the import graph of the product modules (every package the wheel instal
   does not grow (LOCAL_IMPORTS_MAX).
 
 And at run time, in a fresh interpreter: a contract loads no project module but `bus` and
-`missions`, and no pydantic or scipy; the flight software of papers 000 and 004 loads no `plant`,
+`missions`, and no pydantic or scipy; the flight software of papers 000, 002 and 004 loads no `plant`,
 `dashboards` or `deploy` module.
 """
 from __future__ import annotations
@@ -44,7 +45,7 @@ PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", 
 LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
 LOCAL_IMPORTS_MAX = 153  # function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py)
-ROOMS_WITH_CONTRACT = ("p000_capture", "p004_lbdnn")
+ROOMS_WITH_CONTRACT = ("p000_capture", "p002_sabatini", "p004_lbdnn")
 
 
 def module_name(path: Path) -> list[str]:
@@ -112,6 +113,13 @@ def test_the_plant_imports_no_flight_software() -> None:
 
 def test_the_flight_software_imports_no_plant_report_or_launcher() -> None:
     assert not violations("agent", {"plant", "dashboards", "deploy"})
+    # a room's flight software (missions/<room>/fsw) likewise: from `missions` its contracts and its own fsw
+    fsw = sorted((ROOT / "missions").glob("*/fsw/*.py"))
+    assert any(p.parts[-3] == "p002_sabatini" for p in fsw), fsw
+    bad = [f"{p.relative_to(ROOT)}:{line}: {name}" for p in fsw for line, name in imported(p)
+           if name.split(".")[0] in {"plant", "dashboards", "deploy"}
+           or not (only_contracts(name) or name.startswith(f"missions.{p.parts[-3]}.fsw"))]
+    assert not bad, bad
 
 
 def test_contracts_import_only_bus_and_numpy() -> None:
@@ -142,10 +150,11 @@ def test_contracts_are_light_and_fsw_loads_no_plant() -> None:
     tops = {m.split(".")[0] for m in mods}
     assert not tops & (project | {"pydantic", "scipy"}), sorted(tops & (project | {"pydantic", "scipy"}))
     assert {f"missions.{r}.contract" for r in ROOMS_WITH_CONTRACT} <= mods
-    mods = loaded_after("import agent.missions.p000_capture, agent.missions.p004_lbdnn")
+    mods = loaded_after("import agent.missions.p000_capture, agent.missions.p004_lbdnn, missions.p002_sabatini.fsw")
     tops = {m.split(".")[0] for m in mods}
     assert not tops & {"plant", "dashboards", "deploy", "pydantic"}, sorted(tops & {"plant", "dashboards", "deploy", "pydantic"})
     assert "agent.missions.p004_lbdnn.controller" in mods and "missions.p004_lbdnn.contract" in mods
+    assert "missions.p002_sabatini.fsw.sabatini" in mods and "scipy" not in tops  # the DRE solve loads scipy on use
 
 
 def test_rooms_are_installed_and_in_the_image() -> None:
