@@ -1,11 +1,13 @@
-"""Built-in controllers, registered by name for scenarios (`[controller] name = ...`)."""
+"""Built-in controllers, registered by name for scenarios (`[controller] name = ...`): `null` and
+`drift-null`, the baselines any run may fly (paper 002's uncontrolled swarm, the demo, hil-3).
+Paper 002's behavioural law `sabatini` is its room's flight software (missions/p002_sabatini/fsw/),
+loaded by agent/catalogue.py like every room's."""
 from __future__ import annotations
 
 from typing import Any
 
 import numpy as np
 
-from agent.behaviour.sabatini import SabatiniParams, make_sabatini
 from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
 
 
@@ -65,10 +67,6 @@ def _check_drift_null(params: dict[str, Any]) -> None:
             raise ValueError(f"{k} must be a finite number >= 0 (got {v!r})")
 
 
-def _check_sabatini(params: dict[str, Any]) -> None:
-    SabatiniParams.from_dict(dict(params))
-
-
 @register("drift-null", validate=_check_drift_null)
 def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNullController:
     return DriftNullController(
@@ -76,9 +74,3 @@ def _drift_null(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> DriftNu
         gain_per_s=float(params.get("gain_per_s", 1e-4)),
         max_accel_mps2=float(params.get("max_accel_mps2", 1e-3)),
     )
-
-
-@register("sabatini", validate=_check_sabatini)
-def _sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]):
-    """Behavioural swarm keeping of paper 002 (agent/behaviour/sabatini.py); scipy is imported on use."""
-    return make_sabatini(sc_id, orbit, params)

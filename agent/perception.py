@@ -81,7 +81,7 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
             raise ValueError(f"[nav.params].{key} must be an integer >= 1 (got {val!r})")
 
 
-GAINED_ROE = [0, 2, 3, 4, 5]  # a*da, a*dex, a*dey, a*dix, a*diy: the components with a gain in agent/behaviour
+GAINED_ROE = [0, 2, 3, 4, 5]  # a*da, a*dex, a*dey, a*dix, a*diy: the components with a gain in paper 002's law (missions/p002_sabatini/fsw)
 
 
 def control_tracks(tracks: list[Track], max_sigma_m: float) -> list[Track]:

@@ -7,7 +7,7 @@ limit and controller parameters of the scenario file), written here once more, o
 independently of the project's node code: the linear Keplerian ROE plant (exact ZOH), the
 rel stimulus (range and square field of view along +y), and the behavioural DRE-gain controller
 of paper 002 (collision avoidance / alignment / attraction) evaluated for every visible pair of
-every spacecraft at once. Only the periodic DRE gain *tables* (data: agent/behaviour/dre.py,
+every spacecraft at once. Only the periodic DRE gain *tables* (data: missions/p002_sabatini/fsw/dre.py,
 from the disk cache) and the scenario loader are shared. For `controller = "null"` (drift-20)
 the controller is skipped. It prints the loop's wall time and the total dV, which must agree
 with the in-process run of the same scenario (bench/bench_backbone.py checks it to round-off).
@@ -30,8 +30,8 @@ MU = 3.986004418e14
 
 def floor_run(sc, steps: int | None = None) -> dict:
     """Run the scenario's dynamics and (sabatini or null) control law, vectorised; returns timings and dV."""
-    from agent.behaviour.dre import gain_table
-    from agent.behaviour.sabatini import SabatiniParams
+    from missions.p002_sabatini.fsw.dre import gain_table
+    from missions.p002_sabatini.fsw.sabatini import SabatiniParams
 
     steps = sc.steps if steps is None else steps
     dt = sc.step_s

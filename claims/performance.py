@@ -38,12 +38,13 @@ except SystemExit:
 pr.disable()
 pr.dump_stats(out)
 """
-# (row key, the function(s) whose cumulative CPU time the row is: file path suffix, function name)
+# (row key, the function(s) whose cumulative CPU time the row is: file path suffix, function name); paper
+# 002's law and DRE gains were agent/behaviour/{sabatini,dre}.py before, missions/p002_sabatini/fsw/ now
 ROWS: tuple[tuple[str, str, tuple[tuple[str, str], ...]], ...] = (
     ("loop", "plant loop (720 steps), all of the below", (("plant/node.py", "run"),)),
     ("agents", "agents: stimulus handling (decode, flight software, command and telemetry)",
      (("agent/node.py", "_on_stimulus"),)),
-    ("ctl", "of which the `sabatini` controller step", (("agent/behaviour/sabatini.py", "step"),)),
+    ("ctl", "of which the `sabatini` controller step", (("/sabatini.py", "step"),)),
     ("decode", "decode + validation of every received message (agents and plant)", (("bus/codec.py", "decode"),)),
     ("rec", "recorder: MCAP write, incl. the Foxglove scene of every truth", (("bus/recorder.py", "_on_sample"),)),
     ("mcap", "of which the MCAP writer's `add_message` (pure Python: `mcap`'s `Writer` before, `bus/mcap_writer.py` "
@@ -51,8 +52,8 @@ ROWS: tuple[tuple[str, str, tuple[tuple[str, str], ...]], ...] = (
     ("rel", "plant: `rel` stimulus construction", (("plant/sensing/builtin.py", "stimulus"),)),
     ("cmd", "plant: command decode and command box", (("plant/node.py", "_on_command"),)),
     ("dre-gain", "DRE gain lookup (`GainTable.gain` before, `interpolate_periodic` now)",
-     (("agent/behaviour/dre.py", "gain"), ("agent/behaviour/dre.py", "interpolate_periodic"))),
-    ("dre-table", "DRE gain tables (solve, or read from the disk cache)", (("agent/behaviour/dre.py", "gain_table"),)),
+     (("/dre.py", "gain"), ("/dre.py", "interpolate_periodic"))),
+    ("dre-table", "DRE gain tables (solve, or read from the disk cache)", (("/dre.py", "gain_table"),)),
     ("scenario", "scenario load and validation", (("deploy/scenario.py", "load_scenario"),)),
 )
 

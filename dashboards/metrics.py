@@ -26,11 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
 from plant.sensors import CameraGeometry, visibility_series, weak_components
-
-D_MIN_M = 100.0  # paper 002 section 3.2
-D_MIN_TRANS_M = 30.0
-PARALLEL_MIN = 0.8  # Algorithm 1
 
 
 # --- graph --------------------------------------------------------------------------------------

@@ -4,7 +4,7 @@
 metrics (dashboards/metrics.py), adds them to run_dir/summary.json under "metrics" and writes the
 report site run_dir/report/ (dashboards/site.py): index.html with the overview every run has (dV,
 closest approach, link traffic, events), then the section of each mission the run flew
-(dashboards/sections/; paper 002's metrics and Figs. 7-22 are dashboards/sections/p002.py), and
+(dashboards/sections/; paper 002's metrics and Figs. 7-22 are its room's, missions/p002_sabatini/report.py), and
 the pages and tables the site links. `write_sweep_report(sweep_dir, cases)` does the same for a
 parameter sweep (dV and connectivity against the parameter, Figs. 30-31).
 """

@@ -43,7 +43,7 @@ def agent_configs(sc: Any) -> dict[str, dict[str, Any]]:
 
     Also builds, here in the launcher, one controller of each distinct configuration: whatever a
     controller computes once and caches on disk at construction (the DRE gain tables of
-    agent/behaviour/dre.py, solved with scipy) is then there before the agents start, so no agent
+    missions/p002_sabatini/fsw/dre.py, solved with scipy) is then there before the agents start, so no agent
     solves it (nor imports scipy), even on a machine's first run."""
     from agent.catalogue import make_controller  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
     from agent.controller import OrbitInfo  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)

@@ -106,7 +106,7 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vect
     For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
     """
     from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from dashboards.report import write_report, write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from dashboards.report import sections_for, write_report, write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     for mod in ("matplotlib", "jinja2", "plotly", "pandas", "pyarrow"):
@@ -135,11 +135,12 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vect
         page = write_report(run_dir, cam=cam, steady_from_s=steady_s, export=("svg", "pdf") if vector else ())
     except (OSError, ValueError) as exc:
         raise click.ClickException(str(exc)) from None
-    met = json.loads((Path(run_dir) / "summary.json").read_text())["metrics"]
-    c, ctl = met["connectivity"], met["control"]
-    click.echo(f"always weakly connected: {c['always_weakly_connected']} (max {c['max_components']} components); "
-               f"total dV {ctl['delta_v_total_mps']:.4f} m/s; closest approach "
-               f"{met['closest_approach']['all_pairs']['distance_m']:.2f} m")
+    summary = json.loads((Path(run_dir) / "summary.json").read_text())
+    met = summary["metrics"]
+    # what every run has (issue 25: a mission's own numbers are in its section of the page)
+    sections = [name for name, _fn in sections_for(summary.get("config") or {})]
+    click.echo(f"total dV {met['control']['delta_v_total_mps']:.4f} m/s; closest approach "
+               f"{met['closest_approach']['all_pairs']['distance_m']:.2f} m; sections: {', '.join(sections) or 'none'}")
     click.echo(f"wrote {page}")
 
 

@@ -43,6 +43,7 @@ from plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh
 from plant.dynamics.limits import limit_norm, limit_per_axis
 from plant.dynamics.propagator import make_propagator
 from plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
+from plant.worlds import register_world
 
 
 def lvlh_to_eci(r_ref_m: np.ndarray, v_ref_mps: np.ndarray, rho_m: np.ndarray,
@@ -316,3 +317,5 @@ def _rotate_to_body(q_wxyz: np.ndarray, vec_frame: np.ndarray) -> np.ndarray:
                   [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     return r.T @ np.asarray(vec_frame, float)
 
+
+register_world("cw", "inertial")(MissionWorld)  # the Cartesian scenarios with bodies and attitude (issue 11)

@@ -1,8 +1,8 @@
 """The plant process logic: publish ticks, truth and stimuli; collect commands; propagate.
 
-Thin: the physics is plant/world.py, the stimuli plant/sensors.py, the synchronisation
-plant/pacing.py. The node works the same over the Zenoh bus (one process) and the in-memory bus
-(in-process batch runs).
+Thin: the physics is the world of the scenario's fidelity (plant/worlds.py), the stimuli
+plant/sensors.py, the synchronisation plant/pacing.py. The node works the same over the Zenoh
+bus (one process) and the in-memory bus (in-process batch runs).
 """
 from __future__ import annotations
 
@@ -27,6 +27,7 @@ from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
 from plant.world import World
+from plant.worlds import make_world
 
 log = logging.getLogger("swarmhil.plant")
 
@@ -54,14 +55,8 @@ class PlantNode:
         self._k_truth, self._k_clock = self.keys.truth, self.keys.clock  # (built once: keys of every step)
         self.run_id = run
         self.cfg = config
-        o = config.orbit
-        if config.fidelity in ("linear", "j2"):  # paper 002's ROE plants (bit-identical since issue 2)
-            self.world: World | MissionWorld = World(
-                list(config.ids), config.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
-                raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=config.fidelity, drag=config.drag,
-                max_accel_mps2=config.max_accel_mps2)
-        else:
-            self.world = MissionWorld(config)
+        # the truth model the fidelity names (plant/worlds.py: World for linear / j2, MissionWorld for cw / inertial)
+        self.world: World | MissionWorld = make_world(config)
         self.step_s = config.step_s
         self.pacer: Pacer = (Lockstep(config.stall_timeout_s) if config.mode == "lockstep"
                              else RealTime(config.step_s, config.speed))

@@ -4,7 +4,8 @@ The dynamics are a propagator chosen by name (`fidelity`, plant/dynamics/propaga
 those working in the reference LVLH frame: `linear` propagates the ROE exactly with the Keplerian
 model of paper 002 (plant/dynamics/roe_linear.py); `j2` integrates two-body + J2 (+ optional drag)
 absolute orbits and converts them to the reference LVLH every step (plant/dynamics/absolute_j2.py);
-`cw` is Clohessy-Wiltshire about the circular reference (plant/dynamics/cw.py).
+`cw` is Clohessy-Wiltshire about the circular reference (plant/dynamics/cw.py). The plant flies
+it for the fidelities it registers (plant/worlds.py): `linear` and `j2`, paper 002's truth models.
 """
 from __future__ import annotations
 
@@ -13,9 +14,11 @@ from typing import Callable
 
 import numpy as np
 
+from plant.config import PlantConfig
 from plant.dynamics import roe_linear
 from plant.dynamics.limits import limit_per_axis
 from plant.dynamics.propagator import Propagator, make_propagator
+from plant.worlds import register_world
 
 
 class World:
@@ -45,6 +48,14 @@ class World:
         self.propagator: Propagator = make_propagator(fidelity, **init)
         if self.propagator.frame != "lvlh":
             raise ValueError(f"plant fidelity {fidelity!r} is not a relative (LVLH) propagator")
+
+    @classmethod
+    def of(cls, config: PlantConfig) -> "World":
+        """The world of a plant configuration (plant/config.py), as PlantNode has always built it."""
+        o = config.orbit
+        return cls(list(config.ids), config.roe_m, a_m=o.semi_major_axis_m, inc_rad=o.inclination_rad,
+                   raan_rad=o.raan_rad, u0_rad=o.u0_rad, fidelity=config.fidelity, drag=config.drag,
+                   max_accel_mps2=config.max_accel_mps2)
 
     @property
     def u_rad(self) -> float:
@@ -85,3 +96,6 @@ class World:
         self.steps_done += 1
         self.t_s = self.steps_done * dt_s
         self.wall_s += time.perf_counter() - c0
+
+
+register_world("linear", "j2")(World.of)  # paper 002's ROE plants (bit-identical since issue 2)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agent.behaviour.sabatini import SabatiniController
+from missions.p002_sabatini.fsw.sabatini import SabatiniController
 from agent.catalogue import make_controller
 from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, step_batch
 from conftest import SCENARIOS

@@ -1,4 +1,4 @@
-"""Periodic DRE gains of paper 002 section 3.4 (agent/behaviour/dre.py).
+"""Periodic DRE gains of paper 002 section 3.4 (missions/p002_sabatini/fsw/dre.py).
 
 - the tabulated P(u) is a fixed point of one more backward orbit of the DRE (periodic);
 - the gains agree with an independent discrete-time periodic LQR built on the plant's exact
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agent.behaviour.dre import gain_table, integrate_riccati_one_orbit
+from missions.p002_sabatini.fsw.dre import gain_table, integrate_riccati_one_orbit
 from plant.dynamics import roe_linear as truth
 
 A_M = 6878137.0

@@ -1,4 +1,4 @@
-"""Decision logic of the paper 002 behavioural controller (agent/behaviour/sabatini.py).
+"""Decision logic of the paper 002 behavioural controller (missions/p002_sabatini/fsw/sabatini.py).
 
 Relative states are built from ROE with the plant's own map (plant/dynamics/roe_linear.py), so the
 flight software's measurement inversion is checked against the truth model.
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agent.behaviour.sabatini import (ALIGN, ALIGN_DRIFT, ATTRACT, CA, SabatiniController, SabatiniParams,
+from missions.p002_sabatini.fsw.sabatini import (ALIGN, ALIGN_DRIFT, ATTRACT, CA, SabatiniController, SabatiniParams,
                                       relative_roe_observer)
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo

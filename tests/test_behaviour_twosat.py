@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agent.behaviour.sabatini import parallelism
+from missions.p002_sabatini.fsw.sabatini import parallelism
 from agent.catalogue import make_controller
 from agent.controller import Observation, OrbitInfo
 from plant.dynamics import roe_linear as truth

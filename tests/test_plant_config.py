@@ -52,3 +52,21 @@ def test_plant_config_is_frozen() -> None:
     before = cfg.roe_m.copy()
     sc.roe_m[:] = 7.0
     assert np.array_equal(cfg.roe_m, before)
+
+
+def test_the_plant_builds_its_world_by_fidelity() -> None:
+    """Issue 25: the world is looked up by fidelity (plant/worlds.py), no branch of PlantNode names
+    paper 002's truth model; an unregistered fidelity is one precise error."""
+    import plant.node  # noqa: F401  (imports both world modules, as the plant process does)
+    from plant.mission_world import MissionWorld
+    from plant.world import World
+    from plant.worlds import make_world, world_fidelities
+
+    assert world_fidelities() == ["cw", "inertial", "j2", "linear"]
+    s20 = plant_config(load_scenario(SCENARIOS / "sabatini-20.toml"))
+    w = make_world(s20)
+    assert type(w) is World and w.fidelity == "linear" and w.ids == list(s20.ids)
+    assert np.array_equal(w.roe_m(), np.asarray(s20.roe_m))
+    assert type(make_world(plant_config(load_scenario(SCENARIOS / "servicing-6.toml")))) is MissionWorld
+    with pytest.raises(ValueError, match="no plant world flies fidelity 'nope'; known: \\['cw', 'inertial', 'j2', 'linear'\\]"):
+        make_world(dataclasses.replace(s20, fidelity="nope"))

@@ -75,7 +75,9 @@ def test_report_command_writes_figures_and_metrics(tiny_run):
 
     res = CliRunner().invoke(main, ["report", str(tiny_run), "--steady-from-h", "0.1"])
     assert res.exit_code == 0, res.output
-    assert "always weakly connected: False" in res.output
+    # the command says what every run has and which sections the page holds (issue 25: no paper 002 metric)
+    assert "total dV" in res.output and "p002-swarm" in res.output.split("sections: ", 1)[1].split("\n")[0]
+    assert "weakly connected" not in res.output
     page = tiny_run / "report" / "index.html"
     html = page.read_text()
     for png in ("components.png", "digraph_start.png", "digraph_end.png", "roe_a_l.png", "roe_e.png", "roe_i.png",
@@ -119,7 +121,7 @@ def overview_of(page: str) -> str:
 
 def test_paper002_metrics_are_in_its_section_not_in_the_overview(tiny_run):
     """Issue 25: the overview is what every mission has; paper 002's ROE metrics and figures are its
-    section's (dashboards/sections/p002.py), with the same rows and figures as before."""
+    section's (missions/p002_sabatini/report.py), with the same rows and figures as before."""
     from dashboards.report import write_report
 
     page = write_report(tiny_run, steady_from_s=360.0, interactive=False, export=()).read_text()

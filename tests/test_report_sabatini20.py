@@ -71,3 +71,35 @@ def test_explicit_scenario_gives_the_same_truth_as_the_generated_one(tmp_path):
     assert a.n_steps == b.n_steps == 361
     assert np.array_equal(a.position_m, b.position_m) and np.array_equal(a.delta_v_mps, b.delta_v_mps)
     assert a.delta_v_mps[-1].sum() > 0.0
+
+
+def p002_section(page: str) -> tuple[list[list[str]], list[str]]:
+    """The table rows ([name, cell]) and the figure files of paper 002's section of a report page."""
+    import re
+
+    sec = page.split('<h2 id="p002-swarm">', 1)[1].split("<h2", 1)[0]
+    rows = [list(r) for r in re.findall(r"<tr><th>(.*?)</th><td>(.*?)</td></tr>", sec)]
+    return rows, sorted(set(re.findall(r'(?:src|href)="([^"/]+\.png)"', sec)))
+
+
+def test_paper002_section_is_unchanged_by_its_room(tmp_path):
+    """Issue 25 step 2: paper 002's report moved into missions/p002_sabatini/report.py with the same
+    content: a 20 min sabatini-20 run's section has the rows, values and figures that main's gave
+    before the move (tests/data/p002_section_sabatini20_20min.json, same machine class: the values are
+    printed to 3 significant digits), and the overview none of them."""
+    from dashboards.report import write_report
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    want = json.loads((ROOT / "tests" / "data" / "p002_section_sabatini20_20min.json").read_text())
+    sc = load_scenario(SCENARIOS / "sabatini-20.toml").with_overrides(duration_s=want["duration_s"])
+    run_in_process(sc, tmp_path / "run", "s20-short", record="truth")
+    page = write_report(tmp_path / "run", interactive=False, export=()).read_text()
+    rows, figures = p002_section(page)
+    assert rows == want["rows"] and figures == want["figures"]
+    overview = page.split("<h2", 1)[0]
+    for name, _cell in rows:
+        assert name.strip() not in overview, name
+    for word in ("parallelism", "orbit-minimum", "weakly connected", ".png"):
+        assert word not in overview, word
+    assert "dV per spacecraft" in overview and "closest approach, all pairs" in overview

@@ -50,7 +50,7 @@ PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", 
 LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
 LOCAL_IMPORTS_MAX = 148  # function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
-ROOMS_WITH_CONTRACT = ("p000_capture", "p001_lattice", "p003_surround", "p004_lbdnn")
+ROOMS_WITH_CONTRACT = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")
 ROOMS_MOVED = ("p000_capture", "p001_lattice", "p003_surround", "p004_lbdnn")  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 step 1)
 ROOMS_MOVED_TAGS = ("p000", "p001", "p003", "p004")  # no module outside missions/ is named after these papers
 
@@ -188,10 +188,11 @@ def test_contracts_are_light_and_fsw_loads_no_plant() -> None:
     tops = {m.split(".")[0] for m in mods}
     assert not tops & (project | {"pydantic", "scipy"}), sorted(tops & (project | {"pydantic", "scipy"}))
     assert {f"missions.{r}.contract" for r in ROOMS_WITH_CONTRACT} <= mods
-    mods = loaded_after("import missions.p000_capture.fsw, missions.p004_lbdnn.fsw")
+    mods = loaded_after("import missions.p000_capture.fsw, missions.p004_lbdnn.fsw, missions.p002_sabatini.fsw")
     tops = {m.split(".")[0] for m in mods}
     assert not tops & {"plant", "dashboards", "deploy", "pydantic"}, sorted(tops & {"plant", "dashboards", "deploy", "pydantic"})
     assert "missions.p004_lbdnn.fsw.controller" in mods and "missions.p004_lbdnn.contract" in mods
+    assert "missions.p002_sabatini.fsw.sabatini" in mods and "scipy" not in tops  # the DRE solve loads scipy on use
 
 
 def parts_loaded(mods: set[str]) -> set[str]:

@@ -125,7 +125,7 @@ def test_windows_and_titles_follow_the_run(short_and_long: tuple[Path, Path]) ->
 def test_figures_fit_count_in_integers_and_are_150_dpi(short_and_long: tuple[Path, Path]) -> None:
     from dashboards.figstyle import draw_static, overflowing_texts
     from dashboards.metrics import compute_metrics
-    from dashboards.sections.p002 import draw_digraph, spec_components
+    from missions.p002_sabatini.report import draw_digraph, spec_components
     from dashboards.truth_io import read_truth
 
     run = short_and_long[1]

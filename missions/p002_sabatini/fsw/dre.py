@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agent import roe
 from agent.roe import input_matrix, state_matrix
 
 TWO_PI = 2.0 * np.pi
@@ -163,8 +164,8 @@ def _code_fingerprint() -> str:
     import importlib.metadata as md
 
     h = hashlib.sha256()
-    for mod in ("dre.py", "../roe.py"):
-        h.update((Path(__file__).parent / mod).resolve().read_bytes())
+    for path in (Path(__file__), Path(roe.__file__)):
+        h.update(path.resolve().read_bytes())
     for dist in ("numpy", "scipy"):
         try:
             h.update(f"{dist}={md.version(dist)}".encode())

@@ -1,6 +1,7 @@
-"""Report section of paper 002 (behavioural swarm keeping, Sabatini et al.): its metrics table and
+"""Paper 002's report section (behavioural swarm keeping, Sabatini et al.): its metrics table and
 Figs. 7-22, for runs flown only with its controllers (`null`, `drift-null`, `sabatini`) and for
-recordings that carry no configuration (older runs, all of paper 002).
+recordings that carry no configuration (older runs, all of paper 002). Registered as `p002-swarm`
+(dashboards/sections/); imports its contract and the report kit, never its flight software.
 
 The numbers are the swarm metrics of dashboards/metrics.py, which `write_report` keeps where they
 have always been (summary.json["metrics"]: `connectivity`, `closest_visible_steady`, ...); this
@@ -21,13 +22,14 @@ from dashboards.figstyle import colors as _colors
 from dashboards.figstyle import pyplot as _plt
 from dashboards.figstyle import save as _save
 from dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
-from dashboards.metrics import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN, SwarmMetrics, relative_to_com
+from dashboards.metrics import SwarmMetrics, relative_to_com
 from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
 from dashboards.truth_io import TruthArrays
+from missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
 from plant.sensors import weak_components
 
 NAME = "p002-swarm"
-PAPER002_CONTROLLERS = {"null", "drift-null", "sabatini"}
+PAPER002_CONTROLLERS = {"null", "drift-null", CONTROLLER}  # its law and the baselines of its Figs. 7-9
 
 
 def applies(config: dict[str, Any]) -> bool:

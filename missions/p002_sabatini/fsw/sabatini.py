@@ -14,7 +14,7 @@ Every decision step, for each visible neighbour k, spacecraft j:
      linearly from 1 at d_min_jk = d_min to 0 at d_min_jk = 0.6 d_max;
    - attraction: da_ref = 0 (only da is weighted), weight 1;
 4. sums u_c = -sum_k w_jk K_b(u) (dalpha_jk - dalpha_ref_jk) with the periodic DRE gains of each
-   behaviour (agent/behaviour/dre.py) and clips each axis to the actuator limit.
+   behaviour (missions/p002_sabatini/fsw/dre.py) and clips each axis to the actuator limit.
 
 Choices where the paper is silent (documented, not tuned): d_jk in d_max_trans is the measured
 range |r_k - r_j|; when |de| = 0 the reference direction is that of di, or radial (1, 0) if both
@@ -28,9 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from agent.behaviour.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
-from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo
+from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo, register
 from agent.roe import lvlh_to_roe, observer_roe_rows
+from missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from missions.p002_sabatini.fsw.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9
@@ -40,13 +41,13 @@ _TINY_M = 1e-9
 class SabatiniParams:
     """Parameters of the behavioural law; defaults are the paper's (section 3, NOTES-002)."""
 
-    d_min_m: float = 100.0  # along-track minimum distance (section 3.2)
-    d_min_trans_m: float = 30.0  # radial / cross-track minimum distance
+    d_min_m: float = D_MIN_M  # along-track minimum distance (section 3.2)
+    d_min_trans_m: float = D_MIN_TRANS_M  # radial / cross-track minimum distance
     d_max_m: float = 500.0  # detection range
     attraction_fraction: float = 0.6  # attraction when d_min_jk > 0.6 d_max (section 3.3)
     k_ecc: float = 1.1
     ca_da_offset_m: float = 100.0  # a * da_ref of collision avoidance (section 3.5)
-    parallel_min: float = 0.8  # NotParallel when |de.di|/(|de||di|) < 0.8 (Algorithm 1)
+    parallel_min: float = PARALLEL_MIN  # NotParallel when |de.di|/(|de||di|) < 0.8 (Algorithm 1)
     fov_margin: float = 0.9  # d_max_trans = 0.9 d_jk tan(theta_fov)
     fov_half_angle_deg: float = float(np.degrees(np.arctan(0.54)))  # 1080 px, f = 1000 px: 28.37 deg
     q_ca: tuple[float, ...] = (0.01, 0.0, 1.0, 1.0, 1.0, 1.0)
@@ -302,6 +303,12 @@ def _alike(controllers: "list[SabatiniController]") -> bool:
     return verdict
 
 
+def _check_sabatini(params: dict[str, Any]) -> None:
+    SabatiniParams.from_dict(dict(params))
+
+
+@register(CONTROLLER, validate=_check_sabatini)
 def make_sabatini(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> SabatiniController:
-    """Factory for the controller registry: (sc_id, orbit, [controller.params]) -> controller."""
+    """Factory for the controller registry: (sc_id, orbit, [controller.params]) -> controller
+    (scipy is imported on use, by the DRE solve of a table not on disk)."""
     return SabatiniController(sc_id, orbit, SabatiniParams.from_dict(dict(params)))
