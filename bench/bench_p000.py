@@ -19,6 +19,7 @@ carries the load, printed at the start and the end).
     nice -n 10 .venv/bin/python bench/bench_p000.py --jobs fits --fits 20
     nice -n 10 .venv/bin/python bench/bench_p000.py --room-duration 550 --jobs room
     nice -n 10 .venv/bin/python bench/bench_p000.py --mp --duration 60   # multi-process vs in-process (this tree)
+    nice -n 10 .venv/bin/python bench/bench_p000.py --profile --duration 60  # where the CPU goes (this tree)
 """
 from __future__ import annotations
 
@@ -105,11 +106,59 @@ def job_run(scenario: str, duration: float) -> dict[str, float]:
     return {**t, "steps": sc.steps, "agents": len(sc.ids)}
 
 
+# Rows of the profile table (docs/paper000-reproduction.md): label -> (file part, function name);
+# each row is the cumulative CPU time of that function (its callees included), so rows nest.
+PROFILE_ROWS = [
+    ("whole run (`run_in_process`)", "deploy/launcher", "run_in_process"),
+    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", "agent/node", "_on_stimulus"),
+    ("of which the flight software's `step`", "p000_capture/controller", "step"),
+    ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", "p000_capture/controller", "_fit"),
+    ("of which cold `gnc_tls_fit`", "p000_capture/gnc_tls", "gnc_tls_fit"),
+    ("of which `warm_fit`", "p000_capture/gnc_tls", "warm_fit"),
+    ("closest surface point (`surface_frame`: agents' estimate and the sensor's truth)", "p000_capture/contract", "surface_frame"),
+    ("consensus (eq. 30)", "p000_capture/estimate", "consensus"),
+    ("APF (eq. 23)", "p000_capture/apf", "apf_force"),
+    ("sensing kind `p000-landmarks` (`stimulus`, 20 a step)", "plant/sensing/p000", "stimulus"),
+    ("of which `landmark_returns` (visibility, noise, outliers)", "plant/sensing/p000", "landmark_returns"),
+    ("recorder (every message; Foxglove scene of every truth)", "bus/recorder", "_on_sample"),
+    ("decode + validation of every received message", "bus/codec", "decode"),
+    ("of which the non-finite walk", "bus/codec", "_non_finite_field"),
+    ("link channel: commands and windows (`_on_act`)", "link/node", "_on_act"),
+    ("link channel: truth (`_on_truth`)", "link/node", "_on_truth"),
+    ("plant: command decode and collection (`_on_command`)", "plant/node", "_on_command"),
+    ("plant: dynamics (CW, attitude RK4, limits: `MissionWorld.step`)", "plant/mission_world", "step"),
+]
+
+
+def job_profile(scenario: str, duration: float) -> dict[str, float]:
+    """The in-process run under cProfile counting CPU time; the cumulative seconds of PROFILE_ROWS."""
+    import cProfile
+    import pstats
+
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    sc = load_scenario(scenario).with_overrides(duration_s=duration)
+    prof = cProfile.Profile(time.process_time)
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
+        prof.enable()
+        run_in_process(sc, Path(out), "bench-p000")
+        prof.disable()
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    rows = {}
+    for label, where, fn in PROFILE_ROWS:
+        cum = [(ct, nc) for (f, _l, name), (_cc, nc, _tt, ct, _c) in stats.items() if where in f and name == fn]
+        rows[label] = max(cum, default=(0.0, 0))
+    return {"steps": sc.steps, "agents": len(sc.ids), "rows": rows}
+
+
 def worker(a: argparse.Namespace) -> None:
     """One job on the tree in the current directory; one JSON line on stdout."""
     sys.path.insert(0, os.getcwd())
     if a.job == "fits":
         out = job_fits(a.fits, a.outliers)
+    elif a.job == "profile":
+        out = job_profile(a.scenario, a.duration)
     elif a.job == "room":
         out = job_room(a.room_duration)
     else:
@@ -163,7 +212,8 @@ def main() -> None:
     ap.add_argument("--scenario", default=CAPTURE_20, help="scenario of the in-process run (from the tree's root)")
     ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds of the in-process run")
     ap.add_argument("--mp", action="store_true", help="only this tree: multi-process vs in-process")
-    ap.add_argument("--worker", choices=["fits", "room", "run"], help=argparse.SUPPRESS)
+    ap.add_argument("--profile", action="store_true", help="only this tree: where the in-process run's CPU goes")
+    ap.add_argument("--worker", choices=["fits", "room", "run", "profile"], help=argparse.SUPPRESS)
     a = ap.parse_args()
     jobs = [j for j in a.jobs.split(",") if j]
     if (a.duration <= 0 or a.room_duration <= 0 or a.fits < 1 or not 0 <= a.outliers < 1
@@ -173,7 +223,15 @@ def main() -> None:
         worker(argparse.Namespace(**{**vars(a), "job": a.worker}))
         return
     res: dict[str, object] = {"loadavg_start": os.getloadavg(), "against": a.against}
-    if a.mp:
+    if a.profile:
+        r = run_side(ROOT, "profile", a)
+        res["profile"] = r
+        print(f"{Path(a.scenario).name} in-process, {a.duration:g} s ({r['steps']} steps, {r['agents']} agents): "
+              f"cumulative CPU s under cProfile(time.process_time)")
+        print("| where | calls | CPU s |\n|---|---:|---:|")
+        for label, (cum, calls) in r["rows"].items():
+            print(f"| {label} | {calls} | {cum:.1f} |")
+    elif a.mp:
         sys.path.insert(0, str(ROOT))
         r = bench_mp(str(ROOT / a.scenario), a.duration)
         res["mp"] = r
