@@ -20,6 +20,7 @@ carries the load, printed at the start and the end).
     nice -n 10 .venv/bin/python bench/bench_p000.py --room-duration 550 --jobs room
     nice -n 10 .venv/bin/python bench/bench_p000.py --mp --duration 60   # multi-process vs in-process (this tree)
     nice -n 10 .venv/bin/python bench/bench_p000.py --profile --duration 60  # where the CPU goes (this tree)
+    nice -n 10 .venv/bin/python bench/bench_p000.py --parts --duration 60    # the same parts without a profiler
 """
 from __future__ import annotations
 
@@ -152,6 +153,54 @@ def job_profile(scenario: str, duration: float) -> dict[str, float]:
     return {"steps": sc.steps, "agents": len(sc.ids), "rows": rows}
 
 
+# Parts timed without a profiler (`--parts`): label -> (module, Class.method); the CPU time of each
+# call (callees included) summed with `time.process_time`, so the parts nest as their callers do.
+PARTS = [
+    ("plant steps (`publish_step`: everything a step runs, the in-memory bus's callbacks included)", "plant.node", "PlantNode.publish_step"),
+    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", "agent.node", "AgentNode._on_stimulus"),
+    ("of which the flight software's `step`", "agent.missions.p000_capture.controller", "CaptureController.step"),
+    ("of which the landmark fits (`_fit`)", "agent.missions.p000_capture.controller", "CaptureController._fit"),
+    ("sensing kind `p000-landmarks` (`stimulus`)", "plant.sensing.p000", "P000LandmarkKind.stimulus"),
+    ("recorder (every message; Foxglove scene of every truth)", "bus.recorder", "RecorderNode._on_sample"),
+    ("link channel (`_on_act`, `_on_truth`)", "link.node", "ChannelNode._on_act ChannelNode._on_truth"),
+    ("plant: command decode and collection (`_on_command`)", "plant.node", "PlantNode._on_command"),
+    ("plant: dynamics (`MissionWorld.step`)", "plant.mission_world", "MissionWorld.step"),
+]
+
+
+def job_parts(scenario: str, duration: float) -> dict[str, object]:
+    """The in-process run with PARTS wrapped (one process_time pair per call, ~1 us): CPU s and calls."""
+    import importlib
+
+    from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+
+    cpu: dict[str, float] = {}
+    calls: dict[str, int] = {}
+
+    def wrap(label: str, owner: type, name: str) -> None:
+        f, pt = getattr(owner, name), time.process_time
+
+        def timed(*args: object, **kw: object) -> object:
+            t0 = pt()
+            try:
+                return f(*args, **kw)
+            finally:
+                cpu[label] = cpu.get(label, 0.0) + pt() - t0
+                calls[label] = calls.get(label, 0) + 1
+        setattr(owner, name, timed)
+
+    for label, mod, methods in PARTS:
+        for m in methods.split():
+            cls, name = m.split(".")
+            wrap(label, getattr(importlib.import_module(mod), cls), name)
+    sc = load_scenario(scenario).with_overrides(duration_s=duration)
+    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
+        t, _ = _timed(lambda: run_in_process(sc, Path(out), "bench-p000"))
+    return {**t, "steps": sc.steps, "agents": len(sc.ids),
+            "rows": {label: (cpu.get(label, 0.0), calls.get(label, 0)) for label, _m, _n in PARTS}}
+
+
 def worker(a: argparse.Namespace) -> None:
     """One job on the tree in the current directory; one JSON line on stdout."""
     sys.path.insert(0, os.getcwd())
@@ -159,6 +208,8 @@ def worker(a: argparse.Namespace) -> None:
         out = job_fits(a.fits, a.outliers)
     elif a.job == "profile":
         out = job_profile(a.scenario, a.duration)
+    elif a.job == "parts":
+        out = job_parts(a.scenario, a.duration)
     elif a.job == "room":
         out = job_room(a.room_duration)
     else:
@@ -213,7 +264,8 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds of the in-process run")
     ap.add_argument("--mp", action="store_true", help="only this tree: multi-process vs in-process")
     ap.add_argument("--profile", action="store_true", help="only this tree: where the in-process run's CPU goes")
-    ap.add_argument("--worker", choices=["fits", "room", "run", "profile"], help=argparse.SUPPRESS)
+    ap.add_argument("--parts", action="store_true", help="only this tree: CPU of each part, no profiler")
+    ap.add_argument("--worker", choices=["fits", "room", "run", "profile", "parts"], help=argparse.SUPPRESS)
     a = ap.parse_args()
     jobs = [j for j in a.jobs.split(",") if j]
     if (a.duration <= 0 or a.room_duration <= 0 or a.fits < 1 or not 0 <= a.outliers < 1
@@ -223,11 +275,12 @@ def main() -> None:
         worker(argparse.Namespace(**{**vars(a), "job": a.worker}))
         return
     res: dict[str, object] = {"loadavg_start": os.getloadavg(), "against": a.against}
-    if a.profile:
-        r = run_side(ROOT, "profile", a)
-        res["profile"] = r
-        print(f"{Path(a.scenario).name} in-process, {a.duration:g} s ({r['steps']} steps, {r['agents']} agents): "
-              f"cumulative CPU s under cProfile(time.process_time)")
+    if a.profile or a.parts:
+        job = "profile" if a.profile else "parts"
+        r = res[job] = run_side(ROOT, job, a)
+        how = "cumulative CPU s under cProfile(time.process_time)" if a.profile else \
+            f"CPU s per part, no profiler; the whole run {r['cpu_s']:.1f} s CPU, {r['wall_s']:.0f} s wall"
+        print(f"{Path(a.scenario).name} in-process, {a.duration:g} s ({r['steps']} steps, {r['agents']} agents): {how}")
         print("| where | calls | CPU s |\n|---|---:|---:|")
         for label, (cum, calls) in r["rows"].items():
             print(f"| {label} | {calls} | {cum:.1f} |")
