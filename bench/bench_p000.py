@@ -33,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -98,82 +99,74 @@ def job_room(duration: float) -> dict[str, float]:
 
 
 def job_run(scenario: str, duration: float) -> dict[str, float]:
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
-
-    sc = load_scenario(scenario).with_overrides(duration_s=duration)
-    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
-        t, _ = _timed(lambda: run_in_process(sc, Path(out), "bench-p000"))
+    sc, (t, _) = _in_process(scenario, duration, _timed)
     return {**t, "steps": sc.steps, "agents": len(sc.ids)}
 
 
-# Rows of the profile table (docs/paper000-reproduction.md): label -> (file part, function name);
-# each row is the cumulative CPU time of that function (its callees included), so rows nest.
-PROFILE_ROWS = [
-    ("whole run (`run_in_process`)", "deploy/launcher", "run_in_process"),
-    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", "agent/node", "_on_stimulus"),
-    ("of which the flight software's `step`", "p000_capture/controller", "step"),
-    ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", "p000_capture/controller", "_fit"),
-    ("of which cold `gnc_tls_fit`", "p000_capture/gnc_tls", "gnc_tls_fit"),
-    ("of which `warm_fit`", "p000_capture/gnc_tls", "warm_fit"),
-    ("closest surface point (`surface_frame`: agents' estimate and the sensor's truth)", "p000_capture/contract", "surface_frame"),
-    ("consensus (eq. 30)", "p000_capture/estimate", "consensus"),
-    ("APF (eq. 23)", "p000_capture/apf", "apf_force"),
-    ("sensing kind `p000-landmarks` (`stimulus`, 20 a step)", "plant/sensing/p000", "stimulus"),
-    ("of which `landmark_returns` (visibility, noise, outliers)", "plant/sensing/p000", "landmark_returns"),
-    ("recorder (every message; Foxglove scene of every truth)", "bus/recorder", "_on_sample"),
-    ("decode + validation of every received message", "bus/codec", "decode"),
-    ("of which the non-finite walk", "bus/codec", "_non_finite_field"),
-    ("link channel: commands and windows (`_on_act`)", "link/node", "_on_act"),
-    ("link channel: truth (`_on_truth`)", "link/node", "_on_truth"),
-    ("plant: command decode and collection (`_on_command`)", "plant/node", "_on_command"),
-    ("plant: dynamics (CW, attitude RK4, limits: `MissionWorld.step`)", "plant/mission_world", "step"),
+# The rows of the two tables of docs/paper000-reproduction.md: (label, where `--profile` finds it:
+# (file part, function name) or None, what `--parts` wraps: (module, "Class.method ...") or None).
+# Each row is the CPU time of that function with its callees, so rows nest.
+ROWS = [
+    ("whole run (`run_in_process`)", ("deploy/launcher", "run_in_process"), None),
+    ("plant steps (`publish_step`: everything a step runs, the in-memory bus's callbacks included)", None,
+     ("plant.node", "PlantNode.publish_step")),
+    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", ("agent/node", "_on_stimulus"),
+     ("agent.node", "AgentNode._on_stimulus")),
+    ("of which the flight software's `step`", ("p000_capture/controller", "step"),
+     ("agent.missions.p000_capture.controller", "CaptureController.step")),
+    ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", ("p000_capture/controller", "_fit"),
+     ("agent.missions.p000_capture.controller", "CaptureController._fit")),
+    ("of which cold `gnc_tls_fit`", ("p000_capture/gnc_tls", "gnc_tls_fit"), None),
+    ("of which `warm_fit`", ("p000_capture/gnc_tls", "warm_fit"), None),
+    ("closest surface point (`surface_frame`: agents' estimate and the sensor's truth)",
+     ("p000_capture/contract", "surface_frame"), None),
+    ("consensus (eq. 30)", ("p000_capture/estimate", "consensus"), None),
+    ("APF (eq. 23)", ("p000_capture/apf", "apf_force"), None),
+    ("sensing kind `p000-landmarks` (`stimulus`, 20 a step)", ("plant/sensing/p000", "stimulus"),
+     ("plant.sensing.p000", "P000LandmarkKind.stimulus")),
+    ("of which `landmark_returns` (visibility, noise, outliers)", ("plant/sensing/p000", "landmark_returns"), None),
+    ("recorder (every message; Foxglove scene of every truth)", ("bus/recorder", "_on_sample"),
+     ("bus.recorder", "RecorderNode._on_sample")),
+    ("decode + validation of every received message", ("bus/codec", "decode"), None),
+    ("of which the non-finite walk", ("bus/codec", "_non_finite_field"), None),
+    ("link channel: commands and windows (`_on_act`)", ("link/node", "_on_act"), ("link.node", "ChannelNode._on_act")),
+    ("link channel: truth (`_on_truth`)", ("link/node", "_on_truth"), ("link.node", "ChannelNode._on_truth")),
+    ("plant: command decode and collection (`_on_command`)", ("plant/node", "_on_command"),
+     ("plant.node", "PlantNode._on_command")),
+    ("plant: dynamics (CW, attitude RK4, limits: `MissionWorld.step`)", ("plant/mission_world", "step"),
+     ("plant.mission_world", "MissionWorld.step")),
 ]
 
 
-def job_profile(scenario: str, duration: float) -> dict[str, float]:
-    """The in-process run under cProfile counting CPU time; the cumulative seconds of PROFILE_ROWS."""
-    import cProfile
-    import pstats
-
+def _in_process(scenario: str, duration: float, around: Callable[[Callable[[], object]], object]) -> tuple[object, object]:
+    """The scenario's in-process run of `duration` s, called through `around` (timing, profiling)."""
     from deploy.launcher import run_in_process
     from deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
-    prof = cProfile.Profile(time.process_time)
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
-        prof.enable()
-        run_in_process(sc, Path(out), "bench-p000")
-        prof.disable()
+        return sc, around(lambda: run_in_process(sc, Path(out), "bench-p000"))
+
+
+def job_profile(scenario: str, duration: float) -> dict[str, object]:
+    """The in-process run under cProfile counting CPU time; the cumulative seconds of ROWS."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile(time.process_time)
+    sc, _ = _in_process(scenario, duration, prof.runcall)
     stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
     rows = {}
-    for label, where, fn in PROFILE_ROWS:
-        cum = [(ct, nc) for (f, _l, name), (_cc, nc, _tt, ct, _c) in stats.items() if where in f and name == fn]
-        rows[label] = max(cum, default=(0.0, 0))
+    for label, found, _w in ROWS:
+        if found is not None:
+            cum = [(ct, nc) for (f, _l, name), (_cc, nc, _tt, ct, _c) in stats.items() if found[0] in f and name == found[1]]
+            rows[label] = max(cum, default=(0.0, 0))
     return {"steps": sc.steps, "agents": len(sc.ids), "rows": rows}
 
 
-# Parts timed without a profiler (`--parts`): label -> (module, Class.method); the CPU time of each
-# call (callees included) summed with `time.process_time`, so the parts nest as their callers do.
-PARTS = [
-    ("plant steps (`publish_step`: everything a step runs, the in-memory bus's callbacks included)", "plant.node", "PlantNode.publish_step"),
-    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", "agent.node", "AgentNode._on_stimulus"),
-    ("of which the flight software's `step`", "agent.missions.p000_capture.controller", "CaptureController.step"),
-    ("of which the landmark fits (`_fit`)", "agent.missions.p000_capture.controller", "CaptureController._fit"),
-    ("sensing kind `p000-landmarks` (`stimulus`)", "plant.sensing.p000", "P000LandmarkKind.stimulus"),
-    ("recorder (every message; Foxglove scene of every truth)", "bus.recorder", "RecorderNode._on_sample"),
-    ("link channel (`_on_act`, `_on_truth`)", "link.node", "ChannelNode._on_act ChannelNode._on_truth"),
-    ("plant: command decode and collection (`_on_command`)", "plant.node", "PlantNode._on_command"),
-    ("plant: dynamics (`MissionWorld.step`)", "plant.mission_world", "MissionWorld.step"),
-]
-
-
 def job_parts(scenario: str, duration: float) -> dict[str, object]:
-    """The in-process run with PARTS wrapped (one process_time pair per call, ~1 us): CPU s and calls."""
+    """The in-process run with ROWS' methods wrapped (one process_time pair per call, ~1 us): CPU s and calls."""
     import importlib
-
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
 
     cpu: dict[str, float] = {}
     calls: dict[str, int] = {}
@@ -190,15 +183,14 @@ def job_parts(scenario: str, duration: float) -> dict[str, object]:
                 calls[label] = calls.get(label, 0) + 1
         setattr(owner, name, timed)
 
-    for label, mod, methods in PARTS:
-        for m in methods.split():
-            cls, name = m.split(".")
-            wrap(label, getattr(importlib.import_module(mod), cls), name)
-    sc = load_scenario(scenario).with_overrides(duration_s=duration)
-    with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
-        t, _ = _timed(lambda: run_in_process(sc, Path(out), "bench-p000"))
+    for label, _f, wrapped in ROWS:
+        if wrapped is not None:
+            for m in wrapped[1].split():
+                cls, name = m.split(".")
+                wrap(label, getattr(importlib.import_module(wrapped[0]), cls), name)
+    sc, (t, _) = _in_process(scenario, duration, _timed)
     return {**t, "steps": sc.steps, "agents": len(sc.ids),
-            "rows": {label: (cpu.get(label, 0.0), calls.get(label, 0)) for label, _m, _n in PARTS}}
+            "rows": {label: (cpu.get(label, 0.0), calls.get(label, 0)) for label, _f, w in ROWS if w is not None}}
 
 
 def worker(a: argparse.Namespace) -> None:
