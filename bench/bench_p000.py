@@ -19,6 +19,8 @@ carries the load, printed at the start and the end).
     nice -n 10 .venv/bin/python bench/bench_p000.py --jobs fits --fits 20
     nice -n 10 .venv/bin/python bench/bench_p000.py --room-duration 550 --jobs room
     nice -n 10 .venv/bin/python bench/bench_p000.py --mp --duration 60   # multi-process vs in-process (this tree)
+    nice -n 10 .venv/bin/python bench/bench_p000.py --profile --duration 60  # where the CPU goes (this tree)
+    nice -n 10 .venv/bin/python bench/bench_p000.py --parts --duration 60    # the same parts without a profiler
 """
 from __future__ import annotations
 
@@ -31,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -96,13 +99,98 @@ def job_room(duration: float) -> dict[str, float]:
 
 
 def job_run(scenario: str, duration: float) -> dict[str, float]:
+    sc, (t, _) = _in_process(scenario, duration, _timed)
+    return {**t, "steps": sc.steps, "agents": len(sc.ids)}
+
+
+# The rows of the two tables of docs/paper000-reproduction.md: (label, where `--profile` finds it:
+# (file part, function name) or None, what `--parts` wraps: (module, "Class.method ...") or None).
+# Each row is the CPU time of that function with its callees, so rows nest.
+ROWS = [
+    ("whole run (`run_in_process`)", ("deploy/launcher", "run_in_process"), None),
+    ("plant steps (`publish_step`: everything a step runs, the in-memory bus's callbacks included)", None,
+     ("plant.node", "PlantNode.publish_step")),
+    ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", ("agent/node", "_on_stimulus"),
+     ("agent.node", "AgentNode._on_stimulus")),
+    ("of which the flight software's `step`", ("p000_capture/fsw/controller", "step"),
+     ("missions.p000_capture.fsw.controller", "CaptureController.step")),
+    ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", ("p000_capture/fsw/controller", "_fit"),
+     ("missions.p000_capture.fsw.controller", "CaptureController._fit")),
+    ("of which cold `gnc_tls_fit`", ("p000_capture/fsw/gnc_tls", "gnc_tls_fit"), None),
+    ("of which `warm_fit`", ("p000_capture/fsw/gnc_tls", "warm_fit"), None),
+    ("closest surface point (`surface_frame`: agents' estimate and the sensor's truth)",
+     ("p000_capture/contract", "surface_frame"), None),
+    ("consensus (eq. 30)", ("p000_capture/fsw/estimate", "consensus"), None),
+    ("APF (eq. 23)", ("p000_capture/fsw/apf", "apf_force"), None),
+    ("sensing kind `p000-landmarks` (`stimulus`, 20 a step)", ("p000_capture/sense", "stimulus"),
+     ("missions.p000_capture.sense", "P000LandmarkKind.stimulus")),
+    ("of which `landmark_returns` (visibility, noise, outliers)", ("p000_capture/sense", "landmark_returns"), None),
+    ("recorder (every message; Foxglove scene of every truth)", ("bus/recorder", "_on_sample"),
+     ("bus.recorder", "RecorderNode._on_sample")),
+    ("decode + validation of every received message", ("bus/codec", "decode"), None),
+    ("of which the non-finite walk", ("bus/codec", "_non_finite_field"), None),
+    ("link channel: commands and windows (`_on_act`)", ("link/node", "_on_act"), ("link.node", "ChannelNode._on_act")),
+    ("link channel: truth (`_on_truth`)", ("link/node", "_on_truth"), ("link.node", "ChannelNode._on_truth")),
+    ("plant: command decode and collection (`_on_command`)", ("plant/node", "_on_command"),
+     ("plant.node", "PlantNode._on_command")),
+    ("plant: dynamics (CW, attitude RK4, limits: `MissionWorld.step`)", ("plant/mission_world", "step"),
+     ("plant.mission_world", "MissionWorld.step")),
+]
+
+
+def _in_process(scenario: str, duration: float, around: Callable[[Callable[[], object]], object]) -> tuple[object, object]:
+    """The scenario's in-process run of `duration` s, called through `around` (timing, profiling)."""
     from deploy.launcher import run_in_process
     from deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
-        t, _ = _timed(lambda: run_in_process(sc, Path(out), "bench-p000"))
-    return {**t, "steps": sc.steps, "agents": len(sc.ids)}
+        return sc, around(lambda: run_in_process(sc, Path(out), "bench-p000"))
+
+
+def job_profile(scenario: str, duration: float) -> dict[str, object]:
+    """The in-process run under cProfile counting CPU time; the cumulative seconds of ROWS."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile(time.process_time)
+    sc, _ = _in_process(scenario, duration, prof.runcall)
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    rows = {}
+    for label, found, _w in ROWS:
+        if found is not None:
+            cum = [(ct, nc) for (f, _l, name), (_cc, nc, _tt, ct, _c) in stats.items() if found[0] in f and name == found[1]]
+            rows[label] = max(cum, default=(0.0, 0))
+    return {"steps": sc.steps, "agents": len(sc.ids), "rows": rows}
+
+
+def job_parts(scenario: str, duration: float) -> dict[str, object]:
+    """The in-process run with ROWS' methods wrapped (one process_time pair per call, ~1 us): CPU s and calls."""
+    import importlib
+
+    cpu: dict[str, float] = {}
+    calls: dict[str, int] = {}
+
+    def wrap(label: str, owner: type, name: str) -> None:
+        f, pt = getattr(owner, name), time.process_time
+
+        def timed(*args: object, **kw: object) -> object:
+            t0 = pt()
+            try:
+                return f(*args, **kw)
+            finally:
+                cpu[label] = cpu.get(label, 0.0) + pt() - t0
+                calls[label] = calls.get(label, 0) + 1
+        setattr(owner, name, timed)
+
+    for label, _f, wrapped in ROWS:
+        if wrapped is not None:
+            for m in wrapped[1].split():
+                cls, name = m.split(".")
+                wrap(label, getattr(importlib.import_module(wrapped[0]), cls), name)
+    sc, (t, _) = _in_process(scenario, duration, _timed)
+    return {**t, "steps": sc.steps, "agents": len(sc.ids),
+            "rows": {label: (cpu.get(label, 0.0), calls.get(label, 0)) for label, _f, w in ROWS if w is not None}}
 
 
 def worker(a: argparse.Namespace) -> None:
@@ -110,6 +198,10 @@ def worker(a: argparse.Namespace) -> None:
     sys.path.insert(0, os.getcwd())
     if a.job == "fits":
         out = job_fits(a.fits, a.outliers)
+    elif a.job == "profile":
+        out = job_profile(a.scenario, a.duration)
+    elif a.job == "parts":
+        out = job_parts(a.scenario, a.duration)
     elif a.job == "room":
         out = job_room(a.room_duration)
     else:
@@ -163,7 +255,9 @@ def main() -> None:
     ap.add_argument("--scenario", default=CAPTURE_20, help="scenario of the in-process run (from the tree's root)")
     ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds of the in-process run")
     ap.add_argument("--mp", action="store_true", help="only this tree: multi-process vs in-process")
-    ap.add_argument("--worker", choices=["fits", "room", "run"], help=argparse.SUPPRESS)
+    ap.add_argument("--profile", action="store_true", help="only this tree: where the in-process run's CPU goes")
+    ap.add_argument("--parts", action="store_true", help="only this tree: CPU of each part, no profiler")
+    ap.add_argument("--worker", choices=["fits", "room", "run", "profile", "parts"], help=argparse.SUPPRESS)
     a = ap.parse_args()
     jobs = [j for j in a.jobs.split(",") if j]
     if (a.duration <= 0 or a.room_duration <= 0 or a.fits < 1 or not 0 <= a.outliers < 1
@@ -173,7 +267,16 @@ def main() -> None:
         worker(argparse.Namespace(**{**vars(a), "job": a.worker}))
         return
     res: dict[str, object] = {"loadavg_start": os.getloadavg(), "against": a.against}
-    if a.mp:
+    if a.profile or a.parts:
+        job = "profile" if a.profile else "parts"
+        r = res[job] = run_side(ROOT, job, a)
+        how = "cumulative CPU s under cProfile(time.process_time)" if a.profile else \
+            f"CPU s per part, no profiler; the whole run {r['cpu_s']:.1f} s CPU, {r['wall_s']:.0f} s wall"
+        print(f"{Path(a.scenario).name} in-process, {a.duration:g} s ({r['steps']} steps, {r['agents']} agents): {how}")
+        print("| where | calls | CPU s |\n|---|---:|---:|")
+        for label, (cum, calls) in r["rows"].items():
+            print(f"| {label} | {calls} | {cum:.1f} |")
+    elif a.mp:
         sys.path.insert(0, str(ROOT))
         r = bench_mp(str(ROOT / a.scenario), a.duration)
         res["mp"] = r

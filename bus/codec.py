@@ -121,6 +121,10 @@ def _non_finite_field(msg: Message, path: str = "") -> str | None:
                     return bad
         elif fd.type in (fd.TYPE_DOUBLE, fd.TYPE_FLOAT):
             items = value if fd.is_repeated else [value]
+            # a finite sum means every item is finite (NaN and inf propagate); only a non-finite sum
+            # (a bad item, or finite ones that overflow) walks the items (issue 29: landmark arrays)
+            if math.isfinite(sum(items)):
+                continue
             for x in items:
                 if not math.isfinite(x):
                     return f"{name}={x}"

@@ -195,6 +195,9 @@ class FoxgloveScene:
         if src and dst:
             self._links.add((src, dst))
 
+    # the message classes `derive` looks at: a recorder need not decode a sample of any other class
+    DERIVES_FROM: frozenset[type] = frozenset({pb.Truth, pb.Event, pb.IslPacket, pb.Telemetry})
+
     def derive(self, cls: type, msg: Any, topic: str, t_ns: int) -> list[tuple[str, type, bytes]]:
         """Foxglove messages made from one decoded sample of `topic` (log time t_ns since 1970):
         (topic, class, payload) to write or send; an ISL delivery and an agent's mode (telemetry) are

@@ -137,7 +137,8 @@ class McapRecorder:
 
         `t_ns`: the simulation time the publisher stamped the sample with (bus/memory.py, a
         publisher in this process that serialised a message of the key's type): the payload is
-        then not decoded again unless the Foxglove scene needs the message."""
+        then not decoded again unless the Foxglove scene derives from its class (stimuli and
+        commands, the bulk of a paper 000 run's bytes, are not)."""
         if self._closed:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
@@ -147,7 +148,7 @@ class McapRecorder:
         cls, topic = known
         t: int | None
         msg: Message | None
-        if t_ns is not None and self._scene is None and cls is not None:
+        if t_ns is not None and cls is not None and (self._scene is None or cls not in self._scene.DERIVES_FROM):
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)

@@ -19,9 +19,12 @@ def agent_config(sc: Any, sid: str) -> dict[str, Any]:
     """Everything spacecraft `sid`'s flight software is configured with, from a validated Scenario,
     as plain JSON data (round-tripped, so in-process and multi-process agents get equal values)."""
     from agent.catalogue import controller_module  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
-    from agent.perception import nav_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
-
     controller, params = sc.controller_of(sid)
+    nav = None
+    if sc.sensing["kind"] == "scene":  # the camera pipeline (and scipy) only for the scene stimulus
+        from agent.perception import nav_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+
+        nav = nav_config(sc.sections.get("nav"))
     cfg = {
         "id": sid,
         "plugins": list(sc.doc.get("run", {}).get("plugins", [])),
@@ -32,7 +35,7 @@ def agent_config(sc: Any, sid: str) -> dict[str, Any]:
         "sense_kind": sc.sensing["kind"],
         "decision_period_steps": sc.decision_period_steps,
         "beacon": sc.sections.get("beacon"),
-        "nav": nav_config(sc.sections.get("nav")) if sc.sensing["kind"] == "scene" else None,
+        "nav": nav,
         "camera": dict(sc.camera),
     }
     return json.loads(json.dumps(cfg))

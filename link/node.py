@@ -288,9 +288,18 @@ class ChannelNode:
         seen = self._tx_seen.get(self.step, {})
         return sorted(s for s in self._expected if s not in self._acted or seen.get(s, 0) < self._acted[s])
 
+    def _complete(self) -> bool:
+        """`not self._missing()` without building the sorted list: called on every command and
+        packet (issue 29: with 20 agents the list cost 1.5 % of a paper 000 run)."""
+        acted = self._acted
+        if not self._expected <= acted.keys():
+            return False
+        seen = self._tx_seen.get(self.step, {})
+        return all(seen.get(s, 0) >= acted[s] for s in self._expected if acted[s])
+
     def _maybe_close(self) -> None:
         if (not self._window_done and self.step >= 0 and self.model.has_truth(self.step)
-                and not self._missing()):
+                and self._complete()):
             self._close_window()
 
     def _tx_arrived(self) -> None:

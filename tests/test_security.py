@@ -8,11 +8,13 @@ source, step): a sample without a header and a command cut short are rejected.
 from __future__ import annotations
 
 import json
+import math
 import stat
 import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import zenoh
 
@@ -130,6 +132,25 @@ def test_a_message_without_header_is_rejected() -> None:
     for cls in (pb.ActuatorCommand, pb.Tick, pb.Truth, pb.IslPacket, pb.RelStimulus, pb.Measurements):
         with pytest.raises(RejectedPacket, match="no header"):
             decode(cls, b"", run=RUN)
+
+
+def test_a_non_finite_value_in_a_long_array_is_rejected() -> None:
+    """The walk sums each repeated double field first (issue 29): a NaN/inf anywhere in a long
+    array (a landmark cloud) is still found and named; finite values whose sum overflows pass."""
+    from bus.codec import add_measurement
+
+    rng = np.random.default_rng(29)
+    for bad in (math.nan, math.inf, -math.inf):
+        for at in (0, 577, 1199):
+            msg = pb.Measurements(header=header(RUN, "plant", 1, 0.05, 1))
+            vals = rng.uniform(-8.5, 8.5, 1200)
+            vals[at] = bad
+            add_measurement(msg, "p000_landmarks_body_m", vals.reshape(-1, 3))
+            with pytest.raises(RejectedPacket, match=f"non-finite value items\\[0\\].values={bad}"):
+                decode(pb.Measurements, msg.SerializeToString(), run=RUN)
+    msg = pb.Measurements(header=header(RUN, "plant", 1, 0.05, 1))
+    add_measurement(msg, "big", [1.7e308, 1.7e308, -1e308])  # sum overflows to inf: walked, all finite
+    assert list(decode(pb.Measurements, msg.SerializeToString(), run=RUN).items[0].values) == [1.7e308, 1.7e308, -1e308]
 
 
 def test_a_truncated_command_is_rejected() -> None:

@@ -173,11 +173,13 @@ def surface_landmarks(semi_axes_m: np.ndarray, count: int) -> tuple[np.ndarray, 
 
 
 def dcm(q: np.ndarray) -> np.ndarray:
-    """Body -> frame rotation matrix of a scalar-first unit quaternion."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """Body -> frame rotation matrix of a scalar-first unit quaternion; (4,) -> (3, 3), (N, 4) ->
+    (N, 3, 3) with the same elementwise operations per row (so the same bits as row by row)."""
+    w, x, y, z = np.moveaxis(np.asarray(q), -1, 0)
+    rows = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
 @dataclass(frozen=True)

@@ -61,11 +61,12 @@ class P000Params(BaseModel):
 
 
 def quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product, scalar first."""
+    """Hamilton product, scalar first; q may be (N, 4) (each row times p: the same elementwise
+    operations as row by row, so the same bits)."""
     pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return np.array([pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw])
+    qw, qx, qy, qz = np.moveaxis(np.asarray(q), -1, 0)
+    return np.stack([pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw], axis=-1)
 
 
 def inertial_to_cw(q_body_to_inertial: np.ndarray, n_radps: float, t_s: float) -> np.ndarray:
@@ -118,11 +119,18 @@ class P000LandmarkKind:
         self.seed = int(scenario.seed)
 
     def _step_truth(self, ctx: SensingContext) -> dict[str, Any]:
+        """What every observer of the step shares, computed once for all (issue 29): the target's
+        pose and landmarks, each spacecraft's CW attitude and its matrix, who sees whom."""
         bt = next(b for b in ctx.world.body_truth() if b.spec.id == self.p.target_id)
         rot = c.dcm(bt.attitude_q)
         q, w = ctx.world.attitude_wxyz()
+        q_cw = inertial_to_cw(q, float(ctx.world.n_radps), ctx.t_s)
+        pos = ctx.position_m
+        near = (np.linalg.norm(pos[None, :, :] - pos[:, None, :], axis=2) <= self.p.neighbour_range_m) & ctx.alive
+        np.fill_diagonal(near, False)
         return {"ell": c.Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
-                "nrm": self.nrm_body @ rot.T, "q": q, "w": w, "n": float(ctx.world.n_radps)}
+                "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
+                "near": [np.flatnonzero(row) for row in near]}
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
         p = self.p
@@ -130,15 +138,14 @@ class P000LandmarkKind:
         msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
         pos, vel = ctx.position_m, ctx.velocity_mps
         r = pos[j]
-        d = np.linalg.norm(pos - r, axis=1)
-        for k in np.flatnonzero((d <= p.neighbour_range_m) & ctx.alive).tolist():
-            if k == j:
-                continue
-            nb = msg.neighbours.add(id=ctx.ids[k])
-            nb.position_m.x, nb.position_m.y, nb.position_m.z = (pos[k] - r).tolist()
-            nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = (vel[k] - vel[j]).tolist()
-        q_cw = inertial_to_cw(tr["q"][j], tr["n"], ctx.t_s)
-        rot = c.dcm(q_cw)
+        near = tr["near"][j]
+        if len(near):
+            ids = ctx.ids
+            for k, dp, dv in zip(near.tolist(), (pos[near] - r).tolist(), (vel[near] - vel[j]).tolist()):
+                nb = msg.neighbours.add(id=ids[k])
+                nb.position_m.x, nb.position_m.y, nb.position_m.z = dp
+                nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = dv
+        q_cw, rot = tr["q_cw"][j], tr["rot"][j]
         rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
         ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
         add_measurement(msg, c.Q_BODY_TO_LVLH, q_cw)
