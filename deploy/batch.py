@@ -43,6 +43,8 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     from deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
+    if (opts or {}).get("batch") is False:
+        return "batch mode off (opts batch = false)"
     if sc.fidelity not in ("linear", "j2", "cw", "inertial"):
         return f"plant fidelity {sc.fidelity!r}"
     if any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft):
