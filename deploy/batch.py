@@ -180,7 +180,7 @@ class BatchHook(LocalFlightSoftware):
             return ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
                                      offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
                                      rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps,
-                                     owner=rel.owner)
+                                     owner=rel.owner, extra=getattr(rel, "extra", None))
         offsets, none = self._empty.get(len(rows), (None, None))
         if offsets is None:  # no neighbours for anyone: the same read-only arrays every step
             offsets, none = self._empty[len(rows)] = (np.zeros(len(rows) + 1, dtype=np.int64), np.zeros((0, 3)))

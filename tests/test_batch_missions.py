@@ -44,3 +44,38 @@ def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, name: str,
     if "channel" in full.summary:  # the same packets sent and delivered
         assert batch.summary["channel"]["totals"] == full.summary["channel"]["totals"]
         assert batch.summary["channel"]["totals"]["rx_messages"] > 0
+
+
+@pytest.mark.parametrize("dead", [(), (2,)], ids=["all-alive", "one-dead"])
+def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 001's sensing kind (`relative`, own state) as arrays: for spacecraft a few metres apart
+    (neighbours in and out of the 21 m ball, a dead one), every observer's neighbours, relative
+    states and own state equal what the agent reads from its message (agent/node.py)."""
+    from agent.node import observation_from_rel
+    from bus.codec import header
+    from deploy.scenario import plant_config
+    from plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "tersoff-6.toml")
+    kind = make_sensing("relative", plant_config(sc))
+    rng = np.random.default_rng(7)
+    pos, vel = rng.uniform(-20.0, 20.0, (6, 3)), rng.normal(0.0, 0.1, (6, 3))
+    pos[4] = -0.0  # a zero component: the message path's +0.0
+    alive = np.ones(6, dtype=bool)
+    alive[list(dead)] = False
+    ctx = SensingContext(step=3, t_s=15.0, u_rad=0.1, ids=list(sc.ids), position_m=pos, velocity_mps=vel,
+                         alive=alive, world=None)
+    rows = np.flatnonzero(alive)
+    rel = kind.batch(ctx, rows)
+    pairs = 0
+    for r, j in enumerate(rows.tolist()):
+        o = observation_from_rel(kind.stimulus(ctx, j, header("run", "plant", 3, 15.0, 0)))
+        a, b = rel.offsets[r], rel.offsets[r + 1]
+        assert [sc.ids[k] for k in rel.neighbour[a:b]] == o.neighbour_ids
+        assert np.array_equal(rel.rel_position_m[a:b], o.rel_position_m.reshape(-1, 3))
+        assert np.array_equal(rel.rel_velocity_mps[a:b], o.rel_velocity_mps.reshape(-1, 3))
+        assert rel.extra is not None and rel.extra[r].keys() == o.extra.keys()
+        for key, value in o.extra.items():
+            assert rel.extra[r][key].tobytes() == value.tobytes(), key
+        pairs += b - a
+    assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
