@@ -2,7 +2,7 @@
 
 The same equations as lbdnn.py, observer.py, rho_filter.py, adaptation.py and control_law.py
 (eqs. 2-3, 25-28), written for a leading axis of N servicers with every sum spelled out as an
-elementwise product summed along a fixed axis (no BLAS call, whose blocking may depend on N): a
+elementwise product summed along a fixed axis (`np.add.reduce`, what `.sum` calls) (no BLAS call, whose blocking may depend on N): a
 servicer's numbers do not depend on how many others share the call, so `LbdnnServicer.step`
 (N = 1) and `LbdnnServicer.step_batch` (N = 6) give the same bits (tests/test_batch_missions.py).
 
@@ -53,7 +53,7 @@ def forward(kappa: np.ndarray, theta: np.ndarray, jacobian: bool) -> tuple[np.nd
     pre, inputs = [], []
     for j, v in enumerate(mats):
         inputs.append(x)
-        phi_j = (x[:, :, None] * v).sum(axis=1)  # varphi_j = V_{j+1}^T varrho_j^T
+        phi_j = np.add.reduce(x[:, :, None] * v, axis=1)  # varphi_j = V_{j+1}^T varrho_j^T
         pre.append(phi_j)
         if j < len(mats) - 1:
             x = _with_bias(phi_j * sigmoid(phi_j))  # swish, then the bias 1
@@ -73,7 +73,7 @@ def forward(kappa: np.ndarray, theta: np.ndarray, jacobian: bool) -> tuple[np.nd
         end -= width
         if j > 0:
             s = sigmoid(pre[j - 1])
-            back = ((back[:, :, None, :] * mats[j][:, None, :-1, :]).sum(axis=3)
+            back = (np.add.reduce(back[:, :, None, :] * mats[j][:, None, :-1, :], axis=3)
                     * (s + pre[j - 1] * s * (1.0 - s))[:, None, :])  # times swish'
     return out, jac
 
@@ -96,12 +96,12 @@ def derivative(x: np.ndarray, eta: np.ndarray, coupling: np.ndarray, theta_nb: n
     _out, jac = forward(np.concatenate([eta, zeta_hat], axis=1), theta, jacobian=True)
     assert jac is not None
     consensus = (1 + n_nb)[:, None] * theta - theta_nb.sum(axis=1)
-    grad = (jac * (zeta_hat + g.k1 * eta)[:, :, None]).sum(axis=1)  # grad Phi^T (zeta_hat + k1 eta)
+    grad = np.add.reduce(jac * (zeta_hat + g.k1 * eta)[:, :, None], axis=1)  # grad Phi^T (zeta_hat + k1 eta)
     direction = g.gamma * (grad - g.k6 * consensus)
     # smooth projection onto ||theta|| <= theta_bar (adaptation.py `projection`)
-    tt = (theta * theta).sum(axis=1)
+    tt = np.add.reduce(theta * theta, axis=1)
     p = tt - law.theta_bar**2
-    outward = (theta * direction).sum(axis=1)
+    outward = np.add.reduce(theta * direction, axis=1)
     c = np.minimum(1.0, p / (law.proj_epsilon**2 + 2.0 * law.proj_epsilon * law.theta_bar))
     act = (p > 0.0) & (outward > 0.0)
     dx[:, 9:] = np.where(act[:, None], direction - (c * outward / np.where(act, tt, 1.0))[:, None] * theta, direction)
