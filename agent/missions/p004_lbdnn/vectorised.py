@@ -50,13 +50,14 @@ def forward(kappa: np.ndarray, theta: np.ndarray, jacobian: bool) -> tuple[np.nd
     (N, 3, p) by eq. 3 times diag(1 - Phi^2) (lbdnn.py `forward`, `jacobian`)."""
     mats = unpack(theta)
     x = _with_bias(kappa)
-    pre, inputs = [], []
+    pre, inputs, sig = [], [], []
     for j, v in enumerate(mats):
         inputs.append(x)
         phi_j = np.add.reduce(x[:, :, None] * v, axis=1)  # varphi_j = V_{j+1}^T varrho_j^T
         pre.append(phi_j)
         if j < len(mats) - 1:
-            x = _with_bias(phi_j * sigmoid(phi_j))  # swish, then the bias 1
+            sig.append(sigmoid(phi_j))
+            x = _with_bias(phi_j * sig[-1])  # swish, then the bias 1
     out = np.tanh(pre[-1])
     if not jacobian:
         return out, None
@@ -72,7 +73,7 @@ def forward(kappa: np.ndarray, theta: np.ndarray, jacobian: bool) -> tuple[np.nd
         jac[:, :, end - width:end] = (back[:, :, :, None] * a[:, None, None, :]).reshape(n, n_out, width)
         end -= width
         if j > 0:
-            s = sigmoid(pre[j - 1])
+            s = sig[j - 1]
             back = (np.add.reduce(back[:, :, None, :] * mats[j][:, None, :-1, :], axis=3)
                     * (s + pre[j - 1] * s * (1.0 - s))[:, None, :])  # times swish'
     return out, jac
@@ -104,6 +105,9 @@ def derivative(x: np.ndarray, eta: np.ndarray, coupling: np.ndarray, theta_nb: n
     outward = np.add.reduce(theta * direction, axis=1)
     c = np.minimum(1.0, p / (law.proj_epsilon**2 + 2.0 * law.proj_epsilon * law.theta_bar))
     act = (p > 0.0) & (outward > 0.0)
+    if not act.any():  # inside the ball, or pointing inwards: the direction unchanged
+        dx[:, 9:] = direction
+        return dx
     dx[:, 9:] = np.where(act[:, None], direction - (c * outward / np.where(act, tt, 1.0))[:, None] * theta, direction)
     return dx
 
