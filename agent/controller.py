@@ -173,13 +173,30 @@ class CommandBatch:
 
 def step_batch(controllers: Sequence[Controller], batch: ObservationBatch) -> CommandBatch:
     """Commands of controllers[i] for batch.observation(i), all i: through the controllers' own
-    `step_batch` when they are all of one class that has one, else each `step` in turn."""
+    `step_batch` when they are all of one class that has one; with several classes, each class's
+    `step_batch` over its own rows (a sub-batch, issue 29: paper 003's leader and servicers), and
+    each `step` in turn for a class without one."""
     kinds = {type(c) for c in controllers}
     if len(kinds) == 1:
         fn = getattr(next(iter(kinds)), "step_batch", None)
         if fn is not None:
             return fn(controllers, batch)
-    return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
+        return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
+    rows_of: dict[type, list[int]] = {}
+    for i, c in enumerate(controllers):
+        rows_of.setdefault(type(c), []).append(i)
+    cmds: list[Command | None] = [None] * len(controllers)
+    for kind, rows in rows_of.items():
+        fn = getattr(kind, "step_batch", None)
+        if fn is None:
+            for i in rows:
+                cmds[i] = controllers[i].step(batch.observation(i))
+            continue
+        sub = ObservationBatch.of([batch.observers[i] for i in rows], [batch.observation(i) for i in rows])
+        cb = fn([controllers[i] for i in rows], sub)
+        for k, i in enumerate(rows):
+            cmds[i] = cb.command(k)
+    return CommandBatch.of([c for c in cmds if c is not None])
 
 
 ControllerFactory = Callable[[str, OrbitInfo, dict[str, Any]], Controller]

@@ -9,9 +9,13 @@ plant/flight.py LocalFlightSoftware), which runs the spacecraft's flight softwar
 together (agent/batch.py: the same controllers, through `step_batch`) and returns their commands.
 The values are those of the message path (protobuf doubles carry float64 exactly), so the truth
 is the same, bit for bit, as that of the per-agent in-process run and of the multi-process run
-(tests/test_batch_mode.py). Anything a batch run would have to drop instead falls back to the
-message path: a sensing kind without a batch form, a camera pipeline, beacons, companions (link
-channel, viewer), or a plant that flies attitude (torques).
+(tests/test_batch_mode.py). The mission worlds (cw, inertial: papers 001, 003, 004, issue 29) run
+in batch mode too: a sensing kind without a batch form hands its messages themselves (built as for
+the bus, read by the agent's own `observation_from_rel`), and the inter-satellite link is the
+channel's own model (`BatchLink`: link/model.py `LinkModel`, fed as link/node.py feeds it, so the
+same packets reach the same receivers at the same steps; tests/test_batch_missions.py). Anything a
+batch run would have to drop instead falls back to the message path: a camera pipeline, beacons,
+sensing faults, the viewer companion, or spacecraft that fly attitude (torques).
 """
 from __future__ import annotations
 
@@ -20,10 +24,17 @@ from typing import Any, Callable
 import numpy as np
 
 from agent.batch import BatchAgents
-from agent.controller import ObservationBatch, OrbitInfo
+from agent.controller import CommandBatch, ObservationBatch, OrbitInfo
+from agent.node import observation_from_rel
+from bus import swarmhil_pb2 as pb
+from bus.codec import header
 from bus.keys import Keys
-from plant.flight import LocalFlightSoftware, StimulusBatch
-from plant.sensing.registry import SensingContext
+from deploy.scenario import plant_config
+from link.faults import LinkFaults
+from link.model import LinkModel, check_tx, parse_link_config
+from link.node import enabled as channel_enabled
+from plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMessages
+from plant.sensing.registry import SensingContext, sensing_message
 
 
 def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
@@ -32,18 +43,91 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     from deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-    if sc.fidelity not in ("linear", "j2"):
-        return f"plant fidelity {sc.fidelity!r} (the mission world: attitude and bodies)"
-    if not has_batch_form(sc.sensing["kind"]):
-        return f"sensing kind {sc.sensing['kind']!r} has no batch form"
+    if (opts or {}).get("batch") is False:
+        return "batch mode off (opts batch = false)"
+    if sc.fidelity not in ("linear", "j2", "cw", "inertial"):
+        return f"plant fidelity {sc.fidelity!r}"
+    if any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft):
+        return "spacecraft that fly attitude (torques)"
+    kind = sc.sensing["kind"]
+    if not has_batch_form(kind) and sensing_message(kind) is not pb.Measurements:
+        return f"sensing kind {kind!r} has no batch form"
     if beacon_from_config(sc.sections.get("beacon"), "") is not None:
         return "beacons"
     if any(f.family == "sensor" for f in getattr(sc, "faults", ())):
         return "sensing faults (they act on the stimulus messages)"
-    comps = enabled_companions(sc, opts or {})
+    comps = [c for c in enabled_companions(sc, opts or {}) if c.name != "channel"]  # (the link: BatchLink)
     if comps:
         return f"companions {', '.join(c.name for c in comps)}"
     return None
+
+
+class BatchLink:
+    """The inter-satellite link of a batch run: the channel companion's model (link/model.py
+    `LinkModel`) fed as link/node.py `ChannelNode` feeds it in a lockstep run. At step k: the truth
+    of step k (the positions the truth message carries, in the order of the ids), then every
+    packet the agents transmit at step k (dated k, with its sender's sequence number, checked by
+    `check_tx` like a packet on the bus), then the window of step k, whose deliveries (an
+    `IslPacket` each, as the channel publishes it) wait in the receivers' inboxes until their next
+    decision step (agent/node.py: `obs.isl_rx`)."""
+
+    def __init__(self, run: str, sc: Any) -> None:
+        self.run = run
+        self.cfg = parse_link_config(sc.sections["link"], sc.source, sc.seed)
+        self.ids = list(sc.ids)
+        self.known = set(self.ids)
+        self.step_s = sc.step_s
+        self.ref_radius_m = sc.orbit.semi_major_axis_m
+        self.model = LinkModel(self.cfg, self.ids, sc.step_s, LinkFaults(getattr(sc, "faults", None) or [], sc.ids, sc.step_s))
+        self.keys = Keys(run)
+        self.inbox: list[list[Any]] = [[] for _ in self.ids]
+        self._tx_seq = [0] * len(self.ids)   # each agent's seq on its isl/tx key
+        self._rx_seq: dict[str, int] = {}    # the channel's seq on each isl/rx key
+        self.rejected = 0
+        self.deliveries = 0
+
+    def truth(self, ctx: SensingContext) -> None:
+        a_m = getattr(ctx.world, "a_m", 0.0)
+        self.model.set_truth(ctx.step, np.array(ctx.position_m, dtype=float), a_m if a_m > 0 else self.ref_radius_m)
+
+    def take(self, rows: np.ndarray) -> list[list[Any]]:
+        """The packets each observer has received since its last decision (its inbox, emptied)."""
+        out = []
+        for i in rows.tolist():
+            out.append(self.inbox[i])
+            self.inbox[i] = []
+        return out
+
+    def send(self, step: int, rows: np.ndarray, cb: CommandBatch) -> None:
+        """The transmissions of the observers' commands of `step` (none from a command the agent
+        replaces by zero: a non-finite acceleration)."""
+        t = step * self.step_s
+        for r, i in enumerate(rows.tolist()):
+            if not np.isfinite(cb.accel_mps2[r]).all():
+                continue
+            src = self.ids[i]
+            for tx in cb.command(r).transmissions:
+                seq = self._tx_seq[i]
+                self._tx_seq[i] = seq + 1
+                if check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes):
+                    self.rejected += 1
+                    continue
+                self.model.submit(src, tx.dst, tx.type, tx.payload, seq, step, t)
+
+    def window(self, step: int) -> None:
+        for d in self.model.window(step):
+            key = self.keys.isl_rx(d.dst)
+            seq = self._rx_seq.get(key, 0)
+            self._rx_seq[key] = seq + 1
+            self.inbox[self.model.index[d.dst]].append(pb.IslPacket(
+                header=header(self.run, "channel", d.rx_step, d.rx_step * self.step_s, seq), src=d.src,
+                dst=d.packet_dst, type=d.type, payload=d.payload, sent_t=d.send_t))
+            self.deliveries += 1
+
+    def summary(self) -> dict[str, Any]:
+        tot = self.model.counters.totals()
+        return {"config": self.cfg.to_dict(), "totals": {**tot, "rejected_packets": self.rejected},
+                "pending_at_end": self.model.pending(), "deliveries": self.deliveries, "batch": True}
 
 
 class BatchHook(LocalFlightSoftware):
@@ -64,27 +148,46 @@ class BatchHook(LocalFlightSoftware):
         # the agents are up (the plant waits for their liveliness before step 0, as for processes)
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
         self._empty: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # observers -> (offsets, (0, 3))
+        self.link = BatchLink(run, sc) if channel_enabled(sc, {}) else None  # the channel's own test of [link]
 
-    def commands(self, ctx: SensingContext, rows: np.ndarray, sense: Callable[[], StimulusBatch]) -> np.ndarray:
-        """`sense()` gives the stimuli of the observers `rows` (RelBatch); not called when no
-        controller of the batch looks at its observation (`observes = False`, agent/controller.py)."""
+    def commands(self, ctx: SensingContext, rows: np.ndarray,
+                 sense: Callable[[], StimulusBatch | StimulusMessages]) -> np.ndarray:
+        """`sense()` gives the stimuli of the observers `rows` (RelBatch, or the kind's messages); not
+        called when no controller of the batch looks at its observation (`observes = False`,
+        agent/controller.py). With a [link], the packets go through `BatchLink` around the decision."""
         ids = self.ids
         observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
-        if self.agents.observes:
+        link = self.link
+        if link is None:
+            return self.agents.step(rows, self._observe(ctx, rows, observers, sense))
+        link.truth(ctx)
+        decide = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
+        batch = self._observe(ctx, rows, observers, sense)
+        if decide:
+            batch.isl_rx = link.take(rows)
+        acc = self.agents.step(rows, batch)
+        if decide and self.agents.last is not None:
+            link.send(ctx.step, rows, self.agents.last)
+        link.window(ctx.step)
+        return acc
+
+    def _observe(self, ctx: SensingContext, rows: np.ndarray, observers: list[str],
+                 sense: Callable[[], StimulusBatch | StimulusMessages]) -> ObservationBatch:
+        if self.agents.observes and len(rows):
             rel = sense()
-            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+            if isinstance(rel, StimulusMessages):  # as the agent reads its stimulus message
+                return ObservationBatch.of(observers, [observation_from_rel(m) for m in rel.messages])
+            return ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
                                      offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
                                      rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps,
-                                     owner=rel.owner)
-        else:
-            offsets, none = self._empty.get(len(rows), (None, None))
-            if offsets is None:  # no neighbours for anyone: the same read-only arrays every step
-                offsets, none = self._empty[len(rows)] = (np.zeros(len(rows) + 1, dtype=np.int64), np.zeros((0, 3)))
-                offsets.setflags(write=False)
-                none.setflags(write=False)
-            batch = ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
-                                     offsets=offsets, neighbour_ids=[], rel_position_m=none, rel_velocity_mps=none)
-        return self.agents.step(rows, batch)
+                                     owner=rel.owner, extra=getattr(rel, "extra", None))
+        offsets, none = self._empty.get(len(rows), (None, None))
+        if offsets is None:  # no neighbours for anyone: the same read-only arrays every step
+            offsets, none = self._empty[len(rows)] = (np.zeros(len(rows) + 1, dtype=np.int64), np.zeros((0, 3)))
+            offsets.setflags(write=False)
+            none.setflags(write=False)
+        return ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
+                                offsets=offsets, neighbour_ids=[], rel_position_m=none, rel_velocity_mps=none)
 
     @property
     def faults(self) -> dict[str, dict[str, int]]:

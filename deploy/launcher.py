@@ -139,6 +139,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
         summary["batch"] = {"used": why is None, "why_not": why}
         if why is None:
             hook = BatchHook(bus, run, sc)
+            comps = []  # (the link channel, if any, is the hook's BatchLink)
     summary["record"] = record
     plant = PlantNode(bus, run, plant_config(sc), expect_processes=("recorder", *[c.name for c in comps]),
                       barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update if progress else None,
@@ -154,6 +155,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     plant_summary = plant.run()
     for name, obj in started.items():
         summary[name] = obj.close()
+    if hook is not None and hook.link is not None:
+        summary["channel"] = hook.link.summary()
     rec_stats = rec.close()
     bar.close()
     summary["wall_s"] = time.monotonic() - wall0

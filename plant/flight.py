@@ -7,8 +7,9 @@ owns, so that the plant calls flight software without importing it (nor the depl
 - `ctx`: the truth of step k (plant/sensing/registry.py SensingContext);
 - `rows`: the indices (into ctx.ids, increasing) of the live spacecraft, the observers;
 - `sense()`: the sensing kind's stimuli of those observers as arrays (`StimulusBatch`, the kind's
-  `batch(ctx, rows)` form: the same values as the per-spacecraft messages); computed only when
-  called, so flight software that does not look at its observation costs no sensing.
+  `batch(ctx, rows)` form: the same values as the per-spacecraft messages), or, for a kind without
+  a batch form, its messages themselves (`StimulusMessages`: built as for the bus, not serialised);
+  computed only when called, so flight software that does not look at its observation costs no sensing.
 
 It returns the (N, 3) commanded accelerations in the scenario frame of all N spacecraft (rows
 other than `rows` are ignored): the commands in force over step k, as the agents' messages would
@@ -16,7 +17,8 @@ have carried them. deploy/batch.py `BatchHook` implements it with the agent's `B
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable, Protocol
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, Protocol
 
 import numpy as np
 
@@ -35,8 +37,16 @@ class StimulusBatch(Protocol):
     owner: np.ndarray | None       # (P,) the observer row r of each pair, when the kind gives it
 
 
+@dataclass(frozen=True)
+class StimulusMessages:
+    """The stimuli of R observers from a sensing kind without a batch form: messages[r] is observer
+    r's stimulus message (header and all), the one the plant would have published for it."""
+
+    messages: list[Any]
+
+
 class LocalFlightSoftware(Protocol):
     """Flight software of every spacecraft, called by the plant in its process (see the module)."""
 
     def commands(self, ctx: SensingContext, rows: np.ndarray,
-                 sense: Callable[[], StimulusBatch]) -> np.ndarray: ...
+                 sense: Callable[[], StimulusBatch | StimulusMessages]) -> np.ndarray: ...

@@ -22,7 +22,7 @@ from bus.truth_wire import HeaderEncoder, TruthEncoder
 from plant.config import PlantConfig
 from plant.contact import ContactMonitor
 from plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
-from plant.flight import LocalFlightSoftware
+from plant.flight import LocalFlightSoftware, StimulusMessages
 from plant.mission_world import MissionWorld
 from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
 from plant.sensing import SensingContext, make_sensing
@@ -104,8 +104,6 @@ class PlantNode:
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
         self.on_truth = on_truth
-        if local_agents is not None and not hasattr(self.sensor, "batch"):
-            raise ValueError(f"sensing kind {config.sensing['kind']!r} has no batch form")
         # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
         # same bytes); on an in-process bus, samples stamped with their simulation time, and the
         # tick built only when someone receives it (bus/memory.py)
@@ -298,7 +296,10 @@ class PlantNode:
         if self.local_agents is not None:
             self._local_all = all(alive)
             rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
-            self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))
+            if hasattr(self.sensor, "batch"):
+                self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))
+            else:  # a kind without a batch form: its messages, as they would have been published
+                self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self._stimulus_messages(ctx, rows))
             return
         for j, sid in enumerate(ids):
             if not alive[j]:
@@ -308,6 +309,11 @@ class PlantNode:
             if self._sensing_faults is not None:
                 stim = self._sensing_faults.apply(stim, j, ctx)
             self.bus.publish(key, stim.SerializeToString())
+
+    def _stimulus_messages(self, ctx: SensingContext, rows: np.ndarray) -> StimulusMessages:
+        """The stimuli of the observers `rows` as the message path builds them (batch mode, a sensing
+        kind without a batch form)."""
+        return StimulusMessages([self.sensor.stimulus(ctx, j, self._hdr(self._sense_keys[j])) for j in rows.tolist()])
 
     def _mission_truth(self, pos: np.ndarray, vel: np.ndarray, alive: list[bool]) -> pb.Truth:
         """The truth message of the mission world (attitude, bodies): built field by field."""
@@ -352,9 +358,9 @@ class PlantNode:
         wait re-evaluates) or the stall timeout ends the wait; a stall is an error event and drops
         the agents it waited for. Real time: what missed the wall deadline is held."""
         k = self._step
-        if self._local_cmd is not None:  # batch mode (a World): every live agent answered, in this process
+        if self._local_cmd is not None:  # batch mode: every live agent answered, in this process
             cmd, self._local_cmd = self._local_cmd, None
-            if self._local_all:  # everyone alive: the same assignments without the masks
+            if self._local_all and isinstance(self.world, World):  # everyone alive: the same assignments without the masks
                 self.held[:, :3] = cmd
                 self.held[:, 3:] = 0.0
                 self.world.step(cmd, self.step_s, all_alive=True)  # (the values of held[:, :3], contiguous)

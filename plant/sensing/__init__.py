@@ -18,5 +18,6 @@ from plant.sensing.registry import (  # noqa: F401
     known_sensing,
     make_sensing,
     register_sensing,
+    sensing_message,
     validate_sensing_params,
 )

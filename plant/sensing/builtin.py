@@ -98,6 +98,7 @@ class RelBatch:
     rel_position_m: np.ndarray  # (P, 3) r_k - r_j, LVLH
     rel_velocity_mps: np.ndarray  # (P, 3)
     owner: np.ndarray | None = None  # (P,) the observer row r of each pair
+    extra: list[dict[str, np.ndarray]] | None = None  # per observer: its named arrays (None: none)
 
 
 @register_sensing("scene")
@@ -135,6 +136,27 @@ class RelativeKind:
     def __init__(self, scenario: PlantConfig) -> None:
         self.p = RelativeParams.model_validate(scenario.sensing.get("params", {}))
         self.rng = np.random.default_rng([int(scenario.seed), 0x4E1A])
+        p = self.p
+        if not (p.position_noise_m or p.velocity_noise_mps or p.own_position_noise_m or p.own_velocity_noise_mps):
+            self.batch = self.batch_noise_free  # the batch mode's arrays (issue 29); noisy: the messages
+
+    def batch_noise_free(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
+        """What `stimulus` gives each of `observers` (distinct, increasing indices) without noise, as
+        arrays (the batch mode): the same neighbours in the same order, the same float64 values (the
+        own state as the named arrays `own_position_m`, `own_velocity_mps` in `extra`)."""
+        pos, vel = ctx.position_m, ctx.velocity_mps
+        obs = np.asarray(observers, dtype=np.int64)
+        d = np.linalg.norm(pos[None, :, :] - pos[obs][:, None, :], axis=2)  # (R, N), as stimulus's per row
+        vis = (d <= self.p.range_m) & np.asarray(ctx.alive, dtype=bool)[None, :]
+        vis[np.arange(len(obs)), obs] = False
+        jj, kk = vis.nonzero()
+        j = obs[jj]
+        rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
+        offsets = np.zeros(len(obs) + 1, dtype=np.int64)
+        np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        extra = ([{"own_position_m": pos[i] + 0.0, "own_velocity_mps": vel[i] + 0.0} for i in obs.tolist()]
+                 if self.p.own_state else None)
+        return RelBatch(offsets, kk, rp, rv, jj, extra)
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
         p = self.p

@@ -99,3 +99,9 @@ def has_batch_form(kind: str) -> bool:
     the batch mode of issue 16), without building one."""
     _load()
     return hasattr(_KINDS.get(kind), "batch")
+
+
+def sensing_message(kind: str) -> Any:
+    """The message class a kind publishes (its `message`), or None for an unknown kind."""
+    _load()
+    return getattr(_KINDS.get(kind), "message", None)

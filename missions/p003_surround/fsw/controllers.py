@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from missions.p003_surround.fsw import nash, packets, sensing
+from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from missions.p003_surround.fsw import nash, packets, sensing, vectorised
 from missions.p003_surround.fsw.funnel import clip_norm, leader_accel, tt_control
 from missions.p003_surround.contract import (
     LEADER_CONTROLLER,
@@ -119,12 +119,44 @@ class ServicerController:
         return q_tl[None, :] + self.d_cg_m
 
     def step(self, obs: Observation) -> Command:
-        self._receive(obs)
-        me = sensing.read(obs.extra, LEADER_REL_KEY)
+        """Eq. 6, 18-21 for this servicer: the batch path with S = 1 (`step_batch`), so that an agent
+        process and a batch run give the same command, bit for bit."""
+        return self.step_batch([self], ObservationBatch.of([str(self.index)], [obs])).command(0)
+
+    def _kind(self) -> tuple[Any, ...]:
+        """What servicers must share to be stepped in one call (vectorised.py)."""
+        return (self.g, self.slots_m.tobytes(), self.r_g_m.tobytes(), self.xi.shape)
+
+    @classmethod
+    def step_batch(cls, controllers: list["ServicerController"], batch: ObservationBatch) -> CommandBatch:
+        """The step of S servicers: packets and measurements per servicer, the Nash CT gradient and
+        the ξ rate of eq. 18-20 over arrays (vectorised.py), grouped by what they share."""
+        t_s = float(batch.t_s)
+        mes, centres = [], []
+        for r, c in enumerate(controllers):
+            obs = batch.observation(r)
+            c._receive(obs)
+            me = sensing.read(obs.extra, LEADER_REL_KEY)
+            c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
+            mes.append(me)
+            centres.append(c._sphere_centres(t_s))
+        groups: dict[tuple[Any, ...], list[int]] = {}
+        for r, c in enumerate(controllers):
+            groups.setdefault(c._kind(), []).append(r)
+        grads, rates = [np.zeros(6)] * len(controllers), [np.zeros(6)] * len(controllers)
+        for rows in groups.values():
+            cs = [controllers[r] for r in rows]
+            gx, rt = vectorised.grad_and_xi_rate(np.array([c.x_err for c in cs]), np.array([c.xi for c in cs]),
+                                                 cs[0].slots_m, np.array([centres[r] for r in rows]), cs[0].r_g_m,
+                                                 np.array([c.index for c in cs]), cs[0].g)
+            for k, r in enumerate(rows):
+                grads[r], rates[r] = gx[k], rt[k]
+        cmds = [c._command(mes[r], grads[r], rates[r], t_s) for r, c in enumerate(controllers)]
+        return CommandBatch.of(cmds)
+
+    def _command(self, me: Any, grad: np.ndarray, rate: np.ndarray, t_s: float) -> Command:
+        """u_i = u_Li + u_ci* + u_id (eq. 6) from ∂V_i/∂x~_i, then the Euler step of ξ_i (eq. 20)."""
         i, g, m = self.index, self.g, self.g.mass_kg
-        self.x_err[i] = np.concatenate([me.position_m - self.slots_m[i], me.velocity_mps])
-        centres = self._sphere_centres(obs.t_s)
-        grad = nash.value_grad_x(self.x_err, self.xi, self.slots_m, centres, self.r_g_m, g)[i]
         u_ct = m * nash.ct_accel(grad, g)
         u_id = (-m * natural_rel_accel(me.position_m, me.velocity_mps, self.orbit.semi_major_axis_m,
                                        self.orbit.mean_motion_radps) if g.cancel_natural else np.zeros(3))
@@ -135,18 +167,15 @@ class ServicerController:
             u = u_sync + clip_norm(u_ct + u_id, g.max_thrust_n)
         saturated = not np.allclose(u, u_sync + u_ct + u_id)
         self.telemetry = ServicerTelemetry(u_sync, u_ct, u_id, u, saturated)
-        self._update_xi(obs.t_s, centres)
+        # explicit Euler step of eq. 20 for the own block ξ_i, position rate capped (guard)
+        dt = 0.0 if self.t_prev is None else t_s - self.t_prev
+        self.t_prev = t_s
+        rate = rate.copy()
+        rate[:3] = clip_norm(rate[:3], self.g.xi_rate_cap_mps)
+        self.xi[i] = self.xi[i] + dt * rate
         pkt = packets.CTPacket(i, self.x_err[i], self.xi[i])
         return Command(accel_mps2=u / m, mode="surround",
                        transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))])
-
-    def _update_xi(self, t_s: float, centres: np.ndarray) -> None:
-        """Explicit Euler step of eq. 20 for the own block ξ_i, position rate capped (guard)."""
-        dt = 0.0 if self.t_prev is None else t_s - self.t_prev
-        self.t_prev = t_s
-        rate = nash.xi_rate(self.x_err, self.xi, self.slots_m, centres, self.r_g_m, self.g)[self.index]
-        rate[:3] = clip_norm(rate[:3], self.g.xi_rate_cap_mps)
-        self.xi[self.index] = self.xi[self.index] + dt * rate
 
 
 @register(LEADER_CONTROLLER)

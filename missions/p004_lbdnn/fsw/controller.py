@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from missions.p004_lbdnn.fsw import adaptation, lbdnn, observer, packet, rho_filter
+from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from missions.p004_lbdnn.fsw import lbdnn, observer, packet, rho_filter, vectorised
 from missions.p004_lbdnn.fsw.control_law import control
 from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
 from missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
@@ -109,69 +109,84 @@ class LbdnnServicer:
             self._u_nb[msg.src] = pkt.accel_mps2
             self._theta_nb[msg.src] = pkt.theta
 
-    # -- dynamics of the internal state ------------------------------------------------------
-    def _derivative(self, x: np.ndarray, eta: np.ndarray, coupling: np.ndarray,
-                    theta_nb: np.ndarray) -> np.ndarray:
-        """d/dt (eta_hat, zeta_hat, nu, theta_hat) over one hold interval (eqs. 25, 26, 28)."""
-        eta_hat, zeta_hat, nu, theta = x[0:3], x[3:6], x[6:9], x[9:]
-        eta_tilde = eta - eta_hat
-        rho_i = rho_filter.rho(eta_tilde, nu, self.g)
-        dx = np.empty_like(x)
-        dx[0:3] = zeta_hat
-        dx[3:6] = observer.zeta_hat_dot(coupling, eta_tilde, rho_i, self.g)
-        dx[6:9] = rho_filter.nu_dot(eta_tilde, rho_i, self.g)
-        if self.cfg.use_network:
-            kappa = np.concatenate([eta, zeta_hat])
-            fwd = lbdnn.forward(kappa, theta)
-            jac = lbdnn.jacobian(fwd)
-            direction = adaptation.adaptation_direction(jac, zeta_hat, eta, theta, theta_nb, self.g)
-            dx[9:] = adaptation.projection(direction, theta, self.cfg.theta_bar, self.cfg.proj_epsilon)
-        else:
-            dx[9:] = 0.0
-        return dx
-
-    def _propagate(self, dt: float) -> None:
-        eta = self._eta_prev
-        u_nb = np.array([self._u_nb[j] for j in self.cfg.neighbours]).reshape(-1, 3)
-        coupling = observer.input_coupling(self._u_prev, u_nb, self.cfg.ctc)
-        theta_nb = np.array([self._theta_nb.get(j, self.theta) for j in self.cfg.neighbours])
-        x = np.concatenate([self.eta_hat, self.zeta_hat, self.nu, self.theta])
-        h = dt / self.cfg.rk4_substeps
-        for _ in range(self.cfg.rk4_substeps):
-            k1 = self._derivative(x, eta, coupling, theta_nb)
-            k2 = self._derivative(x + 0.5 * h * k1, eta, coupling, theta_nb)
-            k3 = self._derivative(x + 0.5 * h * k2, eta, coupling, theta_nb)
-            k4 = self._derivative(x + h * k3, eta, coupling, theta_nb)
-            x = x + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            x[9:] = adaptation.clip_to_ball(x[9:], self.cfg.theta_bar + self.cfg.proj_epsilon)
-        self.eta_hat, self.zeta_hat, self.nu, self.theta = x[0:3], x[3:6], x[6:9], x[9:]
-
     # -- the step ---------------------------------------------------------------------------
     def step(self, obs: Observation) -> Command:
+        """Eqs. 25-28 for this servicer: the batch path with N = 1 (`step_batch`), so that an agent
+        process and a batch run give the same command, bit for bit."""
+        return self.step_batch([self], ObservationBatch.of([self.cfg.sc_id], [obs])).command(0)
+
+    def law(self) -> vectorised.Law:
+        return vectorised.Law(self.g, self.cfg.use_network, self.cfg.theta_bar, self.cfg.proj_epsilon,
+                              self.cfg.rk4_substeps)
+
+    def _begin(self, obs: Observation) -> tuple[np.ndarray, float | None]:
+        """Measure eta_k (eq. 12) and read the link; the hold interval since the last step (None: the first)."""
         eta = self._measured_eta(obs)
         self._read_link(obs)
         if self._t_prev is None:
             self.nu = rho_filter.nu_initial(eta - self.eta_hat, self.g)
-        else:
-            dt = float(obs.t_s) - self._t_prev
-            if not dt > 0.0:
-                raise ValueError(f"{self.cfg.sc_id}: time went from {self._t_prev} to {obs.t_s}")
-            self._propagate(dt)
-        eta_tilde = eta - self.eta_hat
-        rho_i = rho_filter.rho(eta_tilde, self.nu, self.g)
-        phi = (lbdnn.evaluate(np.concatenate([eta, self.zeta_hat]), self.theta)
-               if self.cfg.use_network else np.zeros(3))
-        u = control(phi, eta, self.zeta_hat, eta_tilde, rho_i, self.g)
-        if self.cfg.max_accel_mps2 is not None:
-            # the thrust-limited variant: the applied (clipped) u is what the observers must see
-            u = np.clip(u, -self.cfg.max_accel_mps2, self.cfg.max_accel_mps2)
-        self._t_prev, self._eta_prev, self._u_prev = float(obs.t_s), eta, u
-        self.state = InternalState(float(obs.t_s), eta, self.eta_hat.copy(), self.zeta_hat.copy(),
-                                   rho_i, self.theta.copy(), phi, u)
-        payload = packet.encode(packet.StatePacket(obs.step, float(obs.t_s), u, self.theta),
-                                self.weight_bytes)
-        return Command(accel_mps2=u, mode="lbdnn",
-                       transmissions=[Transmission(type=packet.PACKET_TYPE, payload=payload)])
+            return eta, None
+        dt = float(obs.t_s) - self._t_prev
+        if not dt > 0.0:
+            raise ValueError(f"{self.cfg.sc_id}: time went from {self._t_prev} to {obs.t_s}")
+        return eta, dt
+
+    def _held(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What stays true over the hold interval: x, the input coupling of eq. 26, the neighbours' theta."""
+        u_nb = np.array([self._u_nb[j] for j in self.cfg.neighbours]).reshape(-1, 3)
+        coupling = observer.input_coupling(self._u_prev, u_nb, self.cfg.ctc)
+        theta_nb = np.array([self._theta_nb.get(j, self.theta) for j in self.cfg.neighbours]).reshape(-1, self.theta.size)
+        return np.concatenate([self.eta_hat, self.zeta_hat, self.nu, self.theta]), coupling, theta_nb
+
+    @staticmethod
+    def _propagate_all(group: list["LbdnnServicer"], dt: float) -> None:
+        """RK4 of the internal states of servicers that share their law and hold interval, at once."""
+        held = [s._held() for s in group]
+        m = max(len(h[2]) for h in held)
+        theta_nb = np.zeros((len(group), m, lbdnn.n_params()))
+        for r, h in enumerate(held):
+            theta_nb[r, :len(h[2])] = h[2]
+        x = vectorised.propagate(np.array([h[0] for h in held]), dt, np.array([s._eta_prev for s in group]),
+                                 np.array([h[1] for h in held]), theta_nb,
+                                 np.array([len(h[2]) for h in held]), group[0].law())
+        for r, s in enumerate(group):
+            s.eta_hat, s.zeta_hat, s.nu, s.theta = x[r, 0:3], x[r, 3:6], x[r, 6:9], x[r, 9:]
+
+    @classmethod
+    def step_batch(cls, controllers: list["LbdnnServicer"], batch: ObservationBatch) -> CommandBatch:
+        """The step of N servicers (eqs. 25-28): measurements and link per servicer, the RK4 of the
+        internal states and the network over arrays (vectorised.py), grouped by law and hold interval."""
+        begun = [c._begin(batch.observation(i)) for i, c in enumerate(controllers)]
+        groups: dict[tuple[vectorised.Law, float], list[LbdnnServicer]] = {}
+        for c, (_eta, dt) in zip(controllers, begun):
+            if dt is not None:
+                groups.setdefault((c.law(), dt), []).append(c)
+        for (_law, dt), group in groups.items():
+            cls._propagate_all(group, dt)
+        eta = np.array([b[0] for b in begun])
+        zeta_hat = np.array([c.zeta_hat for c in controllers])
+        phi = np.zeros((len(controllers), 3))
+        net = np.array([c.cfg.use_network for c in controllers])
+        if net.any():
+            rows = np.flatnonzero(net)
+            phi[rows] = vectorised.forward(np.concatenate([eta[rows], zeta_hat[rows]], axis=1),
+                                           np.array([controllers[r].theta for r in rows.tolist()]), jacobian=False)[0]
+        cmds = []
+        for i, c in enumerate(controllers):
+            g = c.g
+            eta_tilde = eta[i] - c.eta_hat
+            rho_i = rho_filter.rho(eta_tilde, c.nu, g)
+            u = control(phi[i], eta[i], c.zeta_hat, eta_tilde, rho_i, g)
+            if c.cfg.max_accel_mps2 is not None:
+                # the thrust-limited variant: the applied (clipped) u is what the observers must see
+                u = np.clip(u, -c.cfg.max_accel_mps2, c.cfg.max_accel_mps2)
+            t = float(batch.t_s)
+            c._t_prev, c._eta_prev, c._u_prev = t, eta[i], u
+            c.state = InternalState(t, eta[i], c.eta_hat.copy(), c.zeta_hat.copy(), rho_i, c.theta.copy(), phi[i], u)
+            payload = packet.encode(packet.StatePacket(batch.step, t, u, c.theta), c.weight_bytes)
+            cmds.append(Command(accel_mps2=u, mode="lbdnn",
+                                transmissions=[Transmission(type=packet.PACKET_TYPE, payload=payload)]))
+        return CommandBatch.of(cmds)
 
 
 @register(CONTROLLER)

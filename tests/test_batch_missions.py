@@ -1,0 +1,81 @@
+"""Issue 29: the batch mode of papers 001, 003 and 004 (the mission worlds: cw and inertial plants,
+sensing kinds that send `Measurements`, packets over the link) gives the truth of the per-agent
+in-process run, bit for bit: every truth message (positions, velocities, the commands in force,
+dV) equal, with equal log times, and the link carried the same packets (deploy/batch.py
+`BatchLink` against the channel companion, link/node.py)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from bus import swarmhil_pb2 as pb
+from conftest import SCENARIOS
+from deploy.launcher import run_in_process
+from deploy.scenario import load_scenario
+
+
+def _truths(path: Path) -> list[tuple[int, bytes]]:
+    with open(path, "rb") as f:
+        return [(m.log_time, m.data) for _s, ch, m in make_reader(f).iter_messages(log_time_order=False)
+                if ch.topic == "truth"]
+
+
+# (scenario, simulated seconds): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of paper 001
+CASES = [("servicing-6", 60.0), ("surround-6", 60.0), ("tersoff-6", 1000.0)]
+
+
+@pytest.mark.parametrize("name,duration", CASES, ids=[c[0] for c in CASES])
+def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, name: str, duration: float) -> None:
+    sc = load_scenario(SCENARIOS / f"{name}.toml").with_overrides(duration_s=duration)
+    full = run_in_process(sc, tmp_path / "all", "same")
+    batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
+    assert full.summary.get("batch") is None and batch.summary["batch"] == {"used": True, "why_not": None}
+    a, b = _truths(tmp_path / "all" / "run.mcap"), _truths(tmp_path / "truth" / "run.mcap")
+    assert len(a) == sc.steps + 1 and a == b
+    last = pb.Truth.FromString(b[-1][1])
+    acc = np.array([[x.accel_cmd_mps2.x, x.accel_cmd_mps2.y, x.accel_cmd_mps2.z] for x in last.bodies
+                    if x.kind == "spacecraft"])
+    assert np.abs(acc).max() > 0  # the flight software commanded something
+    assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0
+    assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {}
+    if "channel" in full.summary:  # the same packets sent and delivered
+        assert batch.summary["channel"]["totals"] == full.summary["channel"]["totals"]
+        assert batch.summary["channel"]["totals"]["rx_messages"] > 0
+
+
+@pytest.mark.parametrize("dead", [(), (2,)], ids=["all-alive", "one-dead"])
+def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 001's sensing kind (`relative`, own state) as arrays: for spacecraft a few metres apart
+    (neighbours in and out of the 21 m ball, a dead one), every observer's neighbours, relative
+    states and own state equal what the agent reads from its message (agent/node.py)."""
+    from agent.node import observation_from_rel
+    from bus.codec import header
+    from deploy.scenario import plant_config
+    from plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "tersoff-6.toml")
+    kind = make_sensing("relative", plant_config(sc))
+    rng = np.random.default_rng(7)
+    pos, vel = rng.uniform(-20.0, 20.0, (6, 3)), rng.normal(0.0, 0.1, (6, 3))
+    pos[4] = -0.0  # a zero component: the message path's +0.0
+    alive = np.ones(6, dtype=bool)
+    alive[list(dead)] = False
+    ctx = SensingContext(step=3, t_s=15.0, u_rad=0.1, ids=list(sc.ids), position_m=pos, velocity_mps=vel,
+                         alive=alive, world=None)
+    rows = np.flatnonzero(alive)
+    rel = kind.batch(ctx, rows)
+    pairs = 0
+    for r, j in enumerate(rows.tolist()):
+        o = observation_from_rel(kind.stimulus(ctx, j, header("run", "plant", 3, 15.0, 0)))
+        a, b = rel.offsets[r], rel.offsets[r + 1]
+        assert [sc.ids[k] for k in rel.neighbour[a:b]] == o.neighbour_ids
+        assert np.array_equal(rel.rel_position_m[a:b], o.rel_position_m.reshape(-1, 3))
+        assert np.array_equal(rel.rel_velocity_mps[a:b], o.rel_velocity_mps.reshape(-1, 3))
+        assert rel.extra is not None and rel.extra[r].keys() == o.extra.keys()
+        for key, value in o.extra.items():
+            assert rel.extra[r][key].tobytes() == value.tobytes(), key
+        pairs += b - a
+    assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
