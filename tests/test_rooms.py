@@ -51,8 +51,9 @@ LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhi
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
 LOCAL_IMPORTS_MAX = 148  # function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
 ROOMS_WITH_CONTRACT = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")
-ROOMS_MOVED = ("p000_capture", "p001_lattice", "p003_surround", "p004_lbdnn")  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 step 1)
-ROOMS_MOVED_TAGS = ("p000", "p001", "p003", "p004")  # no module outside missions/ is named after these papers
+ROOMS_MOVED = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 steps 1-2)
+NO_SENSE = {"p001_lattice", "p002_sabatini"}  # they fly the plant's generic kinds (`relative`; `rel` and the camera scene)
+ROOMS_MOVED_TAGS = ("p000", "p001", "p002", "p003", "p004", "sabatini")  # no module outside missions/ is named after these papers
 
 
 def module_name(path: Path) -> list[str]:
@@ -125,7 +126,7 @@ def test_the_plant_imports_no_flight_software() -> None:
     assert not violations("plant", {"agent"})
     assert not violations("missions", {"agent", "dashboards", "deploy"}, room_parts("sense"))
     # the rule is exercised: the sensing kinds of papers 000, 003 and 004 read their contracts
-    for room in set(ROOMS_MOVED) - {"p001_lattice"}:  # paper 001 flies the built-in `relative` kind
+    for room in set(ROOMS_MOVED) - NO_SENSE:
         names = {n for _, n in imported(ROOT / "missions" / room / "sense.py")}
         assert f"missions.{room}.contract" in names and "plant.sensing.registry" in names, (room, sorted(names))
 
@@ -149,13 +150,13 @@ def test_a_report_imports_no_flight_software_nor_sensing() -> None:
 
 
 def test_each_mission_lives_in_its_room() -> None:
-    """No product module outside missions/ is named after a moved paper (paper 002's room is
-    another step), and each moved room has its contract, fsw, sense and report."""
+    """No product module outside missions/ is named after a paper, and each room has its contract,
+    fsw, report and (but papers 001 and 002) sense."""
     mods = product_modules()
     bad = [m for m in mods if not m.startswith("missions.") and any(t in m for t in ROOMS_MOVED_TAGS)]
     assert not bad, bad
     for room in ROOMS_MOVED:
-        for part in ("contract", "fsw", "report") + (("sense",) if room != "p001_lattice" else ()):
+        for part in ("contract", "fsw", "report") + (("sense",) if room not in NO_SENSE else ()):
             assert f"missions.{room}.{part}" in mods, (room, part)
     assert "missions.p000_capture.seeds" in mods and "missions.p000_capture.report.sweep" in mods
 
@@ -211,7 +212,7 @@ def test_each_process_loads_its_own_part_of_the_rooms() -> None:
     mods = loaded_after("from plant.sensing import known_sensing; known_sensing()")
     assert parts_loaded(mods) == {"contract", "sense"}, parts_loaded(mods)
     assert not {m.split(".")[0] for m in mods} & {"agent", "dashboards", "deploy"}
-    assert {f"missions.{r}.sense" for r in ROOMS_MOVED if r != "p001_lattice"} <= mods
+    assert {f"missions.{r}.sense" for r in ROOMS_MOVED if r not in NO_SENSE} <= mods
     mods = loaded_after("from dashboards.sections import sections_for; sections_for({})")
     assert parts_loaded(mods) == {"contract", "report"}, parts_loaded(mods)
     assert "deploy" not in {m.split(".")[0] for m in mods}
