@@ -34,6 +34,9 @@ def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]
 @click.option("--check-docs", is_flag=True, help="Only check that the docs' marked tables are what the registry renders.")
 @click.option("--record", "record_", is_flag=True,
               help="Store the measured values in claims/recorded.json (as `alt` under another kernel set).")
+@click.option("--nudges", default=0, type=click.IntRange(0, 64), metavar="N",
+              help="With --record (default kernels): also run N one-ulp nudged runs of the sources that have "
+                   "them and store their values (`nudged`), which widen those claims' tolerances.")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False), callback=_writable,
               help="Write the outcomes as JSON here.")
 @click.option("--cache", type=click.Path(file_okay=False),
@@ -46,14 +49,14 @@ def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]
               help="Run this many sources at a time, each in its own process (CI: 2, the machine's cores).")
 @click.option("--list", "list_", is_flag=True, help="List the claims (id, tier, tolerance, doc line) and exit.")
 def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check_docs: bool, record_: bool,
-           json_out: str | None, cache: str | None, untested: bool, only: str, jobs: int, list_: bool) -> None:
+           nudges: int, json_out: str | None, cache: str | None, untested: bool, only: str, jobs: int, list_: bool) -> None:
     """Rerun the numbers the docs state (claims/, docs/claims.md) and compare with the recorded ones.
 
     Exit 0 when every selected claim holds within its tolerance, every verdict computed from the
     values measured now is the doc's, and the docs' marked tables are what the registry renders."""
     from claims.registry import record, registry
     from claims.render import doc_drift, write_docs
-    from claims.runner import SourceCache, kernel_set, locate, rerun, verdict_changes
+    from claims.runner import SourceCache, kernel_set, locate, nudged_values, rerun, verdict_changes
 
     reg = registry()
     where = locate(reg.claims, reg.tables)
@@ -72,6 +75,8 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
         sys.exit(1 if drift else 0)
     tiers = _tiers(quick, all_, study, bench)
     kset = kernel_set()
+    if nudges and not (record_ and kset == "default"):
+        raise click.UsageError("--nudges records the nudged runs: use it with --record, under the default kernels")
     click.echo(f"claims: tiers {', '.join(tiers)}; kernels {kset}", err=True)
     sc = SourceCache(reg.sources, Path(cache) if cache else None, lambda s: click.echo(s, err=True))
     chosen = [c for c in reg.select(tiers) if c.source.startswith(only)
@@ -97,6 +102,10 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
     if record_:
         record(measured, "value" if kset == "default" else "alt", kset)
         click.echo(f"recorded {len(measured)} values ({'value' if kset == 'default' else 'alt'})", err=True)
+        if nudges:
+            spread = nudged_values(chosen, reg.sources, nudges, jobs, lambda s: click.echo(s, err=True))
+            record(spread, "nudged", kset)
+            click.echo(f"recorded {nudges} nudged values of {len(spread)} claims", err=True)
         return
     n = len(outs)
     click.echo(f"{n - bad} of {n} claims hold; {len(changes)} verdict changes; {len(drift)} doc tables drifted",

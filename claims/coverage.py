@@ -37,11 +37,7 @@ REQUIRED: tuple[Required, ...] = (
              "docs/paper000-reproduction.md Benchmark), ~8 min of CPU per 550 s case (ii) run: over an hour of "
              "CPU per kernel set, not run on 2026-12-03 (study tier; not yet registered)"),
     Required("docs/paper000.md", "Paper vs measured", "paper000-numbers"),
-    Required("docs/paper000.md", "Case (i) over the link, 550 s", None,
-             "stack runs of capture-10, 550 s: multi-process over Zenoh (event) and in-process (event, 1 Hz); "
-             "last measured 319 s wall multi-process at load ~6 and 633-712 s in-process at load ~15, before "
-             "issue 29's faster fit (not remeasured); the room-loop column is paper000-numbers (study tier; not "
-             "yet registered)"),
+    Required("docs/paper000.md", "Case (i) over the link, 550 s", "paper000-link"),
     Required("docs/paper001.md", "Paper vs measured", "paper001-verdicts"),
     Required("docs/paper001.md", "Paper vs measured", "paper001-paper"),
     Required("docs/paper001.md", "Paper vs measured", "paper001-centred"),

@@ -69,6 +69,10 @@ class Source:
     checked_by: str = ""
     from_run: Callable[[Any], dict[str, Any]] | None = None
     uses: tuple[str, ...] = ()  # the sources a derived source reads through `get` (none: a run of its own)
+    # The same run with its initial state moved by one ulp in the k-th way (k = 1, 2, ...): for a
+    # closed loop that amplifies last bits, its claims' tolerances cover the spread of these runs
+    # too (`swarmhil claims --record --nudges N`, docs/claims.md "One-ulp nudges").
+    nudged: Callable[[int], Callable[[Callable[[str], dict[str, Any]]], dict[str, Any]]] | None = None
 
     def __post_init__(self) -> None:
         if self.tier not in TIERS:
@@ -93,6 +97,7 @@ class Claim:
     fmt: str = ".3g"  # format spec of the value in the doc (str.format mini-language)
     value: Value | None = None  # filled from claims/recorded.json by the registry
     alt: Value | None = None
+    nudged: tuple[float, ...] = ()  # the values of the source's one-ulp nudged runs (recorded.json)
 
     def render(self, v: Value | None = None, spec: str | None = None) -> str:
         """The value as the doc prints it."""
@@ -134,14 +139,22 @@ def half_digit(value: float, spec: str) -> float:
     return 0.5 * 10.0 ** (math.floor(math.log10(v)) - max(n, 1) + 1)
 
 
-def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, margin: float = 3.0) -> Tol:
-    """An `auto` tolerance made concrete: max(margin x the measured cross-kernel spread, half a unit
-    of the doc's last printed digit), so the kernels' spread passes and any change the doc would
-    show fails."""
+NUDGE_MARGIN = 1.5  # times the range of {value, alt, nudged runs}: a sample of about ten, not the extremes
+
+
+def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, margin: float = 3.0,
+                nudged: Sequence[float] = ()) -> Tol:
+    """An `auto` tolerance made concrete: the largest of margin x the measured cross-kernel spread,
+    NUDGE_MARGIN x the range of the value, alt and the one-ulp nudged runs' values (when recorded),
+    and half a unit of the doc's last printed digit; so the measured last-bit spread passes and any
+    change the doc would show beyond it fails."""
     if not tol.auto or not isinstance(value, (int, float)):
         return tol
     spread = abs(float(value) - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
-    return Tol(abs=max(tol.abs, margin * spread, half_digit(float(value), spec)), rel=tol.rel)
+    sample = [float(value)] + [float(v) for v in ([alt] if isinstance(alt, (int, float)) else []) + list(nudged)
+                               if math.isfinite(float(v))]
+    ensemble = (max(sample) - min(sample)) if nudged else 0.0
+    return Tol(abs=max(tol.abs, margin * spread, NUDGE_MARGIN * ensemble, half_digit(float(value), spec)), rel=tol.rel)
 
 
 PLACEHOLDER = re.compile(r"\{([a-z0-9][a-z0-9_.\-]*)(?::([^{}]*))?\}")

@@ -41,11 +41,15 @@ def case_result(run: Any) -> dict[str, Any]:
     return {k: float(v) for k, v in out.items()}
 
 
-def _case_run(key: str) -> Callable[[Any], dict[str, Any]]:
+def _case_run(key: str, nudge: int = 0) -> Callable[[Any], dict[str, Any]]:
     def run(_get: Any) -> dict[str, Any]:
         m = mission_test_module(MODULE)
-        return case_result(m.simulate(**({} if not key else m.VARIANTS[key][0])))
+        return case_result(m.simulate(**({} if not key else m.VARIANTS[key][0]), nudge=nudge))
     return run
+
+
+def _nudged(key: str) -> Callable[[int], Callable[[Any], dict[str, Any]]]:
+    return lambda k: _case_run(key, k)
 
 
 TEST = "tests/missions/test_p004_closed_loop.py"
@@ -53,7 +57,7 @@ TEST = "tests/missions/test_p004_closed_loop.py"
 CHECKED_BY = {"": f"{TEST}::test_paper_case_full_360s", "no network (Phi = 0)": f"{TEST}::test_variants",
               "thrust limit 10 m/s^2 per axis": f"{TEST}::test_variants"}
 SOURCES = [Source(f"p004.{slug(k)}", "all", _case_run(k), f"python {TEST} '{k or 'paper'}' (360 s, seed 4)",
-                  **({"checked_by": CHECKED_BY[k], "from_run": case_result} if k in CHECKED_BY else {}))
+                  nudged=_nudged(k), **({"checked_by": CHECKED_BY[k], "from_run": case_result} if k in CHECKED_BY else {}))
            for _, k, _ in CASES]
 
 

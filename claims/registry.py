@@ -1,8 +1,9 @@
 """The one claims registry: every module's sources, claims and tables, with the recorded values.
 
 Recorded values live in claims/recorded.json, `{claim id: {"value": ..., "alt": ..., "kernel_alt":
-...}}`, written by `swarmhil claims --all --record` (value, default kernels) and by the same under
-the other kernel set (alt). Tolerances are in the modules, chosen from |value - alt| (docs/claims.md).
+..., "nudged": [...]}}`, written by `swarmhil claims --all --record` (value, default kernels), by the
+same under the other kernel set (alt) and, for sources with one-ulp nudged runs, by `--record
+--nudges N` (nudged). Tolerances are in the modules, chosen from these spreads (docs/claims.md).
 """
 from __future__ import annotations
 
@@ -20,9 +21,10 @@ RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from claims import paper000, paper001, paper001_study, paper002, paper003, paper004, performance, reliability
+    from claims import (paper000, paper000_stack, paper001, paper001_study, paper002, paper003, paper004, performance,
+                        reliability)
 
-    return [paper000, paper001, paper001_study, paper002, paper003, paper004, performance, reliability]
+    return [paper000, paper000_stack, paper001, paper001_study, paper002, paper003, paper004, performance, reliability]
 
 
 def _value(v: Any) -> Any:
@@ -64,7 +66,9 @@ def registry() -> Registry:
                 raise ValueError(f"claim {c.id} twice")
             r = rec.get(c.id, {})
             value, alt = _value(r.get("value")), _value(r.get("alt"))
-            claims[c.id] = dataclasses.replace(c, value=value, alt=alt, tol=resolve_tol(c.tol, value, alt, c.fmt))
+            nudged = tuple(float(v) for v in r.get("nudged", ()))
+            claims[c.id] = dataclasses.replace(c, value=value, alt=alt, nudged=nudged,
+                                               tol=resolve_tol(c.tol, value, alt, c.fmt, nudged=nudged))
         for t in m.TABLES:
             if t.id in tables:
                 raise ValueError(f"table {t.id} twice")
@@ -80,7 +84,8 @@ def registry() -> Registry:
 
 
 def record(measured: dict[str, Any], field: str, kernel: str, path: Path = RECORDED) -> None:
-    """Merge measured values into claims/recorded.json as `value` (default kernels) or `alt`."""
+    """Merge measured values into claims/recorded.json as `value` (default kernels), `alt`, or
+    `nudged` (the list of the one-ulp nudged runs' values, default kernels)."""
     rec = read_recorded(path)
     for k, v in measured.items():
         e = rec.setdefault(k, {})

@@ -135,6 +135,38 @@ def _run_source(name: str) -> tuple[dict[str, Any], float, float]:
     return res, time.monotonic() - t0, time.process_time() - c0
 
 
+def _run_nudged(name: str, k: int) -> dict[str, Any]:
+    """A worker process: the k-th one-ulp nudged run of a source."""
+    from claims.registry import registry
+
+    nudged = registry().sources[name].nudged
+    assert nudged is not None
+    return nudged(k)(lambda other: {})
+
+
+def nudged_values(claims: Iterable[Claim], sources: Mapping[str, Source], n: int, jobs: int,
+                  log: Callable[[str], None] = lambda s: None) -> dict[str, list[float]]:
+    """Each numeric claim's values over its source's nudged runs k = 1..n (sources without nudged
+    runs are left out), the runs `jobs` at a time in worker processes."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    chosen = [c for c in claims if sources[c.source].nudged is not None]
+    names = list(dict.fromkeys(c.source for c in chosen))
+    runs: dict[tuple[str, int], dict[str, Any]] = {}
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futs = {(name, k): pool.submit(_run_nudged, name, k) for name in names for k in range(1, n + 1)}
+        for key, fut in futs.items():
+            runs[key] = fut.result()
+            log(f"source {key[0]}: nudge {key[1]} done")
+    out: dict[str, list[float]] = {}
+    for c in chosen:
+        vals = [as_value(c.compute(runs[(c.source, k)])) for k in range(1, n + 1)]
+        if all(isinstance(v, (int, float)) for v in vals):
+            out[c.id] = [float(v) for v in vals]  # type: ignore[arg-type]
+    return out
+
+
 def rerun(claims: Iterable[Claim], cache: SourceCache) -> list[Outcome]:
     """Each claim computed from its (cached) source and checked against its recorded value."""
     out = []

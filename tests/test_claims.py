@@ -34,6 +34,27 @@ def test_every_claim_has_a_recorded_value_and_the_other_kernel_sets():
     assert not wide, f"tolerance narrower than the measured cross-kernel spread: {wide}"
 
 
+def test_nudged_runs_are_recorded_and_widen_the_tolerance():
+    """A source that declares one-ulp nudged runs has them recorded for each numeric claim, every one
+    inside the claim's tolerance; the tolerance is 1.5 x the range of value, alt and the nudges
+    (docs/claims.md "One-ulp nudges")."""
+    from claims.model import Tol, resolve_tol
+
+    reg = _reg()
+    declared = [c for c in reg.claims.values() if reg.sources[c.source].nudged is not None
+                and isinstance(c.value, float)]
+    assert declared, "no source declares nudged runs (paper 004's do)"
+    missing = [c.id for c in declared if len(c.nudged) < 8]
+    assert not missing, f"nudged runs not recorded (swarmhil claims --all --record --nudges 8): {missing}"
+    outside = [c.id for c in declared if not all(c.tol.holds(v, c.value) for v in c.nudged)]
+    assert not outside, outside
+    # the rule itself: a spread seen only in the nudges widens the tolerance, a flat one does not
+    auto = Tol(auto=True)
+    assert resolve_tol(auto, 100.0, 100.0, ".3g", nudged=(90.0, 130.0)).abs == 1.5 * 40.0
+    assert resolve_tol(auto, 100.0, 101.0, ".3g", nudged=(100.0, 100.0)).abs == 3.0
+    assert resolve_tol(auto, 100.0, 100.0, ".3g").abs == 0.5
+
+
 def test_docs_tables_are_what_the_registry_renders():
     from claims.render import doc_drift
 

@@ -98,6 +98,17 @@ def initial_state(seed: int) -> np.ndarray:
     return x.ravel()
 
 
+def nudged(x: np.ndarray, k: int) -> np.ndarray:
+    """x with the k-th of the 18 servicer offset coordinates (k = 1..18, cycling) moved up by one
+    ulp (about 5e-13 m at 3 km); k = 0: x unchanged."""
+    if k <= 0:
+        return x
+    out = x.reshape(7, 6).copy()
+    i, c = divmod((k - 1) % 18, 3)
+    out[1 + i, c] = np.nextafter(out[1 + i, c], np.inf)
+    return out.ravel()
+
+
 @dataclass
 class Run:
     """Time histories of one closed-loop run (row k: after the controllers' step at t_k)."""
@@ -117,10 +128,12 @@ class Run:
 
 
 def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: bool = True,
-             params: dict | None = None, noise_fn=None) -> Run:
+             params: dict | None = None, noise_fn=None, nudge: int = 0) -> Run:
     """noise_fn(step, index, n_neighbours, m_rows) -> (d noise (n, 3), y noise (m,)): the
     measurement noise (default: one generator seeded seed + 100, drawn in servicer order); the
-    stack test passes the plant's sensing kind's draws (missions/p004_lbdnn/sense.py measurement_noise)."""
+    stack test passes the plant's sensing kind's draws (missions/p004_lbdnn/sense.py measurement_noise).
+    nudge k > 0: the initial state with one servicer offset coordinate moved by one ulp (`nudged`),
+    a last-bit change of the kind another CPU's kernels make (docs/claims.md "One-ulp nudges")."""
     params = dict(params or {})
     mission: MissionConfig = mission_from_params({k: v for k, v in params.items() if k != "weight_bytes"})
     g = mission.gains
@@ -128,7 +141,7 @@ def simulate(duration_s: float = 360.0, dt: float = 0.1, seed: int = 4, noise: b
     orbit = OrbitInfo(semi_major_axis_m=R_E + 500e3, mean_motion_radps=np.sqrt(MU / (R_E + 500e3) ** 3))
     ctrls = [make_controller("p004-lbdnn", s, orbit, params) for s in SERVICERS]
     rng = np.random.default_rng(seed + 100)
-    x = initial_state(seed)
+    x = nudged(initial_state(seed), nudge)
     n_steps = int(round(duration_s / dt))
     u = np.zeros((6, 3))
     inbox: dict[str, list] = {s: [] for s in SERVICERS}
@@ -273,13 +286,14 @@ def assert_paper_outcome(run: Run) -> None:
     s = summary(run)
     print({k: round(v, 4) for k, v in s.items()})
     assert run.e_norm[0].min() > 2000.0
-    # bounds from the measured values with a stated margin (250 s run, seed 4; AVX2 machine, default
-    # kernels / OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3; the 360 s run of
-    # docs/paper004.md: 0.87 / 3.05 m, below 10 m from 43.5 s): max error after 200 s measured
-    # 2.89 / 2.82 m, bound 5 m (1.7x); mean 1.09 / 0.86 m, bound 2 m (1.8x); all below 10 m from
-    # 42.8 s on both, bound 60 s (1.4x); zeta-tilde max after 150 s 9.78 m/s, bound 15 m/s (1.5x)
-    assert s["e_max_after_200s_m"] < 5.0
-    assert s["e_mean_after_200s_m"] < 2.0
+    # bounds from the measured spread with a stated margin: the 360 s run of docs/paper004.md under
+    # two kernel sets and eight one-ulp nudges of its initial state (claims/recorded.json
+    # p004.paper.*: value, alt, nudged; AVX2 machine): max error after 200 s 2.79-5.57 m, bound 8 m
+    # (1.4x); mean 0.93-1.69 m, bound 2.5 m (1.5x); all below 10 m from 42.8 s in every run, bound
+    # 60 s (1.4x); zeta-tilde max after 150 s 9.77-9.78 m/s, bound 15 m/s (1.5x). The 250 s fixture
+    # run is the same trajectory up to 250 s, so its window lies inside these.
+    assert s["e_max_after_200s_m"] < 8.0
+    assert s["e_mean_after_200s_m"] < 2.5
     assert s["t_e_below_10m_s"] < 60.0
     assert s["zeta_tilde_max_after_150s_mps"] < 15.0
     assert np.all(np.isfinite(run.u_norm)) and s["u_peak_mps2"] < 1e4
@@ -327,17 +341,18 @@ VARIANTS: dict[str, tuple[dict, str]] = {
 }
 
 
-# Max error after 200 s of each converging variant, from its measurement (360 s, seed 4; default kernels
-# / OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3, AVX2 machine, claims/recorded.json
-# p004.*.e-max): bound = the larger + max(3 x their difference, 20 % of it), as claims' tolerances are.
-# A one-sided guard: the claims check below is the tight one (broken on purpose, k1 = 0.4 without the
-# network gives e max 0.894 m, inside this bound, and fails its claims: 2026-12-03).
+# Max error after 200 s of each converging variant (360 s, seed 4; AVX2 machine): the largest of its
+# runs under two kernel sets (default / OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3)
+# and eight one-ulp nudges of the initial state (claims/recorded.json p004.*.e-max: value, alt,
+# nudged), with a margin of about a third. A one-sided guard: the claims check below is the tight
+# one (broken on purpose, k1 = 0.4 without the network gives e max 0.894 m, inside this bound, and
+# fails its claims: 2026-12-03).
 E_MAX_AFTER_200S_BOUND_M = {
-    "no network (Phi = 0)": 1.17,  # 0.974 / 0.974 m
-    "path graph": 4.75,  # 3.948 / 3.954 m
-    "20 Hz": 4.2,  # 2.185 / 1.515 m (the network amplifies the last bits)
-    "noise-free measurements": 2.67,  # 2.226 / 2.226 m
-    "thrust limit 10 m/s^2 per axis": 12.6,  # 8.871 / 7.632 m
+    "no network (Phi = 0)": 1.17,  # 0.974 m in all ten runs
+    "path graph": 4.75,  # 3.941-3.955 m
+    "20 Hz": 4.2,  # 1.470-2.474 m (the network amplifies the last bits)
+    "noise-free measurements": 2.67,  # 2.226 m in all ten runs
+    "thrust limit 10 m/s^2 per axis": 12.6,  # 6.682-9.438 m
 }
 
 
