@@ -30,12 +30,7 @@ REQUIRED: tuple[Required, ...] = (
              "paper002-dispersion"),
     Required("docs/paper002-reproduction.md", "How dV depends on the initial dispersion (Table 1 is missing)",
              "paper002-draws"),
-    Required("docs/paper000-reproduction.md", "The paper's claims against the measurements", None,
-             "recordings of stack runs (`swarmhil run deploy/scenarios/capture-10.toml` / capture-20, read by "
-             "`swarmhil report`): cases (i) and (ii), three seeds, event trigger and 1 Hz, about ten 550 s runs; "
-             "capture-20 in-process costs 51-54 s of CPU per 60 s simulated (bench/bench_p000.py after issue 29, "
-             "docs/paper000-reproduction.md Benchmark), ~8 min of CPU per 550 s case (ii) run: over an hour of "
-             "CPU per kernel set, not run on 2026-12-03 (study tier; not yet registered)"),
+    Required("docs/paper000-reproduction.md", "The paper's claims against the measurements", "paper000-repro"),
     Required("docs/paper000.md", "Paper vs measured", "paper000-numbers"),
     Required("docs/paper000.md", "Case (i) over the link, 550 s", "paper000-link"),
     Required("docs/paper001.md", "Paper vs measured", "paper001-verdicts"),

@@ -11,12 +11,13 @@ test_system_capture10_full_length_on_the_stack`; the table's event column is the
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
 from claims.model import Claim, Row, Source, Table, Tol
-from claims.runs import scenario
+from claims.runs import SCENARIOS, scenario
 
 DOC = "docs/paper000.md"
 AUTO = Tol(auto=True)
@@ -26,6 +27,17 @@ POLICIES: dict[str, tuple[str, ...]] = {  # column key -> the run's --set overri
     "event": (),
     "periodic": ('controller.params.broadcast="periodic"',),
 }
+
+
+def settle_after_chase_max_s(metrics: dict[str, Any]) -> float:
+    """The worst agent's time from its chase entry until its pointing error stays below 1 deg (inf
+    when an agent in chase never settles; nan without attitude in the recording)."""
+    settled = metrics.get("pointing_settled_1deg_s")
+    if settled is None:
+        return float("nan")
+    after = [math.inf if settled.get(n) is None else float(settled[n]) - float(t)
+             for n, t in metrics["chase_entry_s"].items()]
+    return max(after, default=float("nan"))
 
 
 def stack_result(metrics: dict[str, Any]) -> dict[str, Any]:
@@ -47,21 +59,41 @@ def stack_result(metrics: dict[str, Any]) -> dict[str, Any]:
         "landmark_tx": int(lm.get("tx_messages", 0)), "landmark_tx_bytes": int(lm.get("tx_payload_bytes", 0)),
         "landmark_rx_bytes": int(lm.get("rx_payload_bytes", 0)),
         "all_tx_bytes": int(tot["tx_payload_bytes"]), "all_rx_bytes": int(tot["rx_payload_bytes"]),
+        # the agents' own estimates and attitude (docs/paper000-reproduction.md's verdict table)
+        "n_estimates": int(metrics["agents_with_estimate"]), "axes_within_2pct": int(metrics["axes_within_2pct"]),
+        "axes_err_max_pct": 100.0 * float(metrics["axes_final_rel_err_max"] if metrics["axes_final_rel_err_max"]
+                                          is not None else float("nan")),
+        "centre_err_max_mm": 1e3 * float(metrics["centroid_final_err_max_m"] if metrics["centroid_final_err_max_m"]
+                                         is not None else float("nan")),
+        "pointing_final_max_deg": float(metrics.get("pointing_final_max_deg", float("nan"))),
+        "pointing_settle_after_chase_max_s": settle_after_chase_max_s(metrics),
+        "body_rate_max_dps": float(metrics.get("max_body_rate_dps", float("nan"))),
     }
 
 
-def stack_run(sets: tuple[str, ...], duration_s: float = DURATION_S) -> dict[str, Any]:
-    """`swarmhil run deploy/scenarios/capture-10.toml --in-process [--set ...]` then `swarmhil report`
-    (its sections run with the site's figures), in a directory that does not outlive the call."""
+def stack_run(sets: tuple[str, ...], duration_s: float = DURATION_S, name: str = SCENARIO,
+              seed: int | None = None) -> dict[str, Any]:
+    """`swarmhil run deploy/scenarios/NAME.toml --in-process [--set ...]` then `swarmhil report` (its
+    sections run with the site's figures), in a directory that does not outlive the call. `seed`:
+    the scenario rewritten with that seed's initial state and noise (`python -m
+    missions.p000_capture.seeds`; seed 1 is the committed file)."""
     from deploy.launcher import run_in_process
+    from deploy.scenario import load_scenario
+    from missions.p000_capture.seeds import seeded_scenario
 
     from dashboards.report import write_report
 
-    sc = scenario(SCENARIO, sets, duration_s=duration_s)
     with tempfile.TemporaryDirectory(prefix="claims-p000-") as d:
-        run_in_process(sc, Path(d), f"claims-{SCENARIO}")
-        write_report(d, interactive=False, export=())  # the sections run with the site (figures)
-        return stack_result(json.loads((Path(d) / "summary.json").read_text())["metrics"]["p000-capture"])
+        if seed is None:
+            sc = scenario(name, sets, duration_s=duration_s)
+        else:
+            path = Path(d) / f"{name}-s{seed}.toml"
+            path.write_text(seeded_scenario((SCENARIOS / f"{name}.toml").read_text(), seed))
+            sc = load_scenario(path, list(sets)).with_overrides(duration_s=duration_s)
+        out = Path(d) / "run"
+        run_in_process(sc, out, f"claims-{name}")
+        write_report(out, interactive=False, export=())  # the sections run with the site's figures
+        return stack_result(json.loads((out / "summary.json").read_text())["metrics"]["p000-capture"])
 
 
 def _run(policy: str) -> Callable[[Any], dict[str, Any]]:
