@@ -44,6 +44,7 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/paper003.md", "Target tracking (leader only, `… test_p003_closed_loop.py tt`)", "paper003-tt"),
     Required("docs/paper004.md", "The paper's numbers against this implementation", "paper004-numbers"),
     Required("docs/performance.md", "Where the time of an in-process run goes", "performance-profile"),
+    Required("docs/performance.md", "The real-time-factor curve", "rtf-curve"),
     Required("docs/reliability.md", "Lockstep does not depend on load", "reliability-lockstep"),
 )
 
