@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from typing import Any
 
-import agent.controllers  # noqa: F401  (registers the built-in controllers: numpy only, scipy on use)
-from agent.controller import Controller, OrbitInfo, registered_factory, registered_names, registered_validator
-from bus.discovery import import_role
+import swarmhil.agent.controllers  # noqa: F401  (registers the built-in controllers: numpy only, scipy on use)
+from swarmhil.agent.controller import Controller, OrbitInfo, registered_factory, registered_names, registered_validator
+from swarmhil.bus.discovery import import_role
 
 
 def load_controllers() -> None:

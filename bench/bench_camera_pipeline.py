@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from agent.camera.model import R_CAM_FROM_LVLH
-from agent.nav.pipeline import VisionNav
-from agent.roe import roe_to_lvlh
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH
+from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.roe import roe_to_lvlh
 
 A_M = 6878137.0
 N_RADPS = float(np.sqrt(3.986004418e14 / A_M**3))
@@ -81,9 +81,9 @@ def main() -> None:
     except ImportError:
         print("numba not installed: numpy backend only")
     print(f"EKF parameters from {SCENARIO.name}: {params}")
-    import agent.nav.ekf
+    from swarmhil.agent.nav import ekf
 
-    print(f"navigator code: {agent.nav.ekf.__file__}")
+    print(f"navigator code: {ekf.__file__}")
     print(" imaging  navigator  backend  in view  ms/frame  nav ms/frame")
     rows = (("render", "ekf"),) if args.ekf_only else (("render", "ekf"), ("render", "rough"), ("exact", "rough"))
     for imaging, navigator in rows:

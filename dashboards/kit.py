@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dashboards import figstyle
-from dashboards.figstyle import LineFigure, render_static, span_text
-from dashboards.interactive import plotly_div
+from swarmhil.dashboards import figstyle
+from swarmhil.dashboards.figstyle import LineFigure, render_static, span_text
+from swarmhil.dashboards.interactive import plotly_div
 
 PAGES = [("index.html", "Overview and mission metrics"), ("navigation.html", "Navigation"),
          ("bandwidth.html", "Bandwidth"), ("events.html", "Events"), ("data.html", "Data tables")]
@@ -37,7 +37,7 @@ class SiteFigure:
 def _env():  # type: ignore[no-untyped-def]
     from jinja2 import Environment, PackageLoader, select_autoescape
 
-    return Environment(loader=PackageLoader("dashboards", "templates"), autoescape=select_autoescape(["html"]),
+    return Environment(loader=PackageLoader("swarmhil.dashboards", "templates"), autoescape=select_autoescape(["html"]),
                        trim_blocks=True, lstrip_blocks=True)
 
 

@@ -31,7 +31,7 @@ BASE_PACKAGES = ("python3", "python3-pip", "python-is-python3", "passwd")
 DEBIAN_MIRROR = "http://deb.debian.org/debian"
 # what deploy/Dockerfile copies from its context, besides the wheelhouse
 CONTEXT = ("pyproject.toml", "constraints.txt", "README.md", "agent", "plant", "bus", "link", "missions", "deploy",
-           "dashboards")
+           "dashboards", "claims", "swarmhil")  # swarmhil/: the namespace's __init__ and its links to the folders
 WHEELHOUSE_IN_CONTEXT = "wheelhouse"
 
 
@@ -96,7 +96,7 @@ def stage_context(dest: Path, wheels: Path | None) -> Path:
     for name in CONTEXT:
         src = ROOT / name
         if src.is_dir():
-            shutil.copytree(src, dest / name, ignore=ignore)
+            shutil.copytree(src, dest / name, ignore=ignore, symlinks=True)  # swarmhil/<folder> stays a link
         else:
             shutil.copy2(src, dest / name)
     if wheels is not None:

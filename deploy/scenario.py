@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from bus.keys import check_token
+from swarmhil.bus.discovery import RoomError, add_rooms
+from swarmhil.bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
@@ -39,7 +40,7 @@ class OrbitCfg:
 
     @property
     def mean_motion_radps(self) -> float:
-        from plant.dynamics.constants import MU_EARTH_M3PS2  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         return math.sqrt(MU_EARTH_M3PS2 / self.semi_major_axis_m**3)
 
@@ -96,7 +97,7 @@ class Scenario:
         """The fully resolved configuration (defaults filled in), JSON-ready: what a recording carries."""
         from importlib.metadata import PackageNotFoundError, version
 
-        from plant.faults import fault_summary  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.faults import fault_summary  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             ver = version("swarmhil")
@@ -104,7 +105,7 @@ class Scenario:
             ver = "unknown"
         link = None
         if "link" in self.sections:
-            from link.model import link_enabled, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.link.model import link_enabled, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             if link_enabled(self.sections["link"]):
                 link = parse_link_config(self.sections["link"], self.source, self.seed).to_dict()
@@ -113,7 +114,9 @@ class Scenario:
             "scenario_file": self.source,
             "sets": list(self.sets),
             "run": {"name": self.name, "duration_s": self.duration_s, "step_s": self.step_s, "seed": self.seed,
-                    "mode": self.mode, "speed": self.speed, "steps": self.steps, "epoch_utc": self.epoch_utc},
+                    "mode": self.mode, "speed": self.speed, "steps": self.steps, "epoch_utc": self.epoch_utc,
+                    # the rooms from outside the tree: `swarmhil report` imports their report parts
+                    **({"rooms": list(rooms)} if (rooms := (self.doc.get("run") or {}).get("rooms")) else {})},
             "orbit": {"semi_major_axis_m": self.orbit.semi_major_axis_m,
                       "inclination_deg": math.degrees(self.orbit.inclination_rad),
                       "raan_deg": math.degrees(self.orbit.raan_rad), "u0_deg": math.degrees(self.orbit.u0_rad),
@@ -246,17 +249,20 @@ def _roe6(src: str, where: str, value: Any) -> np.ndarray:
     return np.array([_num(src, f"{where}[{i}]", v) for i, v in enumerate(value)])
 
 
-def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> Scenario:
+def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = (), *, flight_software: bool = True) -> Scenario:
     """Read a scenario (TOML, or the JSON a launcher writes for its children: {"source", "doc",
-    "sets"}), apply `--set` overrides, validate."""
-    from deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    "sets"}), apply `--set` overrides, validate. `flight_software=False`: a ground process (the
+    plant, the recorder, a companion) reading the launcher's already validated document: the
+    controllers' names and parameters are taken as written, and no flight software is imported to
+    check them (the plant process never loads a controller; tests/test_imports.py)."""
+    from swarmhil.deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     doc, src, applied = read_document(path)
     try:
         doc = apply_sets(doc, list(sets))
     except OverrideError as exc:
         raise ScenarioError(f"{src}: {exc}") from None
-    sc = parse_scenario(doc, src)
+    sc = parse_scenario(doc, src, flight_software=flight_software)
     sc.sets = applied + tuple(sets)
     return sc
 
@@ -299,7 +305,7 @@ def resolved_document(sc: Scenario) -> dict[str, Any]:
 def plant_config(sc: Scenario) -> Any:
     """The plant's configuration (plant/config.py PlantConfig): what of the scenario the plant reads,
     frozen; the plant is given this, never the Scenario (the agent's counterpart is agent_config)."""
-    from plant.config import PlantConfig, PlantOrbit, freeze  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.config import PlantConfig, PlantOrbit, freeze  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     o = sc.orbit
     roe = np.array(sc.roe_m, dtype=float)
@@ -317,13 +323,15 @@ def plant_config(sc: Scenario) -> Any:
         faults=tuple(sc.faults), contact=sc.contact)
 
 
-def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
+def parse_scenario(doc: dict[str, Any], src: str = "<scenario>", *, flight_software: bool = True) -> Scenario:
+    """Validate a scenario document (`flight_software`: as load_scenario)."""
     unknown = sorted(set(doc) - SECTIONS)
     if unknown:
         raise _err(src, f"[{unknown[0]}]", f"is not a known section; known: {sorted(SECTIONS)}", "…")
     run = _table(src, doc, "run", {"name", "duration_s", "step_s", "seed", "mode", "speed", "description", "plugins",
-                                   "epoch_utc"})
+                                   "epoch_utc", "rooms"})
     _import_plugins(src, run.get("plugins", []))
+    _add_rooms(src, run.get("rooms", []))
     name = check_name(src, run.get("name", Path(src).stem))
     duration = _positive(src, "[run].duration_s", run.get("duration_s", 600.0))
     step = _positive(src, "[run].step_s", run.get("step_s", 10.0))
@@ -365,21 +373,20 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     max_accel = _positive(src, "[actuator].max_accel_mps2", act.get("max_accel_mps2", 1e-3))
     limit = _choice(src, "[actuator].limit", act.get("limit", "per_axis"), ("per_axis", "norm"))
     ctl = _table(src, doc, "controller", {"name", "params", "decision_period_s"})
-    from agent.catalogue import known_controllers  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
-    controller = _choice(src, "[controller].name", ctl.get("name", "null"), tuple(known_controllers()))
+    controller = _controller(src, "[controller].name", ctl.get("name", "null"), flight_software)
     params = ctl.get("params", {})
     if not isinstance(params, dict):
         raise _err(src, "[controller].params", "must be a table", params)
     params = {"max_accel_mps2": max_accel, **params}
-    _check_params(src, "[controller.params]", controller, params)
+    if flight_software:
+        _check_params(src, "[controller.params]", controller, params)
     decision_period = _positive(src, "[controller].decision_period_s", ctl.get("decision_period_s", step))
     decision_steps = int(round(decision_period / step))
     if decision_steps < 1 or abs(decision_steps * step - decision_period) > 1e-9 * decision_period:
         raise _err(src, "[controller].decision_period_s", f"must be a whole number of steps of {step} s", decision_period)
     sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad",
                                         "params"})
-    from plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     sensing: dict[str, Any] = {
         "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), tuple(known_sensing())),
@@ -397,7 +404,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if sparams:
         sensing["params"] = dict(sparams)
     if sensing["kind"] == "scene":
-        from agent.perception import nav_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.agent.perception import nav_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             nav_config(doc.get("nav"))
@@ -418,7 +425,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
-        from link.model import LinkConfigError, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.link.model import LinkConfigError, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             parse_link_config(doc["link"], src, seed)
@@ -430,8 +437,9 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         sc.roe_m = _initial_roe(sc)
         for s in sc.spacecraft:
             if s.controller is not None:
-                name_ = _choice(src, f"[[spacecraft]] {s.id}.controller", s.controller, tuple(known_controllers()))
-                _check_params(src, f"[[spacecraft]] {s.id}.params", name_, {**params, **s.params})
+                name_ = _controller(src, f"[[spacecraft]] {s.id}.controller", s.controller, flight_software)
+                if flight_software:
+                    _check_params(src, f"[[spacecraft]] {s.id}.params", name_, {**params, **s.params})
     elif "dispersion" in doc:
         sc.sections["_generated"] = True
         sc.ids, sc.roe_m = _generate(src, doc["dispersion"], seed, sc)
@@ -441,7 +449,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
     sc.contact = _contact(src, doc.get("contact", {}))
     if "fault" in doc:
-        from plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             sc.faults = parse_faults(src, doc["fault"], sc.ids, step, {b.id: b.motion.kind for b in sc.bodies})
@@ -461,8 +469,8 @@ def _contact(src: str, table: Any) -> Any:
     """[contact] (plant/contact.py): hard-body radius default, keep-out distance, point masses."""
     from pydantic import ValidationError
 
-    from plant.bodies import format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.contact import ContactConfig  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.contact import ContactConfig  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(table, dict):
         raise _err(src, "[contact]", "must be a table", table)
@@ -525,6 +533,18 @@ def _import_plugins(src: str, plugins: Any) -> None:
             raise _err(src, "[run].plugins", f"module {m!r} does not import ({type(exc).__name__}: {exc})", m) from None
 
 
+def _add_rooms(src: str, rooms: Any) -> None:
+    """[run].rooms: mission rooms outside the source tree (packages laid out like missions/<room>/:
+    contract, fsw, sense, report; docs/adding-a-mission.md). Each process imports its own part of
+    them, as of the rooms in the tree (bus/discovery.py `add_rooms`, `import_role`)."""
+    if not isinstance(rooms, list) or not all(isinstance(m, str) and m for m in rooms):
+        raise _err(src, "[run].rooms", "must be a list of package names", rooms)
+    try:
+        add_rooms(rooms)
+    except RoomError as exc:
+        raise _err(src, "[run].rooms", str(exc), rooms) from None
+
+
 def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any]:
     """[plant] options of the Cartesian propagators (plant/mission_world.py)."""
     out: dict[str, Any] = {}
@@ -550,7 +570,7 @@ def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any
 
 
 def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
-    from plant.bodies import SpacecraftSpec  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import SpacecraftSpec  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     return [SpacecraftSpec(id=i, roe_m=[float(x) for x in r]) for i, r in zip(ids, roe_m)]
 
@@ -558,7 +578,7 @@ def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
 def _initial_roe(sc: Scenario) -> np.ndarray:
     """(N,6) ROE of every spacecraft: given, or mapped from a Cartesian LVLH state (exact inverse of
     the linear map the `linear` and `j2` plants start from)."""
-    from plant.dynamics.roe_linear import lvlh_to_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     rows = []
     for s in sc.spacecraft:
@@ -581,9 +601,21 @@ def _one_line(exc: Exception) -> str:
     return " ".join(str(exc).split())
 
 
+def _controller(src: str, where: str, name: Any, flight_software: bool) -> str:
+    """A controller's name: one of the catalogue's (which imports every room's flight software), or,
+    in a ground process (`flight_software=False`), any non-empty name as the launcher validated it."""
+    if not flight_software:
+        if not isinstance(name, str) or not name:
+            raise _err(src, where, "must be a controller name", name)
+        return name
+    from swarmhil.agent.catalogue import known_controllers  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+    return _choice(src, where, name, tuple(known_controllers()))
+
+
 def _check_params(src: str, where: str, controller: str, params: dict[str, Any]) -> None:
     """Validate a controller's params with the check its registration provides (agent/controller.py)."""
-    from agent.catalogue import validate_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.agent.catalogue import validate_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         validate_params(controller, params)
@@ -642,7 +674,7 @@ def _viz(src: str, doc: dict[str, Any]) -> None:
 def _bodies(src: str, items: Any, ids: set[str]) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import BodySpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import BodySpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list):
         raise _err(src, "[[body]]", "must be an array of tables", items)
@@ -668,7 +700,7 @@ def check_name(src: str, name: Any) -> str:
 def _explicit(src: str, items: Any) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import SpacecraftSpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import SpacecraftSpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list) or not items:
         raise _err(src, "[[spacecraft]]", "must be a non-empty array of tables", items)
@@ -690,9 +722,9 @@ def _explicit(src: str, items: Any) -> list[Any]:
 
 
 def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.ndarray]:
-    from plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(d, dict):
         raise _err(src, "[dispersion]", "must be a table", d)

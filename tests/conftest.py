@@ -33,6 +33,21 @@ def sigint_default() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+FOLDERS = frozenset({"agent", "plant", "bus", "link", "deploy", "dashboards", "missions", "claims"})
+"""The repository's folders, installed as swarmhil.<folder> (docs/architecture.md "One installed name")."""
+
+
+@pytest.fixture(autouse=True)
+def _project_modules_load_under_the_namespace_only() -> object:
+    """Fails the test during which a project module was loaded under a bare folder name (`dashboards`
+    instead of `swarmhil.dashboards`: from the repository root both import, as two copies of one
+    module). A literal module name (jinja2's PackageLoader, importlib) slips past the import
+    statements tests/test_rooms.py reads; this catches it where it runs."""
+    yield
+    bare = sorted(m for m in sys.modules if m.split(".")[0] in FOLDERS)
+    assert not bare, f"project modules loaded outside the swarmhil namespace: {bare[:8]}"
+
+
 @pytest.fixture
 def root() -> Path:
     return ROOT
@@ -68,8 +83,8 @@ def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monk
 
     import zenoh
 
-    from bus import zenoh_bus
-    from bus.zenoh_bus import ZenohBus
+    from swarmhil.bus import zenoh_bus
+    from swarmhil.bus.zenoh_bus import ZenohBus
 
     def good_ms(timeout_ms: int) -> float:
         monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", timeout_ms)

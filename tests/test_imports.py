@@ -16,7 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from conftest import ROOT, SCENARIOS
+from conftest import FOLDERS, ROOT, SCENARIOS
 
 OPTIONAL = {"matplotlib", "rerun", "numba", "PIL", "dask", "distributed", "pyarrow", "jinja2", "plotly", "pandas",
             "foxglove"}  # the extras (bus/optional.py): no process of a run without them needs them
@@ -34,7 +34,7 @@ def test_each_process_role_imports_only_what_it_needs(tmp_path: Path) -> None:
     audit, out = tmp_path / "audit", tmp_path / "run"
     audit.mkdir()
     env = dict(os.environ, SWARMHIL_IMPORT_AUDIT=str(audit), SWARMHIL_CACHE_DIR=str(tmp_path / "cache"))
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"),
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"),
                         "--duration", "60", "--out", str(out), "--no-progress", "--set", "dispersion.count=4"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
     assert p.returncode == 0, p.stdout + p.stderr
@@ -44,6 +44,7 @@ def test_each_process_role_imports_only_what_it_needs(tmp_path: Path) -> None:
         mods = set(r["modules"])
         assert "zenoh" in mods and "numpy" in mods, name  # the audit sees real imports
         assert not mods & OPTIONAL, f"{name} imported optional packages {sorted(mods & OPTIONAL)}"
+        assert not mods & FOLDERS, f"{name} loaded project modules outside the swarmhil namespace: {sorted(mods & FOLDERS)}"
         if name.startswith("agent-"):
             assert not mods & NOT_IN_AGENT, f"{name} imported {sorted(mods & NOT_IN_AGENT)}"
             assert r["pss_bytes"] <= AGENT_RSS_MAX, (f"{name}: PSS {r['pss_bytes'] / 1e6:.1f} MB (USS "
@@ -51,10 +52,19 @@ def test_each_process_role_imports_only_what_it_needs(tmp_path: Path) -> None:
             assert r["uss_bytes"] < r["pss_bytes"] <= r["rss_bytes"], name  # the three measures are consistent
             assert json.loads((out / "agents" / f"{name[6:]}.json").read_text())["steps"] == 6
     assert "mcap" in roles["recorder"]["modules"] and "tqdm" not in roles["recorder"]["modules"]
+    # each process loads only its own part of the mission rooms (issue 25): the plant the sensing
+    # kinds and no flight software (the launcher validated the controllers: deploy/scenario.py
+    # load_scenario(flight_software=False)), an agent its own controller's fsw and no sense or report
+    for name, r in roles.items():
+        parts = {p.split(".")[1] for p in r["room_parts"]}
+        allowed = {"contract", "fsw"} if name.startswith("agent-") else {"contract", "sense"}
+        assert parts <= allowed, (name, r["room_parts"])
+    assert "p002_sabatini.fsw" in roles["agent-sc01"]["room_parts"], roles["agent-sc01"]["room_parts"]
+    assert [p for p in roles["plant"]["room_parts"] if p.endswith(".sense")], roles["plant"]["room_parts"]
     assert any((tmp_path / "cache").glob("dre-*.npz"))  # filled by the launcher, read by the agents
 
 
-PROJECT = {"agent", "plant", "bus", "link", "deploy", "dashboards", "missions", "tests", "conftest"}
+PROJECT = {"swarmhil", "agent", "plant", "bus", "link", "deploy", "dashboards", "missions", "claims", "tests", "conftest"}
 
 
 def test_no_private_imports_from_dependencies() -> None:

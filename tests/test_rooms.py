@@ -49,11 +49,23 @@ CONTRACT_MAY_IMPORT = {"numpy", "bus"}
 PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", "swarmhil")
 LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
-LOCAL_IMPORTS_MAX = 148  # function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
+LOCAL_IMPORTS_MAX = 149  # +1 swarmhil/__init__.py's lazy analysis API (PEP 562: the namespace root loads nothing); function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
 ROOMS_WITH_CONTRACT = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")
 ROOMS_MOVED = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 steps 1-2)
 NO_SENSE = {"p001_lattice", "p002_sabatini"}  # they fly the plant's generic kinds (`relative`; `rel` and the camera scene)
 ROOMS_MOVED_TAGS = ("p000", "p001", "p002", "p003", "p004", "sabatini")  # no module outside missions/ is named after these papers
+
+
+NAMESPACE = "swarmhil"
+FOLDERS = (*PRODUCT, "claims")  # the repository's folders installed under the namespace
+"""The one installed top-level name (issue 25): `swarmhil.agent` is the repository's agent/ folder."""
+
+
+def short(name: str) -> str:
+    """A module name without the installed namespace (`swarmhil.agent.node` -> `agent.node`): the
+    rules below speak of the repository's folders."""
+    head, _, rest = name.partition(".")
+    return rest if head == NAMESPACE and rest.split(".")[0] in FOLDERS else name
 
 
 def module_name(path: Path) -> list[str]:
@@ -63,6 +75,12 @@ def module_name(path: Path) -> list[str]:
 
 
 def imported(path: Path) -> Iterator[tuple[int, str]]:
+    """(line, absolute module name without the namespace: `short`) of every import in a file."""
+    for line, name in imported_as_written(path):
+        yield line, short(name)
+
+
+def imported_as_written(path: Path) -> Iterator[tuple[int, str]]:
     """(line, absolute module name) of every import in a file. `from M import a` yields M and M.a
     (a may be a submodule); relative imports are resolved against the file's package."""
     mod = module_name(path)
@@ -91,7 +109,9 @@ def imported(path: Path) -> Iterator[tuple[int, str]]:
 
 
 def sources(top: str) -> list[Path]:
-    files = sorted((ROOT / top).rglob("*.py"))
+    """The modules under ROOT/top, not through swarmhil/'s links (each file once, by its folder's name)."""
+    real = ROOT.resolve()
+    files = sorted(p for p in (ROOT / top).rglob("*.py") if p.resolve() == real / p.relative_to(ROOT))
     assert files, f"no modules under {top}/"
     return files
 
@@ -180,16 +200,19 @@ def loaded_after(imports: str) -> set[str]:
     code = f"import json, sys\n{imports}\nprint(json.dumps(sorted(sys.modules)))"
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
-    return set(json.loads(p.stdout))
+    mods = set(json.loads(p.stdout))
+    assert not {m.split(".")[0] for m in mods} & set(PRODUCT) - {NAMESPACE}, "a module loaded outside the namespace"
+    return {short(m) for m in mods} - {NAMESPACE}  # the namespace's own __init__ loads nothing (PEP 562)
 
 
 def test_contracts_are_light_and_fsw_loads_no_plant() -> None:
     project = {"agent", "plant", "link", "deploy", "dashboards", "swarmhil"}
-    mods = loaded_after("\n".join(f"import missions.{r}.contract" for r in ROOMS_WITH_CONTRACT))
+    mods = loaded_after("\n".join(f"import swarmhil.missions.{r}.contract" for r in ROOMS_WITH_CONTRACT))
     tops = {m.split(".")[0] for m in mods}
     assert not tops & (project | {"pydantic", "scipy"}), sorted(tops & (project | {"pydantic", "scipy"}))
     assert {f"missions.{r}.contract" for r in ROOMS_WITH_CONTRACT} <= mods
-    mods = loaded_after("import missions.p000_capture.fsw, missions.p004_lbdnn.fsw, missions.p002_sabatini.fsw")
+    mods = loaded_after("import swarmhil.missions.p000_capture.fsw, swarmhil.missions.p004_lbdnn.fsw, "
+                        "swarmhil.missions.p002_sabatini.fsw")
     tops = {m.split(".")[0] for m in mods}
     assert not tops & {"plant", "dashboards", "deploy", "pydantic"}, sorted(tops & {"plant", "dashboards", "deploy", "pydantic"})
     assert "missions.p004_lbdnn.fsw.controller" in mods and "missions.p004_lbdnn.contract" in mods
@@ -205,15 +228,15 @@ def test_each_process_loads_its_own_part_of_the_rooms() -> None:
     """In a fresh interpreter: the agent's catalogue (every controller) loads every room's fsw and
     no sense, report, plant, dashboards or deploy module; the plant's sensing registry loads the
     senses and no fsw or report; the reporter's sections load the reports and no fsw or sense."""
-    mods = loaded_after("from agent.catalogue import known_controllers; known_controllers()")
+    mods = loaded_after("from swarmhil.agent.catalogue import known_controllers; known_controllers()")
     assert parts_loaded(mods) == {"contract", "fsw"}, parts_loaded(mods)
     assert not {m.split(".")[0] for m in mods} & {"plant", "dashboards", "deploy"}
     assert {f"missions.{r}.fsw" for r in ROOMS_MOVED} <= mods
-    mods = loaded_after("from plant.sensing import known_sensing; known_sensing()")
+    mods = loaded_after("from swarmhil.plant.sensing import known_sensing; known_sensing()")
     assert parts_loaded(mods) == {"contract", "sense"}, parts_loaded(mods)
     assert not {m.split(".")[0] for m in mods} & {"agent", "dashboards", "deploy"}
     assert {f"missions.{r}.sense" for r in ROOMS_MOVED if r not in NO_SENSE} <= mods
-    mods = loaded_after("from dashboards.sections import sections_for; sections_for({})")
+    mods = loaded_after("from swarmhil.dashboards.sections import sections_for; sections_for({})")
     assert parts_loaded(mods) == {"contract", "report"}, parts_loaded(mods)
     assert "deploy" not in {m.split(".")[0] for m in mods}
     assert {f"missions.{r}.report" for r in ROOMS_MOVED} <= mods
@@ -222,9 +245,10 @@ def test_each_process_loads_its_own_part_of_the_rooms() -> None:
 def test_rooms_are_installed_and_in_the_image() -> None:
     """Every process reads a contract: the package list and the image carry `missions`."""
     include = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]["find"]["include"]
-    assert "missions*" in include, include
+    assert include == ["swarmhil", "swarmhil.*"], include
+    assert (ROOT / NAMESPACE / "missions").resolve() == (ROOT / "missions").resolve()
     copies = [ln.split() for ln in (ROOT / "deploy" / "Dockerfile").read_text().splitlines() if ln.startswith("COPY ")]
-    assert ["COPY", "missions", "missions"] in copies, copies
+    assert ["COPY", "missions", "missions"] in copies and ["COPY", NAMESPACE, NAMESPACE] in copies, copies
 
 
 # --- the import graph of the product modules ------------------------------------------------------------
@@ -259,10 +283,10 @@ def targets(path: Path, stmt: ast.Import | ast.ImportFrom, mods: dict[str, Path]
     mod = module_name(path)
     package = mod if path.name == "__init__.py" else mod[:-1]
     if isinstance(stmt, ast.Import):
-        names = [a.name for a in stmt.names]
+        names = [short(a.name) for a in stmt.names]
     else:
         base = ".".join(package[:len(package) - stmt.level + 1] + ([stmt.module] if stmt.module else [])) \
-            if stmt.level else (stmt.module or "")
+            if stmt.level else short(stmt.module or "")
         names = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base for a in stmt.names]
     own = {".".join(mod[:i]) for i in range(1, len(mod) + 1)}
     return {r for n in names if (r := resolve(n, mods)) is not None} - own
@@ -389,6 +413,7 @@ def test_type_check_covers_the_interfaces() -> None:
     """The type check's file list names the interfaces issue 25 asks for (the bus, the flight-software
     and sensing interfaces, the typed configs, every room's contract), and each entry matches a file."""
     files = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]["files"]
+    files = [f.removeprefix(f"{NAMESPACE}/") for f in files]
     for must in ("bus/", "agent/controller.py", "plant/config.py", "plant/flight.py", "plant/sensing/registry.py",
                  "deploy/agent_image.py", "missions/*/contract.py"):
         assert must in files, must
@@ -424,7 +449,7 @@ def test_the_viewer_draws_a_rooms_landmarks_through_its_hook() -> None:
     (dashboards/rerun_bodies.py `register_landmark_kind`), which the viewer finds when it reads a
     run's configuration (and no kind before the reports are loaded)."""
     assert "p000_landmark" not in (ROOT / "dashboards" / "rerun_bodies.py").read_text()  # the names are the contract's
-    code = ("import json\nfrom dashboards.rerun_bodies import LANDMARK_KINDS, SceneSpec\nbefore = dict(LANDMARK_KINDS)\n"
+    code = ("import json\nfrom swarmhil.dashboards.rerun_bodies import LANDMARK_KINDS, SceneSpec\nbefore = dict(LANDMARK_KINDS)\n"
             "s = SceneSpec.from_config({'sensing': {'kind': 'p000-landmarks', 'params': {'range_m': 7.0}}})\n"
             "print(json.dumps([before, s.landmark_kind, s.cone, LANDMARK_KINDS['p000-landmarks']]))")
     p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
@@ -432,3 +457,30 @@ def test_the_viewer_draws_a_rooms_landmarks_through_its_hook() -> None:
     before, kind, cone, names = json.loads(p.stdout)
     assert before == {} and kind == "p000-landmarks" and cone[1] == 7.0
     assert names == ["p000_landmarks_body_m", "p000_landmark_ids"]
+
+
+def absolute_imports(path: Path) -> Iterator[tuple[int, str]]:
+    """(line, module) of every absolute import statement and literal `import_module` name of a file."""
+    for line, name in imported_as_written(path):
+        if name.split(".")[0] not in set(FOLDERS) or ast_level(path, line) == 0:
+            yield line, name
+
+
+def ast_level(path: Path, line: int) -> int:
+    """The relative level of the import statement on `line` (0: absolute or not a statement)."""
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.ImportFrom) and node.lineno == line:
+            return node.level
+    return 0
+
+
+def test_the_project_imports_itself_through_the_namespace_only() -> None:
+    """Every import of a project module names it under `swarmhil.` (the installed name), in the
+    product, the tests, the benches and the claims; a bare `import agent...` would load a second copy
+    of the module from the repository's folder (or fail where the wheel is installed)."""
+    files = [p for top in (*FOLDERS, "tests", "bench") for p in sources(top) if ".browser" not in p.parts]
+    bare = [f"{p.relative_to(ROOT)}:{line}: {name}" for p in files for line, name in absolute_imports(p)
+            if name.split(".")[0] in set(FOLDERS) - {NAMESPACE}]
+    assert not bare, bare
+    assert short("swarmhil.agent.node") == "agent.node" and short("swarmhil.claims") == "claims"
+    assert short("agent.node") == "agent.node" and short("swarmhil") == "swarmhil"

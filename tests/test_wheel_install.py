@@ -47,7 +47,7 @@ def test_wheel_installs_and_runs_outside_the_repository(tmp_path: Path) -> None:
 
     away = tmp_path / "elsewhere"  # no checkout here or above: the installed package only
     away.mkdir()
-    where = json.loads(_ok([py, "-c", "import bus, deploy, json, pathlib; print(json.dumps([str(pathlib.Path("
+    where = json.loads(_ok([py, "-c", "import json, pathlib; from swarmhil import bus, deploy; print(json.dumps([str(pathlib.Path("
                                       "m.__file__).parent) for m in (bus, deploy)]))"], cwd=away, env=env))
     assert all(str(venv) in w for w in where), where  # not the repository's sources
     scenario = Path(where[1]) / "scenarios" / "demo.toml"

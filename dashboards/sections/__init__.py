@@ -13,11 +13,12 @@ section is adding a module.
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from bus.discovery import import_all, import_role
+from swarmhil.bus.discovery import RoomError, add_rooms, import_all, import_role
 
 
 @dataclass
@@ -101,5 +102,13 @@ def _load() -> None:
 
 
 def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:
+    """The sections that apply to a run, by its recorded configuration: the tree's and those of the
+    rooms the run named from outside the tree ([run].rooms), when they import here; a room that
+    does not is said on stderr and its section left out (the rest of the report is written)."""
+    for room in (config.get("run") or {}).get("rooms") or []:
+        try:
+            add_rooms([room])
+        except RoomError as exc:
+            print(f"swarmhil report: {exc}: its report section is left out", file=sys.stderr)
     _load()
     return [(name, fn) for name, (applies, fn) in sorted(_SECTIONS.items()) if applies(config)]
