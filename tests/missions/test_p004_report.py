@@ -24,6 +24,7 @@ from test_p004_stack import SERVICERS, swarmhil_run  # noqa: E402
 
 DURATION_S = 10.0
 FIGURES = ("p004_tracking.png", "p004_effort.png", "p004_paths.png")
+P002_KEYS = {"connectivity", "closest_visible_steady", "closest_visible_whole_run", "visible_pairs_parallelism_steady"}
 
 
 @pytest.fixture(scope="module")
@@ -154,3 +155,9 @@ def test_overview_is_mission_neutral(reported: tuple[Path, dict]) -> None:
         assert word in overview, word
     assert "messages sent" in overview  # servicing-6 flies a link
     assert "p002-swarm" not in page and "Paper 004: servicers converging on the defunct craft" in page
+    # nor its numbers: paper 002's metrics hook does not run for servicing-6 (dashboards/metrics.py)
+    met = json.loads((out / "summary.json").read_text())["metrics"]
+    assert not P002_KEYS & set(met) and set(met["closest_approach"]) == {"all_pairs", "all_pairs_steady", "interpolation"}
+    assert met["control"]["delta_v_total_mps"] > 0 and met["closest_approach"]["all_pairs"]["distance_m"] > 0
+    series = np.load(out / "metrics_series.npz")
+    assert sorted(series.files) == ["delta_v_total_mps", "t_s"]
