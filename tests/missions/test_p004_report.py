@@ -1,4 +1,4 @@
-"""Paper 004's report section (missions/p004_lbdnn/report.py, "p004-servicing"): a brief in-process
+"""Paper 004's report section (missions/p004_lbdnn/report/, "p004-servicing"): a brief in-process
 run of deploy/scenarios/servicing-6.toml, `swarmhil report RUN`, and the section's metrics against
 an independent recomputation from the MCAP — this test's own reading (tests/conftest.py read_mcap
 through test_p004_stack.load_run): the defunct craft's and servicers' truth positions, the agents'
@@ -113,7 +113,7 @@ def test_section_figures_exist_and_are_on_the_page(reported: tuple[Path, dict]) 
 
 def test_steady_window_metrics(reported: tuple[Path, dict], monkeypatch: pytest.MonkeyPatch) -> None:
     """The after-200 s figures, on this short run with the window moved to 5 s."""
-    import missions.p004_lbdnn.report as sec
+    import missions.p004_lbdnn.report.analysis as sec
     from dashboards.run_config import run_config
     from dashboards.sections import SectionContext, sections_for
     from dashboards.truth_io import read_truth
