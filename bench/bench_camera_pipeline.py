@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from agent.camera.model import R_CAM_FROM_LVLH
-from agent.nav.pipeline import VisionNav
-from agent.roe import roe_to_lvlh
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH
+from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.roe import roe_to_lvlh
 
 A_M = 6878137.0
 N_RADPS = float(np.sqrt(3.986004418e14 / A_M**3))

@@ -27,8 +27,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bus.discovery import import_role
-from plant.sensors import CameraGeometry
+from swarmhil.bus.discovery import import_role
+from swarmhil.plant.sensors import CameraGeometry
 
 
 # --- frames ----------------------------------------------------------------------------------------

@@ -7,15 +7,15 @@ from conftest import ROOT
 
 
 def test_committed_keys_json_is_what_the_code_generates() -> None:
-    from bus.keys_json import PATH, render
+    from swarmhil.bus.keys_json import PATH, render
 
     assert PATH == ROOT / "bus" / "keys.json"
-    assert PATH.read_text() == render(), "bus/keys.json is stale: run `make proto` (python -m bus.keys_json)"
+    assert PATH.read_text() == render(), "bus/keys.json is stale: run `make proto` (python -m swarmhil.bus.keys_json)"
 
 
 def test_every_key_of_the_builder_has_the_type_keys_json_gives() -> None:
-    from bus.codec import encoding_of_key, message_type_of_topic
-    from bus.keys import Keys
+    from swarmhil.bus.codec import encoding_of_key, message_type_of_topic
+    from swarmhil.bus.keys import Keys
 
     doc = json.loads((ROOT / "bus" / "keys.json").read_text())
     k = Keys("r")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dashboards.metrics import closest_approach, closest_approach_series, delta_v_from_accel, relative_to_com
-from missions.p002_sabatini.report.metrics import closest_visible, ellipse_dims, parallelism, visible_pair_parallelism
-from plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
-from plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components
+from swarmhil.dashboards.metrics import closest_approach, closest_approach_series, delta_v_from_accel, relative_to_com
+from swarmhil.missions.p002_sabatini.report.metrics import closest_visible, ellipse_dims, parallelism, visible_pair_parallelism
+from swarmhil.plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components
 
 CAM = CameraGeometry()  # paper 002: 500 m, square FOV tan = 0.54, boresight +y
 A_M = 6878137.0
@@ -171,7 +171,7 @@ def test_closest_approach_finds_a_fast_pass_between_samples():
 
 
 def test_window_union_keeps_links_seen_within_the_window():
-    from missions.p002_sabatini.report.metrics import window_union
+    from swarmhil.missions.p002_sabatini.report.metrics import window_union
 
     t = np.arange(0.0, 100.0, 10.0)
     vis = np.zeros((t.size, 3, 3), dtype=bool)
@@ -209,7 +209,7 @@ def test_pruned_closest_approach_equals_every_pair_evaluated():
     """Issue 16: the series with the pairs that cannot be an interval's minimum left out is the one
     of evaluating every pair, value for value (random swarms with fast close passes, ties of
     coincident pairs, NaN and dead spacecraft, and the relative orbits of a ROE swarm)."""
-    from dashboards.metrics import closest_approach_series, closest_approach_series_all
+    from swarmhil.dashboards.metrics import closest_approach_series, closest_approach_series_all
 
     rng = np.random.default_rng(16)
     for case in range(60):
@@ -269,7 +269,7 @@ def test_paper002_metrics_come_from_its_hook_for_its_runs_only():
     a servicing run's summary holds none of them, and its mission-neutral part is the same."""
     from types import SimpleNamespace
 
-    from dashboards.metrics import compute_metrics
+    from swarmhil.dashboards.metrics import compute_metrics
 
     t = np.arange(0.0, 1200.0, 10.0)
     roe = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 250.0, 40.0, 0.0, 40.0, 0.0], [5.0, 900.0, 0.0, 60.0, 0.0, 60.0]])

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from conftest import SCENARIOS
-from deploy.scenario import load_scenario, plant_config
-from plant.config import PlantConfig
+from swarmhil.deploy.scenario import load_scenario, plant_config
+from swarmhil.plant.config import PlantConfig
 
 
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.stem)
@@ -58,9 +58,9 @@ def test_the_plant_builds_its_world_by_fidelity() -> None:
     """Issue 25: the world is looked up by fidelity (plant/worlds.py), no branch of PlantNode names
     paper 002's truth model; an unregistered fidelity is one precise error."""
     import plant.node  # noqa: F401  (imports both world modules, as the plant process does)
-    from plant.mission_world import MissionWorld
-    from plant.world import World
-    from plant.worlds import make_world, world_fidelities
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.world import World
+    from swarmhil.plant.worlds import make_world, world_fidelities
 
     assert world_fidelities() == ["cw", "inertial", "j2", "linear"]
     s20 = plant_config(load_scenario(SCENARIOS / "sabatini-20.toml"))

@@ -128,7 +128,7 @@ def test_the_plant_imports_no_flight_software() -> None:
     # the rule is exercised: the sensing kinds of papers 000, 003 and 004 read their contracts
     for room in set(ROOMS_MOVED) - NO_SENSE:
         names = {n for _, n in imported(ROOT / "missions" / room / "sense.py")}
-        assert f"missions.{room}.contract" in names and "plant.sensing.registry" in names, (room, sorted(names))
+        assert f"missions.{room}.contract" in names and "swarmhil.plant.sensing.registry" in names, (room, sorted(names))
 
 
 def test_the_flight_software_imports_no_plant_report_or_launcher() -> None:
@@ -137,16 +137,16 @@ def test_the_flight_software_imports_no_plant_report_or_launcher() -> None:
     assert {p.relative_to(ROOT / "missions").parts[0] for p in fsw} >= set(ROOMS_MOVED), fsw
     assert not violations("missions", {"plant", "dashboards", "deploy"}, fsw)
     # and the rule is exercised: an fsw may import its own modules, not another room's nor a sense
-    assert only_contracts("missions.p003_surround.fsw.nash", "missions.p003_surround.fsw")
-    assert not only_contracts("missions.p003_surround.sense", "missions.p003_surround.fsw")
-    assert not only_contracts("missions.p004_lbdnn.fsw", "missions.p003_surround.fsw")
+    assert only_contracts("swarmhil.missions.p003_surround.fsw.nash", "swarmhil.missions.p003_surround.fsw")
+    assert not only_contracts("swarmhil.missions.p003_surround.sense", "swarmhil.missions.p003_surround.fsw")
+    assert not only_contracts("swarmhil.missions.p004_lbdnn.fsw", "swarmhil.missions.p003_surround.fsw")
 
 
 def test_a_report_imports_no_flight_software_nor_sensing() -> None:
     reports = room_parts("report")
     assert {p.relative_to(ROOT / "missions").parts[0] for p in reports} >= set(ROOMS_MOVED), reports
     assert not violations("missions", {"agent", "deploy"}, reports)
-    assert not [f"{p}: {n}" for p in reports for _, n in imported(p) if n.startswith("plant.sensing")]
+    assert not [f"{p}: {n}" for p in reports for _, n in imported(p) if n.startswith("swarmhil.plant.sensing")]
 
 
 def test_each_mission_lives_in_its_room() -> None:
@@ -158,7 +158,7 @@ def test_each_mission_lives_in_its_room() -> None:
     for room in ROOMS_MOVED:
         for part in ("contract", "fsw", "report") + (("sense",) if room not in NO_SENSE else ()):
             assert f"missions.{room}.{part}" in mods, (room, part)
-    assert "missions.p000_capture.seeds" in mods and "missions.p000_capture.report.sweep" in mods
+    assert "swarmhil.missions.p000_capture.seeds" in mods and "swarmhil.missions.p000_capture.report.sweep" in mods
 
 
 def test_contracts_import_only_bus_and_numpy() -> None:
@@ -192,8 +192,8 @@ def test_contracts_are_light_and_fsw_loads_no_plant() -> None:
     mods = loaded_after("import missions.p000_capture.fsw, missions.p004_lbdnn.fsw, missions.p002_sabatini.fsw")
     tops = {m.split(".")[0] for m in mods}
     assert not tops & {"plant", "dashboards", "deploy", "pydantic"}, sorted(tops & {"plant", "dashboards", "deploy", "pydantic"})
-    assert "missions.p004_lbdnn.fsw.controller" in mods and "missions.p004_lbdnn.contract" in mods
-    assert "missions.p002_sabatini.fsw.sabatini" in mods and "scipy" not in tops  # the DRE solve loads scipy on use
+    assert "swarmhil.missions.p004_lbdnn.fsw.controller" in mods and "swarmhil.missions.p004_lbdnn.contract" in mods
+    assert "swarmhil.missions.p002_sabatini.fsw.sabatini" in mods and "scipy" not in tops  # the DRE solve loads scipy on use
 
 
 def parts_loaded(mods: set[str]) -> set[str]:
@@ -205,15 +205,15 @@ def test_each_process_loads_its_own_part_of_the_rooms() -> None:
     """In a fresh interpreter: the agent's catalogue (every controller) loads every room's fsw and
     no sense, report, plant, dashboards or deploy module; the plant's sensing registry loads the
     senses and no fsw or report; the reporter's sections load the reports and no fsw or sense."""
-    mods = loaded_after("from agent.catalogue import known_controllers; known_controllers()")
+    mods = loaded_after("from swarmhil.agent.catalogue import known_controllers; known_controllers()")
     assert parts_loaded(mods) == {"contract", "fsw"}, parts_loaded(mods)
     assert not {m.split(".")[0] for m in mods} & {"plant", "dashboards", "deploy"}
     assert {f"missions.{r}.fsw" for r in ROOMS_MOVED} <= mods
-    mods = loaded_after("from plant.sensing import known_sensing; known_sensing()")
+    mods = loaded_after("from swarmhil.plant.sensing import known_sensing; known_sensing()")
     assert parts_loaded(mods) == {"contract", "sense"}, parts_loaded(mods)
     assert not {m.split(".")[0] for m in mods} & {"agent", "dashboards", "deploy"}
     assert {f"missions.{r}.sense" for r in ROOMS_MOVED if r not in NO_SENSE} <= mods
-    mods = loaded_after("from dashboards.sections import sections_for; sections_for({})")
+    mods = loaded_after("from swarmhil.dashboards.sections import sections_for; sections_for({})")
     assert parts_loaded(mods) == {"contract", "report"}, parts_loaded(mods)
     assert "deploy" not in {m.split(".")[0] for m in mods}
     assert {f"missions.{r}.report" for r in ROOMS_MOVED} <= mods
@@ -347,7 +347,7 @@ def test_no_arrow_from_a_lower_layer_to_a_higher_one() -> None:
     assert not bad, bad
     # the layers are exercised: every product top-level folder has a layer, and the dashboards read the plant
     assert {m.split(".")[0] for m in mods} <= set(LAYERS) | {"missions"}
-    assert layer("dashboards.metrics") > layer("plant.sensors") and "plant.sensors" in graph(False)["dashboards.metrics"]
+    assert layer("swarmhil.dashboards.metrics") > layer("swarmhil.plant.sensors") and "swarmhil.plant.sensors" in graph(False)["swarmhil.dashboards.metrics"]
 
 
 def _reason(path: Path, stmt: ast.Import | ast.ImportFrom) -> str:

@@ -17,17 +17,17 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import Line, LineFigure, Panel, span_text, time_axis, window_text
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
-from dashboards.metrics import relative_to_com
-from dashboards.sections import SectionContext, SectionResult, register_section
-from dashboards.truth_io import TruthArrays
-from missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
-from missions.p002_sabatini.report.metrics import NAME, SwarmGraphMetrics, applies
-from plant.sensors import weak_components
+from swarmhil.dashboards.figstyle import Line, LineFigure, Panel, span_text, time_axis, window_text
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
+from swarmhil.dashboards.metrics import relative_to_com
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section
+from swarmhil.dashboards.truth_io import TruthArrays
+from swarmhil.missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from swarmhil.missions.p002_sabatini.report.metrics import NAME, SwarmGraphMetrics, applies
+from swarmhil.plant.sensors import weak_components
 
 
 # --- figures --------------------------------------------------------------------------------------------

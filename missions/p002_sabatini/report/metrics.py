@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.metrics import (MetricsInput, MissionMetrics, accel_norm, closest_approach, closest_approach_series,
+from swarmhil.dashboards.metrics import (MetricsInput, MissionMetrics, accel_norm, closest_approach, closest_approach_series,
                                 register_mission_metrics, stats)
-from dashboards.sections import controllers_of
-from missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
-from plant.sensors import visibility_series, weak_components
+from swarmhil.dashboards.sections import controllers_of
+from swarmhil.missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
+from swarmhil.plant.sensors import visibility_series, weak_components
 
 NAME = "p002-swarm"
 PAPER002_CONTROLLERS = {"null", "drift-null", CONTROLLER}  # its law and the baselines of its Figs. 7-9

@@ -27,4 +27,4 @@ before it: `read` (the defunct craft's truth, the servicers and the mission from
 table, the section and the registrations). This package imports `page` alone, so that the
 reporter's discovery (bus/discovery.py `import_role("report")`) registers the section.
 """
-from missions.p004_lbdnn.report import page  # noqa: F401 - registers the section and its error metric (discovery imports this package)
+from swarmhil.missions.p004_lbdnn.report import page  # noqa: F401 - registers the section and its error metric (discovery imports this package)

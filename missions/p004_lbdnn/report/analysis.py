@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.sections import ErrorSeries, SectionContext
-from missions.p004_lbdnn.report.read import defunct_id, mission_of, read_body, servicers
+from swarmhil.dashboards.sections import ErrorSeries, SectionContext
+from swarmhil.missions.p004_lbdnn.report.read import defunct_id, mission_of, read_body, servicers
 
 STEADY_FROM_S = 200.0     # §6: "after ≈ 200 s" the errors are a few metres
 TRACK_LEVEL_M = 10.0      # time to below 10 m

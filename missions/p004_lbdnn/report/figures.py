@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from missions.p004_lbdnn.report.analysis import STEADY_FROM_S, TRACK_LEVEL_M
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.missions.p004_lbdnn.report.analysis import STEADY_FROM_S, TRACK_LEVEL_M
 
 PATH_WINDOW_S = 60.0      # Fig. 2 shows the first 60 s
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from dashboards.sections import SectionContext, SectionResult, register_error_metric, register_section, uses_controller
-from missions.p004_lbdnn.contract import CONTROLLER
-from missions.p004_lbdnn.report.analysis import TRACK_LEVEL_M, compute, largest_tracking_error
-from missions.p004_lbdnn.report.figures import fig_effort, fig_paths, fig_tracking
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_error_metric, register_section, uses_controller
+from swarmhil.missions.p004_lbdnn.contract import CONTROLLER
+from swarmhil.missions.p004_lbdnn.report.analysis import TRACK_LEVEL_M, compute, largest_tracking_error
+from swarmhil.missions.p004_lbdnn.report.figures import fig_effort, fig_paths, fig_tracking
 
 NAME = "p004-servicing"
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p004_lbdnn.contract import CONTROLLER, MissionConfig, mission_from_params
+from swarmhil.dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
+from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, MissionConfig, mission_from_params
 
 
 def defunct_id(config: dict[str, Any]) -> str:
