@@ -17,8 +17,9 @@ where present. One row per:
 - `link`: (LinkStats sample, src, dst, type) of the channel's cumulative counters (`link/stats`);
   dst "*" is the transmitter's own row. `link_totals`: one row per LinkStats sample.
 - `events`: every `event` (t_s, step, source, kind, subject, detail).
-- `metrics_series`: per step, the swarm metrics of dashboards/metrics.py (components, largest
-  component, components of the orbit union, total dV, edges of the visibility digraph).
+- `metrics_series`: per step, the metrics of dashboards/metrics.py: t_s, the columns of the mission
+  hooks that apply to the run (paper 002: components, largest component, components of the orbit
+  union, edges of the visibility digraph), total dV, largest |a|.
 - `metrics`: the scalar metrics of summary.json["metrics"] flattened to (metric, value) rows.
 
 pandas, not polars: pyarrow (already a dependency) is its Parquet engine, matplotlib/Plotly and
@@ -32,8 +33,6 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from swarmhil.bus.keys import split_topic
 from swarmhil.bus.mcap_tools import run_of_recording
@@ -178,15 +177,10 @@ def read_frames(mcap_path: str | Path) -> dict[str, Any]:
 
 
 def metrics_series_frame(m: Any) -> Any:
-    """Per-step series of dashboards.metrics.SwarmMetrics."""
+    """Per-step series of dashboards.metrics.SwarmMetrics (`columns()`)."""
     import pandas as pd
 
-    return pd.DataFrame({"t_s": m.t_s, "n_components": m.n_components.astype("int64"),
-                         "largest_component": m.largest.astype("int64"),
-                         "n_components_orbit_union": m.n_components_orbit.astype("int64"),
-                         "visibility_edges": m.vis.sum(axis=(1, 2)).astype("int64"),
-                         "delta_v_total_mps": m.delta_v_mps.sum(axis=1),
-                         "accel_max_mps2": np.nanmax(m.accel_mps2, axis=1) if m.accel_mps2.size else 0.0})
+    return pd.DataFrame(m.columns())
 
 
 def flatten(d: dict[str, Any], prefix: str = "") -> list[tuple[str, Any]]:
@@ -246,7 +240,7 @@ def load(run_dir: str | Path, metrics: bool = True) -> RunData:
             data.metrics_series = pd.read_parquet(tables / "metrics_series.parquet")
             data.metrics = pd.read_parquet(tables / "metrics.parquet")
         else:
-            m = compute_metrics(read_truth(mcap, data.run or None), camera_from_config(data.config))
+            m = compute_metrics(read_truth(mcap, data.run or None), camera_from_config(data.config), config=data.config)
             data.metrics_series = metrics_series_frame(m)
             data.metrics = metrics_frame(summary.get("metrics") or m.summary)
     return data

@@ -1,116 +1,34 @@
-"""Swarm metrics of paper 002 (sections 4.1-4.2, 5; Figs. 10-22, 30-31) computed from TRUTH arrays.
+"""The metrics every run has, whatever its mission, computed from TRUTH arrays; and the hook
+through which a mission adds its own (issue 25: a mission-neutral overview, each mission's metrics
+in its room).
 
 Everything here is a pure function over numpy arrays shaped (T steps, N spacecraft, ...), as read
 by dashboards/truth_io.py; nothing uses what the agents believed. Definitions:
 
-- Visibility digraph (section 4.1): edge j -> k when j's camera sees k: k within the detection
-  range and inside j's square field of view around +y (the plant's rule, plant/sensors.py).
-  Integrity = one weakly connected component (numbered as scipy.sparse.csgraph.connected_components does), at
-  every step; also reported for the union of the digraphs over the last orbital period (a link
-  that the relative ellipse takes beyond 500 m for part of each orbit still counts there).
-- Pair ROE: dalpha_jk = roe_j - roe_k (metres; the linear ROE of j relative to k, NOTES-002).
-  Its relative ellipse (Figs. 15-17): along-track separation |y_k - y_j| (instantaneous; the mean
-  a|dl| and the orbit minimum a(|dl| - 2|de|) of section 3.3 are kept too), radial dimension
-  a|de| and out-of-plane (cross-track) dimension a|di|.
-- Parallelism (Algorithm 1, Fig. 18): |de . di| / (|de| |di|) of visible pairs, 0 if either is 0.
-- Control: |a| of the command applied over each step, cumulative dV per spacecraft (Figs. 19-20).
+- Control: |a| of the command applied over each step, cumulative dV per spacecraft (paper 002
+  Figs. 19-20, the plant's accounting).
 - Closest approach: minimum distance of any pair at any time, with a cubic Hermite interpolation
-  of the relative position between samples (positions and velocities at both ends); reported for
-  all pairs, for pairs in visibility (j sees k or k sees j at the start of the interval) and for
-  pairs not in visibility, which the paper's safety claim does not cover.
+  of the relative position between samples (positions and velocities at both ends); with a
+  visibility series, also split into pairs in visibility (j sees k or k sees j at the start of
+  the interval) and pairs not in visibility.
+- Steady state: t >= steady_from_s (default: the last sixth of the run).
+
+A mission's own metrics (paper 002's connectivity of the visibility digraph, pair ROE, separations
+and parallelism: missions/p002_sabatini/report/metrics.py) come from a hook its room's report
+registers, `register_mission_metrics(name, applies)`: `compute_metrics(truth, cam, config=...)`
+runs every hook whose `applies(config)` holds for the run's resolved configuration (found like the
+report sections, bus/discovery.py `import_role("report")`) and merges what it returns into the
+summary (summary.json["metrics"]), the per-step table and metrics_series.npz.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 
-from swarmhil.missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
-from swarmhil.plant.sensors import CameraGeometry, visibility_series, weak_components
-
-
-# --- graph --------------------------------------------------------------------------------------
-def window_union(vis: np.ndarray, t_s: np.ndarray, window_s: float) -> np.ndarray:
-    """(T, N, N) bool: j saw k at some step of (t - window_s, t]; e.g. one orbital period, so that a
-    link lost over part of every relative orbit still counts."""
-    c = np.concatenate([np.zeros((1,) + vis.shape[1:], dtype=np.int64), np.cumsum(vis, axis=0, dtype=np.int64)])
-    first = np.searchsorted(t_s, t_s - window_s, side="right")  # first step inside the window
-    return (c[1:] - c[first]) > 0
-
-
-def largest_component(labels: np.ndarray) -> np.ndarray:
-    """(T,) size of the largest weakly connected component."""
-    return np.array([np.bincount(row).max() for row in labels])
-
-
-# --- pair geometry --------------------------------------------------------------------------------
-def parallelism(de: np.ndarray, di: np.ndarray) -> np.ndarray:
-    """|de . di| / (|de| |di|) over the last axis (length 2); 0 where either vector vanishes."""
-    den = np.linalg.norm(de, axis=-1) * np.linalg.norm(di, axis=-1)
-    dot = np.abs(np.sum(de * di, axis=-1))
-    ok = den > 1e-12
-    return np.where(ok, dot / np.where(ok, den, 1.0), 0.0)
-
-
-def ellipse_dims(roe_pair_m: np.ndarray) -> dict[str, np.ndarray]:
-    """Relative-ellipse sizes of pair ROE a*dalpha (..., 6): mean along-track a|dl|, orbit-minimum
-    along-track a(|dl| - 2|de|) (section 3.3), radial a|de|, cross-track a|di|, parallelism."""
-    de, di = roe_pair_m[..., 2:4], roe_pair_m[..., 4:6]
-    de_m, di_m = np.linalg.norm(de, axis=-1), np.linalg.norm(di, axis=-1)
-    dl_m = np.abs(roe_pair_m[..., 1])
-    return {"along_mean_m": dl_m, "along_min_m": dl_m - 2.0 * de_m, "radial_m": de_m, "cross_m": di_m,
-            "parallelism": parallelism(de, di)}
-
-
-@dataclass(frozen=True)
-class ClosestVisible:
-    """For each step and spacecraft j, the closest (by range) spacecraft k that j sees; NaN if none."""
-
-    index: np.ndarray  # (T, N) k, -1 when j sees nobody
-    range_m: np.ndarray  # (T, N)
-    along_track_m: np.ndarray  # (T, N) |y_k - y_j| now
-    along_mean_m: np.ndarray  # (T, N) a|dl_jk|
-    along_min_m: np.ndarray  # (T, N) a(|dl_jk| - 2|de_jk|)
-    radial_m: np.ndarray  # (T, N) a|de_jk|
-    cross_m: np.ndarray  # (T, N) a|di_jk|
-    parallelism: np.ndarray  # (T, N)
-
-
-def pair_ranges(position_m: np.ndarray) -> np.ndarray:
-    """(T, N, N) |r_k - r_j|."""
-    d = position_m[:, None, :, :] - position_m[:, :, None, :]
-    return np.sqrt(np.einsum("tjki,tjki->tjk", d, d))
-
-
-def closest_visible(position_m: np.ndarray, roe_m: np.ndarray, vis: np.ndarray) -> ClosestVisible:
-    T, N, _ = position_m.shape
-    rng = np.where(vis, pair_ranges(position_m), np.inf)
-    k = np.argmin(rng, axis=2)
-    has = np.isfinite(np.take_along_axis(rng, k[..., None], axis=2)[..., 0])
-    tt, jj = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
-    pair = roe_m[tt, jj] - roe_m[tt, k]
-    dims = ellipse_dims(pair)
-    nan = lambda a: np.where(has, a, np.nan)  # noqa: E731
-    return ClosestVisible(
-        index=np.where(has, k, -1),
-        range_m=nan(rng[tt, jj, k]),
-        along_track_m=nan(np.abs(position_m[tt, k, 1] - position_m[tt, jj, 1])),
-        along_mean_m=nan(dims["along_mean_m"]), along_min_m=nan(dims["along_min_m"]),
-        radial_m=nan(dims["radial_m"]), cross_m=nan(dims["cross_m"]), parallelism=nan(dims["parallelism"]),
-    )
-
-
-def visible_pair_parallelism(roe_m: np.ndarray, vis: np.ndarray) -> np.ndarray:
-    """(T, N, N) parallelism of dalpha_jk where j sees k, NaN elsewhere (computed for the visible
-    pairs only: `parallelism` is elementwise, so the values are those of every pair's)."""
-    out = np.full(vis.shape, np.nan)
-    t, j, k = np.nonzero(vis)
-    for a in range(0, len(t), 1 << 18):
-        sl = slice(a, a + (1 << 18))
-        pair = roe_m[t[sl], j[sl]] - roe_m[t[sl], k[sl]]
-        out[t[sl], j[sl], k[sl]] = parallelism(pair[..., 2:4], pair[..., 4:6])
-    return out
+from swarmhil.bus.discovery import import_role
+from swarmhil.plant.sensors import CameraGeometry
 
 
 # --- frames ----------------------------------------------------------------------------------------
@@ -274,7 +192,8 @@ def closest_approach(series: dict[str, np.ndarray], n_bodies: int, cls: str = "a
 
 
 # --- everything, for summary.json --------------------------------------------------------------------
-def _stats(x: np.ndarray, threshold: float | None = None) -> dict[str, Any]:
+def stats(x: np.ndarray, threshold: float | None = None) -> dict[str, Any]:
+    """count, min, p01, p05, median, max of the finite values (and the fraction >= threshold)."""
     x = np.asarray(x, float)
     x = x[np.isfinite(x)]
     if x.size == 0:
@@ -288,27 +207,96 @@ def _stats(x: np.ndarray, threshold: float | None = None) -> dict[str, Any]:
 
 
 @dataclass
+class MissionMetrics:
+    """What a mission's metrics hook returns for one run."""
+
+    summary: dict[str, Any]  # into summary.json["metrics"]: new keys added, a dict under a key the
+    #                          mission-neutral summary has extends that dict (closest_approach)
+    columns: dict[str, np.ndarray] = field(default_factory=dict)  # per-step columns of the metrics_series table (dashboards/frames.py)
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)   # per-step arrays of metrics_series.npz (sweep, faults)
+    detail: Any = None  # the mission's own series, for its report section
+
+
+@dataclass(frozen=True)
+class MetricsInput:
+    """What a hook gets: the run's truth (dashboards.truth_io.TruthArrays), its camera, the steady
+    window (T,) bool and the closest approach's sub-samples."""
+
+    truth: Any
+    cam: CameraGeometry
+    steady: np.ndarray
+    substeps: int
+
+
+MetricsHook = Callable[[MetricsInput], MissionMetrics]
+_HOOKS: dict[str, tuple[Callable[[dict[str, Any]], bool], MetricsHook]] = {}
+
+
+def register_mission_metrics(name: str, applies: Callable[[dict[str, Any]], bool]) -> Callable[[MetricsHook], MetricsHook]:
+    """A mission's report registers the metrics of its runs (`applies(config)` on the resolved
+    configuration, {} for a recording without one), as it registers its section."""
+    def deco(fn: MetricsHook) -> MetricsHook:
+        _HOOKS[name] = (applies, fn)
+        return fn
+
+    return deco
+
+
+def mission_metrics_for(config: dict[str, Any]) -> list[tuple[str, MetricsHook]]:
+    """The hooks that apply to a run, by name (every room's report loaded first)."""
+    import_role("report")
+    return [(name, fn) for name, (applies, fn) in sorted(_HOOKS.items()) if applies(config)]
+
+
+@dataclass
 class SwarmMetrics:
     """All per-step series of a run (for the report) and the scalar summary (for summary.json)."""
 
     t_s: np.ndarray
-    vis: np.ndarray
-    n_components: np.ndarray
-    largest: np.ndarray
-    n_components_orbit: np.ndarray  # components of the union of the digraphs over the last orbit
-    closest: ClosestVisible
-    pair_parallelism: np.ndarray
     accel_mps2: np.ndarray  # (T, N) norm
     delta_v_mps: np.ndarray  # (T, N)
-    approach: dict[str, np.ndarray]
+    approach: dict[str, np.ndarray]  # closest_approach_series, all pairs
     steady: np.ndarray  # (T,) bool, steady-state window
     summary: dict[str, Any]
+    missions: dict[str, MissionMetrics] = field(default_factory=dict)  # by hook name
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The per-step table (dashboards/frames.py metrics_series): t_s, the missions' columns,
+        total dV, largest |a|."""
+        out = {"t_s": self.t_s}
+        for m in self.missions.values():
+            out.update(m.columns)
+        out["delta_v_total_mps"] = self.delta_v_mps.sum(axis=1)
+        out["accel_max_mps2"] = np.nanmax(self.accel_mps2, axis=1) if self.accel_mps2.size else np.zeros(self.t_s.size)
+        return out
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """metrics_series.npz: t_s, the missions' arrays, total dV."""
+        out = {"t_s": self.t_s}
+        for m in self.missions.values():
+            out.update(m.arrays)
+        out["delta_v_total_mps"] = self.delta_v_mps.sum(axis=1)
+        return out
+
+
+def merge_summary(summary: dict[str, Any], extra: dict[str, Any]) -> None:
+    """Add a mission's summary to the mission-neutral one: new keys, and the entries of a dict
+    under a key both have (a mission may not overwrite a value)."""
+    for key, value in extra.items():
+        if key not in summary:
+            summary[key] = value
+        elif isinstance(summary[key], dict) and isinstance(value, dict) and not set(summary[key]) & set(value):
+            summary[key].update(value)
+        else:
+            raise ValueError(f"mission metrics would overwrite summary[{key!r}]")
 
 
 def compute_metrics(truth: Any, cam: CameraGeometry | None = None, steady_from_s: float | None = None,
-                    substeps: int = 8) -> SwarmMetrics:
-    """Metrics of a run from its TruthArrays. Steady state: t >= steady_from_s (default: the last
-    sixth of the run, i.e. the last 4 h of 24 h; the paper's da has settled before 20 h)."""
+                    substeps: int = 8, config: dict[str, Any] | None = None) -> SwarmMetrics:
+    """Metrics of a run from its TruthArrays: the mission-neutral ones, then those of every mission
+    hook that applies to `config` (the run's resolved configuration; None or {}: a recording
+    without one, i.e. paper 002's). Steady state: t >= steady_from_s (default: the last sixth of
+    the run, i.e. the last 4 h of 24 h; paper 002's da has settled before 20 h)."""
     cam = cam or CameraGeometry()
     t = truth.t_s
     ids = truth.ids
@@ -316,60 +304,20 @@ def compute_metrics(truth: Any, cam: CameraGeometry | None = None, steady_from_s
     if steady_from_s is None:
         steady_from_s = t[0] + (t[-1] - t[0]) * 5.0 / 6.0
     steady = t >= steady_from_s
-    vis = visibility_series(truth.position_m, cam, truth.alive)
-    ncomp, labels = weak_components(vis)
-    largest = largest_component(labels)
-    period_s = 2.0 * np.pi / truth.mean_motion_radps
-    ncomp_orbit, _ = weak_components(window_union(vis, t, period_s))
-    after_first_orbit = t >= t[0] + period_s
-    cv = closest_visible(truth.position_m, truth.roe_m, vis)
-    ppar = visible_pair_parallelism(truth.roe_m, vis)
     acc = accel_norm(truth.accel_mps2)
     dv = truth.delta_v_mps
-    appr = closest_approach_series(truth.position_m, truth.velocity_mps, t, vis, substeps)
+    appr = closest_approach_series(truth.position_m, truth.velocity_mps, t, None, substeps)
     steady_iv = steady[:-1]
 
-    split = np.flatnonzero(ncomp > 1)
     dv_tot = dv.sum(axis=1)
     total = float(dv_tot[-1])
     i_steady = int(np.argmax(steady))
     last_hour = t >= t[-1] - 3600.0
     i_hour = int(np.argmax(last_hour))
     reached = lambda f: float(t[int(np.argmax(dv_tot >= f * total))]) if total > 0 else 0.0  # noqa: E731
-    sees_nobody_end = [ids[j] for j in range(N) if not vis[-1, j].any()]
-    seen_by_nobody_end = [ids[k] for k in range(N) if not vis[-1, :, k].any()]
     summary: dict[str, Any] = {
         "definitions": "dashboards/metrics.py docstring; steady state = t >= steady_from_s",
         "steps": int(t.size), "t_start_s": float(t[0]), "t_end_s": float(t[-1]), "steady_from_s": float(steady_from_s),
-        "connectivity": {
-            "weakly_connected_fraction": float(np.mean(ncomp == 1)),
-            "weakly_connected_fraction_steady": float(np.mean(ncomp[steady] == 1)),
-            "always_weakly_connected": bool(np.all(ncomp == 1)),
-            "max_components": int(ncomp.max()), "components_start": int(ncomp[0]), "components_end": int(ncomp[-1]),
-            "first_split_t_s": float(t[split[0]]) if split.size else None,
-            "largest_component_min": int(largest.min()), "largest_component_end": int(largest[-1]),
-            "orbit_period_s": float(period_s),
-            "orbit_union_weakly_connected_fraction": float(np.mean(ncomp_orbit[after_first_orbit] == 1))
-            if after_first_orbit.any() else None,
-            "orbit_union_max_components": int(ncomp_orbit.max()),
-            "edges_start": int(vis[0].sum()), "edges_end": int(vis[-1].sum()),
-            "sees_nobody_end": sees_nobody_end, "seen_by_nobody_end": seen_by_nobody_end,
-        },
-        "closest_visible_steady": {
-            "along_track_m": _stats(cv.along_track_m[steady], D_MIN_M),
-            "along_track_mean_roe_m": _stats(cv.along_mean_m[steady], D_MIN_M),
-            "along_track_orbit_min_m": _stats(cv.along_min_m[steady], D_MIN_M),
-            "radial_m": _stats(cv.radial_m[steady], D_MIN_TRANS_M),
-            "cross_track_m": _stats(cv.cross_m[steady], D_MIN_TRANS_M),
-            "parallelism": _stats(cv.parallelism[steady], PARALLEL_MIN),
-            "spacecraft_without_visible_neighbour_end": int(np.sum(cv.index[-1] < 0)),
-        },
-        "closest_visible_whole_run": {
-            "along_track_m": _stats(cv.along_track_m, D_MIN_M),
-            "radial_m": _stats(cv.radial_m, D_MIN_TRANS_M),
-            "cross_track_m": _stats(cv.cross_m, D_MIN_TRANS_M),
-        },
-        "visible_pairs_parallelism_steady": _stats(ppar[steady], PARALLEL_MIN),
         "control": {
             "delta_v_total_mps": total,
             "delta_v_per_spacecraft_mps": {s: float(v) for s, v in zip(ids, dv[-1])},
@@ -385,15 +333,14 @@ def compute_metrics(truth: Any, cam: CameraGeometry | None = None, steady_from_s
         },
         "closest_approach": {
             "all_pairs": closest_approach(appr, N, "all").as_dict(ids),
-            "visible_pairs": closest_approach(appr, N, "visible").as_dict(ids),
-            "non_visible_pairs": closest_approach(appr, N, "hidden").as_dict(ids),
             "all_pairs_steady": closest_approach(appr, N, "all", steady_iv).as_dict(ids),
-            "visible_pairs_steady": closest_approach(appr, N, "visible", steady_iv).as_dict(ids),
-            "non_visible_pairs_steady": closest_approach(appr, N, "hidden", steady_iv).as_dict(ids),
             "interpolation": f"cubic Hermite between samples, {substeps} sub-samples, parabolic refinement "
                              "of the squared distance",
         },
     }
-    return SwarmMetrics(t_s=t, vis=vis, n_components=ncomp, largest=largest, n_components_orbit=ncomp_orbit,
-                        closest=cv, pair_parallelism=ppar, accel_mps2=acc, delta_v_mps=dv, approach=appr,
-                        steady=steady, summary=summary)
+    m = SwarmMetrics(t_s=t, accel_mps2=acc, delta_v_mps=dv, approach=appr, steady=steady, summary=summary)
+    given = MetricsInput(truth, cam, steady, substeps)
+    for name, hook in mission_metrics_for(config or {}):
+        m.missions[name] = mm = hook(given)
+        merge_summary(summary, mm.summary)
+    return m

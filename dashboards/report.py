@@ -123,19 +123,19 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
         if not c.get("error") and s.is_file():
             met = json.loads(s.read_text()).get("metrics", {})
             if met:
-                row.update({
+                conn, cv, ca = met.get("connectivity", {}), met.get("closest_visible_steady", {}), met["closest_approach"]
+                row.update({  # the connectivity and visibility columns: paper 002's metrics hook, where it ran
                     "delta_v_total_mps": met["control"]["delta_v_total_mps"],
                     "delta_v_last_hour_mps": met["control"]["delta_v_last_hour_mps"],
-                    "weakly_connected_fraction": met["connectivity"]["weakly_connected_fraction"],
-                    "orbit_union_weakly_connected_fraction":
-                        met["connectivity"].get("orbit_union_weakly_connected_fraction"),
-                    "always_weakly_connected": met["connectivity"]["always_weakly_connected"],
-                    "max_components": met["connectivity"]["max_components"],
-                    "components_end": met["connectivity"]["components_end"],
-                    "first_split_t_s": met["connectivity"]["first_split_t_s"],
-                    "closest_visible_pairs_m": met["closest_approach"]["visible_pairs"]["distance_m"],
-                    "closest_non_visible_pairs_m": met["closest_approach"]["non_visible_pairs"]["distance_m"],
-                    "along_track_min_steady_m": met["closest_visible_steady"]["along_track_m"].get("min"),
+                    "weakly_connected_fraction": conn.get("weakly_connected_fraction"),
+                    "orbit_union_weakly_connected_fraction": conn.get("orbit_union_weakly_connected_fraction"),
+                    "always_weakly_connected": conn.get("always_weakly_connected"),
+                    "max_components": conn.get("max_components"),
+                    "components_end": conn.get("components_end"),
+                    "first_split_t_s": conn.get("first_split_t_s"),
+                    "closest_visible_pairs_m": ca.get("visible_pairs", {}).get("distance_m"),
+                    "closest_non_visible_pairs_m": ca.get("non_visible_pairs", {}).get("distance_m"),
+                    "along_track_min_steady_m": cv.get("along_track_m", {}).get("min"),
                 })
         rows.append(row)
     (sweep_dir / "sweep.json").write_text(json.dumps({"param": param, "cases": rows}, indent=1))
@@ -151,10 +151,13 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
         ax[0].set_ylabel("total dV [m/s]")
         ax[0].set_ylim(bottom=0.0)
         ax[0].set_title(f"Total dV against {param} (paper 002 Fig. 30)")
-        ax[1].plot(xs, [r["weakly_connected_fraction"] for r in good], "o", color="C1", label="fraction of steps weakly connected")
+        nan = lambda v: np.nan if v is None else v  # noqa: E731 - a case without paper 002's metrics
+        ax[1].plot(xs, [nan(r["weakly_connected_fraction"]) for r in good], "o", color="C1",
+                   label="fraction of steps weakly connected")
         ax[1].plot(xs, [r.get("orbit_union_weakly_connected_fraction") or np.nan for r in good], "s", mfc="none",
                    color="C2", label="fraction weakly connected over the last orbit (union)")
-        ax[1].plot(xs, [1.0 / r["max_components"] for r in good], "x", color="C3", label="1 / max components")
+        ax[1].plot(xs, [1.0 / r["max_components"] if r["max_components"] else np.nan for r in good], "x", color="C3",
+                   label="1 / max components")
         ax[1].set_ylim(-0.05, 1.05)
         ax[1].set_xlabel(param)
         ax[1].legend(loc="lower left")
@@ -165,7 +168,8 @@ def write_sweep_report(sweep_dir: str | Path, param: str, cases: Sequence[dict[s
             ser = np.load(Path(r["dir"]) / SERIES)
             lab = f"{param}={r['value']}" + (f" seed {r['seed']}" if r.get("seed") is not None else "")
             tu, xl = time_unit(ser["t_s"])
-            ax[0].step(ser["t_s"] / tu, ser["n_components"], where="post", lw=0.9, label=lab, color=f"C{i % 10}")
+            if "n_components" in ser:
+                ax[0].step(ser["t_s"] / tu, ser["n_components"], where="post", lw=0.9, label=lab, color=f"C{i % 10}")
             if "n_components_orbit" in ser:
                 ax[1].step(ser["t_s"] / tu, ser["n_components_orbit"], where="post", lw=0.9, color=f"C{i % 10}")
             ax[2].plot(ser["t_s"] / tu, ser["delta_v_total_mps"], lw=0.9, label=lab, color=f"C{i % 10}")

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from swarmhil.dashboards.metrics import SwarmMetrics, compute_metrics
-from swarmhil.dashboards.run_config import run_camera
+from swarmhil.dashboards.run_config import run_camera, run_config
 from swarmhil.dashboards.truth_io import TruthArrays, read_truth
 from swarmhil.plant.sensors import CameraGeometry
 
@@ -39,16 +39,17 @@ def write_metrics(run_dir: str | Path, truth: TruthArrays, cam: CameraGeometry,
 
 def store_metrics(run_dir: Path, summary: dict[str, Any], truth: TruthArrays, cam: CameraGeometry,
                   steady_from_s: float | None) -> tuple[SwarmMetrics, dict[str, Any]]:
-    """Compute the metrics (dashboards/metrics.py), put them into `summary` under "metrics" (with the
-    camera they were computed for), write summary.json and the series; return (metrics, summary part)."""
-    m = compute_metrics(truth, cam, steady_from_s)
+    """Compute the metrics (dashboards/metrics.py: the mission-neutral ones and those of the mission
+    hooks that apply to the run's configuration, summary["config"] or the recording's), put them
+    into `summary` under "metrics" (with the camera they were computed for), write summary.json and
+    the series; return (metrics, summary part)."""
+    config = summary.get("config") or run_config(run_dir) or {}
+    m = compute_metrics(truth, cam, steady_from_s, config=config)
     met = m.summary
     met["camera"] = {"detection_range_m": cam.detection_range_m, "image_px": cam.image_px, "focal_px": cam.focal_px}
     summary["metrics"] = met
     (run_dir / "summary.json").write_text(json.dumps(summary, indent=1))
-    np.savez_compressed(run_dir / SERIES, t_s=m.t_s, n_components=m.n_components, largest=m.largest,
-                        n_components_orbit=m.n_components_orbit,
-                        delta_v_total_mps=m.delta_v_mps.sum(axis=1))
+    np.savez_compressed(run_dir / SERIES, **m.arrays())
     return m, met
 
 

@@ -1,15 +1,14 @@
-"""dashboards/metrics.py against hand-built configurations and brute-force references."""
+"""dashboards/metrics.py and paper 002's metrics hook (missions/p002_sabatini/report/metrics.py)
+against hand-built configurations and brute-force references."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from swarmhil.dashboards.metrics import (
-    closest_approach, closest_approach_series, closest_visible, delta_v_from_accel, ellipse_dims, parallelism,
-    relative_to_com, visibility_series, visible_pair_parallelism, weak_components,
-)
+from swarmhil.dashboards.metrics import closest_approach, closest_approach_series, delta_v_from_accel, relative_to_com
+from swarmhil.missions.p002_sabatini.report.metrics import closest_visible, ellipse_dims, parallelism, visible_pair_parallelism
 from swarmhil.plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
-from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components
 
 CAM = CameraGeometry()  # paper 002: 500 m, square FOV tan = 0.54, boresight +y
 A_M = 6878137.0
@@ -172,7 +171,7 @@ def test_closest_approach_finds_a_fast_pass_between_samples():
 
 
 def test_window_union_keeps_links_seen_within_the_window():
-    from swarmhil.dashboards.metrics import window_union
+    from swarmhil.missions.p002_sabatini.report.metrics import window_union
 
     t = np.arange(0.0, 100.0, 10.0)
     vis = np.zeros((t.size, 3, 3), dtype=bool)
@@ -245,7 +244,6 @@ def test_series_over_many_steps_equal_the_per_step_functions():
     """visibility_series (many steps per numpy call) and visible_pair_parallelism (visible pairs
     only), issue 16: equal to plant/sensors.visibility_matrix step by step and to the parallelism
     of every pair, on a ROE swarm with dead spacecraft."""
-    from swarmhil.dashboards.metrics import visible_pair_parallelism
 
     rng = np.random.default_rng(7)
     n_radps = mean_motion(6878137.0)
@@ -260,3 +258,42 @@ def test_series_over_many_steps_equal_the_per_step_functions():
     pair = roe_t[:, :, None, :] - roe_t[:, None, :, :]
     want = np.where(vis, parallelism(pair[..., 2:4], pair[..., 4:6]), np.nan)
     assert visible_pair_parallelism(roe_t, vis).tobytes() == want.tobytes()
+
+
+P002_BLOCKS = ("connectivity", "closest_visible_steady", "closest_visible_whole_run", "visible_pairs_parallelism_steady")
+
+
+def test_paper002_metrics_come_from_its_hook_for_its_runs_only():
+    """Issue 25: compute_metrics computes the mission-neutral metrics for every run and adds paper
+    002's (its room's hook) only for a run flown with its controllers (or without a configuration):
+    a servicing run's summary holds none of them, and its mission-neutral part is the same."""
+    from types import SimpleNamespace
+
+    from swarmhil.dashboards.metrics import compute_metrics
+
+    t = np.arange(0.0, 1200.0, 10.0)
+    roe = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0], [0.0, 250.0, 40.0, 0.0, 40.0, 0.0], [5.0, 900.0, 0.0, 60.0, 0.0, 60.0]])
+    u = t * N_RADPS
+    pos, vel = (np.stack(x) for x in zip(*[roe_to_lvlh(roe, ui, N_RADPS) for ui in u]))
+    accel = np.zeros((t.size, 3, 3))
+    accel[5:9, 1, 0] = 1e-4
+    truth = SimpleNamespace(t_s=t, ids=["a", "b", "c"], position_m=pos, velocity_mps=vel, alive=np.ones((t.size, 3), bool),
+                            accel_mps2=accel, delta_v_mps=np.cumsum(np.linalg.norm(accel, axis=-1) * 10.0, axis=0),
+                            roe_m=np.broadcast_to(roe, (t.size, 3, 6)), mean_motion_radps=N_RADPS)
+    p002 = compute_metrics(truth, CAM, config={"controller": {"name": "sabatini"}})
+    servicing = compute_metrics(truth, CAM, config={"controller": {"name": "p004-lbdnn"}})
+    old = compute_metrics(truth, CAM)  # a recording without a configuration: paper 002's (its section's rule)
+    assert list(p002.missions) == ["p002-swarm"] == list(old.missions) and servicing.missions == {}
+    for block in P002_BLOCKS:
+        assert block in p002.summary and block not in servicing.summary, block
+    assert p002.summary == old.summary
+    assert p002.summary["connectivity"]["components_start"] == 2  # c is 650 m beyond b: seen by nobody
+    assert set(servicing.summary["closest_approach"]) == {"all_pairs", "all_pairs_steady", "interpolation"}
+    assert {k: v for k, v in p002.summary["closest_approach"].items() if "visible" not in k} == \
+        servicing.summary["closest_approach"]
+    assert {k: v for k, v in p002.summary.items() if k not in P002_BLOCKS + ("closest_approach",)} == \
+        {k: v for k, v in servicing.summary.items() if k != "closest_approach"}
+    assert list(p002.columns()) == ["t_s", "n_components", "largest_component", "n_components_orbit_union",
+                                    "visibility_edges", "delta_v_total_mps", "accel_max_mps2"]
+    assert list(servicing.columns()) == ["t_s", "delta_v_total_mps", "accel_max_mps2"]
+    assert sorted(p002.arrays()) == ["delta_v_total_mps", "largest", "n_components", "n_components_orbit", "t_s"]

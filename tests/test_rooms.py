@@ -423,17 +423,21 @@ def test_type_check_covers_the_interfaces() -> None:
 
 
 JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "figures", "page"),
-             "dashboards/bandwidth": ("read", "accounting", "figures", "page")}
+             "dashboards/bandwidth": ("read", "accounting", "figures", "page"),
+             "missions/p004_lbdnn/report": ("read", "analysis", "figures", "page")}
+INIT_IMPORTS = {"missions/p004_lbdnn/report": {"page"}}  # a room's report: its page registers the section on discovery
 
 
 @pytest.mark.parametrize("package", sorted(JOB_ORDER))
 def test_report_modules_import_only_the_jobs_before_them(package: str) -> None:
     """A report package split by job (docs/architecture.md): `read` <- analysis <- `figures` <- `page`;
-    each module imports only the ones before it, and the package's __init__ imports nothing."""
+    each module imports only the ones before it, and the package's __init__ imports nothing (a
+    room's report: its `page` alone, which registers the section when the reporter discovers it)."""
     order = JOB_ORDER[package]
     dotted = package.replace("/", ".")
     assert sorted(p.stem for p in (ROOT / package).glob("*.py")) == sorted((*order, "__init__"))
-    assert not [n for _line, n in imported(ROOT / package / "__init__.py")]
+    allowed = {dotted} | {f"{dotted}.{m}" for m in INIT_IMPORTS.get(package, ())}
+    assert not [n for _line, n in imported(ROOT / package / "__init__.py") if n not in allowed]
     for i, job in enumerate(order):
         for line, name in imported(ROOT / package / f"{job}.py"):
             if name.startswith(dotted + "."):

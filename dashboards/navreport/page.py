@@ -102,7 +102,8 @@ def comparison_row(run_dir: str | Path, label: str | None = None) -> dict[str, A
     nav = json.loads(nav_path.read_text())
     summary = summary_with_metrics(run_dir)
     met = summary["metrics"]
-    c, cv, ca = met["connectivity"], met["closest_visible_steady"], met["closest_approach"]
+    # connectivity and separations: paper 002's metrics hook (missions/p002_sabatini/report/metrics.py), where it ran
+    c, cv, ca = met.get("connectivity", {}), met.get("closest_visible_steady", {}), met["closest_approach"]
     cw = met.get("closest_visible_whole_run", {})
     used = nav.get("tracks_used_by_controller", {})
     dec = nav.get("decision_roe_error", {})
@@ -112,15 +113,15 @@ def comparison_row(run_dir: str | Path, label: str | None = None) -> dict[str, A
         "delta_v_total_mps": met["control"]["delta_v_total_mps"],
         "delta_v_last_hour_mps": met["control"]["delta_v_last_hour_mps"],
         "delta_v_steady_mps": met["control"]["delta_v_in_steady_window_mps"],
-        "weakly_connected_fraction": c["weakly_connected_fraction"],
+        "weakly_connected_fraction": c.get("weakly_connected_fraction"),
         "orbit_union_weakly_connected_fraction": c.get("orbit_union_weakly_connected_fraction"),
-        "max_components": c["max_components"],
+        "max_components": c.get("max_components"),
         "along_track_min_m": cw.get("along_track_m", {}).get("min"),
-        "along_track_p05_steady_m": cv["along_track_m"].get("p05"),
-        "radial_p05_steady_m": cv["radial_m"].get("p05"),
-        "cross_p05_steady_m": cv["cross_track_m"].get("p05"),
+        "along_track_p05_steady_m": cv.get("along_track_m", {}).get("p05"),
+        "radial_p05_steady_m": cv.get("radial_m", {}).get("p05"),
+        "cross_p05_steady_m": cv.get("cross_track_m", {}).get("p05"),
         "closest_approach_m": ca["all_pairs"]["distance_m"],
-        "closest_approach_visible_m": ca["visible_pairs"]["distance_m"],
+        "closest_approach_visible_m": ca.get("visible_pairs", {}).get("distance_m"),
         "nav_position_median_m": used.get("position_m", {}).get("median"),
         "nav_position_p95_m": used.get("position_m", {}).get("p95"),
         "nav_da_median_m": dec.get("da_m", {}).get("median"),

@@ -2,7 +2,7 @@
 
 Imports nothing of the project but `bus` (here: nothing at all); numpy only. Read by
 missions/p004_lbdnn/sense.py (the sensor `p004-partial`), missions/p004_lbdnn/fsw/ (the flight
-software) and the paper's report (missions/p004_lbdnn/report.py). docs/architecture.md "Mission rooms
+software) and the paper's report (missions/p004_lbdnn/report/). docs/architecture.md "Mission rooms
 (issue 25)".
 
 **Names.** `CONTROLLER` is the name the flight software registers and the sensing kind looks for

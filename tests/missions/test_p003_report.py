@@ -100,6 +100,9 @@ def test_report_has_the_surround_section(tmp_path: Path) -> None:
                  "always weakly connected"):
         assert word not in page, word
     assert "dV per spacecraft" in overview and "link traffic" in overview and "p002-swarm" not in page
+    met = json.loads((run_dir / "summary.json").read_text())["metrics"]  # paper 002's metrics hook did not run
+    assert not {"connectivity", "closest_visible_steady", "visible_pairs_parallelism_steady"} & set(met)
+    assert "visible_pairs" not in met["closest_approach"] and "all_pairs" in met["closest_approach"]
     for f in FIGURES:
         png = run_dir / "report" / f
         assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 10_000, f

@@ -1,4 +1,4 @@
-"""Paper 004's report section (missions/p004_lbdnn/report.py, "p004-servicing"): a brief in-process
+"""Paper 004's report section (missions/p004_lbdnn/report/, "p004-servicing"): a brief in-process
 run of deploy/scenarios/servicing-6.toml, `swarmhil report RUN`, and the section's metrics against
 an independent recomputation from the MCAP — this test's own reading (tests/conftest.py read_mcap
 through test_p004_stack.load_run): the defunct craft's and servicers' truth positions, the agents'
@@ -24,6 +24,7 @@ from test_p004_stack import SERVICERS, swarmhil_run  # noqa: E402
 
 DURATION_S = 10.0
 FIGURES = ("p004_tracking.png", "p004_effort.png", "p004_paths.png")
+P002_KEYS = {"connectivity", "closest_visible_steady", "closest_visible_whole_run", "visible_pairs_parallelism_steady"}
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +113,7 @@ def test_section_figures_exist_and_are_on_the_page(reported: tuple[Path, dict]) 
 
 def test_steady_window_metrics(reported: tuple[Path, dict], monkeypatch: pytest.MonkeyPatch) -> None:
     """The after-200 s figures, on this short run with the window moved to 5 s."""
-    import swarmhil.missions.p004_lbdnn.report as sec
+    import swarmhil.missions.p004_lbdnn.report.analysis as sec
     from swarmhil.dashboards.run_config import run_config
     from swarmhil.dashboards.sections import SectionContext, sections_for
     from swarmhil.dashboards.truth_io import read_truth
@@ -154,3 +155,9 @@ def test_overview_is_mission_neutral(reported: tuple[Path, dict]) -> None:
         assert word in overview, word
     assert "messages sent" in overview  # servicing-6 flies a link
     assert "p002-swarm" not in page and "Paper 004: servicers converging on the defunct craft" in page
+    # nor its numbers: paper 002's metrics hook does not run for servicing-6 (dashboards/metrics.py)
+    met = json.loads((out / "summary.json").read_text())["metrics"]
+    assert not P002_KEYS & set(met) and set(met["closest_approach"]) == {"all_pairs", "all_pairs_steady", "interpolation"}
+    assert met["control"]["delta_v_total_mps"] > 0 and met["closest_approach"]["all_pairs"]["distance_m"] > 0
+    series = np.load(out / "metrics_series.npz")
+    assert sorted(series.files) == ["delta_v_total_mps", "t_s"]

@@ -29,7 +29,7 @@ for p in (ROOT, ROOT / "tests", ROOT / "tests" / "missions"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-from swarmhil.missions.p004_lbdnn.report import first_time_below, servicing_figures, tracking_errors  # noqa: E402
+from swarmhil.missions.p004_lbdnn.report.analysis import first_time_below, servicing_figures, tracking_errors  # noqa: E402
 
 SCENARIO = ROOT / "deploy" / "scenarios" / "servicing-6.toml"
 SERVICERS = ("s1", "s2", "s3", "s4", "s5", "s6")
@@ -179,7 +179,7 @@ def load_run(run_dir: Path) -> dict:
 
 def metrics(run: dict) -> dict:
     """The paper's figures from recorded truth: ‖e_i‖ = ‖q0 − q_i‖ (frame-independent), ‖u_i‖ of the
-    agents' commands (sc/<id>/act), Δv — computed by the report section (missions/p004_lbdnn/report.py)
+    agents' commands (sc/<id>/act), Δv — computed by the report section (missions/p004_lbdnn/report/analysis.py)
     from this test's own reading of the MCAP."""
     u = np.linalg.norm(np.array([run["cmd"][s] for s in run["ids"]]), axis=2).T   # (K-1 or K, 6)
     return servicing_figures(run["t"], tracking_errors(run["defunct_pos"], run["pos"]), u, run["delta_v"][-1])

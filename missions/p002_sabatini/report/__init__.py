@@ -3,12 +3,12 @@ Figs. 7-22, for runs flown only with its controllers (`null`, `drift-null`, `sab
 recordings that carry no configuration (older runs, all of paper 002). Registered as `p002-swarm`
 (dashboards/sections/); imports its contract and the report kit, never its flight software.
 
-The numbers are the swarm metrics of dashboards/metrics.py, which `write_report` keeps where they
-have always been (summary.json["metrics"]: `connectivity`, `closest_visible_steady`, ...); this
-section only shows them (issue 25: the overview of every report is mission-neutral, paper 002's ROE
-metrics are paper 002's). Figures with one line per spacecraft are LineFigure specs
-(dashboards/figstyle.py): drawn static (PNG, SVG, PDF) and interactive (Plotly,
-dashboards/interactive.py) from the same data.
+The numbers are its metrics hook's (`metrics.py` in this package, registered with
+dashboards/metrics.py `register_mission_metrics` for the same runs), kept where they have always
+been (summary.json["metrics"]: `connectivity`, `closest_visible_steady`, ...); this section shows
+them (issue 25: the overview of every report is mission-neutral, paper 002's ROE metrics are paper
+002's). Figures with one line per spacecraft are LineFigure specs (dashboards/figstyle.py): drawn
+static (PNG, SVG, PDF) and interactive (Plotly, dashboards/interactive.py) from the same data.
 """
 from __future__ import annotations
 
@@ -22,25 +22,18 @@ from swarmhil.dashboards.figstyle import colors as _colors
 from swarmhil.dashboards.figstyle import pyplot as _plt
 from swarmhil.dashboards.figstyle import save as _save
 from swarmhil.dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
-from swarmhil.dashboards.metrics import SwarmMetrics, relative_to_com
-from swarmhil.dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
+from swarmhil.dashboards.metrics import relative_to_com
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section
 from swarmhil.dashboards.truth_io import TruthArrays
-from swarmhil.missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from swarmhil.missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from swarmhil.missions.p002_sabatini.report.metrics import NAME, SwarmGraphMetrics, applies
 from swarmhil.plant.sensors import weak_components
-
-NAME = "p002-swarm"
-PAPER002_CONTROLLERS = {"null", "drift-null", CONTROLLER}  # its law and the baselines of its Figs. 7-9
-
-
-def applies(config: dict[str, Any]) -> bool:
-    """Runs flown with paper 002's controllers only, and recordings without a configuration."""
-    return not config or controllers_of(config) <= PAPER002_CONTROLLERS
 
 
 # --- figures --------------------------------------------------------------------------------------------
 # Figures with one line per spacecraft are LineFigure specs (dashboards/figstyle.py): drawn static
 # (PNG, SVG, PDF) and interactive (Plotly, dashboards/interactive.py) from the same data.
-def _steady_span(m: SwarmMetrics, x: np.ndarray) -> tuple[float, float] | None:
+def _steady_span(m: SwarmGraphMetrics, x: np.ndarray) -> tuple[float, float] | None:
     return (float(x[np.argmax(m.steady)]), float(x[-1])) if m.steady.any() else None
 
 
@@ -49,7 +42,7 @@ def _per_sc(x: np.ndarray, y: np.ndarray, ids: list[str], width: float = 0.8) ->
     return [Line(x, y[:, i], ids[i], cols[i], width) for i in range(len(ids))]
 
 
-def spec_components(m: SwarmMetrics, n: int, title: str = "") -> LineFigure:
+def spec_components(m: SwarmGraphMetrics, n: int, title: str = "") -> LineFigure:
     """Fig. 10 / 31: weakly connected components of the visibility digraph over time."""
     x, xl = time_axis(m.t_s)
     period = float(m.summary["connectivity"]["orbit_period_s"])
@@ -70,12 +63,12 @@ def _circle_layout(n: int) -> np.ndarray:
     return np.stack([np.cos(ang), np.sin(ang)], axis=1)
 
 
-def fig_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, path: Path, label: str) -> str:
+def fig_digraph(truth: TruthArrays, m: SwarmGraphMetrics, row: int, path: Path, label: str) -> str:
     """Figs. 8-9 / 11: the visibility digraph (j -> k: j sees k) in LVLH and as a graph plot."""
     return _save(draw_digraph(truth, m, row, label), path)
 
 
-def draw_digraph(truth: TruthArrays, m: SwarmMetrics, row: int, label: str):  # type: ignore[no-untyped-def]
+def draw_digraph(truth: TruthArrays, m: SwarmGraphMetrics, row: int, label: str):  # type: ignore[no-untyped-def]
     """The matplotlib figure of fig_digraph (not saved)."""
     plt = _plt()
     vis = m.vis[row]
@@ -130,7 +123,7 @@ def spec_roe_com(truth: TruthArrays, pair: tuple[int, int], fig_no: str) -> Line
                        for k, c in enumerate(pair)])
 
 
-def spec_separation(m: SwarmMetrics, ids: list[str], field: str, threshold: float, ylabel: str, title: str,
+def spec_separation(m: SwarmGraphMetrics, ids: list[str], field: str, threshold: float, ylabel: str, title: str,
                     extra: str | None = None) -> LineFigure:
     """Figs. 15-17: separation of each spacecraft from its closest visible neighbour."""
     y = getattr(m.closest, field)
@@ -148,7 +141,7 @@ def spec_separation(m: SwarmMetrics, ids: list[str], field: str, threshold: floa
                              ylim=(min(0.0, lo), None), shade=_steady_span(m, x), xlabel=xl)], panel_height_in=3.6)
 
 
-def spec_parallelism(m: SwarmMetrics, ids: list[str]) -> LineFigure:
+def spec_parallelism(m: SwarmGraphMetrics, ids: list[str]) -> LineFigure:
     """Fig. 18: parallelism |de.di|/(|de||di|) of visible pairs."""
     x, xl = time_axis(m.t_s)
     pp = m.pair_parallelism.reshape(m.t_s.size, -1)
@@ -164,7 +157,7 @@ def spec_parallelism(m: SwarmMetrics, ids: list[str]) -> LineFigure:
     ])
 
 
-def spec_accel(m: SwarmMetrics, ids: list[str]) -> LineFigure:
+def spec_accel(m: SwarmGraphMetrics, ids: list[str]) -> LineFigure:
     """Fig. 19: control acceleration of each spacecraft."""
     x, xl = time_axis(m.t_s)
     return LineFigure([Panel(_per_sc(x, m.accel_mps2 * 1e3, ids, 0.6), "|a| [mm/s^2]",
@@ -172,7 +165,7 @@ def spec_accel(m: SwarmMetrics, ids: list[str]) -> LineFigure:
                       panel_height_in=3.6)
 
 
-def spec_dv(m: SwarmMetrics, ids: list[str]) -> LineFigure:
+def spec_dv(m: SwarmGraphMetrics, ids: list[str]) -> LineFigure:
     """Fig. 20: cumulative dV of each spacecraft and of the swarm."""
     x, xl = time_axis(m.t_s)
     return LineFigure([
@@ -220,7 +213,7 @@ def spec_projections(truth: TruthArrays, orbits: float | None = 3.0) -> LineFigu
     ], panel_height_in=3.8, sharex=False)
 
 
-def spec_closest_approach(m: SwarmMetrics) -> LineFigure:
+def spec_closest_approach(m: SwarmGraphMetrics) -> LineFigure:
     """Closest approach per step of pairs in visibility and of pairs not in visibility."""
     a = m.approach
     x, xl = time_axis(m.t_s[:-1])
@@ -231,7 +224,7 @@ def spec_closest_approach(m: SwarmMetrics) -> LineFigure:
                       panel_height_in=3.6)
 
 
-def _paper002_figures(truth: TruthArrays, m: SwarmMetrics, met: dict[str, Any], out: Path,
+def _paper002_figures(truth: TruthArrays, m: SwarmGraphMetrics, met: dict[str, Any], out: Path,
                       projection_orbits: float | None, interactive: bool = True) -> list:
     """The figures of paper 002 (Figs. 7-22), for runs of its controllers only: many-line figures
     interactive (and static), the digraphs static."""
@@ -315,6 +308,6 @@ def metric_rows(met: dict[str, Any]) -> list[tuple[str, str]]:
 def swarm_keeping(ctx: SectionContext) -> SectionResult:
     """The table and the figures; the metrics stay in summary.json["metrics"] (no section entry)."""
     met = ctx.summary["metrics"]
-    figs = _paper002_figures(ctx.truth, ctx.swarm, met, Path(ctx.out), ctx.projection_orbits, ctx.interactive)
+    figs = _paper002_figures(ctx.truth, ctx.swarm.missions[NAME].detail, met, Path(ctx.out), ctx.projection_orbits, ctx.interactive)
     return SectionResult(title="Paper 002: behavioural swarm keeping", figures=figs,
                          html=head_table(metric_rows(met)))
