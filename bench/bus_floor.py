@@ -9,12 +9,17 @@ key, with the sizes of drift-20's messages), each worker answers with two messag
 coordinator waits for, and a telemetry), and one more process subscribes to everything (the
 recorder's traffic) and only counts. Still no physics, no flight software, no decoding, no
 recording: what the run's Zenoh traffic costs by itself on this machine. `--cpu`: CPU ms per step
-of each process kind (stderr).
+of each process kind (stderr). `--sizes-from RUN/run.mcap`: the five message sizes are that
+recording's mean payload per class (`sizes_from_recording`) instead of drift-20's, so a mission's
+floor carries its own messages (paper 000's stimuli are twice drift-20's); the link channel's
+traffic and barrier are not in the floor.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -38,13 +43,36 @@ def worker(router: str, i: int) -> None:
 
 # drift-20's message sizes (bytes; measured from a recording): clock, truth, stimulus, command, telemetry
 SIZES = {"clock": 178, "truth": 2727, "sense": 160, "act": 47, "tm": 63}
+# a recorded topic (the run's key without swarm/<run>/) -> its class in SIZES
+CLASSES = (("clock", re.compile(r"clock")), ("truth", re.compile(r"truth")), ("sense", re.compile(r"sc/[^/]+/sense/.+")),
+           ("act", re.compile(r"sc/[^/]+/act")), ("tm", re.compile(r"sc/[^/]+/tm")))
 
 
-def contract_worker(router: str, i: int) -> None:
+def sizes_from_recording(path: str | Path) -> dict[str, int]:
+    """Mean payload bytes of each class of SIZES over a recording (topics matched whole); a class the
+    recording lacks is an error naming it (the floor would otherwise mix two runs' messages)."""
+    from mcap.reader import make_reader
+
+    count = dict.fromkeys(SIZES, 0)
+    total = dict.fromkeys(SIZES, 0)
+    with open(path, "rb") as f:
+        for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            for name, pattern in CLASSES:
+                if pattern.fullmatch(channel.topic):
+                    count[name] += 1
+                    total[name] += len(message.data)
+                    break
+    missing = [name for name, n in count.items() if n == 0]
+    if missing:
+        raise SystemExit(f"error: {path}: no {', '.join(missing)} messages recorded (needed for --sizes-from)")
+    return {name: round(total[name] / count[name]) for name in SIZES}
+
+
+def contract_worker(router: str, i: int, sizes: dict[str, int]) -> None:
     s = open_client(router)
     act = s.declare_publisher(f"floor/sc/{i}/act")
     tm = s.declare_publisher(f"floor/sc/{i}/tm")
-    a, t = bytes(SIZES["act"]), bytes(SIZES["tm"])
+    a, t = bytes(sizes["act"]), bytes(sizes["tm"])
 
     def on_sense(_sample) -> None:
         act.put(a)
@@ -65,11 +93,13 @@ def contract_listener(router: str) -> None:
     threading.Event().wait()
 
 
-def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = False) -> float:
+def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = False,
+                sizes: dict[str, int] | None = None) -> float:
+    sizes = sizes or SIZES
     router_ep = endpoint(free_loopback_port())
     router = open_router(router_ep)
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    role = ["--contract"] if contract else []
+    role = ["--contract", "--sizes", json.dumps(sizes)] if contract else []
     procs = [subprocess.Popen([sys.executable, __file__, "--worker", str(i), "--router", router_ep, *role], env=env)
              for i in range(workers)]
     if contract:
@@ -97,7 +127,7 @@ def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = Fa
     if contract:
         clock, truth = s.declare_publisher("floor/clock"), s.declare_publisher("floor/truth")
         senses = [s.declare_publisher(f"floor/sc/{i}/sense") for i in range(workers)]
-        c_msg, t_msg, s_msg = bytes(SIZES["clock"]), bytes(SIZES["truth"]), bytes(SIZES["sense"])
+        c_msg, t_msg, s_msg = bytes(sizes["clock"]), bytes(sizes["truth"]), bytes(sizes["sense"])
 
         def put_step() -> None:
             clock.put(c_msg)
@@ -156,15 +186,20 @@ def main() -> None:
     ap.add_argument("--router")
     ap.add_argument("--cpu", action="store_true", help="also print CPU ms per step (stderr)")
     ap.add_argument("--contract", action="store_true", help="the bus contract's messages per step (module docstring)")
+    ap.add_argument("--sizes-from", metavar="MCAP", help="--contract with this recording's mean message sizes")
+    ap.add_argument("--sizes", help=argparse.SUPPRESS)  # a worker's sizes, as JSON, from its coordinator
     a = ap.parse_args()
     if a.worker is not None:
         if a.contract:
-            (contract_listener(a.router) if a.worker < 0 else contract_worker(a.router, a.worker))
+            (contract_listener(a.router) if a.worker < 0 else contract_worker(a.router, a.worker, json.loads(a.sizes)))
         else:
             worker(a.router, a.worker)
         return
-    wall = coordinator(a.workers, a.steps, a.cpu, a.contract)
-    print(f"{'contract' if a.contract else 'bus'} floor: {a.workers} workers, {a.steps} steps, {wall:.2f} s, {wall / a.steps * 1e3:.3f} ms/step")
+    sizes = sizes_from_recording(a.sizes_from) if a.sizes_from else SIZES
+    wall = coordinator(a.workers, a.steps, a.cpu, a.contract or bool(a.sizes_from), sizes)
+    kind = "contract" if a.contract or a.sizes_from else "bus"
+    print(f"{kind} floor: {a.workers} workers, {a.steps} steps, {wall:.2f} s, {wall / a.steps * 1e3:.3f} ms/step"
+          + (f" (sizes {sizes})" if kind == "contract" else ""))
 
 
 if __name__ == "__main__":

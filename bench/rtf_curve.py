@@ -12,13 +12,14 @@ For each point, in one invocation:
 - **real time**: the largest speed-up without a missed deadline or a late command, searched
   downwards from 0.8 x the lockstep factor (x0.7 per try, at most `--tries` runs): `swarmhil run
   --mode realtime --speed S`;
-- **contract floor**: `bench/bus_floor.py --contract` with N workers and the same steps: the
-  run's own messages per step with no physics, flight software, decoding or recording.
+- **contract floor**: `bench/bus_floor.py --sizes-from LOCKSTEP/run.mcap` with N workers and the
+  same steps: the run's own messages per step, at the sizes the lockstep run recorded (its mean
+  clock, truth, stimulus, command and telemetry payloads), with no physics, flight software,
+  decoding or recording (the link channel's traffic is not in it).
 
 Paper 002: deploy/scenarios/sabatini-100.toml with `dispersion.count = N` (ideal relative sensing,
 10 s steps). Paper 000: the first N spacecraft of deploy/scenarios/capture-20.toml (20 Hz). The
-floor's message sizes are drift-20's (bench/bus_floor.py SIZES) for both: for paper 000 the floor
-understates its larger stimuli. The machine is shared: compare each point's ratio to its own floor,
+machine is shared: compare each point's ratio to its own floor,
 not absolute figures across invocations. The last line printed is the result as JSON.
 """
 from __future__ import annotations
@@ -60,11 +61,12 @@ def swarmhil_run(path: Path, out: Path, sets: list[str], *extra: str) -> dict[st
     return json.loads((out / "summary.json").read_text())
 
 
-def contract_floor_s(n: int, steps: int) -> float:
+def contract_floor_s(n: int, steps: int, sizes_from: Path | None = None) -> float:
     """Wall seconds of `bench/bus_floor.py --contract` with n workers and `steps` steps (from its
-    ms/step, which it prints to three decimals)."""
+    ms/step, which it prints to three decimals); with `sizes_from`, that recording's message sizes."""
+    sizes = ["--sizes-from", str(sizes_from)] if sizes_from is not None else []
     fl = subprocess.run([sys.executable, str(ROOT / "bench/bus_floor.py"), "--workers", str(n), "--steps", str(steps),
-                         "--contract"], capture_output=True, text=True, check=True, timeout=7200)
+                         "--contract", *sizes], capture_output=True, text=True, check=True, timeout=7200)
     ms = re.search(r"([0-9.]+) ms/step", fl.stdout)
     if ms is None:
         raise RuntimeError(f"bus_floor.py printed no ms/step: {fl.stdout[-500:]}")
@@ -93,7 +95,7 @@ def point(path: Path, sets: list[str], n: int, steps: int, step_s: float, tries:
             rt_ok = speed
             break
         speed = float(f"{0.7 * speed:.2g}")
-    floor_s = contract_floor_s(n, steps)
+    floor_s = contract_floor_s(n, steps, sizes_from=work / "lock" / "run.mcap")
     return {"agents": n, "steps": steps, "step_s": step_s, "sim_s": sim_s, "lockstep_loop_s": loop_s,
             "rtf_lockstep": rtf_lock, "realtime_speed_no_miss": rt_ok, "realtime_tries": tried,
             "floor_s": floor_s, "rtf_floor": sim_s / floor_s, "lockstep_over_floor": loop_s / floor_s}
