@@ -23,13 +23,19 @@ def _truths(path: Path) -> list[tuple[int, bytes]]:
                 if ch.topic == "truth"]
 
 
-# (scenario, simulated seconds): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of paper 001
-CASES = [("servicing-6", 60.0), ("surround-6", 60.0), ("tersoff-6", 1000.0)]
+# paper 001 inside the sensing ball: five in the shaping ball (Tersoff-Brenner forces), one in the near layer
+CLUSTER = [f"spacecraft.{i}.position_m={p}" for i, p in enumerate(
+    ["[3.0,9.0,1.0]", "[-2.0,-8.0,4.0]", "[1.0,4.0,-9.0]", "[0.5,-5.0,-7.0]", "[60.0,10.0,5.0]", "[-2.0,7.0,8.5]"])]
+# (id, scenario, simulated seconds, --set): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of
+# paper 001 (far layer), and 100 steps of it in the shaping and near layers (LatticeController.step_batch)
+CASES = [("servicing-6", "servicing-6", 60.0, []), ("surround-6", "surround-6", 60.0, []),
+         ("tersoff-6", "tersoff-6", 1000.0, []), ("tersoff-6-cluster", "tersoff-6", 500.0, CLUSTER)]
 
 
-@pytest.mark.parametrize("name,duration", CASES, ids=[c[0] for c in CASES])
-def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, name: str, duration: float) -> None:
-    sc = load_scenario(SCENARIOS / f"{name}.toml").with_overrides(duration_s=duration)
+@pytest.mark.parametrize("case,name,duration,sets", CASES, ids=[c[0] for c in CASES])
+def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, case: str, name: str, duration: float,
+                                                      sets: list[str]) -> None:
+    sc = load_scenario(SCENARIOS / f"{name}.toml", sets).with_overrides(duration_s=duration)
     full = run_in_process(sc, tmp_path / "all", "same")
     batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
     assert full.summary.get("batch") is None and batch.summary["batch"] == {"used": True, "why_not": None}

@@ -17,15 +17,14 @@ from conftest import ROOT, SCENARIOS
 from dashboards.truth_io import read_truth
 from deploy.launcher import run_in_process
 from deploy.scenario import load_scenario
+from test_batch_missions import CLUSTER
 
 sys.path.insert(0, str(ROOT / "bench"))
 from mission_floors import floor  # noqa: E402
 
 POSITION_TOL_M = 1e-6
 DV_REL_TOL = 1e-9
-# paper 001 inside the sensing ball: five in the shaping ball (TB forces between them), one in the near layer
-CLUSTER = [f"spacecraft.{i}.position_m={p}" for i, p in enumerate(
-    ["[3.0,9.0,1.0]", "[-2.0,-8.0,4.0]", "[1.0,4.0,-9.0]", "[0.5,-5.0,-7.0]", "[60.0,10.0,5.0]", "[-2.0,7.0,8.5]"])]
+# CLUSTER: paper 001 inside the sensing ball (the Tersoff-Brenner term, the shaping and near layers)
 # (case, scenario, seconds, --set of the scenario, --set that makes the floor's law wrong)
 CASES = [
     ("tersoff-6-far", "tersoff-6", 1000.0, [], ["controller.params.far_gain_ps=0.0505"]),
