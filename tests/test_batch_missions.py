@@ -85,3 +85,73 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
             assert rel.extra[r][key].tobytes() == value.tobytes(), key
         pairs += b - a
     assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
+
+
+@pytest.mark.parametrize("dead", [(), (2,)], ids=["all-alive", "one-dead"])
+def test_p004_partial_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 004's sensing kind (`p004-partial`) as arrays (issue 29): every observer's named arrays
+    (d_ij to its live graph neighbours, y_i) equal, byte for byte and key for key, what the agent reads
+    from its message (agent/node.py), noise included; no neighbour rows."""
+    from agent.node import observation_from_rel
+    from bus.codec import header
+    from deploy.scenario import plant_config
+    from plant.mission_world import MissionWorld
+    from plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "servicing-6.toml")
+    cfg = plant_config(sc)
+    kind, world = make_sensing("p004-partial", cfg), MissionWorld(cfg)
+    world.step(np.random.default_rng(4).normal(0, 1, (6, 3)), 0.1)
+    world.alive[list(dead)] = False
+    pos, vel = world.lvlh()
+    rows = np.flatnonzero(world.alive)
+    for step in (1, 7):
+        def ctx() -> SensingContext:
+            return SensingContext(step=step, t_s=0.1, u_rad=world.u_rad, ids=list(sc.ids), position_m=pos,
+                                  velocity_mps=vel, alive=world.alive, world=world)
+        rel = kind.batch(ctx(), rows)
+        assert rel.offsets.tolist() == [0] * (len(rows) + 1) and rel.rel_position_m.shape == (0, 3)
+        for r, j in enumerate(rows.tolist()):
+            o = observation_from_rel(kind.stimulus(ctx(), j, header("run", "plant", step, 0.1, 0)))
+            assert o.neighbour_ids == [] and list(rel.extra[r]) == list(o.extra)
+            for key, value in o.extra.items():
+                assert rel.extra[r][key].tobytes() == value.tobytes() and rel.extra[r][key].shape == value.shape, key
+            assert any(k.startswith("p004.y_m/") for k in o.extra)
+        measured_s3 = any("p004.d_m/s3" in e for e in rel.extra)  # a dead neighbour is not measured
+        assert measured_s3 is (2 not in dead)
+
+
+def test_p003_relative_batch_equals_its_messages() -> None:
+    """Paper 003's sensing kind (`p003-relative`) as arrays (issue 29), noise-free: the leader's target
+    measurement and each servicer's leader-relative state equal, byte for byte and key for key, what
+    the agent reads from its message; a target beyond the range is not measured; with noise the kind
+    has no batch form (its draws stay in the messages' order)."""
+    from agent.node import observation_from_rel
+    from bus.codec import header
+    from deploy.scenario import plant_config
+    from plant.mission_world import MissionWorld
+    from plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "surround-6.toml")
+    cfg = plant_config(sc)
+    world = MissionWorld(cfg)
+    world.step(np.random.default_rng(3).normal(0, 0.1, (7, 3)), 0.1)
+    pos, vel = world.lvlh()
+    rows = np.arange(7)
+    for range_m in (5000.0, 10.0):
+        kind = make_sensing("p003-relative", plant_config(load_scenario(
+            SCENARIOS / "surround-6.toml", [f"sensing.params.range_m={range_m}"])))
+
+        def ctx() -> SensingContext:
+            return SensingContext(step=1, t_s=0.1, u_rad=world.u_rad, ids=list(sc.ids), position_m=pos,
+                                  velocity_mps=vel, alive=world.alive, world=world)
+        rel = kind.batch(ctx(), rows)
+        assert rel.offsets.tolist() == [0] * 8 and rel.rel_position_m.shape == (0, 3)
+        for r in rows.tolist():
+            o = observation_from_rel(kind.stimulus(ctx(), r, header("run", "plant", 1, 0.1, 0)))
+            assert list(rel.extra[r]) == list(o.extra) and (len(o.extra) == 2 or (r == 0 and range_m == 10.0))
+            for key, value in o.extra.items():
+                assert rel.extra[r][key].tobytes() == value.tobytes() and rel.extra[r][key].shape == value.shape, key
+    noisy = make_sensing("p003-relative", plant_config(load_scenario(
+        SCENARIOS / "surround-6.toml", ["sensing.params.position_noise_m=0.1"])))
+    assert not hasattr(noisy, "batch")
