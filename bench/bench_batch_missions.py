@@ -51,7 +51,7 @@ MISSIONS = {"servicing-6": 60.0, "surround-6": 60.0, "tersoff-6": 3000.0}
 
 
 def _run(sc, out: Path, batch: bool) -> tuple[float, float, dict]:
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     w0, c0 = time.perf_counter(), time.process_time()
     res = run_in_process(sc, out, "bench", record="truth", opts=None if batch else {"batch": False})
@@ -62,8 +62,8 @@ def _run(sc, out: Path, batch: bool) -> tuple[float, float, dict]:
 _JOB = """
 import json, sys, tempfile, time
 from pathlib import Path
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 sc = load_scenario(sys.argv[1])
 with tempfile.TemporaryDirectory() as tmp:
     run_in_process(sc.with_overrides(duration_s=sc.step_s), Path(tmp) / "warm", "bench", record="truth")
@@ -79,9 +79,9 @@ with tempfile.TemporaryDirectory() as tmp:
 _SERVICER_STEP = """
 import json, time
 import numpy as np
-from agent.controller import Observation, OrbitInfo
-from missions.p004_lbdnn.fsw.controller import make_servicer
-from missions.p004_lbdnn.contract import KEY_D, KEY_Y
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p004_lbdnn.fsw.controller import make_servicer
+from swarmhil.missions.p004_lbdnn.contract import KEY_D, KEY_Y
 c = make_servicer("s1", OrbitInfo(6878137.0, 0.0011), {"graph": "ring", "seed": 0})
 rng = np.random.default_rng(1)
 def obs(k):
@@ -116,7 +116,7 @@ def floor_pairs(name: str, sc, repeats: int, tmp: Path) -> dict:
     each); the times, their medians, the ratios per pair and the floor's agreement with the truth."""
     import numpy as np
 
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.truth_io import read_truth
     from mission_floors import floor
 
     floor(sc.with_overrides(duration_s=sc.step_s))
@@ -144,7 +144,7 @@ def floor_pairs(name: str, sc, repeats: int, tmp: Path) -> dict:
 
 def measure_floors(missions: list[str], repeats: int, duration_scale: float = 1.0) -> dict:
     """Every mission's `floor_pairs` in one invocation, with the load average at the start and the end."""
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     out: dict = {"load_start": os.getloadavg()[0], "missions": {}}
     with tempfile.TemporaryDirectory(prefix="bench-floors-") as tmp:
@@ -174,7 +174,7 @@ def main() -> None:
         res = measure_floors(a.missions, a.repeats, a.duration_scale)
         print(json.dumps({k: v for k, v in res.items()}))
         return
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     print(json.dumps({"load_start": os.getloadavg()}))
     with tempfile.TemporaryDirectory(prefix="bench-batch-") as tmp:

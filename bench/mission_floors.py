@@ -40,17 +40,17 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 def _world(sc: Any) -> Any:
     """The plant's world of `sc` as built at step 0 (initial states, limits, rows, frame origin)."""
-    from deploy.scenario import plant_config
-    from plant.mission_world import MissionWorld
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
 
     return MissionWorld(plant_config(sc))
 
 
 def _controllers(sc: Any) -> list[Any]:
     """Each spacecraft's controller as its agent would build it (read for its constants and initial state)."""
-    from agent.catalogue import make_controller
-    from agent.controller import OrbitInfo
-    from deploy.agent_image import agent_config
+    from swarmhil.agent.catalogue import make_controller
+    from swarmhil.agent.controller import OrbitInfo
+    from swarmhil.deploy.agent_image import agent_config
 
     out = []
     for sid in sc.ids:
@@ -80,9 +80,9 @@ def floor_lattice(sc: Any, steps: int | None = None) -> dict:
     ballistic CW field; near: the free well; shaping: planar and phase wells), the Tersoff-Brenner
     term of each spacecraft's sensed cluster, the norm saturation, the actuator limit and the exact
     HCW step (missions/p001_lattice/fsw, plant/dynamics/cw.py)."""
-    from missions.p001_lattice.contract import TB_GAIN
-    from missions.p001_lattice.fsw.tersoff import forces
-    from plant.dynamics.cw import transition_matrix, zoh_input_matrix
+    from swarmhil.missions.p001_lattice.contract import TB_GAIN
+    from swarmhil.missions.p001_lattice.fsw.tersoff import forces
+    from swarmhil.plant.dynamics.cw import transition_matrix, zoh_input_matrix
 
     w, ctrls = _world(sc), _controllers(sc)
     prm = sc.sensing.get("params", {})
@@ -150,8 +150,8 @@ def floor_lattice(sc: Any, steps: int | None = None) -> dict:
 def _inertial_rhs(w: Any) -> Callable[[np.ndarray], Callable[[float, np.ndarray], np.ndarray]]:
     """(thrust (R, 3) ECI) -> y' = f(t, y) of the world's inertial rows: two-body (+ J2) (+ drag with a
     rotating exponential atmosphere) + thrust (plant/dynamics/inertial.py, absolute_j2.py)."""
-    from plant.dynamics.absolute_j2 import _J2_COEFF
-    from plant.dynamics.constants import MU_EARTH_M3PS2, OMEGA_EARTH_RADPS, R_EARTH_M
+    from swarmhil.plant.dynamics.absolute_j2 import _J2_COEFF
+    from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2, OMEGA_EARTH_RADPS, R_EARTH_M
 
     prop = w.propagator
     j2, drag, atm = prop.j2, prop.drag, prop._atmosphere
@@ -192,7 +192,7 @@ def _inertial_rhs(w: Any) -> Callable[[np.ndarray], Callable[[float, np.ndarray]
 
 def _lvlh_rows(r_c: np.ndarray, v_c: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Positions of rows r relative to (r_c, v_c), in its LVLH axes (plant/dynamics/frames.py)."""
-    from plant.dynamics.frames import lvlh_basis
+    from swarmhil.plant.dynamics.frames import lvlh_basis
 
     return (r - r_c) @ lvlh_basis(r_c, v_c).T
 
@@ -205,15 +205,15 @@ def floor_surround(sc: Any, steps: int | None = None) -> dict:
     control (eq. 6, 18-21) each over its own view (the others' x~ and ξ of the last step's packets,
     float32), the sphere centres carried forward from the leader's packet, the Euler step of ξ_i,
     the actuator limits and the inertial plant (DOP853) in the leader's LVLH."""
-    from missions.p003_surround.fsw import vectorised
-    from missions.p003_surround.fsw.funnel import leader_accel, tt_control
-    from missions.p003_surround.fsw.nash import ct_accel
-    from missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
-    from missions.p003_surround.fsw.controllers import LeaderController, ServicerController
-    from plant.bodies import manoeuvre_accel
-    from plant.dynamics.constants import MU_EARTH_M3PS2
-    from plant.dynamics.frames import eci_to_lvlh, lvlh_vector_to_eci
-    from plant.dynamics.rk_tableau import rk_step
+    from swarmhil.missions.p003_surround.fsw import vectorised
+    from swarmhil.missions.p003_surround.fsw.funnel import leader_accel, tt_control
+    from swarmhil.missions.p003_surround.fsw.nash import ct_accel
+    from swarmhil.missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
+    from swarmhil.missions.p003_surround.fsw.controllers import LeaderController, ServicerController
+    from swarmhil.plant.bodies import manoeuvre_accel
+    from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2
+    from swarmhil.plant.dynamics.frames import eci_to_lvlh, lvlh_vector_to_eci
+    from swarmhil.plant.dynamics.rk_tableau import rk_step
 
     w, ctrls = _world(sc), _controllers(sc)
     prm = sc.sensing.get("params", {})
@@ -311,9 +311,9 @@ def floor_servicing(sc: Any, steps: int | None = None) -> dict:
     kind draws it), eta_i (eq. 12), the RK4 of the six internal states over the hold (eqs. 25, 26, 28:
     the neighbours' u_j and float32 theta_j of the last step's packets), the Lb-DNN and eq. 27, the
     actuator limit and the inertial plant (two-body + J2 + drag, DOP853), commands in ECI."""
-    from missions.p004_lbdnn.fsw import vectorised
-    from missions.p004_lbdnn.sense import measurement_noise
-    from plant.dynamics.rk_tableau import rk_step
+    from swarmhil.missions.p004_lbdnn.fsw import vectorised
+    from swarmhil.missions.p004_lbdnn.sense import measurement_noise
+    from swarmhil.plant.dynamics.rk_tableau import rk_step
 
     w, ctrls = _world(sc), _controllers(sc)
     prm = sc.sensing.get("params", {})

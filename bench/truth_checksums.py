@@ -28,8 +28,8 @@ sys.path.insert(0, str(ROOT))
 def truth_sha256(scenario: str, duration_s: float, out: Path) -> str:
     from mcap.reader import make_reader
 
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration_s)
     run_in_process(sc, out, "checksum")
@@ -48,7 +48,7 @@ REFERENCE_ROWS = 61
 def truth_arrays(run_dir: Path) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
     """(t_s (K,), spacecraft ids, positions (K, N, 3), velocities (K, N, 3)) of a run's recorded
     spacecraft truth, in step order (dashboards/frames.py reads the recording)."""
-    from dashboards.frames import read_frames
+    from swarmhil.dashboards.frames import read_frames
 
     tr = read_frames(run_dir / "run.mcap")["truth"]
     tr = tr[tr["kind"] == "spacecraft"].sort_values(["step", "id"], kind="stable")

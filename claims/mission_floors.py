@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from claims.model import Claim, Row, Source, Table, Tol
-from claims.runs import bench_script
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.runs import bench_script
 
 DOC = "docs/performance.md"
 SHAPE = Tol(shape_only=True)

@@ -12,7 +12,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/performance.md"
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,7 +30,7 @@ FIELDS = (("rtf_lockstep", "lock", "s3"), ("realtime_speed_no_miss", "rt", "s3")
 
 def bench_module() -> ModuleType:
     """bench/rtf_curve.py (bench/ is not a package)."""
-    from claims.runs import bench_script
+    from swarmhil.claims.runs import bench_script
 
     return bench_script("rtf_curve")
 

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from bus import swarmhil_pb2 as pb
+from swarmhil.bus import swarmhil_pb2 as pb
 from conftest import SCENARIOS
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _truths(path: Path) -> list[tuple[int, bytes]]:
@@ -57,10 +57,10 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
     """Paper 001's sensing kind (`relative`, own state) as arrays: for spacecraft a few metres apart
     (neighbours in and out of the 21 m ball, a dead one), every observer's neighbours, relative
     states and own state equal what the agent reads from its message (agent/node.py)."""
-    from agent.node import observation_from_rel
-    from bus.codec import header
-    from deploy.scenario import plant_config
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     sc = load_scenario(SCENARIOS / "tersoff-6.toml")
     kind = make_sensing("relative", plant_config(sc))
@@ -92,11 +92,11 @@ def test_p004_partial_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
     """Paper 004's sensing kind (`p004-partial`) as arrays (issue 29): every observer's named arrays
     (d_ij to its live graph neighbours, y_i) equal, byte for byte and key for key, what the agent reads
     from its message (agent/node.py), noise included; no neighbour rows."""
-    from agent.node import observation_from_rel
-    from bus.codec import header
-    from deploy.scenario import plant_config
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     sc = load_scenario(SCENARIOS / "servicing-6.toml")
     cfg = plant_config(sc)
@@ -126,11 +126,11 @@ def test_p003_relative_batch_equals_its_messages() -> None:
     measurement and each servicer's leader-relative state equal, byte for byte and key for key, what
     the agent reads from its message; a target beyond the range is not measured; with noise the kind
     has no batch form (its draws stay in the messages' order)."""
-    from agent.node import observation_from_rel
-    from bus.codec import header
-    from deploy.scenario import plant_config
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     sc = load_scenario(SCENARIOS / "surround-6.toml")
     cfg = plant_config(sc)

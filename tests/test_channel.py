@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from link.model import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
+from swarmhil.link.model import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
                          line_of_sight_clear, loss_draw, parse_link_config)
 
 A_M = 6878137.0  # reference orbit radius (500 km altitude)
@@ -291,7 +291,7 @@ def test_line_of_sight_keeps_the_bits_of_np_sum_clip_and_norm() -> None:
     """link/model.py line_of_sight_clear without np.sum / np.clip / np.linalg.norm's Python (issue 29:
     once per packet): the verdicts of the formula as written with them, on random segments about the
     Earth's limb, degenerate segments (p1 = p2), NaN rows, one row or many."""
-    from link.model import line_of_sight_clear
+    from swarmhil.link.model import line_of_sight_clear
 
     rng = np.random.default_rng(29)
     a, re = 6878137.0, 6378137.0

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plant.dynamics.absolute_j2 import kepler_to_eci, qns_to_eci, roe_to_absolute_elements
-from plant.dynamics.inertial import InertialPropagator
-from plant.dynamics.propagator import Propagator, make_propagator
+from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci, qns_to_eci, roe_to_absolute_elements
+from swarmhil.plant.dynamics.inertial import InertialPropagator
+from swarmhil.plant.dynamics.propagator import Propagator, make_propagator
 
 MU = 3.986004418e14
 RE = 6378137.0
@@ -186,8 +186,8 @@ def test_bad_arguments() -> None:
 def test_drag_accel_keeps_the_bits_of_stack_and_norm() -> None:
     """absolute_j2.drag_accel fills omega_E x r in place and takes |x| as sqrt(add.reduce(x * x)) (issue
     29): the bits of the formula as it was written with np.stack and np.linalg.norm."""
-    from plant.dynamics.absolute_j2 import drag_accel
-    from plant.dynamics.constants import (ATMOSPHERE_H0_M, ATMOSPHERE_RHO0_KGPM3, ATMOSPHERE_SCALE_HEIGHT_M,
+    from swarmhil.plant.dynamics.absolute_j2 import drag_accel
+    from swarmhil.plant.dynamics.constants import (ATMOSPHERE_H0_M, ATMOSPHERE_RHO0_KGPM3, ATMOSPHERE_SCALE_HEIGHT_M,
                                           OMEGA_EARTH_RADPS, R_EARTH_M)
 
     rng = np.random.default_rng(29)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plant.dynamics.limits import force_to_accel, limit_command, limit_norm, limit_per_axis
+from swarmhil.plant.dynamics.limits import force_to_accel, limit_command, limit_norm, limit_per_axis
 
 
 def test_per_axis_clips_each_axis() -> None:
@@ -77,7 +77,7 @@ def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
     so the same bits on any CPU)."""
     import math
 
-    from plant.world import World
+    from swarmhil.plant.world import World
 
     cmds = np.array([
         [3e-4, 4e-4, 0.0],      # |a| = 5e-4, under the 1e-3 limit on every axis
@@ -118,7 +118,7 @@ def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
 def test_world_limit_of_mixed_modes_equals_the_per_craft_loop_bit_for_bit() -> None:
     """MissionWorld.limit limits each limit mode's spacecraft in one call (issue 29): the bits of the
     per-craft loop it replaced, `f(a[i:i+1], max_i)` (NaN, -0.0, +-inf, subnormals; norm and per axis)."""
-    from plant.mission_world import MissionWorld
+    from swarmhil.plant.mission_world import MissionWorld
 
     rng = np.random.default_rng(29)
     n = 12

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, SCENARIOS
-from dashboards.truth_io import read_truth
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.dashboards.truth_io import read_truth
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 from test_batch_missions import CLUSTER
 
 sys.path.insert(0, str(ROOT / "bench"))

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, Transmission, register
-from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame
+from swarmhil.agent.controller import Command, Observation, OrbitInfo, Transmission, register
+from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame
 
 from . import payload as pl
 from . import quaternion as quat
@@ -25,7 +25,7 @@ from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
-from missions.p000_capture.contract import CaptureParams
+from swarmhil.missions.p000_capture.contract import CaptureParams
 from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires
 
