@@ -11,6 +11,15 @@ checked to give the same total dV to the last bit. A one-step run of each missio
 every module, so import time is in neither figure. CPU is this process's (`time.process_time`);
 wall beside it carries the load (printed at the start and the end).
 
+With `--floors`, each mission's batch run against its vectorised floor instead (bench/mission_floors.py:
+the same scenario, law and dynamics in one numpy loop): `--repeats` alternations of floor, batch run
+in this process (each preceded by nothing but the last: the machine is shared, so the pairs are
+interleaved and the medians reported), the ratio of the batch run's plant loop (`loop_wall_s`, what
+bench/bench_backbone.py compares for paper 002) and of the whole `run_in_process` (start-up and
+recorder close included) to the floor's loop, per pair; the floor's total dV and final positions
+are checked against the batch run's truth (relative dV difference and metres printed). `make bench`
+runs this after bench/bench_backbone.py.
+
 With `--before COMMIT`, each mission is also run on that commit's tree (exported with `git
 archive`, this venv, its own subprocess: a one-step warm-up run, then the measured run in the same
 process) with `record="truth"`, which before issue 29 took the per-agent path for these missions:
@@ -19,12 +28,14 @@ the ratio before / batch is what a campaign of the mission gains.
     nice -n 10 .venv/bin/python bench/bench_batch_missions.py
     nice -n 10 .venv/bin/python bench/bench_batch_missions.py --before 2421385
     nice -n 10 .venv/bin/python bench/bench_batch_missions.py --missions servicing-6 --duration-scale 6
+    nice -n 10 .venv/bin/python bench/bench_batch_missions.py --floors --repeats 5
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -33,6 +44,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
 
 # scenario -> simulated seconds of the default measurement (600 steps each)
 MISSIONS = {"servicing-6": 60.0, "surround-6": 60.0, "tersoff-6": 3000.0}
@@ -99,12 +111,69 @@ def _before(tree: Path, scenario: Path, duration_s: float) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
+def floor_pairs(name: str, sc, repeats: int, tmp: Path) -> dict:
+    """`repeats` alternations of the mission's floor and its batch run (after one warm-up step of
+    each); the times, their medians, the ratios per pair and the floor's agreement with the truth."""
+    import numpy as np
+
+    from swarmhil.dashboards.truth_io import read_truth
+    from mission_floors import floor
+
+    floor(sc.with_overrides(duration_s=sc.step_s))
+    _run(sc.with_overrides(duration_s=sc.step_s), tmp / f"{name}-warm", True)
+    fl, loop, run = [], [], []
+    for k in range(repeats):
+        f = floor(sc)
+        _cpu, wall, sb = _run(sc, tmp / f"{name}-b{k}", True)
+        assert sb["batch"]["used"] is True, sb["batch"]
+        fl.append(f["loop_s"])
+        loop.append(sb["loop_wall_s"])
+        run.append(wall)
+    truth = read_truth(tmp / f"{name}-b{repeats - 1}" / "run.mcap")
+    ratio = [b / f for b, f in zip(loop, fl)]
+    ratio_run = [b / f for b, f in zip(run, fl)]
+    med = statistics.median
+    return {"scenario": name, "simulated_s": sc.duration_s, "steps": sc.steps, "repeats": repeats,
+            "floor_loop_s": fl, "batch_loop_s": loop, "batch_run_wall_s": run,
+            "floor_loop_median_s": med(fl), "batch_loop_median_s": med(loop), "batch_run_median_s": med(run),
+            "batch_over_floor_median": med(ratio), "batch_over_floor_min": min(ratio),
+            "batch_run_over_floor_median": med(ratio_run),
+            "floor_dv_rel_diff": abs(f["dv_total_mps"] / sb["delta_v_total_mps"] - 1.0),
+            "floor_position_diff_m": float(np.abs(f["position_m"] - truth.position_m[-1]).max())}
+
+
+def measure_floors(missions: list[str], repeats: int, duration_scale: float = 1.0) -> dict:
+    """Every mission's `floor_pairs` in one invocation, with the load average at the start and the end."""
+    from swarmhil.deploy.scenario import load_scenario
+
+    out: dict = {"load_start": os.getloadavg()[0], "missions": {}}
+    with tempfile.TemporaryDirectory(prefix="bench-floors-") as tmp:
+        for name in missions:
+            sc = load_scenario(ROOT / "deploy" / "scenarios" / f"{name}.toml")
+            sc = sc.with_overrides(duration_s=MISSIONS[name] * duration_scale)
+            r = out["missions"][name] = floor_pairs(name, sc, repeats, Path(tmp))
+            print(f"  {name} ({r['steps']} steps): floor loop {r['floor_loop_median_s']:.3f} s, batch loop "
+                  f"{r['batch_loop_median_s']:.3f} s (whole run {r['batch_run_median_s']:.3f} s): batch ÷ floor "
+                  f"{r['batch_over_floor_median']:.2f} (median of {repeats}, min {r['batch_over_floor_min']:.2f}; "
+                  f"whole run {r['batch_run_over_floor_median']:.2f}); floor vs truth: dV {r['floor_dv_rel_diff']:.1e} "
+                  f"relative, positions {r['floor_position_diff_m']:.1e} m", flush=True)
+    out["load_end"] = os.getloadavg()[0]
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--missions", nargs="*", default=list(MISSIONS))
     ap.add_argument("--duration-scale", type=float, default=1.0, help="times each mission's default duration")
     ap.add_argument("--before", default=None, help="also run each mission on this commit's tree (record truth)")
+    ap.add_argument("--floors", action="store_true", help="batch run against the vectorised floor (bench/mission_floors.py)")
+    ap.add_argument("--repeats", type=int, default=5, help="--floors: alternations of floor and batch run")
     a = ap.parse_args()
+    if a.floors:
+        print(f"batch run ÷ vectorised floor, papers 001, 003, 004 (load average {os.getloadavg()[0]:.2f})", flush=True)
+        res = measure_floors(a.missions, a.repeats, a.duration_scale)
+        print(json.dumps({k: v for k, v in res.items()}))
+        return
     from swarmhil.deploy.scenario import load_scenario
 
     print(json.dumps({"load_start": os.getloadavg()}))

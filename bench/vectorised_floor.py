@@ -112,9 +112,11 @@ def floor_run(sc, steps: int | None = None) -> dict:
     return {"loop_s": wall, "steps": steps, "agents": N, "dv_total_mps": float(dv.sum())}
 
 
-def main() -> None:
+def cli(run, default_scenario: str | Path) -> None:
+    """The floors' command line (this module's and bench/mission_floors.py's): SCENARIO [--duration S]
+    [--repeats K]; runs `run(sc)` K times and prints the fastest run and every loop time as JSON."""
     ap = argparse.ArgumentParser()
-    ap.add_argument("scenario", nargs="?", default=str(ROOT / "deploy/scenarios/sabatini-20.toml"))
+    ap.add_argument("scenario", nargs="?", default=str(default_scenario))
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--repeats", type=int, default=1)
     a = ap.parse_args()
@@ -123,10 +125,11 @@ def main() -> None:
     sc = load_scenario(a.scenario)
     if a.duration is not None:
         sc = sc.with_overrides(duration_s=a.duration)
-    runs = [floor_run(sc) for _ in range(a.repeats)]
+    runs = [run(sc) for _ in range(a.repeats)]
     best = min(runs, key=lambda r: r["loop_s"])
+    best = {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in best.items()}
     print(json.dumps({**best, "loop_s_all": [r["loop_s"] for r in runs], "scenario": sc.name}))
 
 
 if __name__ == "__main__":
-    main()
+    cli(floor_run, ROOT / "deploy/scenarios/sabatini-20.toml")

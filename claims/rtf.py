@@ -8,7 +8,6 @@ docs/img/rtf_curve.png from the same measurement (about 25 min here).
 """
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -31,11 +30,9 @@ FIELDS = (("rtf_lockstep", "lock", "s3"), ("realtime_speed_no_miss", "rt", "s3")
 
 def bench_module() -> ModuleType:
     """bench/rtf_curve.py (bench/ is not a package)."""
-    spec = importlib.util.spec_from_file_location("rtf_curve", ROOT / "bench/rtf_curve.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    from swarmhil.claims.runs import bench_script
+
+    return bench_script("rtf_curve")
 
 
 def flat(result: dict[str, Any]) -> dict[str, Any]:

@@ -13,6 +13,17 @@ from typing import Any
 SCENARIOS = Path(__file__).resolve().parent.parent / "deploy" / "scenarios"
 
 
+def bench_script(name: str) -> Any:
+    """bench/NAME.py as a module (bench/ is not a package): the benchmarks the bench-tier sources run."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, SCENARIOS.parent.parent / "bench" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 def scenario(name: str, sets: tuple[str, ...] = (), seed: int | None = None,
              duration_s: float | None = None) -> Any:
     """A shipped scenario (deploy/scenarios/NAME.toml) with `--set` overrides, a seed and a duration."""

@@ -80,6 +80,7 @@ class BatchLink:
         self.ref_radius_m = sc.orbit.semi_major_axis_m
         self.model = LinkModel(self.cfg, self.ids, sc.step_s, LinkFaults(getattr(sc, "faults", None) or [], sc.ids, sc.step_s))
         self.keys = Keys(run)
+        self._rx_keys = {s: self.keys.isl_rx(s) for s in self.ids}  # each receiver's isl/rx key, made once
         self.inbox: list[list[Any]] = [[] for _ in self.ids]
         self._tx_seq = [0] * len(self.ids)   # each agent's seq on its isl/tx key
         self._rx_seq: dict[str, int] = {}    # the channel's seq on each isl/rx key
@@ -116,7 +117,7 @@ class BatchLink:
 
     def window(self, step: int) -> None:
         for d in self.model.window(step):
-            key = self.keys.isl_rx(d.dst)
+            key = self._rx_keys.get(d.dst) or self.keys.isl_rx(d.dst)
             seq = self._rx_seq.get(key, 0)
             self._rx_seq[key] = seq + 1
             self.inbox[self.model.index[d.dst]].append(pb.IslPacket(

@@ -156,10 +156,12 @@ def line_of_sight_clear(p1_m: np.ndarray, p2_m: np.ndarray, ref_radius_m: float,
     c = np.array([-float(ref_radius_m), 0.0, 0.0])
     d = p2 - p1
     f = c - p1
-    dd = np.sum(d * d, axis=-1)
-    s = np.clip(np.sum(f * d, axis=-1) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+    # np.sum, np.clip and np.linalg.norm's arithmetic without their Python (issue 29: per packet)
+    dd = np.add.reduce(d * d, axis=-1)
+    s = (np.add.reduce(f * d, axis=-1) / np.where(dd > 0.0, dd, 1.0)).clip(0.0, 1.0)
     closest = p1 + s[..., None] * d
-    dist = np.linalg.norm(c - closest, axis=-1)
+    e = c - closest
+    dist = np.sqrt(np.add.reduce(e * e, axis=-1))
     clear = dist > earth_radius_m
     return bool(clear) if np.ndim(clear) == 0 else clear
 
@@ -399,7 +401,8 @@ class LinkModel:
         due = max(p.send_step + 1, math.ceil(arrive_t / self.step_s - 1e-9))
         cfg = self.cfg
         js = np.array([self.index[r] for r in receivers], dtype=int)
-        dist = np.linalg.norm(pos[js] - pos[i], axis=1)
+        rel = pos[js] - pos[i]
+        dist = np.sqrt(np.add.reduce(rel * rel, axis=1))  # np.linalg.norm's arithmetic
         reach = dist <= cfg.range_m  # NaN (body missing from the truth) counts as out of range
         clear = np.ones(len(js), dtype=bool)
         if cfg.occultation and reach.any():

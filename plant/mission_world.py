@@ -105,6 +105,14 @@ class MissionWorld:
         self.body_faults: dict[str, list[BodyFault]] = {}
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
+        # the spacecraft of each limit mode, limited in one call (row by row the same arithmetic)
+        self._limit_groups = [(limit_norm if mode == "norm" else limit_per_axis, rows, self.max_accel_mps2[rows])
+                              for mode in sorted(set(self.limit_mode))
+                              for rows in [np.array([i for i, m in enumerate(self.limit_mode) if m == mode])]]
+        self._rows_at = -1  # the step whose rows in the scenario frame (and u) are kept in _rows / _u
+        self._rows: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros((0, 3)))
+        self._u_at = -1
+        self._u = 0.0
         # rows of the translational propagator: spacecraft, then propagated bodies
         self.prop_bodies = [b for b in self.bodies if b.motion.kind == "propagated"]
         self.kin_bodies = [b for b in self.bodies if b.motion.kind == "kinematic"]
@@ -181,14 +189,18 @@ class MissionWorld:
     # --- state ----------------------------------------------------------------------------------
     @property
     def u_rad(self) -> float:
-        return float(self.propagator.u_rad)
+        if self._u_at != self.steps_done:  # once a step (the osculating u of an inertial origin costs ~60 us)
+            self._u, self._u_at = float(self.propagator.u_rad), self.steps_done
+        return self._u
 
     def _rows_lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         if self._origin_row is None:
             return self.propagator.state()
-        # the origin's thrust over the step that just ended turns its LVLH too (out of plane: about x)
-        p, v = self.propagator.relative_lvlh(self._origin_row, self._origin_thrust_eci)  # type: ignore[attr-defined]
-        return p[self._offset:], v[self._offset:]
+        if self._rows_at != self.steps_done:  # once a step: the truth, the sensing and the body truths ask for them
+            # the origin's thrust over the step that just ended turns its LVLH too (out of plane: about x)
+            p, v = self.propagator.relative_lvlh(self._origin_row, self._origin_thrust_eci)  # type: ignore[attr-defined]
+            self._rows, self._rows_at = (p[self._offset:], v[self._offset:]), self.steps_done
+        return self._rows[0].copy(), self._rows[1].copy()
 
     def lvlh(self) -> tuple[np.ndarray, np.ndarray]:
         """(N,3) spacecraft positions and velocities in the scenario frame."""
@@ -241,9 +253,8 @@ class MissionWorld:
     # --- actuators and propagation ----------------------------------------------------------------
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
         a = np.asarray(accel_mps2, float).copy()
-        for i, mode in enumerate(self.limit_mode):
-            f = limit_norm if mode == "norm" else limit_per_axis
-            a[i] = f(a[i:i + 1], float(self.max_accel_mps2[i]))[0]
+        for f, rows, max_mps2 in self._limit_groups:
+            a[rows] = f(a[rows], max_mps2)
         a[~self.alive] = 0.0
         return a
 

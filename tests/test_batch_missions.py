@@ -23,13 +23,19 @@ def _truths(path: Path) -> list[tuple[int, bytes]]:
                 if ch.topic == "truth"]
 
 
-# (scenario, simulated seconds): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of paper 001
-CASES = [("servicing-6", 60.0), ("surround-6", 60.0), ("tersoff-6", 1000.0)]
+# paper 001 inside the sensing ball: five in the shaping ball (Tersoff-Brenner forces), one in the near layer
+CLUSTER = [f"spacecraft.{i}.position_m={p}" for i, p in enumerate(
+    ["[3.0,9.0,1.0]", "[-2.0,-8.0,4.0]", "[1.0,4.0,-9.0]", "[0.5,-5.0,-7.0]", "[60.0,10.0,5.0]", "[-2.0,7.0,8.5]"])]
+# (id, scenario, simulated seconds, --set): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of
+# paper 001 (far layer), and 100 steps of it in the shaping and near layers (LatticeController.step_batch)
+CASES = [("servicing-6", "servicing-6", 60.0, []), ("surround-6", "surround-6", 60.0, []),
+         ("tersoff-6", "tersoff-6", 1000.0, []), ("tersoff-6-cluster", "tersoff-6", 500.0, CLUSTER)]
 
 
-@pytest.mark.parametrize("name,duration", CASES, ids=[c[0] for c in CASES])
-def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, name: str, duration: float) -> None:
-    sc = load_scenario(SCENARIOS / f"{name}.toml").with_overrides(duration_s=duration)
+@pytest.mark.parametrize("case,name,duration,sets", CASES, ids=[c[0] for c in CASES])
+def test_mission_batch_truth_equals_the_per_agent_run(tmp_path: Path, case: str, name: str, duration: float,
+                                                      sets: list[str]) -> None:
+    sc = load_scenario(SCENARIOS / f"{name}.toml", sets).with_overrides(duration_s=duration)
     full = run_in_process(sc, tmp_path / "all", "same")
     batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
     assert full.summary.get("batch") is None and batch.summary["batch"] == {"used": True, "why_not": None}
@@ -79,3 +85,73 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
             assert rel.extra[r][key].tobytes() == value.tobytes(), key
         pairs += b - a
     assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
+
+
+@pytest.mark.parametrize("dead", [(), (2,)], ids=["all-alive", "one-dead"])
+def test_p004_partial_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 004's sensing kind (`p004-partial`) as arrays (issue 29): every observer's named arrays
+    (d_ij to its live graph neighbours, y_i) equal, byte for byte and key for key, what the agent reads
+    from its message (agent/node.py), noise included; no neighbour rows."""
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "servicing-6.toml")
+    cfg = plant_config(sc)
+    kind, world = make_sensing("p004-partial", cfg), MissionWorld(cfg)
+    world.step(np.random.default_rng(4).normal(0, 1, (6, 3)), 0.1)
+    world.alive[list(dead)] = False
+    pos, vel = world.lvlh()
+    rows = np.flatnonzero(world.alive)
+    for step in (1, 7):
+        def ctx() -> SensingContext:
+            return SensingContext(step=step, t_s=0.1, u_rad=world.u_rad, ids=list(sc.ids), position_m=pos,
+                                  velocity_mps=vel, alive=world.alive, world=world)
+        rel = kind.batch(ctx(), rows)
+        assert rel.offsets.tolist() == [0] * (len(rows) + 1) and rel.rel_position_m.shape == (0, 3)
+        for r, j in enumerate(rows.tolist()):
+            o = observation_from_rel(kind.stimulus(ctx(), j, header("run", "plant", step, 0.1, 0)))
+            assert o.neighbour_ids == [] and list(rel.extra[r]) == list(o.extra)
+            for key, value in o.extra.items():
+                assert rel.extra[r][key].tobytes() == value.tobytes() and rel.extra[r][key].shape == value.shape, key
+            assert any(k.startswith("p004.y_m/") for k in o.extra)
+        measured_s3 = any("p004.d_m/s3" in e for e in rel.extra)  # a dead neighbour is not measured
+        assert measured_s3 is (2 not in dead)
+
+
+def test_p003_relative_batch_equals_its_messages() -> None:
+    """Paper 003's sensing kind (`p003-relative`) as arrays (issue 29), noise-free: the leader's target
+    measurement and each servicer's leader-relative state equal, byte for byte and key for key, what
+    the agent reads from its message; a target beyond the range is not measured; with noise the kind
+    has no batch form (its draws stay in the messages' order)."""
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
+
+    sc = load_scenario(SCENARIOS / "surround-6.toml")
+    cfg = plant_config(sc)
+    world = MissionWorld(cfg)
+    world.step(np.random.default_rng(3).normal(0, 0.1, (7, 3)), 0.1)
+    pos, vel = world.lvlh()
+    rows = np.arange(7)
+    for range_m in (5000.0, 10.0):
+        kind = make_sensing("p003-relative", plant_config(load_scenario(
+            SCENARIOS / "surround-6.toml", [f"sensing.params.range_m={range_m}"])))
+
+        def ctx() -> SensingContext:
+            return SensingContext(step=1, t_s=0.1, u_rad=world.u_rad, ids=list(sc.ids), position_m=pos,
+                                  velocity_mps=vel, alive=world.alive, world=world)
+        rel = kind.batch(ctx(), rows)
+        assert rel.offsets.tolist() == [0] * 8 and rel.rel_position_m.shape == (0, 3)
+        for r in rows.tolist():
+            o = observation_from_rel(kind.stimulus(ctx(), r, header("run", "plant", 1, 0.1, 0)))
+            assert list(rel.extra[r]) == list(o.extra) and (len(o.extra) == 2 or (r == 0 and range_m == 10.0))
+            for key, value in o.extra.items():
+                assert rel.extra[r][key].tobytes() == value.tobytes() and rel.extra[r][key].shape == value.shape, key
+    noisy = make_sensing("p003-relative", plant_config(load_scenario(
+        SCENARIOS / "surround-6.toml", ["sensing.params.position_noise_m=0.1"])))
+    assert not hasattr(noisy, "batch")

@@ -181,3 +181,25 @@ def test_bad_arguments() -> None:
         InertialPropagator(r_eci_m=r, v_eci_mps=v, mass_kg=1.0, thrust_frame="body")
     with pytest.raises(ValueError, match="takes no argument bc_m2pkg"):
         make_propagator("inertial", r_eci_m=r, v_eci_mps=v, mass_kg=1.0, bc_m2pkg=0.01)
+
+
+def test_drag_accel_keeps_the_bits_of_stack_and_norm() -> None:
+    """absolute_j2.drag_accel fills omega_E x r in place and takes |x| as sqrt(add.reduce(x * x)) (issue
+    29): the bits of the formula as it was written with np.stack and np.linalg.norm."""
+    from swarmhil.plant.dynamics.absolute_j2 import drag_accel
+    from swarmhil.plant.dynamics.constants import (ATMOSPHERE_H0_M, ATMOSPHERE_RHO0_KGPM3, ATMOSPHERE_SCALE_HEIGHT_M,
+                                          OMEGA_EARTH_RADPS, R_EARTH_M)
+
+    rng = np.random.default_rng(29)
+    r = rng.normal(0, 1, (500, 3)) * 6.9e6
+    v = rng.normal(0, 1, (500, 3)) * 7.6e3
+    r[rng.random((500, 3)) < 0.05] = -0.0
+    v[rng.random((500, 3)) < 0.05] = np.nan
+    bc = rng.random(500) * 0.1
+    for rot in (True, False):
+        v_rel = v - OMEGA_EARTH_RADPS * np.stack((-r[:, 1], r[:, 0], np.zeros_like(r[:, 0])), axis=-1) if rot else v
+        rho = ATMOSPHERE_RHO0_KGPM3 * np.exp(-((np.linalg.norm(r, axis=-1) - R_EARTH_M) - ATMOSPHERE_H0_M)
+                                             / ATMOSPHERE_SCALE_HEIGHT_M)
+        want = (-0.5 * rho * bc * np.linalg.norm(v_rel, axis=-1))[:, None] * v_rel
+        assert drag_accel(r, v, bc, rotating_atmosphere=rot).tobytes() == want.tobytes()
+        assert drag_accel(r[7], v[7], bc[7], rotating_atmosphere=rot).tobytes() == want[7].tobytes()

@@ -113,3 +113,25 @@ def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
                 x, y, z = (min(max(float(c), -1e-3), 1e-3) for c in cmd[i])
                 want[i] += math.sqrt(x * x + y * y + z * z) * 3.0
     assert w.delta_v_mps.tolist() == want
+
+
+def test_world_limit_of_mixed_modes_equals_the_per_craft_loop_bit_for_bit() -> None:
+    """MissionWorld.limit limits each limit mode's spacecraft in one call (issue 29): the bits of the
+    per-craft loop it replaced, `f(a[i:i+1], max_i)` (NaN, -0.0, +-inf, subnormals; norm and per axis)."""
+    from swarmhil.plant.mission_world import MissionWorld
+
+    rng = np.random.default_rng(29)
+    n = 12
+    modes = ["norm", "per_axis"] * (n // 2)
+    world = MissionWorld.__new__(MissionWorld)
+    world.limit_mode, world.max_accel_mps2, world.alive = modes, rng.random(n) * 1e-2, np.ones(n, dtype=bool)
+    world._limit_groups = [(limit_norm if m == "norm" else limit_per_axis, rows, world.max_accel_mps2[rows])
+                           for m in ("norm", "per_axis") for rows in [np.flatnonzero(np.array(modes) == m)]]
+    for _ in range(200):
+        a = rng.normal(0, 2e-2, (n, 3)) * 10.0 ** rng.integers(-310, 2, (n, 3))
+        a[rng.random((n, 3)) < 0.1] = rng.choice([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324], size=1)
+        want = a.copy()
+        for i, m in enumerate(modes):
+            f = limit_norm if m == "norm" else limit_per_axis
+            want[i] = f(a[i:i + 1], float(world.max_accel_mps2[i]))[0]
+        assert world.limit(a).tobytes() == want.tobytes()

@@ -84,3 +84,18 @@ def test_eccentric_reference_orbit() -> None:
     d["plant"] = {"fidelity": "cw"}
     with pytest.raises(ScenarioError, match="inertial"):
         parse_scenario(d, "t")
+
+
+def test_rows_and_u_are_computed_once_a_step_and_follow_the_state() -> None:
+    """MissionWorld keeps the scenario-frame rows and u of the current step (issue 29: the truth, the
+    sensing and the body truths ask for them several times a step): what it returns is what the
+    propagator gives now, step after step, and a caller's copy can be written without harm."""
+    w = _world(command_frame="eci")
+    for _ in range(3):
+        p, v = w.lvlh()
+        fp, fv = w.propagator.relative_lvlh(w._origin_row, w._origin_thrust_eci)
+        assert np.array_equal(p, fp[1:3]) and np.array_equal(v, fv[1:3])
+        assert w.u_rad == float(w.propagator.u_rad)
+        p[:] = np.nan
+        assert np.isfinite(w.lvlh()[0]).all()
+        w.step(np.array([[0.0, 0.0, 0.0], [1e-3, -2e-3, 5e-4]]), 0.1)

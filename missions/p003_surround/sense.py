@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import add_measurement
 from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.sensing.builtin import RelBatch
 from swarmhil.missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
@@ -57,6 +58,8 @@ class P003RelativeKind:
                              f"{self.p.leader_id!r} (got {origin!r})")
         self.leader = list(scenario.ids).index(self.p.leader_id)
         self.rng = np.random.default_rng([int(scenario.seed), 0x003])
+        if not (self.p.position_noise_m or self.p.velocity_noise_mps):
+            self.batch = self.batch_noise_free  # the batch mode's arrays (issue 29); noisy: the messages, in order
 
     def _noisy(self, rp: np.ndarray, rv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.p.position_noise_m:
@@ -65,19 +68,30 @@ class P003RelativeKind:
             rv = rv + self.rng.normal(0.0, self.p.velocity_noise_mps, 3)
         return rp, rv
 
-    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
-        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
+    def measured(self, ctx: SensingContext, j: int) -> list[tuple[str, str, np.ndarray]]:
+        """Spacecraft j's measurements at this step, (name, subject, values), noise drawn in order."""
         pos, vel, lead = ctx.position_m, ctx.velocity_mps, self.leader
         if j == lead:
             target = ctx.cached("p003.target", lambda: next(
                 b for b in ctx.world.body_truth() if b.spec.id == self.p.target_id))
             rp, rv = target.position_m - pos[lead], target.velocity_mps - vel[lead]
-            if np.linalg.norm(rp) <= self.p.range_m:
-                rp, rv = self._noisy(rp, rv)
-                add_measurement(msg, f"{TARGET_REL_KEY}.position_m", rp, self.p.target_id)
-                add_measurement(msg, f"{TARGET_REL_KEY}.velocity_mps", rv, self.p.target_id)
-        else:
-            rp, rv = self._noisy(pos[j] - pos[lead], vel[j] - vel[lead])
-            add_measurement(msg, f"{LEADER_REL_KEY}.position_m", rp, self.p.leader_id)
-            add_measurement(msg, f"{LEADER_REL_KEY}.velocity_mps", rv, self.p.leader_id)
+            if not np.linalg.norm(rp) <= self.p.range_m:
+                return []
+            rp, rv = self._noisy(rp, rv)
+            return [(f"{TARGET_REL_KEY}.position_m", self.p.target_id, rp),
+                    (f"{TARGET_REL_KEY}.velocity_mps", self.p.target_id, rv)]
+        rp, rv = self._noisy(pos[j] - pos[lead], vel[j] - vel[lead])
+        return [(f"{LEADER_REL_KEY}.position_m", self.p.leader_id, rp),
+                (f"{LEADER_REL_KEY}.velocity_mps", self.p.leader_id, rv)]
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
+        for name, subject, values in self.measured(ctx, j):
+            add_measurement(msg, name, values, subject)
         return msg
+
+    def batch_noise_free(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
+        """What `stimulus` gives each of `observers` as arrays, without noise (the batch mode, issue 29):
+        the measurements as the named arrays `extra` holds (`name/subject`, the messages' float64 values)."""
+        return RelBatch.named([{f"{name}/{subject}": values for name, subject, values in self.measured(ctx, j)}
+                               for j in np.asarray(observers).tolist()])

@@ -31,6 +31,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import add_measurement
 from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, KEY_D, KEY_Y, ServicerConfig, mission_from_params
 from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.sensing.builtin import RelBatch
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p004-partial"
@@ -84,22 +85,31 @@ class P004PartialKind:
                 raise ValueError(f"{KIND}: {sid}'s graph neighbours {missing} are not spacecraft")
         self.seed = int(scenario.seed)
 
-    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
-        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
-        sid = ctx.ids[j]
-        cfg = self.cfgs.get(sid)
+    def measured(self, ctx: SensingContext, j: int) -> list[tuple[str, str, np.ndarray]]:
+        """Spacecraft j's measurements at this step: (name, subject, values) of eq. 9 and 10."""
+        cfg = self.cfgs.get(ctx.ids[j])
         if cfg is None:
-            return msg
+            return []
         ids, r, _v = ctx.cached("p004.eci", ctx.world.eci)
-        row = {k: n for n, k in enumerate(ids)}
-        alive = {s: bool(a) for s, a in zip(ctx.ids, ctx.alive)}
-        q_i = r[row[sid]]
+        row = ctx.cached("p004.rows", lambda: {k: n for n, k in enumerate(ids)})
+        alive = ctx.cached("p004.alive", lambda: {s: bool(a) for s, a in zip(ctx.ids, ctx.alive)})
+        q_i = r[row[ctx.ids[j]]]
         d_noise, y_noise = measurement_noise(self.seed, ctx.step, j, len(cfg.neighbours),
                                              cfg.c_matrix.shape[0], self.p.noise_std_m)
-        for k, nb in enumerate(cfg.neighbours):
-            if alive.get(nb, False):
-                add_measurement(msg, KEY_D, r[row[nb]] - q_i + d_noise[k], nb)
+        out = [(KEY_D, nb, r[row[nb]] - q_i + d_noise[k]) for k, nb in enumerate(cfg.neighbours) if alive.get(nb, False)]
         if cfg.b:
-            y = cfg.c_matrix @ (r[row[self.p.defunct_id]] - q_i) + y_noise
-            add_measurement(msg, KEY_Y, y, self.p.defunct_id)
+            out.append((KEY_Y, self.p.defunct_id, cfg.c_matrix @ (r[row[self.p.defunct_id]] - q_i) + y_noise))
+        return out
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+        msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
+        for name, subject, values in self.measured(ctx, j):
+            add_measurement(msg, name, values, subject)
         return msg
+
+    def batch(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
+        """What `stimulus` gives each of `observers` as arrays (the batch mode, issue 29): no neighbour
+        rows, the measurements as the named arrays `extra` holds (`name/subject`, the float64 values
+        the message carries, drawn from the same per-step generators)."""
+        return RelBatch.named([{f"{name}/{subject}": values for name, subject, values in self.measured(ctx, j)}
+                               for j in np.asarray(observers).tolist()])

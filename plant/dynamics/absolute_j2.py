@@ -164,12 +164,16 @@ def drag_accel(
 ) -> np.ndarray:
     """Drag a = -1/2 rho(h) B |v_rel| v_rel (Vallado eq. 8-29), B = C_D A/m [m^2/kg] per body (...,)."""
     v_rel = v_mps
-    if rotating_atmosphere:
-        omega_cross_r = np.stack((-r_m[..., 1], r_m[..., 0], np.zeros_like(r_m[..., 0])), axis=-1)
+    if rotating_atmosphere:  # omega_E x r = (-y, x, 0) omega_E, filled in place (np.stack's values)
+        omega_cross_r = np.empty(np.shape(r_m))
+        omega_cross_r[..., 0] = -r_m[..., 1]
+        omega_cross_r[..., 1] = r_m[..., 0]
+        omega_cross_r[..., 2] = 0.0
         v_rel = v_mps - OMEGA_EARTH_RADPS * omega_cross_r
-    h = np.linalg.norm(r_m, axis=-1) - R_EARTH_M
+    # |x| as np.linalg.norm computes it (sqrt of the sum of squares), without its Python
+    h = np.sqrt(np.add.reduce(r_m * r_m, axis=-1)) - R_EARTH_M
     rho = rho0_kgpm3 * np.exp(-(h - h0_m) / scale_height_m)
-    speed = np.linalg.norm(v_rel, axis=-1)
+    speed = np.sqrt(np.add.reduce(v_rel * v_rel, axis=-1))
     return (-0.5 * rho * np.asarray(bc_m2pkg) * speed)[..., None] * v_rel
 
 

@@ -100,6 +100,13 @@ class RelBatch:
     owner: np.ndarray | None = None  # (P,) the observer row r of each pair
     extra: list[dict[str, np.ndarray]] | None = None  # per observer: its named arrays (None: none)
 
+    @classmethod
+    def named(cls, extra: list[dict[str, np.ndarray]]) -> "RelBatch":
+        """Observers that measure named arrays only (no neighbour rows): a `Measurements` kind's batch form."""
+        n = len(extra)
+        return cls(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3)),
+                   np.zeros(0, dtype=np.int64), extra)
+
 
 @register_sensing("scene")
 class SceneKind:

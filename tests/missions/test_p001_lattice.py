@@ -205,3 +205,42 @@ def test_the_room_never_imports_plant_or_bus() -> None:
             names = [a.name for a in node.names] if isinstance(node, ast.Import) else (
                 [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             assert not any(n.split(".")[0] in ("plant", "bus") for n in names), (path.name, names)
+
+
+@pytest.mark.parametrize("params", [{}, {"far_damping": True, "free_in_shaping": True}], ids=["default", "damped"])
+def test_step_batch_is_each_step_bit_for_bit(params: dict) -> None:
+    """LatticeController.step_batch (issue 29: the batch run's path) gives each spacecraft its own
+    `step`'s command, byte for byte, and leaves it in the same layer: random swarms of six over
+    hundreds of steps with spacecraft in every layer (far, near, shaping), neighbours in and out of
+    the 21 m ball (the Tersoff-Brenner term), times before and after t_natural."""
+    import copy
+
+    from swarmhil.agent.controller import Observation, ObservationBatch, OrbitInfo
+    from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY
+
+    orbit = OrbitInfo(42164230.752852604, 7.2921e-5)
+    rng = np.random.default_rng(29)
+    ids = [f"sc{i}" for i in range(6)]
+    one = [make_controller("p001-lattice", s, orbit, params) for s in ids]
+    many = copy.deepcopy(one)
+    layers = set()
+    for k in range(300):
+        scale = rng.choice([8.0, 40.0, 300.0])
+        pos, vel = rng.normal(0, scale, (6, 3)), rng.normal(0, 0.05, (6, 3))
+        t = float(rng.choice([5.0 * k, 19000.0 + k]))
+        obs = []
+        for i in range(6):
+            near = [j for j in range(6) if j != i and np.linalg.norm(pos[j] - pos[i]) <= 21.0]
+            obs.append(Observation(step=k, t_s=t, u_rad=0.0, neighbour_ids=[ids[j] for j in near],
+                                   rel_position_m=(pos[near] - pos[i]).reshape(-1, 3),
+                                   rel_velocity_mps=(vel[near] - vel[i]).reshape(-1, 3),
+                                   extra={OWN_POSITION_KEY: pos[i], OWN_VELOCITY_KEY: vel[i]}))
+        want = [c.step(o) for c, o in zip(one, obs)]
+        got = type(many[0]).step_batch(many, ObservationBatch.of(ids, obs))
+        assert got.accel_mps2.tobytes() == np.array([w.accel_mps2 for w in want]).tobytes()
+        assert got.modes == [w.mode for w in want] and [c.layer for c in many] == [c.layer for c in one]
+        layers |= set(got.modes)
+        if k % 50 == 49:  # start over: the layers latch inwards
+            one = [make_controller("p001-lattice", s, orbit, params) for s in ids]
+            many = copy.deepcopy(one)
+    assert layers == {"far", "near", "shaping"}

@@ -379,3 +379,26 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
             print(f"dt {dt:g} s, {label}: worst |q~|/bound {r['worst']:.12f} at {r['t_worst_s']:.3f} s, "
                   f"peak |u_L| {r['u_peak_n']:.3g} N, guarded steps {r['guarded_steps']}, "
                   f"error at end {np.round(r['err_end_m'], 2)} m")
+
+
+def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
+    """Issue 29: natural_rel_accel without np.stack / np.linalg.norm gives the bits of the formula as
+    written with them, one servicer or stacked (NaN, -0.0, inf); the servicers' `saturated` test is
+    np.allclose's verdict."""
+    from swarmhil.missions.p003_surround.fsw.controllers import _allclose
+
+    rng = np.random.default_rng(29)
+    a_m, n = 6878137.0, 0.0011
+    q, v = rng.normal(0, 500, (300, 3)), rng.normal(0, 3, (300, 3))
+    q[rng.random((300, 3)) < 0.05], v[rng.random((300, 3)) < 0.05] = -0.0, np.nan
+    r_ref = np.array([a_m, 0.0, 0.0])
+    mu = n**2 * a_m**3
+    r = r_ref + q
+    want = (-mu * r / np.linalg.norm(r, axis=-1, keepdims=True) ** 3 + mu * r_ref / a_m**3
+            + np.stack([2 * n * v[:, 1], -2 * n * v[:, 0], np.zeros_like(v[:, 2])], -1)
+            + np.stack([n**2 * q[:, 0], n**2 * q[:, 1], np.zeros_like(q[:, 2])], -1))
+    assert natural_rel_accel(q, v, a_m, n).tobytes() == want.tobytes()
+    assert natural_rel_accel(q[3], v[3], a_m, n).tobytes() == want[3].tobytes()
+    for a in (q[0], q[0] * (1 + 1e-6), q[0] * (1 + 1e-4), np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0])):
+        for b in (q[0], np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0])):
+            assert _allclose(a, b) == np.allclose(a, b)

@@ -5,15 +5,16 @@ Inputs and outputs are SI; the TB term is evaluated in this room's normalised un
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 
-from swarmhil.agent.controller import Command, Observation, OrbitInfo, register
-from swarmhil.missions.p001_lattice.fsw.cw import far_accel
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
+from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel
 from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
 from swarmhil.missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
-from swarmhil.missions.p001_lattice.fsw.sensing import OwnState
+from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY, OwnState
 from swarmhil.missions.p001_lattice.fsw.tersoff import forces, tersoff_params
 from swarmhil.missions.p001_lattice.fsw.wells import damping, planar_well, point_well, saturate
 
@@ -60,6 +61,52 @@ class LatticeController:
                                 p.r_middle_m, p.r_inner_m, p.t_natural_s)
         u = self.gathering(own, obs.t_s) + tb_accel(obs.rel_position_m, p.side_m, self.tb, p.tb_accel_unit_mps2)
         return Command(accel_mps2=saturate(u, p.max_accel_mps2), mode=self.layer.name.lower())
+
+    @classmethod
+    def step_batch(cls, controllers: list["LatticeController"], batch: ObservationBatch) -> CommandBatch:
+        """The step of N spacecraft (issue 29), each command bit for bit its own `step`'s: the far
+        layer's ballistic systems solved in one stacked `np.linalg.solve` (LAPACK on each system
+        alone, as the single call), every other norm, product and sum as `step` computes it on each
+        row; the near and shaping wells and the Tersoff-Brenner term per spacecraft through the same
+        functions. Controllers with different parameters step one by one."""
+        p = controllers[0].p
+        if any(c.p != p for c in controllers):
+            return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
+        n, t = len(controllers), float(batch.t_s)
+        extra = batch.extra if batch.extra is not None else [{}] * n
+        pos, vel = np.empty((n, 3)), np.empty((n, 3))
+        for r, e in enumerate(extra):  # OwnState.from_extra's values (a missing or bad one raises: each `step` then)
+            pos[r], vel[r] = e[OWN_POSITION_KEY], e[OWN_VELOCITY_KEY]
+        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+            raise ValueError("non-finite own state in the batch")
+        for r, c in enumerate(controllers):
+            c.layer = next_layer(c.layer, math.sqrt(float(pos[r].dot(pos[r]))), t, p.r_middle_m, p.r_inner_m,
+                                 p.t_natural_s)  # float(np.linalg.norm(r)) = sqrt(r . r)
+        g = np.empty((n, 3))
+        far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
+        if far:  # eq. 1-2 (cw.far_accel) for every far spacecraft at once
+            if not p.t_desire_s - t > 0.0:
+                raise ValueError(f"time to go {p.t_desire_s - t} s: the ballistic field is only defined before t_desire")
+            phi_rr, phi_rv = cw_position_blocks(p.mean_motion_radps, p.t_desire_s - t)
+            rhs = np.array([phi_rr @ pos[r] for r in far])
+            v_d = -np.linalg.solve(np.broadcast_to(phi_rv, (len(far), 3, 3)), rhs[:, :, None])[:, :, 0]
+            g[far] = p.far_gain_ps * (v_d - vel[far])
+            if p.far_damping:
+                g[far] = g[far] + damping(vel[far], p.damping_ps)
+        for r, c in enumerate(controllers):
+            if c.layer != Layer.FAR:
+                g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
+        tb = np.zeros((n, 3))
+        off = batch.offsets
+        for r, c in enumerate(controllers):
+            if off[r + 1] > off[r]:
+                tb[r] = tb_accel(batch.rel_position_m[off[r]:off[r + 1]], p.side_m, c.tb, p.tb_accel_unit_mps2)
+        u = g + tb
+        for r in range(n):  # wells.saturate, row by row
+            norm = math.sqrt(float(u[r].dot(u[r])))
+            if not norm <= p.max_accel_mps2:
+                u[r] = u[r] * (p.max_accel_mps2 / norm)
+        return CommandBatch(accel_mps2=u, modes=[c.layer.name.lower() for c in controllers])
 
 
 def _check(params: dict[str, Any]) -> None:

@@ -11,6 +11,7 @@ All vectors in the leader's LVLH (x radial, y along-track, z orbit normal).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -165,7 +166,7 @@ class ServicerController:
             u = clip_norm(u_sync + u_ct + u_id, g.max_thrust_n)
         else:
             u = u_sync + clip_norm(u_ct + u_id, g.max_thrust_n)
-        saturated = not np.allclose(u, u_sync + u_ct + u_id)
+        saturated = not _allclose(u, u_sync + u_ct + u_id)
         self.telemetry = ServicerTelemetry(u_sync, u_ct, u_id, u, saturated)
         # explicit Euler step of eq. 20 for the own block ξ_i, position rate capped (guard)
         dt = 0.0 if self.t_prev is None else t_s - self.t_prev
@@ -176,6 +177,15 @@ class ServicerController:
         pkt = packets.CTPacket(i, self.x_err[i], self.xi[i])
         return Command(accel_mps2=u / m, mode="surround",
                        transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))])
+
+
+def _allclose(a: np.ndarray, b: np.ndarray) -> bool:
+    """np.allclose(a, b) (rtol 1e-5, atol 1e-8) without its Python when a and b are finite: np.isclose
+    is then |a - b| <= 1e-8 + 1e-5 |b| (or a == b, which implies it) everywhere; otherwise
+    np.allclose itself (issue 29: ~25 us a servicer and step)."""
+    if math.isfinite(np.add.reduce(a) + np.add.reduce(b)):  # finite sums: every entry finite
+        return bool((np.abs(a - b) <= 1e-8 + 1e-5 * np.abs(b)).all())
+    return bool(np.allclose(a, b))
 
 
 @register(LEADER_CONTROLLER)

@@ -17,7 +17,9 @@ def natural_rel_accel(q_m: np.ndarray, v_mps: np.ndarray, a_m: float, n_radps: f
     mu = n_radps**2 * a_m**3
     r_ref = np.array([a_m, 0.0, 0.0])
     r = r_ref + q
-    grav = -mu * r / np.linalg.norm(r, axis=-1, keepdims=True) ** 3 + mu * r_ref / a_m**3
-    coriolis = np.stack([2 * n_radps * v[..., 1], -2 * n_radps * v[..., 0], np.zeros_like(v[..., 2])], -1)
-    centrifugal = np.stack([n_radps**2 * q[..., 0], n_radps**2 * q[..., 1], np.zeros_like(q[..., 2])], -1)
+    # np.linalg.norm's |r| and np.stack's rows, without their Python (the same values; issue 29)
+    grav = -mu * r / np.sqrt(np.add.reduce(r * r, axis=-1, keepdims=True)) ** 3 + mu * r_ref / a_m**3
+    coriolis, centrifugal = np.empty(np.shape(v)), np.empty(np.shape(q))
+    coriolis[..., 0], coriolis[..., 1], coriolis[..., 2] = 2 * n_radps * v[..., 1], -2 * n_radps * v[..., 0], 0.0
+    centrifugal[..., 0], centrifugal[..., 1], centrifugal[..., 2] = n_radps**2 * q[..., 0], n_radps**2 * q[..., 1], 0.0
     return grav + coriolis + centrifugal

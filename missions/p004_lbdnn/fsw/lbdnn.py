@@ -13,6 +13,7 @@ Phi = tanh(V_5^T phi_4(...)), so the Jacobian of eq. 3 gains the factor diag(1 -
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -30,6 +31,7 @@ class Forward:
     mats: list[np.ndarray]  # V_1 ... V_{k+1} the pass used
 
 
+@lru_cache(maxsize=8)  # a few times per servicer and step (issue 29)
 def n_params(sizes: tuple[int, ...] = LAYER_SIZES) -> int:
     """p = sum_{j=0}^{k} L_j^a L_{j+1} (paper 004 §2.2, below eq. 2)."""
     return sum((a + 1) * b for a, b in zip(sizes[:-1], sizes[1:]))

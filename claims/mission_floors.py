@@ -1,0 +1,64 @@
+"""docs/performance.md "Batch run ÷ vectorised floor, papers 001, 003 and 004" (issue 29):
+`bench/bench_batch_missions.py --floors` in one invocation: for tersoff-6 (3000 s), surround-6 and
+servicing-6 (60 s; 600 steps each), five interleaved pairs of the mission's vectorised floor
+(bench/mission_floors.py) and its in-process batch run (`record="truth"`), the medians of the loop
+times and of the per-pair ratios, and the floor's agreement with the batch run's truth. Tier
+`bench`: timings of this machine at that moment, checked for presence and shape only;
+`swarmhil claims --bench --only floors. --record && swarmhil claims --write` regenerates the table
+(about 2 min here).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.runs import bench_script
+
+DOC = "docs/performance.md"
+SHAPE = Tol(shape_only=True)
+REPEATS = 5
+MISSIONS = (("p004", "servicing-6"), ("p003", "surround-6"), ("p001", "tersoff-6"))
+# (result field, claim suffix, words, format)
+FIELDS = (("floor_loop_median_s", "floor", "the floor's loop, median [s]", ".3f"),
+          ("batch_loop_median_s", "batch", "the batch run's plant loop, median [s]", ".3f"),
+          ("batch_run_median_s", "run", "the whole batch run_in_process, median [s]", ".3f"),
+          ("batch_over_floor_median", "ratio", "batch loop ÷ floor loop, median of the pairs", ".2f"),
+          ("batch_over_floor_min", "ratio_min", "batch loop ÷ floor loop, smallest pair", ".2f"),
+          ("batch_run_over_floor_median", "run_ratio", "whole batch run ÷ floor loop, median of the pairs", ".2f"),
+          ("floor_dv_rel_diff", "dv_diff", "|floor total dV ÷ batch total dV - 1|", ".1g"),
+          ("floor_position_diff_m", "pos_diff", "largest |floor - truth| of the final positions [m]", ".1g"))
+
+
+def flat(result: dict[str, Any]) -> dict[str, float]:
+    """{paper}.{suffix} -> value, and the load averages."""
+    out = {f"{paper}.{suffix}": float(result["missions"][name][field])
+           for paper, name in MISSIONS for field, suffix, _, _ in FIELDS}
+    return {**out, "load_start": float(result["load_start"]), "load_end": float(result["load_end"])}
+
+
+def _measure(_get: Any) -> dict[str, Any]:
+    return flat(bench_script("bench_batch_missions").measure_floors([name for _, name in MISSIONS], REPEATS))
+
+
+SOURCES = [Source("floors.missions", "bench", _measure,
+                  f"python bench/bench_batch_missions.py --floors --repeats {REPEATS} (one invocation, ~2 min)")]
+CLAIMS = [Claim(f"floors.{paper}.{suffix}", "floors.missions", (lambda k: lambda s: s[k])(f"{paper}.{suffix}"),
+                SHAPE, f"{name}: {words}", fmt)
+          for paper, name in MISSIONS for _, suffix, words, fmt in FIELDS]
+CLAIMS += [Claim(f"floors.{k}", "floors.missions", (lambda k: lambda s: s[k])(k), SHAPE, f"load average (1 min), {k}",
+                 ".1f") for k in ("load_start", "load_end")]
+
+LABEL = {"servicing-6": ("servicing-6 (paper 004, 60 s)", ("004", "60")),
+         "surround-6": ("surround-6 (paper 003, 60 s)", ("003", "60")),
+         "tersoff-6": ("tersoff-6 (paper 001, 3000 s)", ("001", "3000"))}
+ROWS = tuple(Row((LABEL[name][0], *(f"{{floors.{paper}.{s}}}" for s in ("floor", "batch", "run", "ratio", "ratio_min",
+                                                                         "run_ratio")),
+                  f"{{floors.{paper}.dv_diff}}, {{floors.{paper}.pos_diff}} m"), params=LABEL[name][1])
+             for paper, name in MISSIONS)
+LOAD = Row(("load average (1 min) at the start → end", "{floors.load_start} → {floors.load_end}", "", "", "", "", "", ""),
+           params=("1",))
+TABLES = [Table("mission-floors", DOC, ("scenario (600 steps)", "floor loop s", "batch loop s", "whole batch run s",
+                                        "batch ÷ floor (median)", "smallest pair", "whole run ÷ floor",
+                                        "floor vs truth: dV (relative), positions"),
+                (*ROWS, LOAD), measured=(1, 2, 3, 4, 5, 6, 7),
+                align=("---", "---:", "---:", "---:", "---:", "---:", "---:", "---:"))]
