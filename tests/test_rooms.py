@@ -424,28 +424,38 @@ def test_type_check_covers_the_interfaces() -> None:
 
 JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "figures", "page"),
              "dashboards/bandwidth": ("read", "accounting", "figures", "page"),
+             "missions/p000_capture/report": ("read", "analysis", "figures", "page"),
+             # paper 002's analysis is its metrics hook; no `read`: its section reads only the reporter's truth
+             "missions/p002_sabatini/report": ("metrics", "figures", "page"),
              "missions/p004_lbdnn/report": ("read", "analysis", "figures", "page")}
-INIT_IMPORTS = {"missions/p004_lbdnn/report": {"page"}}  # a room's report: its page registers the section on discovery
+# a room's report: its page registers the section on discovery (paper 002's metrics registers its hook)
+INIT_IMPORTS = {"missions/p000_capture/report": {"page"},
+                "missions/p002_sabatini/report": {"metrics", "page"},
+                "missions/p004_lbdnn/report": {"page"}}
+# A tool beside the jobs, run on its own (`python -m`): it may import the jobs up to the one named, and
+# no job imports it (paper 000's sweep tables read and analyse many runs; they draw nothing).
+TOOLS = {"missions/p000_capture/report": {"sweep": "analysis"}}
 
 
 @pytest.mark.parametrize("package", sorted(JOB_ORDER))
 def test_report_modules_import_only_the_jobs_before_them(package: str) -> None:
     """A report package split by job (docs/architecture.md): `read` <- analysis <- `figures` <- `page`;
     each module imports only the ones before it, and the package's __init__ imports nothing (a
-    room's report: its `page` alone, which registers the section when the reporter discovers it)."""
-    order = JOB_ORDER[package]
+    room's report: its INIT_IMPORTS, `page`, which registers the section when the reporter discovers
+    it, and paper 002's `metrics`, its metrics hook). Every module of the package is a job, the
+    __init__ or one of its TOOLS."""
+    order, tools = JOB_ORDER[package], TOOLS.get(package, {})
     dotted = package.replace("/", ".")
-    assert sorted(p.stem for p in (ROOT / package).glob("*.py")) == sorted((*order, "__init__"))
+    assert sorted(p.stem for p in (ROOT / package).glob("*.py")) == sorted((*order, *tools, "__init__"))
     allowed = {dotted} | {f"{dotted}.{m}" for m in INIT_IMPORTS.get(package, ())}
     assert not [n for _line, n in imported(ROOT / package / "__init__.py") if n not in allowed]
-    for i, job in enumerate(order):
-        for line, name in imported(ROOT / package / f"{job}.py"):
+    modules = [(job, order[:i]) for i, job in enumerate(order)]
+    modules += [(tool, order[:order.index(last) + 1]) for tool, last in tools.items()]
+    for module, before in modules:
+        for line, name in imported(ROOT / package / f"{module}.py"):
             if name.startswith(dotted + "."):
                 other = name[len(dotted) + 1:].split(".")[0]
-                assert other in order[:i], f"{package}/{job}.py:{line} imports {name}: {other} is not before {job}"
-
-
-    assert "\nlint: setup\n\t$(VENV)/bin/ruff check .\n" in (ROOT / "Makefile").read_text()
+                assert other in before, f"{package}/{module}.py:{line} imports {name}: {other} is not before {module}"
 
 
 def test_the_viewer_draws_a_rooms_landmarks_through_its_hook() -> None:

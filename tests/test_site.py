@@ -126,7 +126,8 @@ def test_figures_fit_count_in_integers_and_are_150_dpi(short_and_long: tuple[Pat
     from swarmhil.dashboards.figstyle import draw_static, overflowing_texts
     from swarmhil.dashboards.metrics import compute_metrics
     from swarmhil.dashboards.truth_io import read_truth
-    from swarmhil.missions.p002_sabatini.report import NAME, draw_digraph, spec_components
+    from swarmhil.missions.p002_sabatini.report.figures import draw_digraph, spec_components
+    from swarmhil.missions.p002_sabatini.report.metrics import NAME
 
     run = short_and_long[1]
     tr = read_truth(run / "run.mcap")

@@ -1,4 +1,4 @@
-"""`swarmhil report` of a paper 000 run: the "p000-capture" section (missions/p000_capture/report/__init__.py).
+"""`swarmhil report` of a paper 000 run: the "p000-capture" section (missions/p000_capture/report/page.py).
 
 23 s of deploy/scenarios/capture-10.toml in-process (~6 s wall: the first three agents enter chase at
 21.70-21.75 s, so the run has chase entries, state broadcasts and landmark packets; 3 s has no

@@ -218,8 +218,9 @@ def load_run(run_dir: Path) -> dict:
 
 def metrics(run: dict) -> dict:
     """The figures of docs/paper000.md "On the stack" from the recorded truth, telemetry and link
-    (the shared computations are the report section's, missions/p000_capture/report/__init__.py)."""
-    from swarmhil.missions.p000_capture.report import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
+    (the shared computations are the report section's, missions/p000_capture/report/analysis.py)."""
+    from swarmhil.missions.p000_capture.report.analysis import chase_entry, link_by_type, pair_distance, surface_distance
+    from swarmhil.missions.p000_capture.report.read import target_axes
 
     s = run["summary"]
     axes = target_axes(s["config"])

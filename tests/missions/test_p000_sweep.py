@@ -57,7 +57,7 @@ def test_spread_by_hand() -> None:
 def test_settle_time_is_the_last_crossing() -> None:
     import numpy as np
 
-    from swarmhil.missions.p000_capture.report import settle_time
+    from swarmhil.missions.p000_capture.report.analysis import settle_time
 
     t = np.arange(6.0)
     err = np.array([[5, 0.1, 5], [2, 0.1, 5], [0.5, 0.1, 5], [3, 0.1, 5], [0.2, 0.1, 5], [0.1, np.nan, 0.5]])

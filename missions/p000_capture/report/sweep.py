@@ -2,7 +2,7 @@
 
 Each run directory is named `c<agents>-s<seed>-<policy>[-mp]` (policy: event, 1hz, every, literal)
 and has been through `swarmhil report` (summary.json metrics["p000-capture"], the section
-missions/p000_capture/report/__init__.py). Prints, per case: the outcome of every run, and the message
+missions/p000_capture/report/page.py). Prints, per case: the outcome of every run, and the message
 reduction of the event trigger against the every-step and 1 Hz runs of the same seed (the link's
 own counters: `p000-state` tx packets and payload bytes), with mean ± sample standard deviation
 and the range over seeds.
@@ -24,7 +24,8 @@ import numpy as np
 
 from swarmhil.dashboards.truth_io import read_truth
 from swarmhil.missions.p000_capture.contract import Ellipsoid, dcm, surface_frame
-from swarmhil.missions.p000_capture.report import axes_error, centroid_error, pair_distance, read_capture, target_axes
+from swarmhil.missions.p000_capture.report.analysis import axes_error, centroid_error, pair_distance
+from swarmhil.missions.p000_capture.report.read import read_capture, target_axes
 
 NAME = re.compile(r"^c(?P<n>\d+)-s(?P<seed>\d+)-(?P<policy>event|1hz|every|literal)(?P<mp>-mp)?$")
 
