@@ -1,4 +1,4 @@
-"""Issue 29: the batch mode of papers 001, 003 and 004 (the mission worlds: cw and inertial plants,
+"""Issue 29: the batch mode of papers 000, 001, 003 and 004 (the mission worlds: cw and inertial plants,
 sensing kinds that send `Measurements`, packets over the link) gives the truth of the per-agent
 in-process run, bit for bit: every truth message (positions, velocities, the commands in force,
 dV) equal, with equal log times, and the link carried the same packets (deploy/batch.py
@@ -23,8 +23,9 @@ def _truths(path: Path) -> list[tuple[int, bytes]]:
                 if ch.topic == "truth"]
 
 
-# (scenario, simulated seconds): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of paper 001
-CASES = [("servicing-6", 60.0), ("surround-6", 60.0), ("tersoff-6", 1000.0)]
+# (scenario, simulated seconds): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of paper 001,
+# 600 steps of paper 000's case (i) (attitude flown: torques; landmark fits and packets from ~15 s)
+CASES = [("servicing-6", 60.0), ("surround-6", 60.0), ("tersoff-6", 1000.0), ("capture-10", 30.0)]
 
 
 @pytest.mark.parametrize("name,duration", CASES, ids=[c[0] for c in CASES])
