@@ -80,3 +80,43 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
             assert rel.extra[r][key].tobytes() == value.tobytes(), key
         pairs += b - a
     assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
+
+
+@pytest.mark.parametrize("dead", [(), (3,)], ids=["all-alive", "one-dead"])
+def test_p000_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 000's sensing kind (`p000-landmarks`) as arrays: on capture-20's first truth, every
+    observer's neighbours and relative states, and every named measurement (attitude, rate, own
+    state, landmark returns and ids, the surface within R_h), equal what the agent reads from its
+    message (agent/node.py), shapes and bits."""
+    from agent.node import observation_from_rel
+    from bus.codec import header
+    from deploy.scenario import plant_config
+    from plant.mission_world import MissionWorld
+    from plant.sensing import SensingContext, make_sensing
+
+    cfg = plant_config(load_scenario(SCENARIOS / "capture-20.toml"))
+    world = MissionWorld(cfg)
+    alive = np.ones(len(cfg.ids), dtype=bool)
+    alive[list(dead)] = False
+    pos, vel = world.lvlh()
+    ctx = SensingContext(step=7, t_s=0.35, u_rad=0.1, ids=list(cfg.ids), position_m=pos, velocity_mps=vel,
+                         alive=alive, world=world)
+    rows = np.flatnonzero(alive)
+    rel = make_sensing("p000-landmarks", cfg).batch(ctx, rows)
+    kind = make_sensing("p000-landmarks", cfg)  # (a fresh kind: nothing cached from the batch)
+    pairs = returns = surfaces = 0
+    for r, j in enumerate(rows.tolist()):
+        o = observation_from_rel(kind.stimulus(ctx, j, header("run", "plant", 7, 0.35, 0)))
+        a, b = rel.offsets[r], rel.offsets[r + 1]
+        assert [cfg.ids[k] for k in rel.neighbour[a:b]] == o.neighbour_ids
+        assert rel.rel_position_m[a:b].tobytes() == o.rel_position_m.reshape(-1, 3).tobytes()
+        assert rel.rel_velocity_mps[a:b].tobytes() == o.rel_velocity_mps.reshape(-1, 3).tobytes()
+        assert rel.owner is not None and (rel.owner[a:b] == r).all()
+        assert rel.extra is not None and list(rel.extra[r]) == list(o.extra)
+        for key, value in o.extra.items():
+            got = rel.extra[r][key]
+            assert got.dtype == value.dtype and got.shape == value.shape and got.tobytes() == value.tobytes(), key
+        pairs += b - a
+        returns += len(o.extra["p000_landmarks_body_m"])
+        surfaces += "p000_surface_rel_m" in o.extra
+    assert pairs > 0 and returns > 0 and surfaces > 0  # neighbours, landmark returns, surface proximity seen

@@ -40,6 +40,7 @@ from bus import swarmhil_pb2 as pb
 from bus.codec import add_measurement
 from missions.p000_capture import contract as c
 from plant.config import PlantConfig
+from plant.sensing.builtin import RelBatch
 from plant.sensing.registry import SensingContext, register_sensing
 
 KIND = c.SENSING_KIND
@@ -132,8 +133,23 @@ class P000LandmarkKind:
                 "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
                 "near": [np.flatnonzero(row) for row in near]}
 
-    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+    def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int) -> list[tuple[str, np.ndarray]]:
+        """Spacecraft j's named measurements, in the message's order (one noise generator per
+        (seed, step, j): the same draws whoever asks and in whatever order)."""
         p = self.p
+        r = ctx.position_m[j]
+        q_cw, rot = tr["q_cw"][j], tr["rot"][j]
+        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
+        ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
+        out = [(c.Q_BODY_TO_LVLH, q_cw), (c.OMEGA_BODY_RADPS, tr["w"][j]), (c.POSITION_M, r - self.origin),
+               (c.VELOCITY_MPS, ctx.velocity_mps[j]), (c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3)),
+               (c.LANDMARK_IDS, ids.astype(float))]
+        sd, x_s, _ = c.surface_frame(tr["ell"], r)
+        if sd <= p.proximity_range_m:
+            out.append((c.SURFACE_REL_M, x_s - r))
+        return out
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
         tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
         msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
         pos, vel = ctx.position_m, ctx.velocity_mps
@@ -145,16 +161,24 @@ class P000LandmarkKind:
                 nb = msg.neighbours.add(id=ids[k])
                 nb.position_m.x, nb.position_m.y, nb.position_m.z = dp
                 nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = dv
-        q_cw, rot = tr["q_cw"][j], tr["rot"][j]
-        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
-        ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
-        add_measurement(msg, c.Q_BODY_TO_LVLH, q_cw)
-        add_measurement(msg, c.OMEGA_BODY_RADPS, tr["w"][j])
-        add_measurement(msg, c.POSITION_M, r - self.origin)
-        add_measurement(msg, c.VELOCITY_MPS, vel[j])
-        add_measurement(msg, c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3))
-        add_measurement(msg, c.LANDMARK_IDS, ids.astype(float))
-        sd, x_s, _ = c.surface_frame(tr["ell"], r)
-        if sd <= p.proximity_range_m:
-            add_measurement(msg, c.SURFACE_REL_M, x_s - r)
+        for name, values in self._measure(ctx, tr, j):
+            add_measurement(msg, name, values)
         return msg
+
+    def batch(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
+        """What `stimulus` gives each of `observers` (distinct, increasing indices), as arrays (the
+        batch mode, issue 29): the same neighbours in the same order with the same float64 relative
+        states, and each observer's named measurements in `extra` as the agent reads them from the
+        message (`measurements_to_dict`: a float64 array of each one's shape)."""
+        tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
+        pos, vel = ctx.position_m, ctx.velocity_mps
+        obs = np.asarray(observers, dtype=np.int64).tolist()
+        near = [tr["near"][j] for j in obs]
+        counts = np.array([len(n) for n in near], dtype=np.int64)
+        offsets = np.zeros(len(obs) + 1, dtype=np.int64)
+        np.add.accumulate(counts, out=offsets[1:])
+        nb = np.concatenate(near).astype(np.int64) if len(obs) else np.zeros(0, dtype=np.int64)
+        owner = np.repeat(np.arange(len(obs)), counts)
+        j_of = np.asarray(obs, dtype=np.int64)[owner]
+        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j)} for j in obs]
+        return RelBatch(offsets, nb, pos[nb] - pos[j_of], vel[nb] - vel[j_of], owner, extra)
