@@ -290,3 +290,34 @@ def test_warm_fit_reports_a_lost_track() -> None:
     pts, c, _ = _noisy_ellipsoid(0, np.array([2.6, 1.9, 1.4]), 0.1)
     with pytest.raises(ValueError, match="track lost"):
         warm_fit(pts, Ellipsoid(c + 5.0, np.eye(3), np.full(3, 1.0)))
+
+
+def test_the_pointing_law_over_arrays_gives_each_rows_bits() -> None:
+    """The batch path's pointing law (issue 29): `desired_attitudes` and `pointing_torques` over N
+    rows equal `desired_attitude` and `pointing_torque` row by row, bit for bit: random attitudes,
+    rates (saturated and not, zero), lines of sight (one exactly behind body +x: shortest_arc's
+    opposite branch), the error quaternion's sign flip on both sides."""
+    from missions.p000_capture.fsw.attitude import desired_attitudes, pointing_torques
+
+    rng = np.random.default_rng(29)
+    n = 400
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w = rng.normal(0.0, 0.05, (n, 3)) * rng.choice([0.0, 0.1, 1.0, 5.0], (n, 1))
+    los = rng.normal(0.0, 5.0, (n, 3))
+    los[0] = [-3.0, 0.0, 0.0]  # opposite the boresight
+    los[1] = [2.0, 0.0, 0.0]   # along it
+    p = CaptureParams()
+    q_d = desired_attitudes(los)
+    near = q_d[:100] + rng.normal(0.0, 1e-3, (100, 4))  # close to the pointing: below the limit
+    q[:100] = near / np.linalg.norm(near, axis=1, keepdims=True) * rng.choice([-1.0, 1.0], (100, 1))
+    w[:100] *= 1e-3
+    tau = pointing_torques(q, w, q_d, p.inertia_kgm2, p.k_q, p.k_w, p.torque_max_nm)
+    saturated = 0
+    for i in range(n):
+        qd_i = desired_attitude(np.zeros(3), los[i])
+        assert q_d[i].tobytes() == qd_i.tobytes(), i
+        ref = pointing_torque(q[i], w[i], qd_i, p.inertia, p.k_q * np.eye(3), p.k_w * np.eye(3), p.torque_max_nm)
+        assert tau[i].tobytes() == ref.tobytes(), i
+        saturated += bool(np.isclose(np.linalg.norm(ref), p.torque_max_nm))
+    assert 0 < saturated < n

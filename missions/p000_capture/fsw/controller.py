@@ -8,18 +8,21 @@ Perception at `perception_period_s`: GNC-TLS fit of own and neighbours' pooled r
 """
 from __future__ import annotations
 
+import logging
 import zlib
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, Sequence
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, Transmission, register
+from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
 from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame
 
 from . import payload as pl
 from . import quaternion as quat
 from .apf import apf_force, buffer_force
-from .attitude import desired_attitude, pointing_torque, rate_damping_torque
+from .attitude import (desired_attitude, desired_attitudes, line_of_sight, pointing_torque, pointing_torques,
+                       rate_damping_torque)
 from .chase import chase_force
 from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
@@ -28,6 +31,8 @@ from .modes import bounce_force, next_mode, random_force
 from missions.p000_capture.contract import CaptureParams
 from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires
+
+log = logging.getLogger("swarmhil.agent")
 
 
 class CaptureController:
@@ -136,6 +141,77 @@ class CaptureController:
 
     def step(self, obs: Observation, dt_s: float = 0.05) -> Command:
         s = CaptureSensing.from_dict(obs.extra)
+        plan = self._decide(obs, s, dt_s)
+        if plan.los_m is None:
+            torque = self._search_torque(s)
+        else:
+            q_d = desired_attitude(s.position_m, plan.ell.centre_m)
+            torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, self.inertia,
+                                     self.k_q, self.k_w, self.p.torque_max_nm)
+        return plan.command(torque)
+
+    @classmethod
+    def step_batch(cls, controllers: Sequence["CaptureController"], batch: ObservationBatch,
+                   dt_s: float = 0.05) -> CommandBatch:
+        """Every controller's `step` at once (issue 29), the same command bit for bit: perception,
+        consensus, modes, chase and packets spacecraft by spacecraft (`_decide`, each its own
+        state), then the pointing law of every chasing spacecraft over arrays
+        (`attitude.pointing_torques`: the same elementwise operations as `pointing_torque`). A
+        spacecraft whose software raises (as `step` would, at the same point) gets a NaN
+        acceleration: the batch agents command zero for it, as the agent node does."""
+        plans: list[_Plan | None] = []
+        sensed: list[CaptureSensing | None] = []
+        for i, c in enumerate(controllers):
+            try:
+                s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
+                plans.append(c._decide(batch.observation(i), s, dt_s))
+                sensed.append(s)
+            except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
+                log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
+                plans.append(None)
+                sensed.append(None)
+        n = len(controllers)
+        torque = np.zeros((n, 3))
+        pointing = [i for i, pl_ in enumerate(plans) if pl_ is not None and pl_.los_m is not None]
+        for i, pl_ in enumerate(plans):
+            if pl_ is not None and pl_.los_m is None:
+                torque[i] = controllers[i]._search_torque(sensed[i])  # type: ignore[arg-type]
+        if pointing:
+            c0 = controllers[pointing[0]]
+            q = np.array([sensed[i].q_body_to_lvlh for i in pointing])  # type: ignore[union-attr]
+            w = np.array([sensed[i].omega_body_radps for i in pointing])  # type: ignore[union-attr]
+            los = np.array([plans[i].los_m for i in pointing])  # type: ignore[union-attr]
+            if all(c.p.torque_max_nm == c0.p.torque_max_nm and c.p.inertia_kgm2 == c0.p.inertia_kgm2
+                   and c.p.k_q == c0.p.k_q and c.p.k_w == c0.p.k_w for c in controllers):
+                torque[pointing] = pointing_torques(q, w, desired_attitudes(los), c0.p.inertia_kgm2, c0.p.k_q,
+                                                    c0.p.k_w, c0.p.torque_max_nm)
+            else:  # (per-spacecraft gains: each its own law)
+                for k, i in enumerate(pointing):
+                    c = controllers[i]
+                    torque[i] = pointing_torque(q[k], w[k], desired_attitude(np.zeros(3), los[k]), c.inertia,
+                                                c.k_q, c.k_w, c.p.torque_max_nm)
+        acc = np.full((n, 3), np.nan)
+        for i, pl_ in enumerate(plans):
+            if pl_ is not None:
+                acc[i] = pl_.force_n / controllers[i].p.mass_kg
+        modes = [pl_.mode if pl_ is not None else "fault" for pl_ in plans]
+
+        def build(i: int) -> Command:
+            pl_ = plans[i]
+            if pl_ is None:
+                return Command(accel_mps2=acc[i].copy(), mode="fault")
+            return pl_.command(torque[i].copy())
+
+        return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque)
+
+    def _search_torque(self, s: CaptureSensing) -> np.ndarray:
+        p = self.p
+        scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
+        return rate_damping_torque(s.omega_body_radps, self.inertia, self.k_w, p.torque_max_nm, scan)
+
+    def _decide(self, obs: Observation, s: CaptureSensing, dt_s: float) -> "_Plan":
+        """Everything of a step but the attitude torque: perception, consensus, mode, force, packets.
+        The pointing law's line of sight is checked here, where `step` computes it."""
         t, r, v = obs.t_s, s.position_m, s.velocity_mps
         p = self.p
         received = self._receive(obs)
@@ -180,8 +256,7 @@ class CaptureController:
                 d = norm3(s.surface_rel_m)
                 force = force + buffer_force(d, -s.surface_rel_m / max(d, 1e-9), v, p.k_r_target,
                                              p.r_buffer_m, p.buffer_damping_nspm)
-            scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
-            torque = rate_damping_torque(s.omega_body_radps, self.inertia, self.k_w, p.torque_max_nm, scan)
+            los = None
         else:
             forced = entered or not had_estimate
             if self._broadcast_due(t, r, v, forced, dt_s):
@@ -194,15 +269,31 @@ class CaptureController:
                 self.broadcasts += 1
             force = self.held_force + f_col + buffer_force(sd, nrm, v - self.est.velocity_mps, p.k_r_target,
                                                            p.r_buffer_m, p.buffer_damping_nspm)
-            q_d = desired_attitude(r, ell.centre_m)
-            torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, self.inertia,
-                                     self.k_q, self.k_w, p.torque_max_nm)
-        force = saturate_norm(force, p.force_max_n)
+            los = line_of_sight(r, ell.centre_m)  # (raises where desired_attitude would)
+        return _Plan(saturate_norm(force, p.force_max_n), p.mass_kg, self.mode, txs, ell,
+                     sd if ell is not None else 0.0, los)
+
+
+@dataclass
+class _Plan:
+    """A step's decision but the torque: the saturated force, mode, packets, the estimate it flew
+    on and the line of sight of the pointing law (None: search, rate control)."""
+
+    force_n: np.ndarray
+    mass_kg: float
+    mode: str
+    transmissions: list[Transmission]
+    ell: Ellipsoid | None
+    surface_m: float
+    los_m: np.ndarray | None
+
+    def command(self, torque_nm: np.ndarray) -> Command:
+        ell = self.ell
         extra = {} if ell is None else {  # what the agent believes, for the report (Figs. 7, 12)
             "p000_axes_est_m": np.sort(ell.semi_axes_m), "p000_centre_est_m": ell.centre_m,
-            "p000_surface_est_m": np.array([sd])}
-        return Command(accel_mps2=force / p.mass_kg, mode=self.mode, transmissions=txs, torque_nm=torque,
-                       extra=extra)
+            "p000_surface_est_m": np.array([self.surface_m])}
+        return Command(accel_mps2=self.force_n / self.mass_kg, mode=self.mode, transmissions=self.transmissions,
+                       torque_nm=torque_nm, extra=extra)
 
 
 @register("p000-capture")
