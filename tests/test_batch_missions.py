@@ -120,3 +120,35 @@ def test_p000_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
         returns += len(o.extra["p000_landmarks_body_m"])
         surfaces += "p000_surface_rel_m" in o.extra
     assert pairs > 0 and returns > 0 and surfaces > 0  # neighbours, landmark returns, surface proximity seen
+
+
+def test_p000_visibility_of_many_sensors_equals_each_ones() -> None:
+    """`visible_landmarks` over N sensors at once, row j, equals sensor j's alone, and so do the
+    distances, facing and cone products it compares (the norm, einsum and matmul of a stack against
+    each sensor's own: the same bits), for random target poses and sensors whose boresights are
+    columns of their attitude matrices (strided, as the kind passes them)."""
+    from scipy.spatial.transform import Rotation
+
+    from missions.p000_capture.contract import dcm, surface_landmarks
+    from missions.p000_capture.sense import P000Params, visible_landmarks
+
+    p = P000Params()
+    rng = np.random.default_rng(3)
+    lm0, nrm0 = surface_landmarks(np.array([4.0, 1.3, 1.0]), 400)
+    seen = 0
+    for trial in range(40):
+        rot = Rotation.random(random_state=trial).as_matrix()
+        lm, nrm = rng.normal(size=3) + lm0 @ rot.T, nrm0 @ rot.T
+        q = rng.normal(size=(20, 4))
+        att = dcm(q / np.linalg.norm(q, axis=1, keepdims=True))
+        pos = rng.uniform(-10.0, 10.0, (20, 3))
+        pos[:5] = lm[rng.integers(0, 400, 5)] * 1.8  # some right in front of the surface
+        rel = lm[None, :, :] - pos[:, None, :]
+        vis = visible_landmarks(rel, nrm, att[:, :, 0], p)
+        for j in range(20):
+            alone = visible_landmarks(lm - pos[j], nrm, att[j][:, 0], p)
+            assert np.array_equal(vis[j], alone), (trial, j)
+            assert np.einsum("ij,nij->ni", nrm, -rel)[j].tobytes() == np.einsum("ij,ij->i", nrm, -(lm - pos[j])).tobytes()
+            assert np.matmul(rel, att[:, :, 0][:, :, None])[j, :, 0].tobytes() == ((lm - pos[j]) @ att[j][:, 0]).tobytes()
+            seen += int(alone.sum())
+    assert seen > 0

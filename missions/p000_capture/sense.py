@@ -76,13 +76,27 @@ def inertial_to_cw(q_body_to_inertial: np.ndarray, n_radps: float, t_s: float) -
     return quat_mul(np.array([np.cos(h), 0.0, 0.0, np.sin(h)]), q_body_to_inertial)
 
 
-def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray,
-                     p: P000Params) -> tuple[np.ndarray, np.ndarray]:
-    """Returns (CW frame, relative to the sensor) and landmark ids (-1: outlier) of one sensor."""
+def visible_landmarks(rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray, p: P000Params) -> np.ndarray:
+    """Which landmarks a sensor sees: facing it, within R_l, inside the cone about `bore`. One
+    sensor: rel_m (K, 3), bore (3,) -> (K,); N sensors: (N, K, 3), (N, 3) -> (N, K), row j the
+    same bits as sensor j's alone (the norm over the last axis, einsum's and matmul's per-row sums:
+    checked equal row by row, tests/test_batch_missions.py)."""
     half = np.radians(p.fov_full_deg / 2)
-    dist = np.linalg.norm(rel_m, axis=1)
-    vis = ((np.einsum("ij,ij->i", normals, -rel_m) > 0) & (dist <= p.range_m)
-           & (rel_m @ bore >= np.cos(half) * dist))
+    dist = np.linalg.norm(rel_m, axis=-1)
+    if rel_m.ndim == 2:
+        facing, along = np.einsum("ij,ij->i", normals, -rel_m), rel_m @ bore
+    else:
+        facing, along = np.einsum("ij,nij->ni", normals, -rel_m), np.matmul(rel_m, bore[:, :, None])[:, :, 0]
+    return (facing > 0) & (dist <= p.range_m) & (along >= np.cos(half) * dist)
+
+
+def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray,
+                     p: P000Params, vis: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Returns (CW frame, relative to the sensor) and landmark ids (-1: outlier) of one sensor
+    (`vis`: its `visible_landmarks`, when computed with other sensors')."""
+    half = np.radians(p.fov_full_deg / 2)
+    if vis is None:
+        vis = visible_landmarks(rel_m, normals, bore, p)
     ids = np.flatnonzero(vis)
     ret = rel_m[vis] + rng.normal(0.0, p.noise_m, (len(ids), 3))
     n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
@@ -133,14 +147,16 @@ class P000LandmarkKind:
                 "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
                 "near": [np.flatnonzero(row) for row in near]}
 
-    def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int) -> list[tuple[str, np.ndarray]]:
+    def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int, rel_m: np.ndarray | None = None,
+                 vis: np.ndarray | None = None) -> list[tuple[str, np.ndarray]]:
         """Spacecraft j's named measurements, in the message's order (one noise generator per
-        (seed, step, j): the same draws whoever asks and in whatever order)."""
+        (seed, step, j): the same draws whoever asks and in whatever order); `rel_m`, `vis`: its
+        landmarks relative to it and their visibility, when computed with the other observers'."""
         p = self.p
         r = ctx.position_m[j]
         q_cw, rot = tr["q_cw"][j], tr["rot"][j]
         rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
-        ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
+        ret, ids = landmark_returns(rng, tr["lm"] - r if rel_m is None else rel_m, tr["nrm"], rot[:, 0], p, vis)
         out = [(c.Q_BODY_TO_LVLH, q_cw), (c.OMEGA_BODY_RADPS, tr["w"][j]), (c.POSITION_M, r - self.origin),
                (c.VELOCITY_MPS, ctx.velocity_mps[j]), (c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3)),
                (c.LANDMARK_IDS, ids.astype(float))]
@@ -180,5 +196,8 @@ class P000LandmarkKind:
         nb = np.concatenate(near).astype(np.int64) if len(obs) else np.zeros(0, dtype=np.int64)
         owner = np.repeat(np.arange(len(obs)), counts)
         j_of = np.asarray(obs, dtype=np.int64)[owner]
-        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j)} for j in obs]
+        rel = tr["lm"][None, :, :] - pos[obs][:, None, :]  # (R, K, 3): each row tr["lm"] - r, as _measure's
+        vis = visible_landmarks(rel, tr["nrm"], tr["rot"][obs][:, :, 0], self.p)
+        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j, rel[r], vis[r])}
+                 for r, j in enumerate(obs)]
         return RelBatch(offsets, nb, pos[nb] - pos[j_of], vel[nb] - vel[j_of], owner, extra)

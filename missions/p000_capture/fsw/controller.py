@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import zlib
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -65,17 +65,20 @@ class CaptureController:
         self.fits = 0
 
     # --- perception -------------------------------------------------------------------------
-    def _receive(self, obs: Observation) -> bool:
+    def _receive(self, obs: Observation, decoded: dict[tuple[str, bytes], Any] | None = None) -> bool:
+        """Neighbours' estimates and landmark returns from the received packets; `decoded`: the
+        packets already decoded this step (a broadcast reaches several spacecraft of a batch: each
+        payload is decoded once, into arrays nobody modifies)."""
         got = False
         for pkt in obs.isl_rx:
             if pkt.type == pl.STATE_TYPE:
-                m = pl.decode_state(pkt.payload)
+                m = _decoded(decoded, pkt, pl.decode_state)
                 if m.centre_m is not None:
                     self.neighbours[pkt.src] = TargetEstimate(m.est_t_s, m.centre_m, m.target_velocity_mps,
                                                               m.shape, direct=False)
                     got = True
             elif pkt.type == pl.LANDMARKS_TYPE:
-                self.pool.append(pl.decode_landmarks(pkt.payload))
+                self.pool.append(_decoded(decoded, pkt, pl.decode_landmarks))
         return got
 
     def _fit(self, t: float, r: np.ndarray) -> None:
@@ -161,10 +164,11 @@ class CaptureController:
         acceleration: the batch agents command zero for it, as the agent node does."""
         plans: list[_Plan | None] = []
         sensed: list[CaptureSensing | None] = []
+        decoded: dict[tuple[str, bytes], Any] = {}
         for i, c in enumerate(controllers):
             try:
                 s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
-                plans.append(c._decide(batch.observation(i), s, dt_s))
+                plans.append(c._decide(batch.observation(i), s, dt_s, decoded))
                 sensed.append(s)
             except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -209,12 +213,13 @@ class CaptureController:
         scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
         return rate_damping_torque(s.omega_body_radps, self.inertia, self.k_w, p.torque_max_nm, scan)
 
-    def _decide(self, obs: Observation, s: CaptureSensing, dt_s: float) -> "_Plan":
+    def _decide(self, obs: Observation, s: CaptureSensing, dt_s: float,
+                decoded: dict[tuple[str, bytes], Any] | None = None) -> "_Plan":
         """Everything of a step but the attitude torque: perception, consensus, mode, force, packets.
         The pointing law's line of sight is checked here, where `step` computes it."""
         t, r, v = obs.t_s, s.position_m, s.velocity_mps
         p = self.p
-        received = self._receive(obs)
+        received = self._receive(obs, decoded)
         txs: list[Transmission] = []
         lm = r + quat.rotate(s.q_body_to_lvlh, s.landmarks_body_m) if len(s.landmarks_body_m) else np.zeros((0, 3))
         detected = len(lm) >= p.detect_min_returns
@@ -272,6 +277,17 @@ class CaptureController:
             los = line_of_sight(r, ell.centre_m)  # (raises where desired_attitude would)
         return _Plan(saturate_norm(force, p.force_max_n), p.mass_kg, self.mode, txs, ell,
                      sd if ell is not None else 0.0, los)
+
+
+def _decoded(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Callable[[bytes], Any]) -> Any:
+    """decode(pkt.payload), looked up in `cache` first (None: no cache) and kept there."""
+    if cache is None:
+        return decode(pkt.payload)
+    key = (pkt.type, pkt.payload)
+    got = cache.get(key)
+    if got is None:
+        got = cache[key] = decode(pkt.payload)
+    return got
 
 
 @dataclass
