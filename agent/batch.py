@@ -41,10 +41,12 @@ class BatchAgents:
         # the class's own batch path for all of them (what `step_batch` picks), looked up once
         self._all = getattr(next(iter(kinds)), "step_batch", None) if len(kinds) == 1 else None
 
-    def _fault(self, i: int, step: int) -> None:
+    def _fault(self, i: int, step: int, logged: bool = False) -> None:
         f = self.faults.setdefault(self.ids[i], {})
         n = f["controller"] = f.get("controller", 0) + 1
-        if n == 1:
+        if logged:  # (a batch path caught and logged it: `CommandBatch.raised`)
+            log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
+        elif n == 1:
             log.exception("%s: controller fault at step %d (handled; further ones are only counted)", self.ids[i], step)
         else:
             log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
@@ -73,6 +75,8 @@ class BatchAgents:
         (their torques: `torque_nm`)."""
         if batch.step % self.decision_period_steps == 0 and len(rows):
             cb = self._decide(rows, batch)
+            for r in cb.raised:  # counted as AgentNode counts a step that raised
+                self._fault(int(rows[r]), batch.step, logged=True)
             acc = np.asarray(cb.accel_mps2, dtype=float)
             tq = np.zeros_like(acc) if cb.torque_nm is None else np.asarray(cb.torque_nm, dtype=float)
             modes = list(cb.modes)

@@ -155,6 +155,7 @@ class CommandBatch:
     modes: list[str]
     build: Callable[[int], Command] | None = None  # observer i -> its full Command
     torque_nm: np.ndarray | None = None  # (N, 3) body-frame torques (a row of 0 for a command without one); None: none at all
+    raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
 
     def command(self, i: int) -> Command:
         if self.build is not None:

@@ -152,3 +152,28 @@ def test_p000_visibility_of_many_sensors_equals_each_ones() -> None:
             assert np.matmul(rel, att[:, :, 0][:, :, None])[j, :, 0].tobytes() == ((lm - pos[j]) @ att[j][:, 0]).tobytes()
             seen += int(alone.sum())
     assert seen > 0
+
+
+def test_p000_batch_path_handles_a_raising_spacecraft_as_the_agent_node(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Paper 000's step_batch: a spacecraft whose flight software raises (here a3 at steps 40-42,
+    after perception and its state's updates, where `step` raises too) commands zero and is counted
+    as a controller fault, as the agent node counts it; the others fly on: the same truth, faults
+    and dV as the per-agent run."""
+    from missions.p000_capture.fsw import controller as cc
+
+    decide = cc.CaptureController._decide
+
+    def raising(self: cc.CaptureController, obs, s, dt_s, decoded=None):  # type: ignore[no-untyped-def]
+        plan = decide(self, obs, s, dt_s, decoded)
+        if self.sc_id == "a3" and 40 <= obs.step <= 42:
+            raise RuntimeError("injected")
+        return plan
+
+    monkeypatch.setattr(cc.CaptureController, "_decide", raising)
+    sc = load_scenario(SCENARIOS / "capture-10.toml").with_overrides(duration_s=3.0)
+    full = run_in_process(sc, tmp_path / "all", "same")
+    batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
+    assert batch.summary["batch"]["used"]
+    assert _truths(tmp_path / "all" / "run.mcap") == _truths(tmp_path / "truth" / "run.mcap")
+    assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {"a3": {"controller": 3}}
+    assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0

@@ -161,7 +161,8 @@ class CaptureController:
         state), then the pointing law of every chasing spacecraft over arrays
         (`attitude.pointing_torques`: the same elementwise operations as `pointing_torque`). A
         spacecraft whose software raises (as `step` would, at the same point) gets a NaN
-        acceleration: the batch agents command zero for it, as the agent node does."""
+        acceleration and is listed in `raised`: the batch agents command zero for it and count the
+        fault, as the agent node does."""
         plans: list[_Plan | None] = []
         sensed: list[CaptureSensing | None] = []
         decoded: dict[tuple[str, bytes], Any] = {}
@@ -206,7 +207,8 @@ class CaptureController:
                 return Command(accel_mps2=acc[i].copy(), mode="fault")
             return pl_.command(torque[i].copy())
 
-        return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque)
+        return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque,
+                            raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None))
 
     def _search_torque(self, s: CaptureSensing) -> np.ndarray:
         p = self.p
