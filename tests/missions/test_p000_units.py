@@ -321,3 +321,47 @@ def test_the_pointing_law_over_arrays_gives_each_rows_bits() -> None:
         assert tau[i].tobytes() == ref.tobytes(), i
         saturated += bool(np.isclose(np.linalg.norm(ref), p.torque_max_nm))
     assert 0 < saturated < n
+
+
+def test_the_apf_of_many_agents_gives_each_ones_bits() -> None:
+    """The batch path's APF (issue 29): `apf_forces` over CSR neighbour rows equals `apf_force` of
+    each agent's rows bit for bit: agents without neighbours (+0), with neighbours none of them
+    within R_h or at d = 0 (numpy's -0 of an empty sum, negated), with up to 19 near ones."""
+    from missions.p000_capture.fsw.apf import apf_forces
+
+    rng = np.random.default_rng(16)
+    counts = rng.integers(0, 20, 300)
+    counts[:3] = 0
+    rel = rng.normal(0.0, 4.0, (int(counts.sum()), 3))
+    offsets = np.concatenate(([0], np.cumsum(counts)))
+    rel[offsets[3]:offsets[4]] = 50.0  # agent 3: every neighbour beyond R_h
+    rel[offsets[4]] = 0.0              # agent 4's first neighbour at d = 0 (left out)
+    got = apf_forces(rel, offsets, 8.0, 5.5)
+    for i in range(len(counts)):
+        ref = apf_force(rel[offsets[i]:offsets[i + 1]], 8.0, 5.5)
+        assert got[i].tobytes() == ref.tobytes(), i
+
+
+def test_the_event_trigger_of_many_agents_gives_each_ones_answer() -> None:
+    """The batch path's trigger (issue 29): `fires_rows` equals `fires(..., cw_disturbance_bound)`
+    agent by agent, and its sample error and threshold are the scalar code's bits (rows set right
+    at the threshold: any other summation order would flip some)."""
+    from missions.p000_capture.fsw.limits import dot_rows
+    from missions.p000_capture.fsw.trigger import cw_disturbance_bound, fires_rows, sample_error
+
+    rng = np.random.default_rng(27)
+    s, n_radps = TriggerSettings(), 0.0011
+    r, v = rng.uniform(-10.0, 10.0, (500, 3)), rng.normal(0.0, 0.05, (500, 3))
+    r_k, v_k = r + rng.normal(0.0, 0.05, (500, 3)), v + rng.normal(0.0, 0.01, (500, 3))
+    t = 12.35
+    for i in range(0, 500, 5):  # exactly at the threshold: the scalar error equals it
+        d_max = cw_disturbance_bound(r[i], v[i], n_radps)
+        err = sample_error(r_k[i], v_k[i], r[i], v[i])
+        r_k[i] = r[i] + (r_k[i] - r[i]) * (threshold(t, d_max, s) / err)
+    got = fires_rows(t, r_k, v_k, r, v, n_radps, s)
+    p, ve = r_k - r, v_k - v
+    for i in range(500):
+        d_max = cw_disturbance_bound(r[i], v[i], n_radps)
+        assert got[i] == fires(t, r_k[i], v_k[i], r[i], v[i], d_max, s), i
+        assert np.sqrt(dot_rows(p, p) + dot_rows(ve, ve))[i] == sample_error(r_k[i], v_k[i], r[i], v[i])
+    assert 0 < got.sum() < 500

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from . import quaternion as quat
-from .limits import norm3, saturate_norm
+from .limits import dot_rows, norm3, saturate_norm
 
 BORESIGHT_BODY = np.array([1.0, 0.0, 0.0])  # sensor axis: body +x (§2.4)
 
@@ -24,12 +24,6 @@ def desired_attitude(position_m: np.ndarray, target_centre_m: np.ndarray) -> np.
     return quat.shortest_arc(BORESIGHT_BODY, line_of_sight(position_m, target_centre_m))
 
 
-def _dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a_i · b_i of (N, 3) rows, summed left to right as numpy's dot of two 3-vectors sums (the
-    same bits as `a[i] @ b[i]`; einsum and matmul order or fuse differently)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
 def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """quaternion.cross3 of (N, 3) rows (a may be one row), the same expression per component."""
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
@@ -42,8 +36,8 @@ def desired_attitudes(los_m: np.ndarray) -> np.ndarray:
     dot's sum and a correctly rounded sqrt, |q| by math.hypot per row, as `normalise`)."""
     los = np.asarray(los_m, dtype=float)
     a = BORESIGHT_BODY[None, :] / math.sqrt(float(BORESIGHT_BODY @ BORESIGHT_BODY))
-    b = los / np.sqrt(_dot_rows(los, los))[:, None]
-    c = _dot_rows(np.broadcast_to(a, b.shape), b)
+    b = los / np.sqrt(dot_rows(los, los))[:, None]
+    c = dot_rows(np.broadcast_to(a, b.shape), b)
     q = np.concatenate([(1.0 + c)[:, None], _cross_rows(a, b)], axis=1)
     norms = np.array([math.hypot(*row) for row in q.tolist()])
     out = q / norms[:, None]
@@ -62,11 +56,11 @@ def pointing_torques(q: np.ndarray, omega_body_radps: np.ndarray, q_d: np.ndarra
     q, w, q_d = (np.asarray(x, dtype=float) for x in (q, omega_body_radps, q_d))
     p0, pv = q_d[:, 0], -q_d[:, 1:]              # q_d* (conjugate)
     q0, qv = q[:, 0], q[:, 1:]
-    e0 = p0 * q0 - _dot_rows(pv, qv)             # quaternion.multiply(q_d*, q)
+    e0 = p0 * q0 - dot_rows(pv, qv)             # quaternion.multiply(q_d*, q)
     ev = p0[:, None] * qv + q0[:, None] * pv + _cross_rows(pv, qv)
     ev = np.where((e0 < 0.0)[:, None], -ev, ev)  # scalar part made non-negative (eq. 16)
     tau = _cross_rows(w, inertia_kgm2 * w) - k_q * ev - k_w * w
-    n = np.sqrt(_dot_rows(tau, tau))
+    n = np.sqrt(dot_rows(tau, tau))
     over = n > torque_max_nm
     tau[over] = tau[over] * (torque_max_nm / n[over])[:, None]
     return tau

@@ -16,11 +16,11 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
-from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame
+from missions.p000_capture.contract import POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame
 
 from . import payload as pl
 from . import quaternion as quat
-from .apf import apf_force, buffer_force
+from .apf import apf_force, apf_forces, buffer_force
 from .attitude import (desired_attitude, desired_attitudes, line_of_sight, pointing_torque, pointing_torques,
                        rate_damping_torque)
 from .chase import chase_force
@@ -30,7 +30,7 @@ from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
 from missions.p000_capture.contract import CaptureParams
 from .sensing import CaptureSensing
-from .trigger import TriggerSettings, cw_disturbance_bound, fires
+from .trigger import TriggerSettings, cw_disturbance_bound, fires, fires_rows
 
 log = logging.getLogger("swarmhil.agent")
 
@@ -135,11 +135,15 @@ class CaptureController:
         return Ellipsoid(est.centre_m + est.velocity_mps * (t - est.t_s), axes.rotation, axes.semi_axes_m)
 
     # --- control ----------------------------------------------------------------------------
-    def _broadcast_due(self, t: float, r: np.ndarray, v: np.ndarray, forced: bool, dt_s: float) -> bool:
+    def _broadcast_due(self, t: float, r: np.ndarray, v: np.ndarray, forced: bool, dt_s: float,
+                       fired: bool | None = None) -> bool:
+        """`fired`: the event trigger's answer when computed with the other agents' (`fires_rows`)."""
         if forced or self.r_k is None or self.p.broadcast == "every-step":
             return True
         if self.p.broadcast == "periodic":
             return t - self.t_k >= self.p.broadcast_period_s - 0.5 * dt_s
+        if fired is not None:
+            return fired
         return fires(t, self.r_k, self.v_k, r, v, cw_disturbance_bound(r, v, self.n), self.trigger)
 
     def step(self, obs: Observation, dt_s: float = 0.05) -> Command:
@@ -166,10 +170,15 @@ class CaptureController:
         plans: list[_Plan | None] = []
         sensed: list[CaptureSensing | None] = []
         decoded: dict[tuple[str, bytes], Any] = {}
+        c0 = controllers[0]
+        same_apf = all(c.p.k_r == c0.p.k_r and c.p.r_h_m == c0.p.r_h_m for c in controllers)
+        f_col = apf_forces(batch.rel_position_m, batch.offsets, c0.p.k_r, c0.p.r_h_m) if same_apf else None
+        fired = cls._fired(controllers, batch)
         for i, c in enumerate(controllers):
             try:
                 s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
-                plans.append(c._decide(batch.observation(i), s, dt_s, decoded))
+                plans.append(c._decide(batch.observation(i), s, dt_s, decoded, None if f_col is None else f_col[i],
+                                       fired[i]))
                 sensed.append(s)
             except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -182,7 +191,6 @@ class CaptureController:
             if pl_ is not None and pl_.los_m is None:
                 torque[i] = controllers[i]._search_torque(sensed[i])  # type: ignore[arg-type]
         if pointing:
-            c0 = controllers[pointing[0]]
             q = np.array([sensed[i].q_body_to_lvlh for i in pointing])  # type: ignore[union-attr]
             w = np.array([sensed[i].omega_body_radps for i in pointing])  # type: ignore[union-attr]
             los = np.array([plans[i].los_m for i in pointing])  # type: ignore[union-attr]
@@ -210,15 +218,47 @@ class CaptureController:
         return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque,
                             raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None))
 
+    @staticmethod
+    def _fired(controllers: Sequence["CaptureController"], batch: ObservationBatch) -> list[bool | None]:
+        """The event trigger (eq. 27-29) of every agent that has a last broadcast state, over arrays
+        (`fires_rows`), from its own state and measurement before its step; None for the others
+        (their `_broadcast_due` decides without it, or the measurement is malformed: `step` raises)."""
+        out: list[bool | None] = [None] * len(controllers)
+        rows, rk, vk, r, v = [], [], [], [], []
+        for i, c in enumerate(controllers):
+            extra = batch.extra[i] if batch.extra is not None else {}
+            if c.r_k is None or c.p.broadcast != "event" or POSITION_M not in extra or VELOCITY_MPS not in extra:
+                continue
+            ri, vi = np.asarray(extra[POSITION_M], dtype=float), np.asarray(extra[VELOCITY_MPS], dtype=float)
+            if ri.shape != (3,) or vi.shape != (3,):
+                continue
+            rows.append(i)
+            rk.append(c.r_k)
+            vk.append(c.v_k)
+            r.append(ri)
+            v.append(vi)
+        if not rows:
+            return out
+        c0 = controllers[rows[0]]
+        if any(controllers[i].n != c0.n or controllers[i].trigger != c0.trigger for i in rows):
+            return out  # (per-agent settings: each decides alone)
+        got = fires_rows(batch.t_s, np.array(rk), np.array(vk), np.array(r), np.array(v), c0.n, c0.trigger)
+        for i, f in zip(rows, got.tolist()):
+            out[i] = f
+        return out
+
     def _search_torque(self, s: CaptureSensing) -> np.ndarray:
         p = self.p
         scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else None
         return rate_damping_torque(s.omega_body_radps, self.inertia, self.k_w, p.torque_max_nm, scan)
 
     def _decide(self, obs: Observation, s: CaptureSensing, dt_s: float,
-                decoded: dict[tuple[str, bytes], Any] | None = None) -> "_Plan":
+                decoded: dict[tuple[str, bytes], Any] | None = None, f_col_n: np.ndarray | None = None,
+                fired: bool | None = None) -> "_Plan":
         """Everything of a step but the attitude torque: perception, consensus, mode, force, packets.
-        The pointing law's line of sight is checked here, where `step` computes it."""
+        The pointing law's line of sight is checked here, where `step` computes it. `f_col_n`,
+        `fired`: the APF force and the event trigger's answer when computed with the other agents'
+        (`apf_forces`, `fires_rows`: both read only the observation and the state before the step)."""
         t, r, v = obs.t_s, s.position_m, s.velocity_mps
         p = self.p
         received = self._receive(obs, decoded)
@@ -254,7 +294,7 @@ class CaptureController:
         if entered:
             self.chase_entry_t = t
 
-        f_col = apf_force(obs.rel_position_m, p.k_r, p.r_h_m)
+        f_col = apf_force(obs.rel_position_m, p.k_r, p.r_h_m) if f_col_n is None else f_col_n
         if self.mode == "search" or ell is None:
             if t - self.rnd_t >= p.random_redraw_s:
                 self.rnd_force, self.rnd_t = random_force(self.rng, p.random_alpha, p.f_thr_n), t
@@ -266,7 +306,7 @@ class CaptureController:
             los = None
         else:
             forced = entered or not had_estimate
-            if self._broadcast_due(t, r, v, forced, dt_s):
+            if self._broadcast_due(t, r, v, forced, dt_s, fired):
                 e_max = p.approach_speed_mps * p.k_v / p.k_p if p.chase_law == "governed" else None
                 self.held_force = chase_force(r, v, slot, self.est.velocity_mps, p.k_p, p.k_v, e_max)
                 self.r_k, self.v_k, self.t_k = r.copy(), v.copy(), t

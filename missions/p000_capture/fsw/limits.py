@@ -19,3 +19,10 @@ def saturate_norm(vec: np.ndarray, limit: float) -> np.ndarray:
     v = np.asarray(vec, dtype=float)
     n = norm3(v)
     return v * (limit / n) if n > limit else v
+
+
+def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a_i · b_i of (N, 3) rows, summed left to right as numpy's dot of two 3-vectors sums (the
+    same bits as `a[i] @ b[i]`, and so `norm3` is sqrt of it; einsum and matmul order or fuse
+    differently)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
