@@ -105,6 +105,10 @@ class MissionWorld:
         self.body_faults: dict[str, list[BodyFault]] = {}
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
+        self._limit_rows = [(rows, f) for rows, f in (
+            (np.array([i for i, m in enumerate(self.limit_mode) if m == "norm"], dtype=np.int64), limit_norm),
+            (np.array([i for i, m in enumerate(self.limit_mode) if m != "norm"], dtype=np.int64), limit_per_axis))
+            if len(rows)]
         # rows of the translational propagator: spacecraft, then propagated bodies
         self.prop_bodies = [b for b in self.bodies if b.motion.kind == "propagated"]
         self.kin_bodies = [b for b in self.bodies if b.motion.kind == "kinematic"]
@@ -241,9 +245,10 @@ class MissionWorld:
     # --- actuators and propagation ----------------------------------------------------------------
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
         a = np.asarray(accel_mps2, float).copy()
-        for i, mode in enumerate(self.limit_mode):
-            f = limit_norm if mode == "norm" else limit_per_axis
-            a[i] = f(a[i:i + 1], float(self.max_accel_mps2[i]))[0]
+        # each craft by its own mode, the crafts of one mode at once (both limits act row by row
+        # with elementwise operations: the bits of one row at a time)
+        for rows, f in self._limit_rows:
+            a[rows] = f(a[rows], self.max_accel_mps2[rows])
         a[~self.alive] = 0.0
         return a
 
