@@ -161,15 +161,15 @@ def test_p000_batch_path_handles_a_raising_spacecraft_as_the_agent_node(tmp_path
     and dV as the per-agent run."""
     from missions.p000_capture.fsw import controller as cc
 
-    decide = cc.CaptureController._decide
+    act = cc.CaptureController._act
 
-    def raising(self: cc.CaptureController, obs, s, dt_s, decoded=None):  # type: ignore[no-untyped-def]
-        plan = decide(self, obs, s, dt_s, decoded)
+    def raising(self: cc.CaptureController, obs, *args, **kw):  # type: ignore[no-untyped-def]
+        plan = act(self, obs, *args, **kw)
         if self.sc_id == "a3" and 40 <= obs.step <= 42:
             raise RuntimeError("injected")
         return plan
 
-    monkeypatch.setattr(cc.CaptureController, "_decide", raising)
+    monkeypatch.setattr(cc.CaptureController, "_act", raising)
     sc = load_scenario(SCENARIOS / "capture-10.toml").with_overrides(duration_s=3.0)
     full = run_in_process(sc, tmp_path / "all", "same")
     batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")

@@ -148,10 +148,12 @@ class P000LandmarkKind:
                 "near": [np.flatnonzero(row) for row in near]}
 
     def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int, rel_m: np.ndarray | None = None,
-                 vis: np.ndarray | None = None) -> list[tuple[str, np.ndarray]]:
+                 vis: np.ndarray | None = None,
+                 surface: tuple[float, np.ndarray] | None = None) -> list[tuple[str, np.ndarray]]:
         """Spacecraft j's named measurements, in the message's order (one noise generator per
-        (seed, step, j): the same draws whoever asks and in whatever order); `rel_m`, `vis`: its
-        landmarks relative to it and their visibility, when computed with the other observers'."""
+        (seed, step, j): the same draws whoever asks and in whatever order); `rel_m`, `vis`,
+        `surface`: its landmarks relative to it, their visibility and its (signed distance, closest
+        point) on the true surface, when computed with the other observers'."""
         p = self.p
         r = ctx.position_m[j]
         q_cw, rot = tr["q_cw"][j], tr["rot"][j]
@@ -160,7 +162,7 @@ class P000LandmarkKind:
         out = [(c.Q_BODY_TO_LVLH, q_cw), (c.OMEGA_BODY_RADPS, tr["w"][j]), (c.POSITION_M, r - self.origin),
                (c.VELOCITY_MPS, ctx.velocity_mps[j]), (c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3)),
                (c.LANDMARK_IDS, ids.astype(float))]
-        sd, x_s, _ = c.surface_frame(tr["ell"], r)
+        sd, x_s = c.surface_frame(tr["ell"], r)[:2] if surface is None else surface
         if sd <= p.proximity_range_m:
             out.append((c.SURFACE_REL_M, x_s - r))
         return out
@@ -198,6 +200,7 @@ class P000LandmarkKind:
         j_of = np.asarray(obs, dtype=np.int64)[owner]
         rel = tr["lm"][None, :, :] - pos[obs][:, None, :]  # (R, K, 3): each row tr["lm"] - r, as _measure's
         vis = visible_landmarks(rel, tr["nrm"], tr["rot"][obs][:, :, 0], self.p)
-        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j, rel[r], vis[r])}
+        sd, x_s, _ = c.surface_frames([tr["ell"]] * len(obs), pos[obs])
+        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j, rel[r], vis[r], (sd[r], x_s[r]))}
                  for r, j in enumerate(obs)]
         return RelBatch(offsets, nb, pos[nb] - pos[j_of], vel[nb] - vel[j_of], owner, extra)

@@ -365,3 +365,35 @@ def test_the_event_trigger_of_many_agents_gives_each_ones_answer() -> None:
         assert got[i] == fires(t, r_k[i], v_k[i], r[i], v[i], d_max, s), i
         assert np.sqrt(dot_rows(p, p) + dot_rows(ve, ve))[i] == sample_error(r_k[i], v_k[i], r[i], v[i])
     assert 0 < got.sum() < 500
+
+
+def test_surface_frames_over_arrays_give_each_rows_bits() -> None:
+    """The batch path's closest surface point (issue 29): `surface_frames` of N points, each on its
+    own posed ellipsoid, equals `surface_frame` row by row bit for bit: points outside, inside, near
+    the surface, on a principal plane (a zero local coordinate: the scalar branch) and at the centre."""
+    from scipy.spatial.transform import Rotation
+
+    from missions.p000_capture.contract import surface_frame, surface_frames
+
+    rng = np.random.default_rng(14)
+    ells, pts = [], []
+    for i in range(600):
+        axes = rng.uniform(0.5, 5.0, 3)
+        if i % 7 == 0:
+            axes = np.array([4.0, 1.3, 1.0])
+        rot = np.eye(3) if i % 5 == 0 else Rotation.random(random_state=i).as_matrix()
+        e = Ellipsoid(rng.uniform(-3.0, 3.0, 3), rot, axes)
+        local = rng.normal(size=3) * axes * rng.choice([0.3, 0.9, 0.999, 1.001, 1.5, 4.0])
+        if i % 11 == 0:
+            local[rng.integers(0, 3)] = 0.0  # on a principal plane
+        if i % 97 == 0:
+            local[:] = 0.0  # the centre
+        ells.append(e)
+        pts.append(e.centre_m + rot @ local if i % 5 else e.centre_m + local)
+    sd, x_s, nrm = surface_frames(ells, np.array(pts))
+    inside = 0
+    for i, (e, q) in enumerate(zip(ells, pts)):
+        ref = surface_frame(e, q)
+        assert sd[i] == ref[0] and x_s[i].tobytes() == ref[1].tobytes() and nrm[i].tobytes() == ref[2].tobytes(), i
+        inside += ref[0] < 0
+    assert 0 < inside < len(ells)

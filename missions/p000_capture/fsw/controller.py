@@ -16,7 +16,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
-from missions.p000_capture.contract import POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame
+from missions.p000_capture.contract import (POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame,
+                                            surface_frames)
 
 from . import payload as pl
 from . import quaternion as quat
@@ -149,24 +150,29 @@ class CaptureController:
     def step(self, obs: Observation, dt_s: float = 0.05) -> Command:
         s = CaptureSensing.from_dict(obs.extra)
         plan = self._decide(obs, s, dt_s)
-        if plan.los_m is None:
-            torque = self._search_torque(s)
-        else:
-            q_d = desired_attitude(s.position_m, plan.ell.centre_m)
-            torque = pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, self.inertia,
-                                     self.k_q, self.k_w, self.p.torque_max_nm)
-        return plan.command(torque)
+        return plan.command(self._torque(s, plan))
+
+    def _torque(self, s: CaptureSensing, plan: "_Plan") -> np.ndarray:
+        """The attitude law of a step's plan: rate control in search, else the pointing PD at the
+        estimated centre (eq. 15-18)."""
+        if plan.los_m is None or plan.ell is None:
+            return self._search_torque(s)
+        q_d = desired_attitude(s.position_m, plan.ell.centre_m)
+        return pointing_torque(s.q_body_to_lvlh, s.omega_body_radps, q_d, self.inertia, self.k_q, self.k_w,
+                               self.p.torque_max_nm)
 
     @classmethod
     def step_batch(cls, controllers: Sequence["CaptureController"], batch: ObservationBatch,
                    dt_s: float = 0.05) -> CommandBatch:
-        """Every controller's `step` at once (issue 29), the same command bit for bit: perception,
-        consensus, modes, chase and packets spacecraft by spacecraft (`_decide`, each its own
-        state), then the pointing law of every chasing spacecraft over arrays
-        (`attitude.pointing_torques`: the same elementwise operations as `pointing_torque`). A
-        spacecraft whose software raises (as `step` would, at the same point) gets a NaN
-        acceleration and is listed in `raised`: the batch agents command zero for it and count the
-        fault, as the agent node does."""
+        """Every controller's `step` at once (issue 29), the same command bit for bit. Over arrays:
+        the APF (`apf_forces`) and the event trigger (`fires_rows`) from the observations and the
+        states before the step, the closest surface point of every estimate (`surface_frames`) and
+        the pointing law of every chasing spacecraft (`desired_attitudes`, `pointing_torques`), each
+        the per-spacecraft function's operations row by row. Spacecraft by spacecraft, each with its
+        own state: perception, fits and consensus (`_perceive`), then slot, mode, chase and packets
+        (`_act`). A spacecraft whose software raises (where `step` would) gets a NaN acceleration
+        and is listed in `raised`: the batch agents command zero for it and count the fault, as the
+        agent node does; nothing that runs after the states change raises for the whole batch."""
         plans: list[_Plan | None] = []
         sensed: list[CaptureSensing | None] = []
         decoded: dict[tuple[str, bytes], Any] = {}
@@ -174,35 +180,51 @@ class CaptureController:
         same_apf = all(c.p.k_r == c0.p.k_r and c.p.r_h_m == c0.p.r_h_m for c in controllers)
         f_col = apf_forces(batch.rel_position_m, batch.offsets, c0.p.k_r, c0.p.r_h_m) if same_apf else None
         fired = cls._fired(controllers, batch)
-        for i, c in enumerate(controllers):
+        n = len(controllers)
+        seen: list[_Seen | None] = [None] * n
+        for i, c in enumerate(controllers):  # first halves, then every estimate's closest point at once
             try:
                 s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
-                plans.append(c._decide(batch.observation(i), s, dt_s, decoded, None if f_col is None else f_col[i],
-                                       fired[i]))
+                seen[i] = c._perceive(batch.observation(i), s, decoded)
                 sensed.append(s)
             except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
-                plans.append(None)
                 sensed.append(None)
-        n = len(controllers)
+        frames = cls._frames(seen, sensed)
+        for i, c in enumerate(controllers):
+            sn, s_i = seen[i], sensed[i]
+            if sn is None or s_i is None:
+                plans.append(None)
+                continue
+            try:
+                frame = frames[i] if frames[i] is not None or sn.ell is None else surface_frame(sn.ell, s_i.position_m)
+                plans.append(c._act(batch.observation(i), s_i, dt_s, sn, frame,
+                                    None if f_col is None else f_col[i], fired[i]))
+            except Exception:  # noqa: BLE001 - as above
+                log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
+                plans.append(None)
         torque = np.zeros((n, 3))
         pointing = [i for i, pl_ in enumerate(plans) if pl_ is not None and pl_.los_m is not None]
-        for i, pl_ in enumerate(plans):
-            if pl_ is not None and pl_.los_m is None:
-                torque[i] = controllers[i]._search_torque(sensed[i])  # type: ignore[arg-type]
-        if pointing:
+        done: set[int] = set()
+        if pointing and all(c.p.torque_max_nm == c0.p.torque_max_nm and c.p.inertia_kgm2 == c0.p.inertia_kgm2
+                            and c.p.k_q == c0.p.k_q and c.p.k_w == c0.p.k_w for c in controllers):
             q = np.array([sensed[i].q_body_to_lvlh for i in pointing])  # type: ignore[union-attr]
             w = np.array([sensed[i].omega_body_radps for i in pointing])  # type: ignore[union-attr]
             los = np.array([plans[i].los_m for i in pointing])  # type: ignore[union-attr]
-            if all(c.p.torque_max_nm == c0.p.torque_max_nm and c.p.inertia_kgm2 == c0.p.inertia_kgm2
-                   and c.p.k_q == c0.p.k_q and c.p.k_w == c0.p.k_w for c in controllers):
+            try:
                 torque[pointing] = pointing_torques(q, w, desired_attitudes(los), c0.p.inertia_kgm2, c0.p.k_q,
                                                     c0.p.k_w, c0.p.torque_max_nm)
-            else:  # (per-spacecraft gains: each its own law)
-                for k, i in enumerate(pointing):
-                    c = controllers[i]
-                    torque[i] = pointing_torque(q[k], w[k], desired_attitude(np.zeros(3), los[k]), c.inertia,
-                                                c.k_q, c.k_w, c.p.torque_max_nm)
+                done = set(pointing)
+            except Exception:  # noqa: BLE001 - each its own law below, where one raises as in `step`
+                done = set()
+        for i, pl_ in enumerate(plans):  # the search law, and each its own where not done above
+            if pl_ is None or i in done:
+                continue
+            try:
+                torque[i] = controllers[i]._torque(sensed[i], pl_)  # type: ignore[arg-type]
+            except Exception:  # noqa: BLE001 - as `step` raising in an agent node
+                log.exception("%s: p000-capture raised at step %d; commanding zero", controllers[i].sc_id, batch.step)
+                plans[i] = None
         acc = np.full((n, 3), np.nan)
         for i, pl_ in enumerate(plans):
             if pl_ is not None:
@@ -217,6 +239,24 @@ class CaptureController:
 
         return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque,
                             raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None))
+
+    @staticmethod
+    def _frames(seen: list["_Seen | None"], sensed: list[CaptureSensing | None]
+                ) -> list[tuple[float, np.ndarray, np.ndarray] | None]:
+        """surface_frame(ell, r) of every agent that flies on an estimate, at once (`surface_frames`:
+        the same bits row by row); None for the others."""
+        rows = [i for i, sn in enumerate(seen) if sn is not None and sn.ell is not None]
+        out: list[tuple[float, np.ndarray, np.ndarray] | None] = [None] * len(seen)
+        if not rows:
+            return out
+        ells = [seen[i].ell for i in rows]  # type: ignore[union-attr]
+        try:
+            sd, x_s, nrm = surface_frames(ells, np.array([sensed[i].position_m for i in rows]))  # type: ignore[misc, union-attr]
+        except Exception:  # noqa: BLE001 - each its own in `step_batch`'s second loop (raising there as in `step`)
+            return out
+        for k, i in enumerate(rows):
+            out[i] = (float(sd[k]), x_s[k], nrm[k])
+        return out
 
     @staticmethod
     def _fired(controllers: Sequence["CaptureController"], batch: ObservationBatch) -> list[bool | None]:
@@ -259,7 +299,15 @@ class CaptureController:
         The pointing law's line of sight is checked here, where `step` computes it. `f_col_n`,
         `fired`: the APF force and the event trigger's answer when computed with the other agents'
         (`apf_forces`, `fires_rows`: both read only the observation and the state before the step)."""
-        t, r, v = obs.t_s, s.position_m, s.velocity_mps
+        seen = self._perceive(obs, s, decoded)
+        return self._act(obs, s, dt_s, seen, None if seen.ell is None else surface_frame(seen.ell, s.position_m),
+                         f_col_n, fired)
+
+    def _perceive(self, obs: Observation, s: CaptureSensing,
+                  decoded: dict[tuple[str, bytes], Any] | None = None) -> "_Seen":
+        """A step's first half: packets, landmarks (shared, fitted at 1 Hz), consensus, and the
+        estimate flown on (`_Seen`); the closest surface point of it comes next (`_act`'s `frame`)."""
+        t, r = obs.t_s, s.position_m
         p = self.p
         received = self._receive(obs, decoded)
         txs: list[Transmission] = []
@@ -281,9 +329,19 @@ class CaptureController:
                 ell = self._estimate_ellipsoid(t)
             except ValueError:
                 ell = None
+        return _Seen(ell, detected, received, had_estimate, txs)
+
+    def _act(self, obs: Observation, s: CaptureSensing, dt_s: float, seen: "_Seen",
+             frame: tuple[float, np.ndarray, np.ndarray] | None, f_col_n: np.ndarray | None = None,
+             fired: bool | None = None) -> "_Plan":
+        """A step's second half, from `_perceive`'s `seen` and the closest point of its estimate
+        (`frame`: surface_frame(seen.ell, r), None without one): slot, mode, forces, the broadcast."""
+        t, r, v = obs.t_s, s.position_m, s.velocity_mps
+        p = self.p
+        ell, detected, received, had_estimate, txs = seen.ell, seen.detected, seen.received, seen.had_estimate, seen.txs
         slot = None
-        if ell is not None:
-            sd, x_s, nrm = surface_frame(ell, r)
+        if ell is not None and frame is not None:
+            sd, x_s, nrm = frame
             slot = x_s + p.r_buffer_m * nrm  # eq. 14
         old_mode = self.mode
         at_slot = slot is not None and norm3(r - slot) < p.dock_slot_tol_m
@@ -330,6 +388,18 @@ def _decoded(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Calla
     if got is None:
         got = cache[key] = decode(pkt.payload)
     return got
+
+
+@dataclass
+class _Seen:
+    """`_perceive`'s answer: the estimate flown on (None: none yet, or not an ellipsoid), whether
+    the agent detected the target or received an estimate, had one before, and its packets so far."""
+
+    ell: Ellipsoid | None
+    detected: bool
+    received: bool
+    had_estimate: bool
+    txs: list[Transmission]
 
 
 @dataclass

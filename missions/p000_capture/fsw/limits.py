@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 
+from missions.p000_capture.contract import dot_rows  # noqa: F401  (the flight software's row dot: attitude, trigger)
+
 
 def norm3(vec: np.ndarray) -> float:
     """‖v‖ of one vector: √(v·v), the same bits as np.linalg.norm (which computes sqrt(v.dot(v)) for
@@ -20,9 +22,3 @@ def saturate_norm(vec: np.ndarray, limit: float) -> np.ndarray:
     n = norm3(v)
     return v * (limit / n) if n > limit else v
 
-
-def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a_i · b_i of (N, 3) rows, summed left to right as numpy's dot of two 3-vectors sums (the
-    same bits as `a[i] @ b[i]`, and so `norm3` is sqrt of it; einsum and matmul order or fuse
-    differently)."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
