@@ -40,7 +40,8 @@ def desired_attitudes(los_m: np.ndarray) -> np.ndarray:
     c = dot_rows(np.broadcast_to(a, b.shape), b)
     q = np.concatenate([(1.0 + c)[:, None], _cross_rows(a, b)], axis=1)
     norms = np.array([math.hypot(*row) for row in q.tolist()])
-    out = q / norms[:, None]
+    with np.errstate(invalid="ignore", divide="ignore"):  # (|q| = 0 only opposite the boresight: below)
+        out = q / norms[:, None]
     for i in np.flatnonzero(c < -1.0 + 1e-12).tolist():  # opposite: shortest_arc's own branch
         out[i] = quat.shortest_arc(BORESIGHT_BODY, los[i])
     return out
