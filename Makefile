@@ -28,7 +28,7 @@ setup-system: setup
 # saved (runs/demo/run.rrd) and its report (runs/demo/report/index.html); it ends by printing
 # both paths and the command that opens each.
 demo: setup
-	$(PY) -m deploy.cli demo --out runs/demo
+	$(PY) -m swarmhil.deploy.cli demo --out runs/demo
 
 test: setup
 	$(PY) -m pytest -q
@@ -73,7 +73,7 @@ soak: setup
 # Regenerate the committed protobuf code from bus/swarmhil.proto.
 proto: setup
 	$(PY) -m grpc_tools.protoc -I bus --python_out=bus --pyi_out=bus bus/swarmhil.proto
-	$(PY) -m bus.keys_json
+	$(PY) -m swarmhil.bus.keys_json
 
 clean:
 	rm -rf runs .pytest_cache
@@ -82,4 +82,4 @@ clean:
 # in `make test`), `make claims ARGS=--all` with the system tier, `ARGS=--write` rewrites the tables.
 .PHONY: claims
 claims: setup
-	$(PY) -m deploy.cli claims $(or $(ARGS),--quick)
+	$(PY) -m swarmhil.deploy.cli claims $(or $(ARGS),--quick)

@@ -17,8 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from agent.catalogue import make_controller
-from agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, step_batch
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, step_batch
 
 log = logging.getLogger("swarmhil.agent")
 

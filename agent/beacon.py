@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from agent.controller import Command, Transmission
-from bus import swarmhil_pb2 as pb
+from swarmhil.agent.controller import Command, Transmission
+from swarmhil.bus import swarmhil_pb2 as pb
 
 
 class BeaconEmitter:

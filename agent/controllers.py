@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
 
 
 class NullController:

@@ -12,12 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from agent.catalogue import make_controller
-from agent.controller import Command, Observation, OrbitInfo
-from bus import swarmhil_pb2 as pb
-from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, add_measurement, decode, header, measurements_to_dict, sense_type, vec
-from bus.keys import Keys
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Command, Observation, OrbitInfo
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.base import Bus
+from swarmhil.bus.codec import RejectedPacket, Rejections, add_measurement, decode, header, measurements_to_dict, sense_type, vec
+from swarmhil.bus.keys import Keys
 
 log = logging.getLogger("swarmhil.agent")
 

@@ -22,15 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from agent.camera.model import Camera, quat_to_matrix
-from agent.camera.render import compose_frame
-from agent.controller import Observation
-from agent.nav.base import Track, observation_arrays
-from agent.nav.ekf import EkfConfig
-from agent.nav.pipeline import VisionNav
-from agent.nav.rough import RoughNavigator
-from bus import swarmhil_pb2 as pb
-from bus.optional import require
+from swarmhil.agent.camera.model import Camera, quat_to_matrix
+from swarmhil.agent.camera.render import compose_frame
+from swarmhil.agent.controller import Observation
+from swarmhil.agent.nav.base import Track, observation_arrays
+from swarmhil.agent.nav.ekf import EkfConfig
+from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.nav.rough import RoughNavigator
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.optional import require
 
 NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample",
               "control_max_sigma_m"}

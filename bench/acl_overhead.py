@@ -16,9 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from bus.acl import make_run_security  # noqa: E402
-from bus.keys import Keys  # noqa: E402
-from bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router  # noqa: E402
+from swarmhil.bus.acl import make_run_security  # noqa: E402
+from swarmhil.bus.keys import Keys  # noqa: E402
+from swarmhil.bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router  # noqa: E402
 
 
 def bench(n: int, steps: int, secure: bool) -> float:

@@ -2,7 +2,7 @@
 
     python bench/agent_rss.py [SCENARIO] [--duration 600] [--tree DIR ...] [--out DIR]
 
-Runs `python -m deploy.cli run SCENARIO --duration D` from each source tree (default: this one) in
+Runs `python -m swarmhil.deploy.cli run SCENARIO --duration D` from each source tree (default: this one) in
 turn, samples the RSS of every child of the launcher with psutil every 0.5 s, and prints per tree
 the median and maximum over the agent processes of each one's peak sampled RSS, and the plant's,
 the recorder's and the launcher's. With a tree that has the import audit (deploy/proc.py
@@ -29,9 +29,9 @@ HEAVY = ("pydantic", "tqdm", "scipy", "click", "matplotlib", "rerun", "numba", "
 
 
 def role_of(cmdline: list[str]) -> str:
-    if "deploy.proc" not in cmdline:
+    if "swarmhil.deploy.proc" not in cmdline:
         return ""
-    role = cmdline[cmdline.index("deploy.proc") + 1]
+    role = cmdline[cmdline.index("swarmhil.deploy.proc") + 1]
     if role == "agent" and "--id" in cmdline:
         return f"agent-{cmdline[cmdline.index('--id') + 1]}"
     if role == "companion" and "--name" in cmdline:
@@ -44,7 +44,7 @@ def measure(tree: Path, scenario: str, duration: float, out: Path, interval_s: f
     audit = out / "audit"
     audit.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ, SWARMHIL_IMPORT_AUDIT=str(audit))
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(Path(scenario).resolve()), "--duration", str(duration),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(Path(scenario).resolve()), "--duration", str(duration),
            "--out", str(out / "run"), "--no-progress", "--overwrite"]
     launcher = psutil.Popen(cmd, cwd=tree, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     peak: dict[str, int] = {"launcher": 0}

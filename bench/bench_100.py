@@ -2,7 +2,7 @@
 
     python bench/bench_100.py [--hours 24] [--scenario deploy/scenarios/sabatini-100.toml] [--no-floor]
 
-Runs `python -m deploy.cli run SCENARIO --duration HOURS*3600` once, sampling every process's RSS
+Runs `python -m swarmhil.deploy.cli run SCENARIO --duration HOURS*3600` once, sampling every process's RSS
 (bench/agent_rss.py `measure`), then the bus floor of the same number of processes and steps
 (bench/bus_floor.py) in the same invocation. Prints the launcher wall, the plant loop, the bus floor
 and their ratio, the median and maximum agent peak RSS (sampled and VmHWM), dead agents and missed

@@ -54,7 +54,7 @@ def bus_floor(n: int, steps: int, contract: bool = False) -> float:
 
 
 def multi_process(path: str, sc, out: Path, duration: float) -> dict:
-    from deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.launcher import MultiProcessRun
 
     t0 = time.perf_counter()
     res = MultiProcessRun(path, sc, out, f"bench-mp-{sc.name}", progress=False, overrides={"duration": duration}).execute()
@@ -65,7 +65,7 @@ def multi_process(path: str, sc, out: Path, duration: float) -> dict:
 
 
 def in_process(sc, out: Path, record: str) -> dict:
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     t0, c0 = time.perf_counter(), time.process_time()
     res = run_in_process(sc, out, f"bench-ip-{record}", record=record)
@@ -82,7 +82,7 @@ def main() -> None:
     ap.add_argument("--no-multi-process", action="store_true", help="only the in-process ratios")
     ap.add_argument("--no-in-process", action="store_true", help="only the multi-process ratios (and the bus floor)")
     a = ap.parse_args()
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
     from vectorised_floor import floor_run
 
     names = [s for s in a.scenarios.split(",") if s]

@@ -39,7 +39,7 @@ MISSIONS = {"servicing-6": 60.0, "surround-6": 60.0, "tersoff-6": 3000.0}
 
 
 def _run(sc, out: Path, batch: bool) -> tuple[float, float, dict]:
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     w0, c0 = time.perf_counter(), time.process_time()
     res = run_in_process(sc, out, "bench", record="truth", opts=None if batch else {"batch": False})
@@ -50,8 +50,8 @@ def _run(sc, out: Path, batch: bool) -> tuple[float, float, dict]:
 _JOB = """
 import json, sys, tempfile, time
 from pathlib import Path
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 sc = load_scenario(sys.argv[1])
 with tempfile.TemporaryDirectory() as tmp:
     run_in_process(sc.with_overrides(duration_s=sc.step_s), Path(tmp) / "warm", "bench", record="truth")
@@ -67,9 +67,9 @@ with tempfile.TemporaryDirectory() as tmp:
 _SERVICER_STEP = """
 import json, time
 import numpy as np
-from agent.controller import Observation, OrbitInfo
-from missions.p004_lbdnn.fsw.controller import make_servicer
-from missions.p004_lbdnn.contract import KEY_D, KEY_Y
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p004_lbdnn.fsw.controller import make_servicer
+from swarmhil.missions.p004_lbdnn.contract import KEY_D, KEY_Y
 c = make_servicer("s1", OrbitInfo(6878137.0, 0.0011), {"graph": "ring", "seed": 0})
 rng = np.random.default_rng(1)
 def obs(k):
@@ -105,7 +105,7 @@ def main() -> None:
     ap.add_argument("--duration-scale", type=float, default=1.0, help="times each mission's default duration")
     ap.add_argument("--before", default=None, help="also run each mission on this commit's tree (record truth)")
     a = ap.parse_args()
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     print(json.dumps({"load_start": os.getloadavg()}))
     with tempfile.TemporaryDirectory(prefix="bench-batch-") as tmp:

@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from agent.blob import extract_blobs
-from agent.camera import Camera, Renderer, SpacecraftShape
+from swarmhil.agent.blob import extract_blobs
+from swarmhil.agent.camera import Camera, Renderer, SpacecraftShape
 
 
 def scene_in_view(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -24,10 +24,10 @@ sys.path[:0] = [str(HERE), str(HERE.parent)]  # this checkout's agent package, n
 from bench_camera_pipeline import A_M, N_RADPS, SCENARIO, neighbours
 from ekf_per_track import PerTrackEkf
 
-from agent.camera.model import R_CAM_FROM_LVLH
-from agent.nav import EkfConfig, EkfNavigator
-from agent.nav.pipeline import VisionNav
-from agent.roe import roe_to_lvlh
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH
+from swarmhil.agent.nav import EkfConfig, EkfNavigator
+from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.roe import roe_to_lvlh
 
 
 def recorded_blobs(n: int, frames: int) -> tuple[VisionNav, list]:

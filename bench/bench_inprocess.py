@@ -23,9 +23,9 @@ from pathlib import Path
 CODE = r"""
 import json, sys, time
 sys.path.insert(0, '.')
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
-from plant.node import PlantNode
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
+from swarmhil.plant.node import PlantNode
 _run, loop_cpu = PlantNode.run, []
 def _timed(self, *a, **k):
     c = time.process_time()

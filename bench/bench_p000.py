@@ -49,7 +49,7 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
     uniform in a 12 m box about its centre; and the true ellipsoid."""
     from scipy.spatial.transform import Rotation
 
-    from missions.p000_capture.contract import Ellipsoid, surface_landmarks
+    from swarmhil.missions.p000_capture.contract import Ellipsoid, surface_landmarks
 
     rng = np.random.default_rng(seed)
     rot = Rotation.random(random_state=seed).as_matrix()
@@ -64,8 +64,8 @@ def synthetic(seed: int, axes: np.ndarray, outliers: float, n: int = 200) -> tup
 def job_fits(fits: int, outliers: float) -> dict[str, float]:
     """Median CPU time [s] of a cold GNC-TLS fit and of the in-loop update from last period's
     estimate (the truth moved by 5 cm and scaled by 2 %), half case (i), half case (ii) shapes."""
-    from missions.p000_capture.fsw import gnc_tls as g
-    from missions.p000_capture.contract import Ellipsoid
+    from swarmhil.missions.p000_capture.fsw import gnc_tls as g
+    from swarmhil.missions.p000_capture.contract import Ellipsoid
 
     update = getattr(g, "warm_fit", None) or getattr(g, "track_fit")
     cold, warm, ok = [], [], 0
@@ -111,15 +111,15 @@ def job_run(scenario: str, duration: float, record: str = "all") -> dict[str, ob
 ROWS = [
     ("whole run (`run_in_process`)", ("deploy/launcher", "run_in_process"), None),
     ("plant steps (`publish_step`: everything a step runs, the in-memory bus's callbacks included)", None,
-     ("plant.node", "PlantNode.publish_step")),
+     ("swarmhil.plant.node", "PlantNode.publish_step")),
     ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", ("agent/node", "_on_stimulus"),
-     ("agent.node", "AgentNode._on_stimulus")),
+     ("swarmhil.agent.node", "AgentNode._on_stimulus")),
     ("batch mode (`--record truth`): the flight software of all agents (`BatchHook.commands`, stimuli included)",
-     ("deploy/batch", "commands"), ("deploy.batch", "BatchHook.commands")),
+     ("deploy/batch", "commands"), ("swarmhil.deploy.batch", "BatchHook.commands")),
     ("of which the flight software's `step`", ("p000_capture/fsw/controller", "step"),
-     ("missions.p000_capture.fsw.controller", "CaptureController.step")),
+     ("swarmhil.missions.p000_capture.fsw.controller", "CaptureController.step")),
     ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", ("p000_capture/fsw/controller", "_fit"),
-     ("missions.p000_capture.fsw.controller", "CaptureController._fit")),
+     ("swarmhil.missions.p000_capture.fsw.controller", "CaptureController._fit")),
     ("of which cold `gnc_tls_fit`", ("p000_capture/fsw/gnc_tls", "gnc_tls_fit"), None),
     ("of which `warm_fit`", ("p000_capture/fsw/gnc_tls", "warm_fit"), None),
     ("closest surface point (`surface_frame`: agents' estimate and the sensor's truth)",
@@ -127,18 +127,18 @@ ROWS = [
     ("consensus (eq. 30)", ("p000_capture/fsw/estimate", "consensus"), None),
     ("APF (eq. 23)", ("p000_capture/fsw/apf", "apf_force"), None),
     ("sensing kind `p000-landmarks` (`stimulus`, 20 a step)", ("p000_capture/sense", "stimulus"),
-     ("missions.p000_capture.sense", "P000LandmarkKind.stimulus")),
+     ("swarmhil.missions.p000_capture.sense", "P000LandmarkKind.stimulus")),
     ("of which `landmark_returns` (visibility, noise, outliers)", ("p000_capture/sense", "landmark_returns"), None),
     ("recorder (every message; Foxglove scene of every truth)", ("bus/recorder", "_on_sample"),
-     ("bus.recorder", "RecorderNode._on_sample")),
+     ("swarmhil.bus.recorder", "RecorderNode._on_sample")),
     ("decode + validation of every received message", ("bus/codec", "decode"), None),
     ("of which the non-finite walk", ("bus/codec", "_non_finite_field"), None),
-    ("link channel: commands and windows (`_on_act`)", ("link/node", "_on_act"), ("link.node", "ChannelNode._on_act")),
-    ("link channel: truth (`_on_truth`)", ("link/node", "_on_truth"), ("link.node", "ChannelNode._on_truth")),
+    ("link channel: commands and windows (`_on_act`)", ("link/node", "_on_act"), ("swarmhil.link.node", "ChannelNode._on_act")),
+    ("link channel: truth (`_on_truth`)", ("link/node", "_on_truth"), ("swarmhil.link.node", "ChannelNode._on_truth")),
     ("plant: command decode and collection (`_on_command`)", ("plant/node", "_on_command"),
-     ("plant.node", "PlantNode._on_command")),
+     ("swarmhil.plant.node", "PlantNode._on_command")),
     ("plant: dynamics (CW, attitude RK4, limits: `MissionWorld.step`)", ("plant/mission_world", "step"),
-     ("plant.mission_world", "MissionWorld.step")),
+     ("swarmhil.plant.mission_world", "MissionWorld.step")),
 ]
 
 
@@ -146,8 +146,8 @@ def _in_process(scenario: str, duration: float, around: Callable[[Callable[[], o
                 record: str = "all") -> tuple[object, object]:
     """The scenario's in-process run of `duration` s, called through `around` (timing, profiling);
     `record="truth"`: the batch mode where the tree has it for the scenario."""
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
@@ -233,8 +233,8 @@ def export(rev: str, into: Path) -> Path:
 
 def bench_mp(scenario: str, duration: float) -> dict[str, float]:
     """This tree: the scenario multi-process over Zenoh and in-process, wall of each."""
-    from deploy.launcher import MultiProcessRun, run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun, run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as d:

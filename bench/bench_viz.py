@@ -50,7 +50,7 @@ def stepping_wall_s(mcap_path: Path) -> tuple[float, int]:
 
 def one_run(scenario: str, duration_s: float, viz: bool, work: Path, i: int) -> dict:
     out = work / f"{'viz' if viz else 'plain'}-{i}"
-    cmd = [sys.executable, "-m", "deploy.cli", "run", scenario, "--duration", str(duration_s), "--mode", "lockstep",
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", scenario, "--duration", str(duration_s), "--mode", "lockstep",
            "--no-progress", "--out", str(out)] + (["--viz", "save"] if viz else [])
     t0 = time.monotonic()
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -70,7 +70,7 @@ def one_run(scenario: str, duration_s: float, viz: bool, work: Path, i: int) -> 
 
 LOGGER_CODE = """
 import resource, sys
-from dashboards.replay import replay
+from swarmhil.dashboards.replay import replay
 ru = resource.getrusage(resource.RUSAGE_SELF)
 c0 = ru.ru_utime + ru.ru_stime
 st = replay(sys.argv[1], sys.argv[2])

@@ -24,7 +24,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bus.zenoh_bus import endpoint, free_loopback_port, open_client, open_router  # noqa: E402
+from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port, open_client, open_router  # noqa: E402
 
 
 def worker(router: str, i: int) -> None:

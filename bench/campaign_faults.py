@@ -22,7 +22,7 @@ sys.path.insert(0, str(ROOT))
 
 def one_run(scenario: str, seed: int, out: str) -> dict[str, Any]:
     """`run_seed` (24 h, metrics, no recording kept) with getrusage of the worker around it."""
-    from deploy.campaign import run_seed
+    from swarmhil.deploy.campaign import run_seed
 
     r0 = resource.getrusage(resource.RUSAGE_SELF)
     row = run_seed(scenario, [], seed, out, None, True, False)
@@ -41,7 +41,7 @@ def main() -> None:
     import dask.config
     from dask.distributed import Client, LocalCluster
 
-    from deploy.campaign import LOCAL_WORKER_ENV
+    from swarmhil.deploy.campaign import LOCAL_WORKER_ENV
 
     with dask.config.set({} if a.mode == "default" else LOCAL_WORKER_ENV):
         cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",

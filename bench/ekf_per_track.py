@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from agent.nav import EkfNavigator
-from agent.nav.measure import noise_cov, predict
+from swarmhil.agent.nav import EkfNavigator
+from swarmhil.agent.nav.measure import noise_cov, predict
 
 
 class PerTrackEkf(EkfNavigator):

@@ -44,7 +44,7 @@ def run_truth(scenario: str, duration_s: float, out: Path, env_extra: dict[str, 
     """One in-process, truth-only run of `scenario` in a child process with `env_extra` set."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", **env_extra)
     sets = [a for kv in overrides for a in ("--set", kv)]
-    cmd = [sys.executable, "-m", "deploy.cli", "run", scenario, "--in-process", "--record", "truth", "--no-progress",
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", scenario, "--in-process", "--record", "truth", "--no-progress",
            "--duration", str(duration_s), "--out", str(out), "--overwrite", *sets]
     p = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
     if p.returncode != 0:
@@ -105,7 +105,7 @@ def main() -> None:
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         for s in a.scenarios:
-            from deploy.scenario import load_scenario
+            from swarmhil.deploy.scenario import load_scenario
 
             dur = a.duration if a.duration is not None else load_scenario(s).duration_s
             name = Path(s).stem

@@ -54,8 +54,8 @@ def main() -> None:
     ap.add_argument("--insecure", action="store_true", help="no authentication / ACL on the router")
     ap.add_argument("--every", type=int, default=0, help="also a row per window of this many steps (where CPU grows)")
     a = ap.parse_args()
-    import deploy.launcher as L
-    from deploy.scenario import load_scenario
+    import swarmhil.deploy.launcher as L
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
     out = Path(a.out or tempfile.mkdtemp(prefix="swarmhil-mpcpu-"))

@@ -52,7 +52,7 @@ def first_spacecraft(text: str, n: int) -> str:
 
 def swarmhil_run(path: Path, out: Path, sets: list[str], *extra: str) -> dict[str, Any]:
     """One `swarmhil run` as its own process; its summary.json."""
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(path), "--out", str(out), "--no-progress",
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(path), "--out", str(out), "--no-progress",
            *[a for s in sets for a in ("--set", s)], *extra]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=7200)
     if p.returncode != 0:

@@ -70,7 +70,7 @@ def main() -> None:
     a = ap.parse_args()
     out = Path(a.out) if a.out else Path(tempfile.mkdtemp(prefix="swarmhil-soak-")) / "run"
     load0 = os.getloadavg()
-    cmd = [sys.executable, "-m", "deploy.cli", "run", a.scenario, "--mode", "realtime", "--speed", str(a.speed),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", a.scenario, "--mode", "realtime", "--speed", str(a.speed),
            "--duration", str(a.duration), "--out", str(out), "--no-progress", "--overwrite"]
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

@@ -31,8 +31,8 @@ def truth_sha256(scenario: str, duration_s: float, out: Path, record: str = "all
     mode where the scenario allows it (deploy/batch.py), whose truth must be the per-agent run's."""
     from mcap.reader import make_reader
 
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration_s)
     run_in_process(sc, out, "checksum", record=record)
@@ -51,7 +51,7 @@ REFERENCE_ROWS = 61
 def truth_arrays(run_dir: Path) -> tuple[np.ndarray, list[str], np.ndarray, np.ndarray]:
     """(t_s (K,), spacecraft ids, positions (K, N, 3), velocities (K, N, 3)) of a run's recorded
     spacecraft truth, in step order (dashboards/frames.py reads the recording)."""
-    from dashboards.frames import read_frames
+    from swarmhil.dashboards.frames import read_frames
 
     tr = read_frames(run_dir / "run.mcap")["truth"]
     tr = tr[tr["kind"] == "spacecraft"].sort_values(["step", "id"], kind="stable")

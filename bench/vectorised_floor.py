@@ -30,8 +30,8 @@ MU = 3.986004418e14
 
 def floor_run(sc, steps: int | None = None) -> dict:
     """Run the scenario's dynamics and (sabatini or null) control law, vectorised; returns timings and dV."""
-    from missions.p002_sabatini.fsw.dre import gain_table
-    from missions.p002_sabatini.fsw.sabatini import SabatiniParams
+    from swarmhil.missions.p002_sabatini.fsw.dre import gain_table
+    from swarmhil.missions.p002_sabatini.fsw.sabatini import SabatiniParams
 
     steps = sc.steps if steps is None else steps
     dt = sc.step_s
@@ -118,7 +118,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--repeats", type=int, default=1)
     a = ap.parse_args()
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(a.scenario)
     if a.duration is not None:

@@ -41,8 +41,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Iterable
 
-from bus.keys import Keys, check_token
-from bus.tls import client_tls, make_run_tls
+from swarmhil.bus.keys import Keys, check_token
+from swarmhil.bus.tls import client_tls, make_run_tls
 
 SUB_INGRESS = ["declare_subscriber"]
 LIVE_SUB_INGRESS = ["declare_liveliness_subscriber", "liveliness_query"]

@@ -15,8 +15,8 @@ from typing import Iterable, Sequence, TypeVar
 import numpy as np
 from google.protobuf.message import DecodeError, Message
 
-from bus import swarmhil_pb2 as pb
-from bus.keys import parse_topic, split_topic
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.keys import parse_topic, split_topic
 
 M = TypeVar("M", bound=Message)
 log = logging.getLogger("swarmhil.codec")

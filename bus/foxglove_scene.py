@@ -47,7 +47,7 @@ from foxglove_schemas_protobuf.TextPrimitive_pb2 import TextPrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
-from bus import swarmhil_pb2 as pb
+from swarmhil.bus import swarmhil_pb2 as pb
 
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"

@@ -1,6 +1,6 @@
 """bus/keys.json: the key -> message-type map of the contract as data (DESIGN.md "MCAP (contract)").
 
-`python -m bus.keys_json` (run by `make proto`) writes it from the code (bus/keys.py parse_topic,
+`python -m swarmhil.bus.keys_json` (run by `make proto`) writes it from the code (bus/keys.py parse_topic,
 bus/codec.py message_type_of_topic); tests/test_keys_json.py checks the committed file matches.
 A client that imports nothing of the project reads it with bus/swarmhil.proto: strip
 `swarm/<run>/` from a key, take the first entry whose `key` pattern matches (`*` = one chunk),
@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from bus.codec import message_type_of_topic
+from swarmhil.bus.codec import message_type_of_topic
 
 PATH = Path(__file__).with_name("keys.json")
 

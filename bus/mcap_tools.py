@@ -13,7 +13,7 @@ from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from bus.keys import split_topic
+from swarmhil.bus.keys import split_topic
 
 
 def relative_topic(topic: str) -> str:

@@ -17,7 +17,7 @@ import logging
 from collections import deque
 from dataclasses import dataclass
 
-from bus.base import LivelinessCallback, SampleCallback, key_matches
+from swarmhil.bus.base import LivelinessCallback, SampleCallback, key_matches
 
 log = logging.getLogger("swarmhil.memory")
 

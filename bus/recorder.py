@@ -30,12 +30,12 @@ from typing import Any, BinaryIO
 from google.protobuf.message import DecodeError, Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from bus import swarmhil_pb2 as pb
-from bus.base import Bus
-from bus.codec import message_type_of_topic, sim_time_ns
-from bus.foxglove_scene import FoxgloveScene
-from bus.mcap_writer import RecorderWriter
-from bus.keys import Keys
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.base import Bus
+from swarmhil.bus.codec import message_type_of_topic, sim_time_ns
+from swarmhil.bus.foxglove_scene import FoxgloveScene
+from swarmhil.bus.mcap_writer import RecorderWriter
+from swarmhil.bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
-from bus.keys import check_token
+from swarmhil.bus.keys import check_token
 
 ROUTER_NAMES = ("localhost", "127.0.0.1", "router")
 DAYS = "7"

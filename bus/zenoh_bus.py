@@ -17,7 +17,7 @@ from typing import Any
 
 import zenoh
 
-from bus.base import LivelinessCallback, SampleCallback
+from swarmhil.bus.base import LivelinessCallback, SampleCallback
 
 log = logging.getLogger("swarmhil.zenoh")
 
@@ -170,7 +170,7 @@ class ZenohBus:
     def publish(self, key: str, payload: bytes) -> None:
         pub = self._publishers.get(key)
         if pub is None:
-            from bus.codec import encoding_of_key  # here: a router process needs no numpy/protobuf
+            from swarmhil.bus.codec import encoding_of_key  # here: a router process needs no numpy/protobuf
 
             enc = encoding_of_key(key)  # typed live traffic: application/protobuf;<message type>
             pub = self.session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK,

@@ -8,8 +8,8 @@ from typing import Any
 
 def claim_failures(source: str, run: Any) -> list[str]:
     """One line per claim of `source` that the run does not give within its tolerance."""
-    from claims.registry import registry
-    from claims.runner import SourceCache, rerun
+    from swarmhil.claims.registry import registry
+    from swarmhil.claims.runner import SourceCache, rerun
 
     reg = registry()
     src = reg.sources[source]

@@ -54,9 +54,9 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
 
     Exit 0 when every selected claim holds within its tolerance, every verdict computed from the
     values measured now is the doc's, and the docs' marked tables are what the registry renders."""
-    from claims.registry import record, registry
-    from claims.render import doc_drift, write_docs
-    from claims.runner import SourceCache, kernel_set, locate, nudged_values, rerun, verdict_changes
+    from swarmhil.claims.registry import record, registry
+    from swarmhil.claims.render import doc_drift, write_docs
+    from swarmhil.claims.runner import SourceCache, kernel_set, locate, nudged_values, rerun, verdict_changes
 
     reg = registry()
     where = locate(reg.claims, reg.tables)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from claims.runs import camera_of, run_truth, scenario
+from swarmhil.claims.runs import camera_of, run_truth, scenario
 
 
 def flatten(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -39,7 +39,7 @@ def last_above(t_s: np.ndarray, x: np.ndarray, threshold: float) -> float:
 def sabatini_metrics(name: str = "sabatini-20", sets: tuple[str, ...] = (), seed: int | None = None,
                      duration_s: float | None = None) -> dict[str, Any]:
     """One sabatini run's metrics, flattened, plus the extras of the Results table."""
-    from dashboards.metrics import compute_metrics, relative_to_com
+    from swarmhil.dashboards.metrics import compute_metrics, relative_to_com
 
     sc = scenario(name, sets, seed, duration_s)
     truth = run_truth(sc)

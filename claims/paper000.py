@@ -14,8 +14,8 @@ from __future__ import annotations
 import math
 from typing import Any, Callable
 
-from claims.missions import mission_test_module
-from claims.model import Claim, Row, Source, Table, Tol, Values
+from swarmhil.claims.missions import mission_test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol, Values
 
 DOC = "docs/paper000.md"
 AUTO = Tol(auto=True)  # max(3 x cross-kernel spread, half the last printed digit): claims/model.py resolve_tol

@@ -13,9 +13,9 @@ from __future__ import annotations
 import statistics
 from typing import Any, Callable
 
-from claims.missions import mission_test_module
-from claims.model import Claim, Row, Source, Table, Tol, Values
-from claims.paper000_stack import POLICIES, stack_run
+from swarmhil.claims.missions import mission_test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol, Values
+from swarmhil.claims.paper000_stack import POLICIES, stack_run
 
 DOC = "docs/paper000-reproduction.md"
 AUTO = Tol(auto=True)
@@ -66,7 +66,7 @@ def across_seeds(get: Callable[[str], dict[str, Any]]) -> dict[str, Any]:
 
 
 SOURCES = [Source(f"p000.repro.{case}-s{seed}-{policy}", "study", _run(name, seed, policy),
-                  f"python -m missions.p000_capture.seeds deploy/scenarios/{name}.toml {seed} S.toml && swarmhil run "
+                  f"python -m swarmhil.missions.p000_capture.seeds deploy/scenarios/{name}.toml {seed} S.toml && swarmhil run "
                   f"S.toml --in-process" + "".join(f" --set '{x}'" for x in POLICIES[policy]) + " && swarmhil report RUN")
            for case, name, seed, policy in NEW_RUNS]
 SOURCES.append(Source("p000.repro.seeds", "study", across_seeds, "case (i) over seeds 1-3 (derived)",

@@ -16,8 +16,8 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
-from claims.model import Claim, Row, Source, Table, Tol
-from claims.runs import SCENARIOS, scenario
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.runs import SCENARIOS, scenario
 
 DOC = "docs/paper000.md"
 AUTO = Tol(auto=True)
@@ -77,11 +77,11 @@ def stack_run(sets: tuple[str, ...], duration_s: float = DURATION_S, name: str =
     sections run with the site's figures), in a directory that does not outlive the call. `seed`:
     the scenario rewritten with that seed's initial state and noise (`python -m
     missions.p000_capture.seeds`; seed 1 is the committed file)."""
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
-    from missions.p000_capture.seeds import seeded_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
+    from swarmhil.missions.p000_capture.seeds import seeded_scenario
 
-    from dashboards.report import write_report
+    from swarmhil.dashboards.report import write_report
 
     with tempfile.TemporaryDirectory(prefix="claims-p000-") as d:
         if seed is None:

@@ -14,8 +14,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from claims.missions import mission_test_module
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.missions import mission_test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/paper001.md"
 MODULE = "test_p001_closed_loop"
@@ -108,9 +108,9 @@ STACK_S = 40000.0
 def stack_metrics(truth: Any) -> dict[str, Any]:
     """`swarmhil report`'s `p001-formation` metrics (missions/p001_lattice/report.py `formation_metrics`)
     of a tersoff-6 truth, plus who saturated when."""
-    from missions.p001_lattice.report import formation_metrics, lattice_params
+    from swarmhil.missions.p001_lattice.report import formation_metrics, lattice_params
 
-    from claims.runs import scenario
+    from swarmhil.claims.runs import scenario
 
     sc = scenario("tersoff-6")
     alive = truth.alive.all(axis=1)
@@ -126,7 +126,7 @@ def stack_metrics(truth: Any) -> dict[str, Any]:
 
 
 def _stack_run(_get: Any) -> dict[str, Any]:
-    from claims.runs import run_truth, scenario
+    from swarmhil.claims.runs import run_truth, scenario
 
     return stack_metrics(run_truth(scenario("tersoff-6", duration_s=STACK_S)))
 

@@ -15,8 +15,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from claims.model import Claim, Row, Source, Table, Tol, Values
-from claims.paper001 import AUTO, DOC, U_MAX, _key, release_claims, release_source
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol, Values
+from swarmhil.claims.paper001 import AUTO, DOC, U_MAX, _key, release_claims, release_source
 
 PAPER_MIDDLE_S, PAPER_FORM_S, PAPER_V_MPS, PAPER_EQ16 = 16880.0, 25000.0, 0.18, 0.0125
 RELEASES: dict[str, tuple[str | int, ...]] = {  # as the doc's tables list them
@@ -31,8 +31,8 @@ def _tb_relaxed(_get: Any) -> dict[str, Any]:
     (tests/missions/test_p001_lattice.py checks the same)."""
     from scipy.optimize import minimize_scalar
 
-    from missions.p001_lattice.contract import hexagon_vertices, mean_relative_error
-    from missions.p001_lattice.fsw.tersoff import energy, tersoff_params
+    from swarmhil.missions.p001_lattice.contract import hexagon_vertices, mean_relative_error
+    from swarmhil.missions.p001_lattice.fsw.tersoff import energy, tersoff_params
 
     p = tersoff_params("normalised")
     hexa = hexagon_vertices(1.0)

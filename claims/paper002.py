@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any, Callable, Mapping
 
-from claims.model import Claim, Row, Source, Table, Tol, Values
-from claims.p002_source import sabatini_metrics
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol, Values
+from swarmhil.claims.p002_source import sabatini_metrics
 
 DOC = "docs/paper002-reproduction.md"
 PAPER_DV_MPS = 11.42  # section 5, 20 spacecraft, ideal sensing
@@ -367,7 +367,7 @@ def _sigma_key(sigma: str) -> str:
 
 def _init_spread(sets: tuple[str, ...] = (), seed: int | None = None) -> dict[str, Any]:
     """The initial a*da spread (max - min over the spacecraft) of a scenario's draw: no run."""
-    from claims.runs import scenario
+    from swarmhil.claims.runs import scenario
 
     sc = scenario("sabatini-20", sets, seed)
     return {"x.init_da_spread_m": float(sc.roe_m[:, 0].max() - sc.roe_m[:, 0].min())}

@@ -14,8 +14,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from claims.missions import mission_test_module
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.missions import mission_test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/paper003.md"
 MODULE = "test_p003_closed_loop"

@@ -9,8 +9,8 @@ import math
 import re
 from typing import Any, Callable, Mapping
 
-from claims.missions import mission_test_module
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.missions import mission_test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/paper004.md"
 MODULE = "test_p004_closed_loop"

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/performance.md"
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,7 +32,7 @@ sys.argv = ["swarmhil", *sys.argv[2:]]
 pr = cProfile.Profile(time.process_time)
 pr.enable()
 try:
-    runpy.run_module("deploy.cli", run_name="__main__")
+    runpy.run_module("swarmhil.deploy.cli", run_name="__main__")
 except SystemExit:
     pass
 pr.disable()

@@ -14,14 +14,14 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from claims.model import Claim, Source, Table, resolve_tol
+from swarmhil.claims.model import Claim, Source, Table, resolve_tol
 
 RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from claims import (paper000, paper000_repro, paper000_stack, paper001, paper001_study, paper002, paper003, paper004,
+    from swarmhil.claims import (paper000, paper000_repro, paper000_stack, paper001, paper001_study, paper002, paper003, paper004,
                         performance, reliability, rtf)
 
     return [paper000, paper000_stack, paper000_repro, paper001, paper001_study, paper002, paper003, paper004, performance,

@@ -10,8 +10,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from claims.missions import test_module
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.missions import test_module
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/reliability.md"
 SHAPE = Tol(shape_only=True)

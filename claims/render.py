@@ -5,7 +5,7 @@ import re
 from pathlib import Path
 from typing import Callable, Mapping
 
-from claims.model import PLACEHOLDER, Claim, Table, Value, Values
+from swarmhil.claims.model import PLACEHOLDER, Claim, Table, Value, Values
 
 ROOT = Path(__file__).resolve().parent.parent
 BLOCK = re.compile(r"(<!-- claims:([a-z0-9\-]+) -->\n)(.*?)(<!-- /claims -->)", re.S)

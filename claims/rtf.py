@@ -13,7 +13,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from claims.model import Claim, Row, Source, Table, Tol
+from swarmhil.claims.model import Claim, Row, Source, Table, Tol
 
 DOC = "docs/performance.md"
 ROOT = Path(__file__).resolve().parent.parent

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
-from claims.model import Claim, Source, Table, Value
-from claims.render import doc_line, row_values, verdicts
+from swarmhil.claims.model import Claim, Source, Table, Value
+from swarmhil.claims.render import doc_line, row_values, verdicts
 
 KERNEL_ENV = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES")
 
@@ -124,7 +124,7 @@ class SourceCache:
 
 def _run_source(name: str) -> tuple[dict[str, Any], float, float]:
     """A worker process: one source that makes its own run (it reads no other source)."""
-    from claims.registry import registry
+    from swarmhil.claims.registry import registry
 
     def no_get(other: str) -> dict[str, Any]:
         raise RuntimeError(f"source {name} reads {other}: declare it in `uses`")
@@ -137,7 +137,7 @@ def _run_source(name: str) -> tuple[dict[str, Any], float, float]:
 
 def _run_nudged(name: str, k: int) -> dict[str, Any]:
     """A worker process: the k-th one-ulp nudged run of a source."""
-    from claims.registry import registry
+    from swarmhil.claims.registry import registry
 
     nudged = registry().sources[name].nudged
     assert nudged is not None

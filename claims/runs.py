@@ -16,7 +16,7 @@ SCENARIOS = Path(__file__).resolve().parent.parent / "deploy" / "scenarios"
 def scenario(name: str, sets: tuple[str, ...] = (), seed: int | None = None,
              duration_s: float | None = None) -> Any:
     """A shipped scenario (deploy/scenarios/NAME.toml) with `--set` overrides, a seed and a duration."""
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / f"{name}.toml", list(sets))
     return sc.with_overrides(duration_s=duration_s, seed=seed)
@@ -24,9 +24,9 @@ def scenario(name: str, sets: tuple[str, ...] = (), seed: int | None = None,
 
 def run_truth(sc: Any) -> Any:
     """`swarmhil run SCENARIO --in-process --record truth` (batch mode where allowed): the truth arrays."""
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.truth_io import read_truth
 
     with tempfile.TemporaryDirectory(prefix="claims-") as d:
         res = run_in_process(sc, Path(d), f"claims-{sc.name}", record="truth", keep_truth=True)
@@ -37,7 +37,7 @@ def run_truth(sc: Any) -> Any:
 
 def camera_of(sc: Any) -> Any:
     """The scenario's camera geometry (the plant's visibility rule)."""
-    from plant.sensors import CameraGeometry
+    from swarmhil.plant.sensors import CameraGeometry
 
     c = sc.camera
     return CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])

@@ -138,7 +138,7 @@ def overflowing_texts(fig: Any) -> list[str]:
 # --- line figures drawn both statically (here) and interactively (dashboards/interactive.py) ---------
 from dataclasses import dataclass, field  # noqa: E402
 
-from bus.optional import require
+from swarmhil.bus.optional import require
 
 
 @dataclass

@@ -21,10 +21,10 @@ from typing import Any
 
 from google.protobuf.message import Message
 
-from bus.foxglove_scene import FoxgloveScene
-from bus.keys import Keys
-from bus.optional import require
-from bus.recorder import epoch_ns, message_type_for_key, parse_sample
+from swarmhil.bus.foxglove_scene import FoxgloveScene
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.optional import require
+from swarmhil.bus.recorder import epoch_ns, message_type_for_key, parse_sample
 
 log = logging.getLogger("swarmhil.foxglove")
 

@@ -35,11 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from bus.keys import split_topic
-from bus.mcap_tools import run_of_recording
-from dashboards.metrics import compute_metrics
-from dashboards.run_config import camera_from_config, run_config
-from dashboards.truth_io import read_truth
+from swarmhil.bus.keys import split_topic
+from swarmhil.bus.mcap_tools import run_of_recording
+from swarmhil.dashboards.metrics import compute_metrics
+from swarmhil.dashboards.run_config import camera_from_config, run_config
+from swarmhil.dashboards.truth_io import read_truth
 
 TRUTH, COMMAND, LINK_STATS, EVENT = ("swarmhil.v1.Truth", "swarmhil.v1.ActuatorCommand", "swarmhil.v1.LinkStats",
                                      "swarmhil.v1.Event")

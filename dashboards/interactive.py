@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dashboards.figstyle import _DASH, LineFigure
+from swarmhil.dashboards.figstyle import _DASH, LineFigure
 
 PLOTLY_JS = "plotly.min.js"
 MAX_POINTS = 1500

@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from dashboards import figstyle
-from dashboards.figstyle import LineFigure, render_static, span_text
-from dashboards.interactive import plotly_div
+from swarmhil.dashboards import figstyle
+from swarmhil.dashboards.figstyle import LineFigure, render_static, span_text
+from swarmhil.dashboards.interactive import plotly_div
 
 PAGES = [("index.html", "Overview and mission metrics"), ("navigation.html", "Navigation"),
          ("bandwidth.html", "Bandwidth"), ("events.html", "Events"), ("data.html", "Data tables")]

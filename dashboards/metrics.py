@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
-from plant.sensors import CameraGeometry, visibility_series, weak_components
+from swarmhil.missions.p002_sabatini.contract import D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN  # the thresholds of its section 3.2, Algorithm 1
+from swarmhil.plant.sensors import CameraGeometry, visibility_series, weak_components
 
 
 # --- graph --------------------------------------------------------------------------------------

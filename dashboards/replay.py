@@ -16,12 +16,12 @@ from typing import Any
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
-from bus import swarmhil_pb2 as pb
-from bus.keys import Keys, split_topic
-from bus.mcap_tools import run_of_recording
-from dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
-from dashboards.run_config import config_from_mcap
-from dashboards.viz_node import WebViewer, disable_analytics, free_port, open_recording
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.keys import Keys, split_topic
+from swarmhil.bus.mcap_tools import run_of_recording
+from swarmhil.dashboards.rerun_bridge import CameraRule, SwarmLogger, trail_steps_for
+from swarmhil.dashboards.run_config import config_from_mcap
+from swarmhil.dashboards.viz_node import WebViewer, disable_analytics, free_port, open_recording
 
 UNDECODABLE = pb.UndecodableSample.DESCRIPTOR.full_name
 

@@ -17,19 +17,19 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dashboards.figstyle import exporting, integer_axis, legend, span_text, time_unit, window_text
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.frames import metrics_series_frame
-from dashboards.kit import approach, figures_of, fmt, render
-from dashboards.metrics import SwarmMetrics
-from dashboards.run_config import run_camera, run_config
-from dashboards.run_metrics import SERIES, read_summary, store_metrics
-from dashboards.sections import SectionContext, sections_for
-from dashboards.sections.contact import overview_rows
-from dashboards.site import write_site
-from dashboards.truth_io import TruthArrays, read_truth
-from plant.sensors import CameraGeometry
+from swarmhil.dashboards.figstyle import exporting, integer_axis, legend, span_text, time_unit, window_text
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.frames import metrics_series_frame
+from swarmhil.dashboards.kit import approach, figures_of, fmt, render
+from swarmhil.dashboards.metrics import SwarmMetrics
+from swarmhil.dashboards.run_config import run_camera, run_config
+from swarmhil.dashboards.run_metrics import SERIES, read_summary, store_metrics
+from swarmhil.dashboards.sections import SectionContext, sections_for
+from swarmhil.dashboards.sections.contact import overview_rows
+from swarmhil.dashboards.site import write_site
+from swarmhil.dashboards.truth_io import TruthArrays, read_truth
+from swarmhil.plant.sensors import CameraGeometry
 
 H = 3600.0
 

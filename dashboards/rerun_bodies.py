@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from bus.discovery import import_role
+from swarmhil.bus.discovery import import_role
 
 CAMERA_KINDS = ("rel", "scene")           # plant/sensing/builtin.py: paper 002's camera
 LANDMARK_KINDS: dict[str, tuple[str, str]] = {}

@@ -64,13 +64,13 @@ from typing import Any, Iterable
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from agent.roe import roe_to_lvlh
-from bus import swarmhil_pb2 as pb
-from bus.codec import Rejections
-from bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # noqa: F401 (MODE_COLOURS: re-exported)
-from bus.keys import Keys
-from bus.optional import require
-from dashboards.rerun_bodies import (
+from swarmhil.agent.roe import roe_to_lvlh
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import Rejections
+from swarmhil.bus.foxglove_scene import MODE_COLOURS, lvlh_attitude_wxyz, mode_colour  # noqa: F401 (MODE_COLOURS: re-exported)
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.optional import require
+from swarmhil.dashboards.rerun_bodies import (
     LANDMARK_KINDS,
     R_LVLH_FROM_CAM,
     SceneSpec,
@@ -79,7 +79,7 @@ from dashboards.rerun_bodies import (
     shape_ellipsoids,
     wxyz_to_xyzw,
 )
-from plant.sensors import visibility_series, weak_components
+from swarmhil.plant.sensors import visibility_series, weak_components
 
 rr = require("rerun", "the Rerun viewer (--viz, replay)")
 rrb = require("rerun.blueprint", "the Rerun viewer (--viz, replay)")

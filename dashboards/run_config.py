@@ -14,7 +14,7 @@ from typing import Any
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
-from plant.sensors import CameraGeometry
+from swarmhil.plant.sensors import CameraGeometry
 
 
 def config_from_mcap(mcap_path: str | Path) -> dict[str, Any] | None:

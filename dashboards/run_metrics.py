@@ -13,10 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.metrics import SwarmMetrics, compute_metrics
-from dashboards.run_config import run_camera
-from dashboards.truth_io import TruthArrays, read_truth
-from plant.sensors import CameraGeometry
+from swarmhil.dashboards.metrics import SwarmMetrics, compute_metrics
+from swarmhil.dashboards.run_config import run_camera
+from swarmhil.dashboards.truth_io import TruthArrays, read_truth
+from swarmhil.plant.sensors import CameraGeometry
 
 SERIES = "metrics_series.npz"  # per-step series a sweep report overlays
 

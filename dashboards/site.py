@@ -24,15 +24,15 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from bus.keys import split_topic
-from dashboards.bandwidth.page import bandwidth_section
-from dashboards.bandwidth.read import read_link_traffic
-from dashboards.frames import metrics_frame, read_frames, write_tables
-from dashboards.interactive import write_plotly_js
-from dashboards.kit import SiteFigure, figures_of, nav_bar, render
-from dashboards.navreport.analysis import analyse_run
-from dashboards.navreport.figures import nav_figures
-from dashboards.navreport.page import nav_table_rows
+from swarmhil.bus.keys import split_topic
+from swarmhil.dashboards.bandwidth.page import bandwidth_section
+from swarmhil.dashboards.bandwidth.read import read_link_traffic
+from swarmhil.dashboards.frames import metrics_frame, read_frames, write_tables
+from swarmhil.dashboards.interactive import write_plotly_js
+from swarmhil.dashboards.kit import SiteFigure, figures_of, nav_bar, render
+from swarmhil.dashboards.navreport.analysis import analyse_run
+from swarmhil.dashboards.navreport.figures import nav_figures
+from swarmhil.dashboards.navreport.page import nav_table_rows
 
 MAX_EVENT_ROWS = 5000  # rows of the event page; data/events.csv has them all
 

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bus.keys import split_topic
-from bus.mcap_tools import find_topic, run_of_recording
-from plant.dynamics.roe_linear import lvlh_to_roe
+from swarmhil.bus.keys import split_topic
+from swarmhil.bus.mcap_tools import find_topic, run_of_recording
+from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe
 
 TRUTH_SCHEMA = "swarmhil.v1.Truth"
 

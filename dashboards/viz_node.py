@@ -36,10 +36,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from bus.keys import Keys
-from bus.optional import require
-from bus.zenoh_bus import free_loopback_port
-from dashboards.foxglove_live import DEFAULT_PORT, FoxgloveLive
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.optional import require
+from swarmhil.bus.zenoh_bus import free_loopback_port
+from swarmhil.dashboards.foxglove_live import DEFAULT_PORT, FoxgloveLive
 
 log = logging.getLogger("swarmhil.viz")
 
@@ -169,7 +169,7 @@ class WebViewer:
 def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, viz_port: int | None = None,
                    viz_url: str | None = None) -> Any:
     """A RecordingStream with the sinks of a mode (rrd: also write this file)."""
-    from dashboards.rerun_bridge import APP_ID  # viewer extra: rerun_bridge imports rerun
+    from swarmhil.dashboards.rerun_bridge import APP_ID  # viewer extra: rerun_bridge imports rerun
 
     rr = require("rerun", "the Rerun viewer (--viz)")
 
@@ -187,7 +187,7 @@ def open_recording(run: str, recording_id: str, *, mode: str, rrd: Path | None, 
 
 class VizNode:
     def __init__(self, bus: Any, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
-        from dashboards.rerun_bridge import CameraRule, trail_steps_for  # viewer extra: rerun_bridge imports rerun
+        from swarmhil.dashboards.rerun_bridge import CameraRule, trail_steps_for  # viewer extra: rerun_bridge imports rerun
 
         self.mode = opts.get("viz")
         if self.mode not in MODES:
@@ -219,7 +219,7 @@ class VizNode:
         self._start_subscriptions(bus, run)
 
     def _open_rerun(self, run: str, sc: Any, out: Path, opts: dict[str, Any]) -> None:
-        from dashboards.rerun_bridge import SwarmLogger  # viewer extra: rerun_bridge imports rerun
+        from swarmhil.dashboards.rerun_bridge import SwarmLogger  # viewer extra: rerun_bridge imports rerun
 
         disable_analytics()
         self.rrd = out / "run.rrd"

@@ -18,11 +18,11 @@ from typing import Any
 def agent_config(sc: Any, sid: str) -> dict[str, Any]:
     """Everything spacecraft `sid`'s flight software is configured with, from a validated Scenario,
     as plain JSON data (round-tripped, so in-process and multi-process agents get equal values)."""
-    from agent.catalogue import controller_module  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.catalogue import controller_module  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
     controller, params = sc.controller_of(sid)
     nav = None
     if sc.sensing["kind"] == "scene":  # the camera pipeline (and scipy) only for the scene stimulus
-        from agent.perception import nav_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+        from swarmhil.agent.perception import nav_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
 
         nav = nav_config(sc.sections.get("nav"))
     cfg = {
@@ -48,8 +48,8 @@ def agent_configs(sc: Any) -> dict[str, dict[str, Any]]:
     controller computes once and caches on disk at construction (the DRE gain tables of
     missions/p002_sabatini/fsw/dre.py, solved with scipy) is then there before the agents start, so no agent
     solves it (nor imports scipy), even on a machine's first run."""
-    from agent.catalogue import make_controller  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
-    from agent.controller import OrbitInfo  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.catalogue import make_controller  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.controller import OrbitInfo  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
 
     configs = {sid: agent_config(sc, sid) for sid in sc.ids}
     seen: set[str] = set()
@@ -66,7 +66,7 @@ def agent_configs(sc: Any) -> dict[str, dict[str, Any]]:
 def write_resolved_scenario(sc: Any, path: str | Path) -> Path:
     """What a launcher (or `swarmhil compose`) hands every child: the validated document after --set
     and each agent's config under "agents" (deploy/scenario.py reads the document part)."""
-    from deploy.scenario import resolved_document  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.deploy.scenario import resolved_document  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
 
     p = Path(path)
     p.write_text(json.dumps({**resolved_document(sc), "agents": agent_configs(sc)}, indent=1))
@@ -90,9 +90,9 @@ def build_agent(bus: Any, run: str, cfg: dict[str, Any]) -> Any:
     """One spacecraft's flight software (agent/node.py AgentNode) on a bus, from its config."""
     import importlib
 
-    from agent.beacon import beacon_from_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
-    from agent.controller import OrbitInfo  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
-    from agent.node import AgentNode  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.beacon import beacon_from_config  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.controller import OrbitInfo  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
+    from swarmhil.agent.node import AgentNode  # loaded by the side that runs it: the launcher or the agent role (tests/test_imports.py)
 
     for m in cfg["plugins"]:  # [run].plugins may register controllers
         importlib.import_module(m)
@@ -101,7 +101,7 @@ def build_agent(bus: Any, run: str, cfg: dict[str, Any]) -> Any:
     orbit = OrbitInfo(o["semi_major_axis_m"], o["mean_motion_radps"])
     perception = None
     if cfg["sense_kind"] == "scene":
-        from agent.perception import Perception  # scene sensing only: camera, navigation and scipy
+        from swarmhil.agent.perception import Perception  # scene sensing only: camera, navigation and scipy
 
         perception = Perception(orbit.semi_major_axis_m, orbit.mean_motion_radps, cfg["nav"], cfg["camera"])
     return AgentNode(bus, run, cfg["id"], controller=cfg["controller"], orbit=orbit, params=cfg["params"],

@@ -24,25 +24,25 @@ from typing import Any, Callable
 
 import numpy as np
 
-from agent.batch import BatchAgents
-from agent.controller import CommandBatch, ObservationBatch, OrbitInfo
-from agent.node import observation_from_rel
-from bus import swarmhil_pb2 as pb
-from bus.codec import header
-from bus.keys import Keys
-from deploy.scenario import plant_config
-from link.faults import LinkFaults
-from link.model import LinkModel, check_tx, parse_link_config
-from link.node import enabled as channel_enabled
-from plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMessages
-from plant.sensing.registry import SensingContext, sensing_message
+from swarmhil.agent.batch import BatchAgents
+from swarmhil.agent.controller import CommandBatch, ObservationBatch, OrbitInfo
+from swarmhil.agent.node import observation_from_rel
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import header
+from swarmhil.bus.keys import Keys
+from swarmhil.deploy.scenario import plant_config
+from swarmhil.link.faults import LinkFaults
+from swarmhil.link.model import LinkModel, check_tx, parse_link_config
+from swarmhil.link.node import enabled as channel_enabled
+from swarmhil.plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMessages
+from swarmhil.plant.sensing.registry import SensingContext, sensing_message
 
 
 def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     """None when the scenario can run in batch mode, else the reason it cannot (one phrase)."""
-    from agent.beacon import beacon_from_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.agent.beacon import beacon_from_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if (opts or {}).get("batch") is False:
         return "batch mode off (opts batch = false)"
@@ -133,7 +133,7 @@ class BatchHook(LocalFlightSoftware):
     """The plant's `local_agents` (plant/flight.py): arrays of stimuli in, the (N, 3) commands in force out."""
 
     def __init__(self, bus: Any, run: str, sc: Any) -> None:
-        from deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         # each spacecraft's flight software from the config its agent process would get
         cfgs = [agent_config(sc, s) for s in sc.ids]
@@ -225,7 +225,7 @@ class TruthLog:
 
     def arrays(self, run: str) -> Any:
         """The TruthArrays of the steps so far (dashboards/truth_io.py)."""
-        from dashboards.truth_io import TruthArrays, align_accel  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.dashboards.truth_io import TruthArrays, align_accel  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         k = self.k
         acc, recorded_as = align_accel(self.acc[:k].copy(), self.dv[:k], self.t_s[:k])

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
-from deploy.fault_draws import FaultDrawError, draw_faults, load_fault_draws, read_fault_draws, with_drawn_faults
+from swarmhil.deploy.fault_draws import FaultDrawError, draw_faults, load_fault_draws, read_fault_draws, with_drawn_faults
 
 __all__ = ["FaultDrawError", "draw_faults", "load_fault_draws", "run_campaign", "with_drawn_faults"]  # re-exported for the command
 
@@ -103,8 +103,8 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
     row: dict[str, Any] = {"seed": int(seed), "status": "ok", "error": None}
     rdir = run_dir(Path(out), seed)
     try:
-        from deploy.launcher import run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.launcher import run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
         drawn: list[dict[str, Any]] = []
@@ -116,9 +116,9 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
                              keep_truth=metrics)
         summary = res.summary
         if metrics:
-            from dashboards.report import write_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-            from dashboards.run_metrics import write_metrics  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-            from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.dashboards.report import write_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.dashboards.run_metrics import write_metrics  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             cam = CameraGeometry(sc.camera["detection_range_m"], sc.camera["image_px"], sc.camera["focal_px"])
             if res.truth is not None:  # the arrays the run kept: no read-back of the recording
@@ -128,7 +128,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
             summary = json.loads((rdir / "summary.json").read_text())
         row.update(summary_row(summary))
         if faults:
-            from dashboards.sections.faults import drawn_fault_recovery  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.dashboards.sections.faults import drawn_fault_recovery  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             row["faults"] = json.dumps(drawn_fault_recovery(drawn, sc.resolved(), rdir) if metrics else drawn)
         if not keep_recording:
@@ -188,7 +188,7 @@ def execute(fn: Callable[..., dict[str, Any]], calls: dict[Any, tuple], *, execu
             on_row(key, r)
 
     if executor == "dask":
-        from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         dd = require("dask.distributed", "--executor dask")
         Client, LocalCluster, as_completed = dd.Client, dd.LocalCluster, dd.as_completed
@@ -260,7 +260,7 @@ def write_table(out: Path, rows: list[dict[str, Any]], name: str = "campaign",
     """OUT/<name>.parquet and OUT/<name>.csv: one row per run, the same columns (`first` first)."""
     import csv
 
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     pa = require("pyarrow", "the campaign table (Parquet)")
     pq = require("pyarrow.parquet", "the campaign table (Parquet)")

@@ -25,7 +25,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from deploy.campaign import load_rows, mean_ci95, run_dir, write_table
+from swarmhil.deploy.campaign import load_rows, mean_ci95, run_dir, write_table
 
 WCF = "metrics.connectivity.weakly_connected_fraction"
 # column, label, how the two values are compared: "pp" (other - base, x100), "ratio" (other / base), "diff"
@@ -84,8 +84,8 @@ def connectivity_windows(run_directory: Path, window_s: float) -> dict[str, Any]
     mcap = Path(run_directory) / "run.mcap"
     if not mcap.is_file():
         return None
-    from dashboards.truth_io import read_truth  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensors import CameraGeometry, visibility_series, weak_components  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.truth_io import read_truth  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry, visibility_series, weak_components  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     cam_cfg = json.loads((Path(run_directory) / "summary.json").read_text())["config"]["camera"]
     truth = read_truth(mcap)

@@ -10,8 +10,8 @@ from typing import Any
 
 import click
 
-from bus.optional import MissingExtra
-from deploy.cli_viz import viz_option
+from swarmhil.bus.optional import MissingExtra
+from swarmhil.deploy.cli_viz import viz_option
 
 
 def _bad_file_errors() -> tuple[type[BaseException], ...]:
@@ -149,9 +149,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
         insecure: bool, tls: bool, sets: tuple[str, ...], join_listen: str | None, **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
-    from deploy.cli_viz import viz_opts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.launcher import MultiProcessRun, new_run_id, run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_viz import viz_opts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.launcher import MultiProcessRun, new_run_id, run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if record != "all" and not in_process:
         click.echo("error: --record truth needs --in-process (multi-process runs record every message)", err=True)
@@ -161,10 +161,10 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     except ScenarioError as exc:  # one line naming the field, exit code 2 (usage error), no traceback
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
-    from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if in_process:
-        from deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         if external_ids(sc):
             click.echo(f"error: {scenario}: {', '.join(external_ids(sc))} fly external flight software "
@@ -203,7 +203,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if tls:
         opts["tls"] = True
     if join_listen:
-        from deploy.external import check_join_listen  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.external import check_join_listen  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             check_join_listen(join_listen, bool(opts.get("tls", sc.tls)), sc)
@@ -213,9 +213,9 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
     if in_process:
         res = run_in_process(sc, out_dir, rid, progress=progress, opts=opts, record=record)
     else:
-        from deploy.launcher import RunFailed  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from deploy.memory import NotEnoughMemory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.launcher import RunFailed  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.memory import NotEnoughMemory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             res = MultiProcessRun(scenario, sc, out_dir, rid, progress=progress, opts=opts,
@@ -246,7 +246,7 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
 def router(listen: str, acl_dir: str | None) -> None:
     """The run's Zenoh router as its own process (what `swarmhil run` starts; compose and multi-host
     deployments too). Runs until SIGTERM or Ctrl-C."""
-    from deploy.router import main as router_main  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.router import main as router_main  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     sys.exit(router_main(["--listen", listen, *(["--acl-dir", acl_dir] if acl_dir else [])]))
 
@@ -261,8 +261,8 @@ def mcap() -> None:
 @click.argument("dst", type=click.Path(dir_okay=False))
 def mcap_repair(src: str, dst: str) -> None:
     """Salvage every complete chunk of a recording whose writer was killed into DST."""
-    from bus.mcap_tools import repair  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import recording_problem  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.mcap_tools import repair  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import recording_problem  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     problem = recording_problem(src)
     if problem and not problem.startswith("is cut short"):
@@ -279,7 +279,7 @@ def mcap_merge(files: tuple[str, ...]) -> None:
     """Join the segments of one run (SEG... OUT: run.mcap run.001.mcap ... merged.mcap) into OUT,
     the segments of a recorder that was killed and restarted; a segment without footer is read as
     `repair` reads it. The metadata `swarmhil.segments` keeps each segment's span (the gaps)."""
-    from bus.mcap_tools import merge  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.mcap_tools import merge  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if len(files) < 2:
         raise click.ClickException("give one or more segments and the output file: mcap merge SEG... OUT")
@@ -300,8 +300,8 @@ def mcap_merge(files: tuple[str, ...]) -> None:
 @click.argument("src", type=click.Path(exists=True, dir_okay=False))
 def mcap_info(src: str) -> None:
     """Message counts per topic of a recording."""
-    from bus.mcap_tools import topic_counts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_recording  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.mcap_tools import topic_counts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_recording  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     check_recording(src)
     for topic, n in sorted(topic_counts(src).items()):
@@ -321,21 +321,21 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
             sets: tuple[str, ...]) -> None:
     """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
     containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
-    from deploy.compose import write_compose  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.compose import write_compose  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
         _fail(str(exc), EXIT_USAGE)
-    from deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.external import external_ids  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if external_ids(sc):  # a compose project starts every agent; external flight software joins a `swarmhil run`
         _fail(f"{scenario}: {', '.join(external_ids(sc))} fly external flight software (fsw = \"external\"), which a "
               "compose project does not start: use `swarmhil run` (docs/hil.md)", EXIT_USAGE)
-    from bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.keys import check_token  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.tls import TlsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
@@ -357,7 +357,7 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
 def demo(ctx: click.Context, out: str, in_process: bool) -> None:
     """The first five minutes: run the demo scenario (6 spacecraft, 30 simulated minutes) with its 3D
     views saved, write its report, and print where both are and the one command that opens each."""
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("rerun", "swarmhil demo (its 3D views)")  # before the run, not after it
     require("matplotlib", "swarmhil demo (its report)")
@@ -390,9 +390,9 @@ def refly(run_path: str, sid: str, sets: tuple[str, ...], until_s: float | None,
           exit_code: bool) -> None:
     """Re-fly one agent of the run in directory RUN alone on its recorded stimuli and link deliveries; compare
     every command with the recorded one and print the first divergence (docs/hil.md)."""
-    from deploy.refly import ReflyConfigError, ReflyError, agent_config_of, read_recorded, refly as refly_agent, write_outputs  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import ScenarioError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.refly import ReflyConfigError, ReflyError, agent_config_of, read_recorded, refly as refly_agent, write_outputs  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import ScenarioError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     check_run_dir(run_path)
     try:
@@ -412,15 +412,15 @@ def refly(run_path: str, sid: str, sets: tuple[str, ...], until_s: float | None,
         sys.exit(EXIT_DIVERGED)
 
 
-from deploy.cli_report import report as _report_cmd; main.add_command(_report_cmd)  # noqa: E402,E702
-from deploy.cli_report import sweep as _sweep_cmd; main.add_command(_sweep_cmd)  # noqa: E402,E702
-from deploy.cli_viz import replay as _replay_cmd; main.add_command(_replay_cmd)  # noqa: E402,E702
-from deploy.cli_bandwidth import report_bandwidth as _bandwidth_cmd; main.add_command(_bandwidth_cmd)  # noqa: E402,E702
-from deploy.cli_nav import report_nav as _report_nav_cmd; main.add_command(_report_nav_cmd)  # noqa: E402,E702
-from deploy.cli_campaign import campaign as _campaign_cmd; main.add_command(_campaign_cmd)  # noqa: E402,E702
-from deploy.cli_campaign import campaign_compare as _campaign_compare_cmd; main.add_command(_campaign_compare_cmd)  # noqa: E402,E702
-from claims.cli import claims as _claims_cmd; main.add_command(_claims_cmd)  # noqa: E402,E702
-from deploy.cli_image import image as _image_cmd; main.add_command(_image_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_report import report as _report_cmd; main.add_command(_report_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_report import sweep as _sweep_cmd; main.add_command(_sweep_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_viz import replay as _replay_cmd; main.add_command(_replay_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_bandwidth import report_bandwidth as _bandwidth_cmd; main.add_command(_bandwidth_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_nav import report_nav as _report_nav_cmd; main.add_command(_report_nav_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_campaign import campaign as _campaign_cmd; main.add_command(_campaign_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_campaign import campaign_compare as _campaign_compare_cmd; main.add_command(_campaign_compare_cmd)  # noqa: E402,E702
+from swarmhil.claims.cli import claims as _claims_cmd; main.add_command(_claims_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_image import image as _image_cmd; main.add_command(_image_cmd)  # noqa: E402,E702
 
 
 if __name__ == "__main__":

@@ -22,8 +22,8 @@ def report_bandwidth(run_dir: str, compare: str | None, out: str | None) -> None
     """Bytes and messages per agent and per link, drops by cause, totals: from RUN_DIR/run.mcap alone,
     checked against the channel's own counters (exit code 1 when they disagree). A run without a
     link (no [link] in its scenario) gets an empty report that says so, exit code 0."""
-    from dashboards.bandwidth import accounting, page, read  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.bandwidth import accounting, page, read  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     for r in [run_dir, compare] if compare else [run_dir]:
         check_run_dir(r)
@@ -62,7 +62,7 @@ def _write_no_link_report(lt: Any, path: Path) -> Path:
     """The bandwidth page of a run without a link: it says so, and has no table or figure."""
     import html
 
-    from dashboards.bandwidth.page import write_page  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.bandwidth.page import write_page  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_page(f"swarmhil bandwidth: {lt.run}",

@@ -49,9 +49,9 @@ def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...]
              jobs: int | None, duration: float | None, out: str | None, metrics: bool, keep_recordings: bool,
              retry_failed: bool, record: str, faults: str | None, baseline: bool) -> None:
     """Run SCENARIO with N seeds (batch mode) and write a Parquet/CSV table and a report."""
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.campaign import FaultDrawError, draw_faults, load_fault_draws, run_campaign, with_drawn_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.campaign import FaultDrawError, draw_faults, load_fault_draws, run_campaign, with_drawn_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("pyarrow", "swarmhil campaign (its Parquet table)")  # before any run, not after them
     if executor == "dask" or scheduler:
@@ -113,7 +113,7 @@ def campaign_compare(base: str, other: str, labels: tuple[str, ...], out: str | 
                      window_h: float) -> None:
     """Compare two campaigns seed by seed (same seeds, same initial conditions): the difference in
     connectivity, the dV ratio, closest approach, with 95 % confidence intervals over the seeds."""
-    from deploy.campaign_compare import WCF, CompareError, write_paired  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.campaign_compare import WCF, CompareError, write_paired  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if labels and len(labels) != 2:
         click.echo("error: --label must be given twice (BASE, then OTHER) or not at all", err=True)

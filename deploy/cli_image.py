@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from deploy.image import BASE_TAG, base_rootfs, build, import_base, wheelhouse
+from swarmhil.deploy.image import BASE_TAG, base_rootfs, build, import_base, wheelhouse
 
 
 @click.group()

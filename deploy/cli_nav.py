@@ -19,9 +19,9 @@ import click
 @click.option("--label", "labels", multiple=True, help="Row label per RUN_DIR, in order (default: scenario name).")
 def report_nav(run_dirs: tuple[str, ...], out: str, labels: tuple[str, ...]) -> None:
     """Navigation error against truth per run, and a comparison table across the runs."""
-    from dashboards.navreport.page import write_comparison, write_nav_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.navreport.page import write_comparison, write_nav_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("matplotlib", "swarmhil report-nav (its figures)")
     for d in run_dirs:

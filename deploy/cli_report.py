@@ -47,7 +47,7 @@ def parse_values(text: str) -> list[Any]:
 def set_param(doc: dict[str, Any], param: str, value: Any) -> dict[str, Any]:
     """A copy of the scenario document with doc[a][b]... = value for param 'a.b...' (the path rules
     of `--set`, deploy/overrides.py)."""
-    from deploy.overrides import OverrideError, set_path  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.overrides import OverrideError, set_path  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         return set_path(doc, param, value)
@@ -65,16 +65,16 @@ def run_case(scenario_path: str, param: str, value: Any, seed: int | None, durat
              out_dir: str, run_id: str, figures: bool = True, sets: tuple[str, ...] = (),
              record: str = "all") -> dict[str, Any]:
     """One sweep case (on a worker): in-process run, then its report. Errors are returned."""
-    from dashboards.report import write_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.launcher import run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import parse_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.report import write_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.launcher import run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import parse_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     case: dict[str, Any] = {"value": value, "seed": seed, "dir": out_dir, "run": run_id}
     t0 = time.monotonic()
     try:
-        from deploy.overrides import apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from deploy.scenario import read_document  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.overrides import apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.scenario import read_document  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         doc = set_param(apply_sets(read_document(scenario_path)[0], list(sets)), param, value)
         sc = parse_scenario(doc, Path(scenario_path).name).with_overrides(duration_s=duration_s, seed=seed)
@@ -105,19 +105,19 @@ def report(run_dir: str, steady_from_h: float | None, scenario: str | None, vect
 
     For a sweep directory (with sweep.json), every case is reported again and the sweep report rewritten.
     """
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from dashboards.report import sections_for, write_report, write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.report import sections_for, write_report, write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_run_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     for mod in ("matplotlib", "jinja2", "plotly", "pandas", "pyarrow"):
         require(mod, "swarmhil report (its site, figures and tables)")
-    from plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not (Path(run_dir) / "sweep.json").is_file():
         check_run_dir(run_dir)
     cam = None
     if scenario:
-        from deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         c = load_scenario(scenario).camera
         cam = CameraGeometry(c["detection_range_m"], c["image_px"], c["focal_px"])
@@ -166,20 +166,20 @@ def sweep(scenario: str, param: str, values_text: str, seeds: str | None, out: s
           executor: str, scheduler: str | None, record: str, duration: float | None, case_reports: bool,
           sets: tuple[str, ...]) -> None:
     """Run SCENARIO once per value of --param (in-process runs in parallel) and write one report."""
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from dashboards.report import write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.campaign import execute  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.report import write_sweep_report  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.campaign import execute  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("matplotlib", "swarmhil sweep (its report's figures)")  # before any case runs
-    from deploy.scenario import ScenarioError, parse_scenario, read_document  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import ScenarioError, parse_scenario, read_document  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     values = parse_values(values_text)
     try:
         seed_list: list[int | None] = [None] if not seeds else [int(s) for s in seeds.split(",")]
     except ValueError:
         raise click.BadParameter(f"{seeds!r}: comma-separated integers, e.g. 1,2,3", param_hint="--seeds") from None
-    from deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:  # fail fast on a bad parameter or value, before starting anything
         doc = apply_sets(read_document(scenario)[0], list(sets))

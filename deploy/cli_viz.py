@@ -43,7 +43,7 @@ def viz_opts(*, in_process: bool = False, viz: str = "none", viz_url: str | None
         viz, viz_url = "connect", viz
     if viz == "none":
         return {}
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     # before the run starts, not in its viewer process
     require("foxglove" if viz == "foxglove" else "rerun", f"--viz {viz}")
@@ -55,7 +55,7 @@ def viz_opts(*, in_process: bool = False, viz: str = "none", viz_url: str | None
         click.echo(f"foxglove: ws://127.0.0.1:{opts['viz_port']}  (Foxglove: Open connection -> Foxglove WebSocket; "
                    f"layout {FOXGLOVE_LAYOUT})", err=True)
     if viz == "serve":
-        from dashboards.viz_node import disable_analytics, free_port, web_url  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.dashboards.viz_node import disable_analytics, free_port, web_url  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         disable_analytics()
         opts["viz_port"] = viz_port or free_port()
@@ -90,10 +90,10 @@ def _free_or_exit(port: int) -> int:
 @click.option("--web-port", type=int, help="--serve: web viewer port on 127.0.0.1 (default: a free one).")
 def replay(mcap_path: str, rrd_out: str | None, serve: bool, viz_port: int | None, web_port: int | None) -> None:
     """Build the viewer's views from a recording alone: RUN_DIR/run.mcap -> .rrd and/or web viewer."""
-    from dashboards.replay import ReplayError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from dashboards.replay import replay as do_replay  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.cli_inputs import check_recording  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.replay import ReplayError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.replay import replay as do_replay  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.optional import require  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.cli_inputs import check_recording  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     require("rerun", "swarmhil replay")
     check_recording(mcap_path)

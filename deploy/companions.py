@@ -1,6 +1,6 @@
 """Optional companion processes of a run (link channel, viewer bridge): one registry, two modes.
 
-A companion is started by the launcher as its own process (`python -m deploy.proc companion
+A companion is started by the launcher as its own process (`python -m swarmhil.deploy.proc companion
 --name NAME`) or, in in-process runs, on the in-memory bus. Companions that take part in
 lockstep (the link channel) publish a barrier `Tick` on `swarm/<run>/sync/<name>` with
 header.step = k once everything of step k is done; the plant waits for it like a command.
@@ -18,8 +18,8 @@ from types import ModuleType
 from typing import Any
 
 COMPANIONS: dict[str, str] = {
-    "channel": "link.node",
-    "viz": "dashboards.viz_node",
+    "channel": "swarmhil.link.node",
+    "viz": "swarmhil.dashboards.viz_node",
 }
 
 

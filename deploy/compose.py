@@ -17,7 +17,7 @@ container (DESIGN.md "Processes"), authenticated, access-controlled and on mutua
   process) and TLS files (bus/tls.py: the run's CA, the router's and every process's certificate),
   each mounted as a compose secret into the one service that needs it, under /run/secrets/.
 
-The router is health-checked (`python -m deploy.proc probe`: its TLS port accepts connections)
+The router is health-checked (`python -m swarmhil.deploy.proc probe`: its TLS port accepts connections)
 and every other service waits for it (`depends_on: condition: service_healthy`); the plant starts
 last. Restart policies: the router `unless-stopped`; agents and companions `on-failure:3` (a
 crash at start-up, e.g. a router not yet reachable from another host, is retried); the recorder
@@ -33,9 +33,9 @@ from typing import Any, Iterable
 
 import yaml
 
-from deploy.companions import enabled_companions
-from deploy.agent_image import write_resolved_scenario
-from deploy.scenario import Scenario
+from swarmhil.deploy.companions import enabled_companions
+from swarmhil.deploy.agent_image import write_resolved_scenario
+from swarmhil.deploy.scenario import Scenario
 
 ROUTER_PORT = 7447
 ROUTER_EP = f"${{SWARMHIL_ROUTER:-tls/router:{ROUTER_PORT}}}"
@@ -67,7 +67,7 @@ def compose_document(sc: Scenario, run: str, *, image: str = "swarmhil:latest") 
 
     def svc(cmd: list[str], files: list[str], **extra: Any) -> dict[str, Any]:
         return {"image": f"${{SWARMHIL_IMAGE:-{image}}}", "user": "${SWARMHIL_UID:-10001}:${SWARMHIL_GID:-10001}",
-                "command": ["python", "-m", "deploy.proc", *cmd], "environment": dict(env), "networks": ["swarm"],
+                "command": ["python", "-m", "swarmhil.deploy.proc", *cmd], "environment": dict(env), "networks": ["swarm"],
                 "secrets": [secret(f) for f in files], "stop_signal": "SIGTERM", "stop_grace_period": "30s", **extra}
 
     def client(user: str, role: str, extra_args: list[str], **extra: Any) -> dict[str, Any]:
@@ -84,7 +84,7 @@ def compose_document(sc: Scenario, run: str, *, image: str = "swarmhil:latest") 
                       ["users.txt", "acl.json", "tls/ca.pem", "tls/router.pem", "tls/router.key"],
                       restart="unless-stopped",
                       ports=[f"${{SWARMHIL_ROUTER_PUBLISH:-127.0.0.1}}:{ROUTER_PORT}:{ROUTER_PORT}"],
-                      healthcheck={"test": ["CMD", "python", "-m", "deploy.proc", "probe", "--router", ROUTER_LISTEN],
+                      healthcheck={"test": ["CMD", "python", "-m", "swarmhil.deploy.proc", "probe", "--router", ROUTER_LISTEN],
                                    "interval": "2s", "timeout": "5s", "retries": 30, "start_period": "5s"}),
         "recorder": client("recorder", "recorder", ["--await-run-end", str(RECORDER_RUN_END_WAIT_S)], restart="no"),
     }
@@ -118,7 +118,7 @@ class _NoAliasDumper(yaml.SafeDumper):
 def write_compose(sc: Scenario, scenario_file: str, run: str, out: Path, *, router_hosts: Iterable[str] = (),
                   **kw: Any) -> Path:
     """compose.yml, scenario.json and secrets/ (fresh credentials and certificates) in out's directory."""
-    from bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     d = out.parent
     d.mkdir(parents=True, exist_ok=True)

@@ -31,9 +31,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bus.codec import message_type_of_topic
-from bus.keys import Keys
-from deploy.agent_image import agent_config
+from swarmhil.bus.codec import message_type_of_topic
+from swarmhil.bus.keys import Keys
+from swarmhil.deploy.agent_image import agent_config
 
 DEFAULT_JOIN_TIMEOUT_S = 300.0
 KIT_VERSION = 1

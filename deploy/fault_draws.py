@@ -38,9 +38,9 @@ from typing import Annotated, Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from deploy.scenario import Scenario, parse_scenario
-from plant.bodies import format_validation_error
-from plant.faults import KINDS, MODELS
+from swarmhil.deploy.scenario import Scenario, parse_scenario
+from swarmhil.plant.bodies import format_validation_error
+from swarmhil.plant.faults import KINDS, MODELS
 
 FAULT_STREAM = 0x27FA  # the first word of a campaign fault draw's seed sequence (issue 27)
 Range = float | Annotated[list[float], Field(min_length=2, max_length=2)]

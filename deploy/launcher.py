@@ -23,11 +23,11 @@ from typing import Any
 
 from tqdm import tqdm
 
-from bus import swarmhil_pb2 as pb
-from bus.keys import Keys
-from deploy.companions import enabled_companions
-from deploy.external import JoinTimeout, external_ids, join_hosts, start_external
-from deploy.scenario import Scenario, plant_config, resolved_document
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.keys import Keys
+from swarmhil.deploy.companions import enabled_companions
+from swarmhil.deploy.external import JoinTimeout, external_ids, join_hosts, start_external
+from swarmhil.deploy.scenario import Scenario, plant_config, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
 
@@ -113,10 +113,10 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     (issue 16, campaigns): the recording holds the truth and the events only, and where the
     scenario allows (deploy/batch.py) the flight software of all spacecraft runs as one batch, fed
     with arrays instead of messages: the same truth, bit for bit, several times faster."""
-    from bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from bus.recorder import RecorderNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.node import PlantNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.world import World  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.recorder import RecorderNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.node import PlantNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.world import World  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if external_ids(sc):
         raise ValueError(f"{sc.source}: spacecraft {external_ids(sc)} fly external flight software (fsw = "
@@ -133,7 +133,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     comps = enabled_companions(sc, opts)
     hook = None
     if record == "truth":
-        from deploy.batch import BatchHook, why_not_batch  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.batch import BatchHook, why_not_batch  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         why = why_not_batch(sc, opts)
         summary["batch"] = {"used": why is None, "why_not": why}
@@ -146,7 +146,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
                       local_agents=hook)
     log = None
     if keep_truth and isinstance(plant.world, World):
-        from deploy.batch import TruthLog  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.batch import TruthLog  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         log = plant.on_truth = TruthLog(plant.world.ids, sc.steps, plant.world.a_m, plant.world.n_radps)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
@@ -169,7 +169,7 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
 def make_agent(bus: Any, run: str, sc: Scenario, sid: str) -> Any:
     """One spacecraft's flight software on a bus, configured from the scenario (both modes build it
     from the same JSON config: deploy/agent_image.py)."""
-    from deploy.agent_image import agent_config, build_agent  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.agent_image import agent_config, build_agent  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     return build_agent(bus, run, agent_config(sc, sid))
 
@@ -253,7 +253,7 @@ class MultiProcessRun:
         self._paused: set[str] = set()  # agents a process_pause fault has SIGSTOPped
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
-        cmd = [sys.executable, "-m", "deploy.proc", role, "--router", router, "--run", self.run,
+        cmd = [sys.executable, "-m", "swarmhil.deploy.proc", role, "--router", router, "--run", self.run,
                "--scenario", self.scenario_path, "--out", str(self.out), *extra]
         if self.security is not None:
             cmd += ["--credentials", str(self.security.credentials[name])]
@@ -272,7 +272,7 @@ class MultiProcessRun:
         fraction = self.sc.spec(name[len("agent-"):]).cpu_fraction
         if not fraction:
             return
-        from deploy.cpu_budget import limit  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.cpu_budget import limit  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         budget = limit(self.run, name, self.procs[name].pid, fraction)
         if budget.group is None and name not in self.cpu_budgets:
@@ -303,7 +303,7 @@ class MultiProcessRun:
 
     def _supervision_event(self, watch: Any, kind: str, subject: str, detail: str, step: int) -> None:
         """An Event from the launcher (agent_restart, recorder_restart), recorded like the plant's."""
-        from bus.codec import header  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.codec import header  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         self._event_seq += 1
         ev = pb.Event(header=header(self.run, "launcher", step, step * self.sc.step_s, self._event_seq),
@@ -315,7 +315,7 @@ class MultiProcessRun:
         """A recorder that died mid-run is started again into the next segment (run.001.mcap, ...);
         once it answers the flush handshake it is recording, and the launcher's Event
         `recorder_restart` (recorded in the new segment) says what was lost in between."""
-        from bus.mcap_tools import segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.mcap_tools import segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         if self.recorder_segment >= RECORDER_MAX_RESTARTS:
             return False
@@ -333,7 +333,7 @@ class MultiProcessRun:
     def _merge_segments(self) -> dict[str, Any]:
         """After a recorder restart: run.mcap becomes run.000.mcap and the segments are merged into
         run.mcap (bus/mcap_tools.merge), so every reader sees one recording with the gaps listed."""
-        from bus.mcap_tools import merge, segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.mcap_tools import merge, segment_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         first = self.out / "run.000.mcap"
         (self.out / "run.mcap").replace(first)
@@ -361,17 +361,17 @@ class MultiProcessRun:
         return True
 
     def _start_router(self, attempts: int = 8, timeout_s: float = 120.0) -> str:
-        """The run's router as its own process (`python -m deploy.router`, deploy/router.py), on a free loopback
+        """The run's router as its own process (`python -m swarmhil.deploy.router`, deploy/router.py), on a free loopback
         port: the launcher is not the router. A port taken before the router bound it (exit code 4)
         draws another one. Returns the endpoint once the router accepts connections."""
         import socket
 
-        from bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         for _attempt in range(attempts):
             port = free_loopback_port()
             ep = endpoint(port, proto="tls" if self.tls else "tcp")
-            cmd = [sys.executable, "-m", "deploy.router", "--listen", ep]
+            cmd = [sys.executable, "-m", "swarmhil.deploy.router", "--listen", ep]
             if self.opts.get("join_listen"):  # external flight software on another host (deploy/external.py)
                 cmd += ["--also-listen", self.opts["join_listen"]]
             if self.security is not None:
@@ -434,7 +434,7 @@ class MultiProcessRun:
         plant publishes its final truth and then run_end on one session, so both are recorded).
         Everything that reached the router before the request is covered by the answer. Bounded:
         on timeout a warning says what may be missing, and the shutdown goes on."""
-        from bus.recorder import flush_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.recorder import flush_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         t_end = time.monotonic() + timeout_s
         ack: dict[str, Any] | None = None
@@ -460,17 +460,17 @@ class MultiProcessRun:
             return ""
 
     def execute(self) -> RunResult:
-        from bus.recorder import ack_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from bus.zenoh_bus import ZenohBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.recorder import ack_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.zenoh_bus import ZenohBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-        from deploy.memory import check_memory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.memory import check_memory  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         check_memory(self.sc, n_ground=2 + len(self.companions))  # plant, recorder, companions: refuse before any start
         self.out.mkdir(parents=True, exist_ok=True)
         (self.out / "logs").mkdir(exist_ok=True)
         # every child reads the one validated document (after --set), not the user's file
         # (and each agent only its own config: no scenario validation in an agent image)
-        from deploy.agent_image import write_resolved_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.agent_image import write_resolved_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         write_resolved_scenario(self.sc, self.out / "scenario.json")
         self.scenario_path = str((self.out / "scenario.json").resolve())
@@ -478,7 +478,7 @@ class MultiProcessRun:
         wall0 = time.monotonic()
         launcher_cred = None
         if self.secure:
-            from bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
             self.security = make_run_security(self.out, self.run, users, tls=self.tls,
@@ -616,7 +616,7 @@ class MultiProcessRun:
         summary["exit_codes"] = {n: p.returncode for n, p in self.procs.items()}
         summary["restarts"] = dict(self.restarts)
         if self.cpu_budgets:  # (every agent has exited: the groups' counters are final)
-            from deploy.cpu_budget import release  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.deploy.cpu_budget import release  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             summary["cpu_budgets"] = {n: b.summary() for n, b in self.cpu_budgets.items()}
             for b in self.cpu_budgets.values():

@@ -1,4 +1,4 @@
-"""Entry points of the run's child processes: `python -m deploy.proc ROLE ...`.
+"""Entry points of the run's child processes: `python -m swarmhil.deploy.proc ROLE ...`.
 
 Each is a flight-software image or a ground process with its own Zenoh session; the launcher
 (deploy/launcher.py) starts them and ends them by PID. Children ignore SIGINT: on Ctrl-C the
@@ -17,11 +17,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bus.faults import faults_for
-from bus.faults import wrap as with_faults
-from bus.zenoh_bus import ZenohBus
-from deploy.scenario import load_scenario, plant_config, resolved_document
-from deploy.stopping import Stop, stop_on_signals
+from swarmhil.bus.faults import faults_for
+from swarmhil.bus.faults import wrap as with_faults
+from swarmhil.bus.zenoh_bus import ZenohBus
+from swarmhil.deploy.scenario import load_scenario, plant_config, resolved_document
+from swarmhil.deploy.stopping import Stop, stop_on_signals
 
 # An agent's Zenoh lease: a frozen (SIGSTOPped) agent's liveliness token goes after this long.
 # 2 s was too short on a loaded 2-core machine: an agent that was merely starved of CPU for 2 s
@@ -101,7 +101,7 @@ def _close_within(bus: ZenohBus, timeout_s: float = 3.0) -> None:
 def _agent(args: argparse.Namespace, stop: Stop, cred: Any, out: Path) -> int:
     """One spacecraft's flight software: its config from the launcher's DIR/scenario.json (no
     pydantic, no launcher, no other mission imported), else validated from a TOML scenario."""
-    from deploy.agent_image import agent_config, build_agent, read_agent_config  # this process role's modules only (tests/test_imports.py)
+    from swarmhil.deploy.agent_image import agent_config, build_agent, read_agent_config  # this process role's modules only (tests/test_imports.py)
 
     cfg = read_agent_config(args.scenario, args.id)
     if cfg is None:
@@ -136,7 +136,7 @@ def _await_run_end(node: object, timeout_s: float) -> None:
 def _router(args: argparse.Namespace) -> int:
     """The run's router on its own (compose, another host): deploy/router.py with the run's auth
     dictionary + ACL (bus/acl.py: --acl-dir, or --users/--acl) and mutual TLS (bus/tls.py: --tls)."""
-    from deploy.router import router_overrides, run_router  # this process role's modules only (tests/test_imports.py)
+    from swarmhil.deploy.router import router_overrides, run_router  # this process role's modules only (tests/test_imports.py)
 
     try:
         overrides = router_overrides(args.listen, acl_dir=args.acl_dir, users=args.users, acl=args.acl, tls=args.tls)
@@ -160,7 +160,7 @@ def _probe(router: str, timeout_s: float) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m deploy.proc")
+    ap = argparse.ArgumentParser(prog="python -m swarmhil.deploy.proc")
     sub = ap.add_subparsers(dest="role", required=True)
     for role in ("plant", "agent", "recorder", "companion"):
         p = sub.add_parser(role)
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     stop = _stop_event()
     cred = None
     if args.credentials:
-        from bus.acl import read_credential  # this process role's modules only (tests/test_imports.py)
+        from swarmhil.bus.acl import read_credential  # this process role's modules only (tests/test_imports.py)
 
         cred = read_credential(args.credentials)
         if args.tls:
@@ -210,14 +210,14 @@ def main(argv: list[str] | None = None) -> int:
         return _agent(args, stop, cred, out)
     sc = load_scenario(args.scenario).with_overrides(duration_s=args.duration, seed=args.seed, mode=args.mode, speed=args.speed)
     if args.role == "plant":
-        from plant.node import PlantNode  # this process role's modules only (tests/test_imports.py)
+        from swarmhil.plant.node import PlantNode  # this process role's modules only (tests/test_imports.py)
 
         bus = with_faults(ZenohBus(args.router, credential=cred, direct=faults_for("plant") is None), "plant")
         _watch_router(bus, stop)
         comps = tuple(c for c in args.companions.split(",") if c)
         node = PlantNode(bus, args.run, plant_config(sc), expect_processes=("recorder", *comps),
                          barriers=tuple(b for b in args.barriers.split(",") if b))
-        from deploy.external import plant_ready_timeout_s  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.deploy.external import plant_ready_timeout_s  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             node.wait_ready(timeout_s=plant_ready_timeout_s(sc), should_stop=stop.is_set)
@@ -232,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         _close_within(bus)
         return 0
     if args.role == "recorder":
-        from bus.recorder import RecorderNode  # this process role's modules only (tests/test_imports.py)
+        from swarmhil.bus.recorder import RecorderNode  # this process role's modules only (tests/test_imports.py)
 
         if sc.mode == "realtime" and RECORDER_NICE_REALTIME:
             # off the step's critical path: it only has to keep up on average (Zenoh buffers), while
@@ -240,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
             os.nice(RECORDER_NICE_REALTIME)
         bus = ZenohBus(args.router, credential=cred)
         _watch_router(bus, stop)
-        from bus.mcap_tools import segment_name  # this process role's modules only (tests/test_imports.py)
+        from swarmhil.bus.mcap_tools import segment_name  # this process role's modules only (tests/test_imports.py)
 
         node = RecorderNode(bus, args.run, out / segment_name(args.segment), config=sc.resolved(),
                             document=resolved_document(sc), segment=args.segment)
@@ -252,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         _close_within(bus)
         return 0
     if args.role == "companion":
-        from deploy.companions import load  # this process role's modules only (tests/test_imports.py)
+        from swarmhil.deploy.companions import load  # this process role's modules only (tests/test_imports.py)
 
         comp = load(args.name)
         bus = with_faults(ZenohBus(args.router, credential=cred), args.name)

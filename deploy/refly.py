@@ -31,10 +31,10 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import sense_type
-from bus.keys import Keys
-from bus.mcap_tools import relative_topic, run_of_recording, segment_name
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import sense_type
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.mcap_tools import relative_topic, run_of_recording, segment_name
 
 
 class ReflyError(Exception):
@@ -138,8 +138,8 @@ def read_recorded(run_path: str | Path, sid: str) -> Recorded:
 def agent_config_of(rec: Recorded, sets: tuple[str, ...] = ()) -> dict[str, Any]:
     """The agent's config as the launcher made it (deploy/agent_image.py), from the recorded scenario
     document and the run's seed, duration and mode, with `sets` (`--set SECTION.KEY=VALUE`) on top."""
-    from deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.scenario import load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     run = rec.config.get("run", {})
     with tempfile.TemporaryDirectory(prefix="refly-") as d:
@@ -227,8 +227,8 @@ class ReflyResult:
 
 def refly(rec: Recorded, cfg: dict[str, Any], until_s: float | None = None) -> ReflyResult:
     """Fly agent `rec.sid` alone on the in-memory bus over its recorded inputs; compare its outputs."""
-    from bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from deploy.agent_image import build_agent  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.agent_image import build_agent  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     keys = Keys(rec.run)
     bus = MemoryBus()
@@ -289,7 +289,7 @@ def _delta_norm(a: list[float]) -> float:
 
 
 def _figure(res: ReflyResult, path: Path) -> Path:
-    from dashboards.figstyle import pyplot, save, time_axis  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.dashboards.figstyle import pyplot, save, time_axis  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     plt = pyplot()
     t_s = np.array([row[1] for row in res.accel_delta] + ([] if res.first is None else [res.first.t_s]), dtype=float)

@@ -1,4 +1,4 @@
-"""The run's Zenoh router as its own process: `python -m deploy.router --listen EP [--acl-dir DIR] [--tls DIR]`
+"""The run's Zenoh router as its own process: `python -m swarmhil.deploy.router --listen EP [--acl-dir DIR] [--tls DIR]`
 (what the launcher starts; `swarmhil router` is the same for compose and multi-host deployments).
 
 Lean on purpose (no numpy, no scenario): it must come up fast on a loaded machine. With
@@ -15,7 +15,7 @@ import signal
 import sys
 import threading
 
-from deploy.stopping import Stop, stop_on_signals
+from swarmhil.deploy.stopping import Stop, stop_on_signals
 
 
 def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | None = None, acl: str | None = None,
@@ -27,20 +27,20 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
     if acl and not users:
         raise ValueError("--acl needs --users (the ACL names authenticated users)")
     if acl_dir:
-        from bus.acl import router_overrides_from_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.acl import router_overrides_from_dir  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             overrides.update(router_overrides_from_dir(acl_dir))
         except OSError as exc:
             raise ValueError(f"{acl_dir}: {exc}") from None
     elif users:
-        from bus.acl import router_settings  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.acl import router_settings  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         overrides.update(router_settings(users, acl) if acl else {"transport/auth/usrpwd/dictionary_file": users})
     if listen.startswith("tls/") != bool(tls):
         raise ValueError(f"--listen {listen} and --tls go together (a tls/ endpoint needs the run's certificates)")
     if tls:
-        from bus.tls import router_tls  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.bus.tls import router_tls  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         overrides.update(router_tls(tls))
     return overrides or None
@@ -49,7 +49,7 @@ def router_overrides(listen: str, *, acl_dir: str | None = None, users: str | No
 def run_router(listen: str, overrides: dict | None, stop: Stop, also: list[str] = ()) -> int:
     import zenoh
 
-    from bus.zenoh_bus import _address_in_use, open_router  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.bus.zenoh_bus import _address_in_use, open_router  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         session = open_router(listen, overrides, also)
@@ -68,7 +68,7 @@ def run_router(listen: str, overrides: dict | None, stop: Stop, also: list[str] 
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m deploy.router")
+    ap = argparse.ArgumentParser(prog="python -m swarmhil.deploy.router")
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
     ap.add_argument("--acl-dir", help="a run's secrets directory (users.txt, acl.json: bus/acl.py)")
     ap.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from bus.keys import check_token
+from swarmhil.bus.keys import check_token
 
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
@@ -39,7 +39,7 @@ class OrbitCfg:
 
     @property
     def mean_motion_radps(self) -> float:
-        from plant.dynamics.constants import MU_EARTH_M3PS2  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         return math.sqrt(MU_EARTH_M3PS2 / self.semi_major_axis_m**3)
 
@@ -96,7 +96,7 @@ class Scenario:
         """The fully resolved configuration (defaults filled in), JSON-ready: what a recording carries."""
         from importlib.metadata import PackageNotFoundError, version
 
-        from plant.faults import fault_summary  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.faults import fault_summary  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             ver = version("swarmhil")
@@ -104,7 +104,7 @@ class Scenario:
             ver = "unknown"
         link = None
         if "link" in self.sections:
-            from link.model import link_enabled, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.link.model import link_enabled, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
             if link_enabled(self.sections["link"]):
                 link = parse_link_config(self.sections["link"], self.source, self.seed).to_dict()
@@ -249,7 +249,7 @@ def _roe6(src: str, where: str, value: Any) -> np.ndarray:
 def load_scenario(path: str | Path, sets: list[str] | tuple[str, ...] = ()) -> Scenario:
     """Read a scenario (TOML, or the JSON a launcher writes for its children: {"source", "doc",
     "sets"}), apply `--set` overrides, validate."""
-    from deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.overrides import OverrideError, apply_sets  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     doc, src, applied = read_document(path)
     try:
@@ -299,7 +299,7 @@ def resolved_document(sc: Scenario) -> dict[str, Any]:
 def plant_config(sc: Scenario) -> Any:
     """The plant's configuration (plant/config.py PlantConfig): what of the scenario the plant reads,
     frozen; the plant is given this, never the Scenario (the agent's counterpart is agent_config)."""
-    from plant.config import PlantConfig, PlantOrbit, freeze  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.config import PlantConfig, PlantOrbit, freeze  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     o = sc.orbit
     roe = np.array(sc.roe_m, dtype=float)
@@ -365,7 +365,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     max_accel = _positive(src, "[actuator].max_accel_mps2", act.get("max_accel_mps2", 1e-3))
     limit = _choice(src, "[actuator].limit", act.get("limit", "per_axis"), ("per_axis", "norm"))
     ctl = _table(src, doc, "controller", {"name", "params", "decision_period_s"})
-    from agent.catalogue import known_controllers  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.agent.catalogue import known_controllers  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     controller = _choice(src, "[controller].name", ctl.get("name", "null"), tuple(known_controllers()))
     params = ctl.get("params", {})
@@ -379,7 +379,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         raise _err(src, "[controller].decision_period_s", f"must be a whole number of steps of {step} s", decision_period)
     sens = _table(src, doc, "sensing", {"kind", "roe_noise_fraction", "pointing_error_rad", "pointing_jitter_rad",
                                         "params"})
-    from plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensing import known_sensing, validate_sensing_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     sensing: dict[str, Any] = {
         "kind": _choice(src, "[sensing].kind", sens.get("kind", "rel"), tuple(known_sensing())),
@@ -397,7 +397,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     if sparams:
         sensing["params"] = dict(sparams)
     if sensing["kind"] == "scene":
-        from agent.perception import nav_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.agent.perception import nav_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             nav_config(doc.get("nav"))
@@ -418,7 +418,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
-        from link.model import LinkConfigError, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.link.model import LinkConfigError, parse_link_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             parse_link_config(doc["link"], src, seed)
@@ -441,7 +441,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>") -> Scenario:
     sc.bodies = _bodies(src, doc.get("body", []), set(sc.ids))
     sc.contact = _contact(src, doc.get("contact", {}))
     if "fault" in doc:
-        from plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        from swarmhil.plant.faults import FaultError, parse_faults  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         try:
             sc.faults = parse_faults(src, doc["fault"], sc.ids, step, {b.id: b.motion.kind for b in sc.bodies})
@@ -461,8 +461,8 @@ def _contact(src: str, table: Any) -> Any:
     """[contact] (plant/contact.py): hard-body radius default, keep-out distance, point masses."""
     from pydantic import ValidationError
 
-    from plant.bodies import format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.contact import ContactConfig  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.contact import ContactConfig  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(table, dict):
         raise _err(src, "[contact]", "must be a table", table)
@@ -550,7 +550,7 @@ def _plant_options(src: str, pl: dict[str, Any], fidelity: str) -> dict[str, Any
 
 
 def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
-    from plant.bodies import SpacecraftSpec  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import SpacecraftSpec  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     return [SpacecraftSpec(id=i, roe_m=[float(x) for x in r]) for i, r in zip(ids, roe_m)]
 
@@ -558,7 +558,7 @@ def _generated_specs(ids: list[str], roe_m: np.ndarray) -> list[Any]:
 def _initial_roe(sc: Scenario) -> np.ndarray:
     """(N,6) ROE of every spacecraft: given, or mapped from a Cartesian LVLH state (exact inverse of
     the linear map the `linear` and `j2` plants start from)."""
-    from plant.dynamics.roe_linear import lvlh_to_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     rows = []
     for s in sc.spacecraft:
@@ -583,7 +583,7 @@ def _one_line(exc: Exception) -> str:
 
 def _check_params(src: str, where: str, controller: str, params: dict[str, Any]) -> None:
     """Validate a controller's params with the check its registration provides (agent/controller.py)."""
-    from agent.catalogue import validate_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.agent.catalogue import validate_params  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     try:
         validate_params(controller, params)
@@ -642,7 +642,7 @@ def _viz(src: str, doc: dict[str, Any]) -> None:
 def _bodies(src: str, items: Any, ids: set[str]) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import BodySpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import BodySpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list):
         raise _err(src, "[[body]]", "must be an array of tables", items)
@@ -668,7 +668,7 @@ def check_name(src: str, name: Any) -> str:
 def _explicit(src: str, items: Any) -> list[Any]:
     from pydantic import ValidationError
 
-    from plant.bodies import SpacecraftSpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.bodies import SpacecraftSpec, format_validation_error  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(items, list) or not items:
         raise _err(src, "[[spacecraft]]", "must be a non-empty array of tables", items)
@@ -690,9 +690,9 @@ def _explicit(src: str, items: Any) -> list[Any]:
 
 
 def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.ndarray]:
-    from plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(d, dict):
         raise _err(src, "[dispersion]", "must be a table", d)

@@ -17,7 +17,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from plant.faults import FaultWindow, LinkDegraded, LinkPartition
+from swarmhil.plant.faults import FaultWindow, LinkDegraded, LinkPartition
 
 
 def group_of(groups: Sequence[Sequence[str]], ids: Sequence[str]) -> np.ndarray:

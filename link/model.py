@@ -27,8 +27,8 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from bus import swarmhil_pb2 as pb
-from plant.dynamics.constants import R_EARTH_M  # the one definition of the shared constants
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.plant.dynamics.constants import R_EARTH_M  # the one definition of the shared constants
 
 FAULT_LOSS_SALT = 0xFA171055  # a degraded link's extra loss is drawn apart from the link's own (link/faults.py)
 

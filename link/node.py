@@ -42,13 +42,13 @@ from typing import Any
 import numpy as np
 from google.protobuf.message import DecodeError
 
-from bus import swarmhil_pb2 as pb
-from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, decode, header
-from bus.keys import Keys
-from bus.memory import MemoryBus
-from link.faults import LinkFaults
-from link.model import COUNTER_FIELDS, LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.base import Bus
+from swarmhil.bus.codec import RejectedPacket, Rejections, arr, decode, header
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.memory import MemoryBus
+from swarmhil.link.faults import LinkFaults
+from swarmhil.link.model import COUNTER_FIELDS, LinkConfig, LinkModel, check_tx, link_enabled, parse_link_config, reason_class
 
 log = logging.getLogger("swarmhil.channel")
 

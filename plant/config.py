@@ -19,8 +19,8 @@ from typing import Any, Literal, Mapping
 
 import numpy as np
 
-from plant.bodies import BodySpec, SpacecraftSpec
-from plant.contact import ContactConfig
+from swarmhil.plant.bodies import BodySpec, SpacecraftSpec
+from swarmhil.plant.contact import ContactConfig
 
 
 def freeze(value: Any) -> Any:

@@ -24,7 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 if TYPE_CHECKING:  # (plant/config.py imports this module's ContactConfig)
-    from plant.config import PlantConfig
+    from swarmhil.plant.config import PlantConfig
 
 DEFAULT_RADIUS_M = 0.5
 

@@ -30,7 +30,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from plant.bodies import format_validation_error
+from swarmhil.plant.bodies import format_validation_error
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 IdList = Annotated[list[str], Field(min_length=1)]

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable, Protocol
 import numpy as np
 
 if TYPE_CHECKING:  # (annotations only: the registry imports the sensing kinds' modules)
-    from plant.sensing.registry import SensingContext
+    from swarmhil.plant.sensing.registry import SensingContext
 
 
 class StimulusBatch(Protocol):

@@ -34,16 +34,16 @@ from typing import Any, Callable
 
 import numpy as np
 
-from plant.bodies import BodySpec, manoeuvre_accel
-from plant.config import PlantConfig
-from plant.dynamics import roe_linear
-from plant.dynamics.absolute_j2 import kepler_to_eci
-from plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, quat_multiply
-from plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh_vector_to_eci
-from plant.dynamics.limits import limit_norm, limit_per_axis
-from plant.dynamics.propagator import make_propagator
-from plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
-from plant.worlds import register_world
+from swarmhil.plant.bodies import BodySpec, manoeuvre_accel
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.dynamics import roe_linear
+from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci
+from swarmhil.plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, quat_multiply
+from swarmhil.plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh_vector_to_eci
+from swarmhil.plant.dynamics.limits import limit_norm, limit_per_axis
+from swarmhil.plant.dynamics.propagator import make_propagator
+from swarmhil.plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
+from swarmhil.plant.worlds import register_world
 
 
 def lvlh_to_eci(r_ref_m: np.ndarray, v_ref_mps: np.ndarray, rho_m: np.ndarray,

@@ -14,20 +14,20 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bus import swarmhil_pb2 as pb
-from bus.base import Bus
-from bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
-from bus.keys import Keys
-from bus.truth_wire import HeaderEncoder, TruthEncoder
-from plant.config import PlantConfig
-from plant.contact import ContactMonitor
-from plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
-from plant.flight import LocalFlightSoftware, StimulusMessages
-from plant.mission_world import MissionWorld
-from plant.pacing import CommandBox, Lockstep, Pacer, RealTime
-from plant.sensing import SensingContext, make_sensing
-from plant.world import World
-from plant.worlds import make_world
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.base import Bus
+from swarmhil.bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.contact import ContactMonitor
+from swarmhil.plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
+from swarmhil.plant.flight import LocalFlightSoftware, StimulusMessages
+from swarmhil.plant.mission_world import MissionWorld
+from swarmhil.plant.pacing import CommandBox, Lockstep, Pacer, RealTime
+from swarmhil.plant.sensing import SensingContext, make_sensing
+from swarmhil.plant.world import World
+from swarmhil.plant.worlds import make_world
 
 log = logging.getLogger("swarmhil.plant")
 

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bus import swarmhil_pb2 as pb
-from plant.config import PlantConfig
-from plant.scene import matrix_to_quaternion_wxyz, scene
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.scene import matrix_to_quaternion_wxyz, scene
 
 
 class SceneStimulusBuilder:

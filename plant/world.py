@@ -14,11 +14,11 @@ from typing import Callable
 
 import numpy as np
 
-from plant.config import PlantConfig
-from plant.dynamics import roe_linear
-from plant.dynamics.limits import limit_per_axis
-from plant.dynamics.propagator import Propagator, make_propagator
-from plant.worlds import register_world
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.dynamics import roe_linear
+from swarmhil.plant.dynamics.limits import limit_per_axis
+from swarmhil.plant.dynamics.propagator import Propagator, make_propagator
+from swarmhil.plant.worlds import register_world
 
 
 class World:

@@ -14,6 +14,6 @@ writes to RUN/report/data/ as Parquet and CSV.
 """
 from __future__ import annotations
 
-from dashboards.frames import RunData, load
+from swarmhil.dashboards.frames import RunData, load
 
 __all__ = ["RunData", "load"]

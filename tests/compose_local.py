@@ -87,7 +87,7 @@ def services(doc: dict[str, Any], project: Path, variables: dict[str, str], work
 
 
 def _die_with_test() -> Any:
-    from deploy.launcher import _die_with_parent
+    from swarmhil.deploy.launcher import _die_with_parent
 
     return _die_with_parent(os.getpid())
 

@@ -68,8 +68,8 @@ def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monk
 
     import zenoh
 
-    from bus import zenoh_bus
-    from bus.zenoh_bus import ZenohBus
+    from swarmhil.bus import zenoh_bus
+    from swarmhil.bus.zenoh_bus import ZenohBus
 
     def good_ms(timeout_ms: int) -> float:
         monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", timeout_ms)

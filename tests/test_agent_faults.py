@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import header
-from bus.keys import Keys
-from bus.memory import MemoryBus
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import header
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.memory import MemoryBus
 from conftest import SCENARIOS
-from deploy.launcher import make_agent
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import make_agent
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _stimulus(run: str, sid: str, step: int) -> pb.SceneStimulus:

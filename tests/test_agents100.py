@@ -33,7 +33,7 @@ def test_100_agent_processes_in_lockstep(tmp_path: Path) -> None:
     audit, out = tmp_path / "audit", tmp_path / "run"
     audit.mkdir()
     env = dict(os.environ, SWARMHIL_IMPORT_AUDIT=str(audit))
-    launcher = psutil.Popen([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "sabatini-100.toml"),
+    launcher = psutil.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-100.toml"),
                              "--duration", str(STEPS * 10.0), "--out", str(out), "--no-progress"],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     peak: dict[int, int] = {}  # agent pid -> largest VmHWM seen
@@ -41,7 +41,7 @@ def test_100_agent_processes_in_lockstep(tmp_path: Path) -> None:
     while launcher.poll() is None and time.monotonic() < t_end:
         for ch in launcher.children(recursive=True):
             try:
-                if "agent" in ch.cmdline()[3:4]:  # python -m deploy.proc agent ...
+                if "agent" in ch.cmdline()[3:4]:  # python -m swarmhil.deploy.proc agent ...
                     peak[ch.pid] = max(peak.get(ch.pid, 0), _vmhwm(ch.pid))
             except (psutil.Error, OSError):
                 pass

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, SCENARIOS, read_mcap, sigint_default
-from deploy.launcher import MultiProcessRun, run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import MultiProcessRun, run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _mp(tmp: Path, scenario: str, run_id: str, **ov) -> tuple[MultiProcessRun, Path]:
@@ -86,7 +86,7 @@ def test_lockstep_is_deterministic_and_matches_in_process(tmp_path: Path) -> Non
     assert len(runs[0]) == 41
     assert runs[0] == runs[1] == runs[2]
     # the closed loop really acted: some command is non-zero
-    from bus import swarmhil_pb2 as pb
+    from swarmhil.bus import swarmhil_pb2 as pb
 
     last = pb.Truth.FromString(runs[0][-1])
     assert sum(b.delta_v_mps for b in last.bodies) > 0
@@ -106,9 +106,9 @@ class _Clock:
     """The run's clock ticks seen over Zenoh: the latest step, and waits on it with a clear failure."""
 
     def __init__(self, router: str, run: str, out: Path | None = None) -> None:
-        from bus import swarmhil_pb2 as pb
-        from bus.acl import read_credential
-        from bus.zenoh_bus import ZenohBus
+        from swarmhil.bus import swarmhil_pb2 as pb
+        from swarmhil.bus.acl import read_credential
+        from swarmhil.bus.zenoh_bus import ZenohBus
 
         self.step = -1
         self._cv = threading.Condition()
@@ -199,8 +199,8 @@ def test_sigkilled_agent_leaves_run_alive_and_recorded(tmp_path: Path) -> None:
 
 
 def test_bad_payloads_on_command_keys_are_rejected_and_counted(tmp_path: Path) -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.zenoh_bus import open_client
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.zenoh_bus import open_client
 
     mp, out = _mp(tmp_path, "demo.toml", "bad", duration_s=1000.0, mode="realtime", speed=100.0)
     mp.secure = False  # the plant's own checks, behind an open router (the ACL: tests/test_security.py)
@@ -279,8 +279,8 @@ def test_mcap_repair_salvages_killed_recorder(tmp_path: Path) -> None:
     code = f"""
 import os, signal, sys
 sys.path.insert(0, {str(ROOT)!r})
-from bus.recorder import McapRecorder
-from bus import swarmhil_pb2 as pb
+from swarmhil.bus.recorder import McapRecorder
+from swarmhil.bus import swarmhil_pb2 as pb
 r = McapRecorder({str(path)!r}, "k", chunk_size=4096)
 for i in range(3000):
     t = pb.Tick(header=pb.Header(run="k", source="plant", step=i, t=10.0 * i), step_s=10.0)
@@ -304,7 +304,7 @@ os.kill(os.getpid(), signal.SIGKILL)
         with open(path, "rb") as f:
             list(make_reader(f).iter_messages())
     fixed = tmp_path / "fixed.mcap"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "mcap", "repair", str(path), str(fixed)],
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "mcap", "repair", str(path), str(fixed)],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     msgs = read_mcap(fixed)
@@ -357,7 +357,7 @@ def test_realtime_missed_deadlines_hold_the_previous_command(tmp_path: Path) -> 
 def test_ctrl_c_stops_the_run_cleanly(tmp_path: Path) -> None:
     """SIGINT to the launcher (Ctrl-C): every child stopped, a finished, readable MCAP, exit 130."""
     out = tmp_path / "cc"
-    p = subprocess.Popen([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
+    p = subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
                           "--run-id", "cc", "--mode", "realtime", "--speed", "20", "--no-progress"],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     info = _wait_for(out / "run.json")

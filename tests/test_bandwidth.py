@@ -39,8 +39,8 @@ period_s = {period}
 
 
 def _run(tmp: Path, name: str, period: float) -> Path:
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     p = tmp / f"{name}.toml"
     p.write_text(SCENARIO.format(name=name, period=period))
@@ -55,9 +55,9 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
-    from dashboards.bandwidth.accounting import consistency, link_matrix, per_agent_series
-    from dashboards.bandwidth.page import write_bandwidth_report
-    from dashboards.bandwidth.read import read_link_traffic
+    from swarmhil.dashboards.bandwidth.accounting import consistency, link_matrix, per_agent_series
+    from swarmhil.dashboards.bandwidth.page import write_bandwidth_report
+    from swarmhil.dashboards.bandwidth.read import read_link_traffic
 
     run = runs[0]
     lt = read_link_traffic(run)
@@ -82,9 +82,9 @@ def test_report_of_one_run(runs: tuple[Path, Path]) -> None:
 
 
 def test_comparison_mode(runs: tuple[Path, Path], tmp_path: Path) -> None:
-    from dashboards.bandwidth.accounting import totals
-    from dashboards.bandwidth.page import write_bandwidth_comparison
-    from dashboards.bandwidth.read import read_link_traffic
+    from swarmhil.dashboards.bandwidth.accounting import totals
+    from swarmhil.dashboards.bandwidth.page import write_bandwidth_comparison
+    from swarmhil.dashboards.bandwidth.read import read_link_traffic
 
     a, b = runs
     out = write_bandwidth_comparison(a, b, tmp_path / "cmp" / "compare.html")
@@ -113,7 +113,7 @@ def _png_size(path: Path) -> tuple[int, int]:
 def test_cli_and_disagreement_detection(runs: tuple[Path, Path], tmp_path: Path) -> None:
     import shutil
 
-    from deploy.cli_bandwidth import report_bandwidth
+    from swarmhil.deploy.cli_bandwidth import report_bandwidth
 
     res = CliRunner().invoke(report_bandwidth, [str(runs[0])])
     assert res.exit_code == 0, res.output
@@ -133,6 +133,6 @@ def test_cli_and_disagreement_detection(runs: tuple[Path, Path], tmp_path: Path)
 
 
 def test_subcommand_is_registered() -> None:
-    from deploy.cli import main
+    from swarmhil.deploy.cli import main
 
     assert "report-bandwidth" in main.commands

@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from bus import swarmhil_pb2 as pb
-from bus.recorder import epoch_ns
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.recorder import epoch_ns
 from conftest import SCENARIOS
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _truths(path: Path) -> list[tuple[int, bytes]]:
@@ -38,7 +38,7 @@ def test_batch_truth_and_log_times_equal_the_message_path(tmp_path: Path, name: 
 
 
 def test_memory_bus_stamps_and_wants() -> None:
-    from bus.memory import MemoryBus
+    from swarmhil.bus.memory import MemoryBus
 
     bus = MemoryBus()
     got: list = []
@@ -58,8 +58,8 @@ def test_kept_truth_equals_the_recording_read_back(tmp_path: Path, sets: tuple[s
     read_truth of the run's own recording, and so its metrics too."""
     import numpy as np
 
-    from dashboards.metrics import compute_metrics
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.metrics import compute_metrics
+    from swarmhil.dashboards.truth_io import read_truth
 
     sc = load_scenario(SCENARIOS / "sabatini-20.toml", list(sets)).with_overrides(duration_s=1800.0, seed=5)
     res = run_in_process(sc, tmp_path, "kept", record="truth", keep_truth=True)

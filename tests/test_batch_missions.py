@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from bus import swarmhil_pb2 as pb
+from swarmhil.bus import swarmhil_pb2 as pb
 from conftest import SCENARIOS
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _truths(path: Path) -> list[tuple[int, bytes]]:
@@ -52,10 +52,10 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
     """Paper 001's sensing kind (`relative`, own state) as arrays: for spacecraft a few metres apart
     (neighbours in and out of the 21 m ball, a dead one), every observer's neighbours, relative
     states and own state equal what the agent reads from its message (agent/node.py)."""
-    from agent.node import observation_from_rel
-    from bus.codec import header
-    from deploy.scenario import plant_config
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     sc = load_scenario(SCENARIOS / "tersoff-6.toml")
     kind = make_sensing("relative", plant_config(sc))
@@ -88,11 +88,11 @@ def test_p000_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
     observer's neighbours and relative states, and every named measurement (attitude, rate, own
     state, landmark returns and ids, the surface within R_h), equal what the agent reads from its
     message (agent/node.py), shapes and bits."""
-    from agent.node import observation_from_rel
-    from bus.codec import header
-    from deploy.scenario import plant_config
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     cfg = plant_config(load_scenario(SCENARIOS / "capture-20.toml"))
     world = MissionWorld(cfg)
@@ -129,8 +129,8 @@ def test_p000_visibility_of_many_sensors_equals_each_ones() -> None:
     columns of their attitude matrices (strided, as the kind passes them)."""
     from scipy.spatial.transform import Rotation
 
-    from missions.p000_capture.contract import dcm, surface_landmarks
-    from missions.p000_capture.sense import P000Params, visible_landmarks
+    from swarmhil.missions.p000_capture.contract import dcm, surface_landmarks
+    from swarmhil.missions.p000_capture.sense import P000Params, visible_landmarks
 
     p = P000Params()
     rng = np.random.default_rng(3)
@@ -159,7 +159,7 @@ def test_p000_batch_path_handles_a_raising_spacecraft_as_the_agent_node(tmp_path
     after perception and its state's updates, where `step` raises too) commands zero and is counted
     as a controller fault, as the agent node counts it; the others fly on: the same truth, faults
     and dV as the per-agent run."""
-    from missions.p000_capture.fsw import controller as cc
+    from swarmhil.missions.p000_capture.fsw import controller as cc
 
     act = cc.CaptureController._act
 

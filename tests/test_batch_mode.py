@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from conftest import SCENARIOS, read_mcap
-from deploy.launcher import run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 
 def _truth_sha(path: Path) -> tuple[str, int]:
@@ -42,7 +42,7 @@ def test_batch_truth_equals_the_message_path(tmp_path: Path, sets: tuple[str, ..
 
 
 def test_batch_mode_falls_back_where_it_would_drop_something(tmp_path: Path) -> None:
-    from deploy.batch import why_not_batch
+    from swarmhil.deploy.batch import why_not_batch
 
     beacon = load_scenario(SCENARIOS / "sabatini-20-beacon.toml").with_overrides(duration_s=100.0)
     assert why_not_batch(beacon) == "beacons"
@@ -53,7 +53,7 @@ def test_batch_mode_falls_back_where_it_would_drop_something(tmp_path: Path) -> 
 
 
 def test_a_faulty_controller_in_batch_mode_is_counted_and_commands_zero(tmp_path: Path) -> None:
-    from agent.controller import Command, register
+    from swarmhil.agent.controller import Command, register
 
     class Faulty:
         name = "test-faulty-batch"

@@ -9,11 +9,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from missions.p002_sabatini.fsw.sabatini import SabatiniController
-from agent.catalogue import make_controller
-from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, step_batch
+from swarmhil.missions.p002_sabatini.fsw.sabatini import SabatiniController
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, step_batch
 from conftest import SCENARIOS
-from deploy.scenario import load_scenario
+from swarmhil.deploy.scenario import load_scenario
 
 SC = load_scenario(SCENARIOS / "sabatini-20.toml")
 ORBIT = OrbitInfo(SC.orbit.semi_major_axis_m, SC.orbit.mean_motion_radps)
@@ -43,7 +43,7 @@ def _check(controllers: list, observations: list[Observation]) -> CommandBatch:
 def captured(tmp_path_factory) -> list[list[Observation]]:
     """The observations of every spacecraft, step by step, of 20 minutes of sabatini-20 (in-process, one
     agent node per spacecraft)."""
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     seen: list[tuple[str, Observation]] = []
     orig = SabatiniController.step

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from missions.p002_sabatini.fsw.dre import gain_table, integrate_riccati_one_orbit
-from plant.dynamics import roe_linear as truth
+from swarmhil.missions.p002_sabatini.fsw.dre import gain_table, integrate_riccati_one_orbit
+from swarmhil.plant.dynamics import roe_linear as truth
 
 A_M = 6878137.0
 N_RADPS = truth.mean_motion(A_M)

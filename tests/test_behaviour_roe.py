@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agent import roe as fsw
-from plant.dynamics import roe_linear as truth
+from swarmhil.agent import roe as fsw
+from swarmhil.plant.dynamics import roe_linear as truth
 
 A_M = 6878137.0
 N_RADPS = truth.mean_motion(A_M)

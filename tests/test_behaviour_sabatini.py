@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from missions.p002_sabatini.fsw.sabatini import (ALIGN, ALIGN_DRIFT, ATTRACT, CA, SabatiniController, SabatiniParams,
+from swarmhil.missions.p002_sabatini.fsw.sabatini import (ALIGN, ALIGN_DRIFT, ATTRACT, CA, SabatiniController, SabatiniParams,
                                       relative_roe_observer)
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from agent.roe import input_matrix
-from plant.dynamics import roe_linear as truth
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.agent.roe import input_matrix
+from swarmhil.plant.dynamics import roe_linear as truth
 
 A_M = 6878137.0
 N_RADPS = truth.mean_motion(A_M)
@@ -151,8 +151,8 @@ def test_deterministic_in_process_and_across_processes(tmp_path):
              v=[o.rel_velocity_mps for o in obs])
     script = f"""
 import json, numpy as np
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
 d = np.load({str(tmp_path / 'obs.npz')!r})
 c = make_controller("sabatini", "sc01", OrbitInfo({A_M!r}, {N_RADPS!r}), {{}})
 out = [c.step(Observation(i, 10.0 * i, float(u), [f"k{{j}}" for j in range(5)], p, v)).accel_mps2.tobytes().hex()

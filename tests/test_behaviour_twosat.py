@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from missions.p002_sabatini.fsw.sabatini import parallelism
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from plant.dynamics import roe_linear as truth
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.missions.p002_sabatini.fsw.sabatini import parallelism
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.plant.dynamics import roe_linear as truth
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "deploy" / "scenarios"
 

@@ -16,7 +16,7 @@ from rtf_curve import P000, first_spacecraft, misses  # noqa: E402
 
 
 def test_first_spacecraft_gives_a_valid_scenario_of_n(tmp_path: Path) -> None:
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     path = tmp_path / "capture-5.toml"
     path.write_text(first_spacecraft(P000.read_text(), 5))

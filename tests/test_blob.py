@@ -6,8 +6,8 @@ import pytest
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from agent.blob import exact_blobs, extract_blobs, extract_blobs_full
-from agent.camera import Camera, Detector, Renderer, SpacecraftShape
+from swarmhil.agent.blob import exact_blobs, extract_blobs, extract_blobs_full
+from swarmhil.agent.camera import Camera, Detector, Renderer, SpacecraftShape
 
 
 def reference_blobs(image: np.ndarray, det: Detector, min_pixels: int):
@@ -68,7 +68,7 @@ def test_minimum_size_and_connectivity():
     img[0, 2, 2] = 500.0  # a single pixel: below min_pixels = 2
     img[0, 6, 6] = img[0, 7, 7] = 500.0  # diagonal neighbours: one 8-connected blob
     img[0, 6, 9] = img[0, 6, 10] = 30.0  # below threshold
-    from agent.blob import blobs_in_stack
+    from swarmhil.agent.blob import blobs_in_stack
 
     b = blobs_in_stack(img, np.array([[100, 200]]), np.array([[12, 12]]), det, min_pixels=2)
     assert len(b) == 1

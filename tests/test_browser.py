@@ -176,7 +176,7 @@ def shows_swarm(png: Path) -> bool:
     The welcome/loading screen has a few dozen distinct (16-level) colours and none of the modes';
     the swarm view has hundreds (shaded spheres, trails, grid, labels) and the mode colours.
     """
-    from dashboards.rerun_bridge import MODE_COLOURS
+    from swarmhil.dashboards.rerun_bridge import MODE_COLOURS
 
     modes = [MODE_COLOURS[m] for m in ("drift-null", "search", "coast")]
     return colour_fraction(png, modes, VIEW3D) > 1e-4 and distinct_colours(png, VIEW3D) > 100
@@ -188,7 +188,7 @@ def shows_swarm(png: Path) -> bool:
 def test_served_viewer_shows_the_swarm_in_chromium(tmp_path: Path) -> None:
     out = tmp_path / "run"
     # 6 agents (drift-null) in lockstep for simulated days: still running when the picture is taken
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),
            "--out", str(out), "--duration", "864000", "--mode", "lockstep", "--no-progress", "--viz", "serve"]
     cli_log = tmp_path / "cli.log"
     log = open(cli_log, "w")

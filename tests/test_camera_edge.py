@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from agent.camera import Camera
-from agent.camera.render import Renderer, silhouette_area_px
+from swarmhil.agent.camera import Camera
+from swarmhil.agent.camera.render import Renderer, silhouette_area_px
 
 
 def _edge_positions(rng: np.random.Generator, n: int):

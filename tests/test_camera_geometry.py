@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agent.camera import R_CAM_FROM_LVLH, Camera, quat_to_matrix
-from plant import scene as plant_scene
+from swarmhil.agent.camera import R_CAM_FROM_LVLH, Camera, quat_to_matrix
+from swarmhil.plant import scene as plant_scene
 
 
 def test_camera_frame_is_a_rotation_with_boresight_along_track():

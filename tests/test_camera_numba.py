@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from agent.blob import extract_blobs
-from agent.camera import Camera, Renderer
+from swarmhil.agent.blob import extract_blobs
+from swarmhil.agent.camera import Camera, Renderer
 from system_tools import require_module
 
 

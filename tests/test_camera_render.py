@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from agent.blob import extract_blobs
-from agent.camera import Camera, Renderer, SpacecraftShape, compose_frame, silhouette_area_px
+from swarmhil.agent.blob import extract_blobs
+from swarmhil.agent.camera import Camera, Renderer, SpacecraftShape, compose_frame, silhouette_area_px
 
 
 def _boxes(shape: SpacecraftShape):

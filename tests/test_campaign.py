@@ -34,10 +34,10 @@ CAMPAIGN_S = 3600.0
 def _single_run(seed: int, out: Path) -> dict:
     """The run of one seed through the message path, with its metrics (`swarmhil run --in-process`
     then `swarmhil report`), as the campaign's flattened row columns."""
-    from dashboards.report import write_report
-    from deploy.campaign import summary_row
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.campaign import summary_row
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIO).with_overrides(seed=seed, duration_s=CAMPAIGN_S)
     run_in_process(sc, out, f"single-{seed}", record="all")
@@ -50,8 +50,8 @@ def _connected_fraction(out: Path) -> float:
     plant's visibility rule and the test's own union-find."""
     import numpy as np
 
-    from deploy.scenario import load_scenario
-    from plant.sensors import CameraGeometry, visibility_matrix
+    from swarmhil.deploy.scenario import load_scenario
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
     cam = CameraGeometry(**load_scenario(SCENARIO).camera)
     conn = []
@@ -68,7 +68,7 @@ def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
     require_module("dask.distributed")
     import pyarrow.parquet as pq
 
-    from deploy.campaign import run_campaign
+    from swarmhil.deploy.campaign import run_campaign
 
     seeds = [3, 4, 5, 6]
     res = run_campaign(SCENARIO, seeds, tmp_path / "c", duration_s=CAMPAIGN_S, executor="dask", jobs=2)
@@ -100,11 +100,11 @@ def test_dask_campaign_rows_equal_single_runs(tmp_path: Path) -> None:
 
 
 def test_killed_campaign_resumes_with_the_remaining_seeds(tmp_path: Path) -> None:
-    from deploy.campaign import row_path, run_campaign
+    from swarmhil.deploy.campaign import row_path, run_campaign
 
     out = tmp_path / "c"
     seeds = [0, 1, 2, 3, 4]
-    cmd = [sys.executable, "-m", "deploy.cli", "campaign", SCENARIO, "--seeds", str(len(seeds)), "--first-seed", "0",
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "campaign", SCENARIO, "--seeds", str(len(seeds)), "--first-seed", "0",
            "--duration", str(DURATION_S), "--executor", "local", "--jobs", "1", "--no-metrics", "--out", str(out)]
     p = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
@@ -131,7 +131,7 @@ def test_killed_campaign_resumes_with_the_remaining_seeds(tmp_path: Path) -> Non
 
 
 def test_failed_run_is_a_row(tmp_path: Path) -> None:
-    from deploy.campaign import load_rows, run_seed
+    from swarmhil.deploy.campaign import load_rows, run_seed
 
     bad = run_seed(SCENARIO, ("run.step_s=-1",), 7, str(tmp_path), DURATION_S, False)
     assert bad["status"] == "error" and bad["error"] and bad["seed"] == 7
@@ -142,7 +142,7 @@ def test_sweep_on_dask_equals_the_process_pool(tmp_path: Path) -> None:
     require_module("dask.distributed")
     from click.testing import CliRunner
 
-    from deploy.cli import main
+    from swarmhil.deploy.cli import main
 
     dv = {}
     for ex in ("local", "dask"):
@@ -166,7 +166,7 @@ def test_local_dask_workers_keep_glibc_malloc_defaults() -> None:
     faults per 24 h run (deploy/campaign.LOCAL_WORKER_ENV). The campaign's LocalCluster unsets it
     and keeps dask's one BLAS thread per worker."""
     require_module("dask.distributed")
-    from deploy.campaign import execute
+    from swarmhil.deploy.campaign import execute
 
     saved = os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)  # the nanny runs in this process
     try:

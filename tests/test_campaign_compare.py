@@ -28,7 +28,7 @@ SEEDS = [0, 1]
 
 @pytest.fixture(scope="module")
 def campaigns(tmp_path_factory: pytest.TempPathFactory) -> dict:
-    from deploy.campaign import run_campaign
+    from swarmhil.deploy.campaign import run_campaign
 
     d = tmp_path_factory.mktemp("pairs")
     out = {}
@@ -46,7 +46,7 @@ def test_paired_table_equals_the_two_campaigns(campaigns: dict, tmp_path) -> Non
     import pyarrow.parquet as pq
     from scipy.stats import t as student_t
 
-    from deploy.campaign_compare import WCF, write_paired
+    from swarmhil.deploy.campaign_compare import WCF, write_paired
 
     res = write_paired(campaigns["ideal"], campaigns["noisy"], tmp_path / "p", ("ideal", "noisy"), 2.0, 300.0)
     a = pq.read_table(campaigns["ideal"] / "campaign.parquet").to_pandas().set_index("seed")
@@ -77,7 +77,7 @@ def test_paired_table_equals_the_two_campaigns(campaigns: dict, tmp_path) -> Non
 
 
 def test_other_dispersion_is_not_the_same_start(campaigns: dict, tmp_path) -> None:
-    from deploy.campaign_compare import write_paired
+    from swarmhil.deploy.campaign_compare import write_paired
 
     res = write_paired(campaigns["ideal"], campaigns["spread"], tmp_path / "q", window_s=None)
     assert [r["seed"] for r in res["rows"]] == SEEDS[:1]
@@ -85,7 +85,7 @@ def test_other_dispersion_is_not_the_same_start(campaigns: dict, tmp_path) -> No
 
 
 def test_cli_refuses_different_durations(campaigns: dict, tmp_path) -> None:
-    cmd = [sys.executable, "-m", "deploy.cli", "campaign-compare", str(campaigns["ideal"]), str(campaigns["short"]),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "campaign-compare", str(campaigns["ideal"]), str(campaigns["short"]),
            "--out", str(tmp_path / "r")]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert p.returncode == 2, p.stderr

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from link.model import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
+from swarmhil.link.model import (R_EARTH_M, TX_ROW, LinkConfig, LinkConfigError, LinkModel, Radio, TxPacket, check_tx,
                          line_of_sight_clear, loss_draw, parse_link_config)
 
 A_M = 6878137.0  # reference orbit radius (500 km altitude)

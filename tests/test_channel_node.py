@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bus import swarmhil_pb2 as pb
-from link import node as channel_node
-from bus.codec import header, vec
-from bus.keys import Keys
-from bus.memory import MemoryBus
-from deploy.scenario import ScenarioError, load_scenario, parse_scenario
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.link import node as channel_node
+from swarmhil.bus.codec import header, vec
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.memory import MemoryBus
+from swarmhil.deploy.scenario import ScenarioError, load_scenario, parse_scenario
 
 from conftest import read_mcap
 
@@ -151,7 +151,7 @@ def _rx_samples(path: Path) -> list[tuple[str, bytes]]:
 
 
 def test_in_process_runs_are_deterministic(tmp_path: Path) -> None:
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     sc = load_scenario(write_small(tmp_path, duration=200.0))
     r1 = run_in_process(sc, tmp_path / "r1", "det")
@@ -189,11 +189,11 @@ class RogueBus(MemoryBus):
 
 def test_bad_packets_are_rejected_counted_and_recorded_while_the_run_continues(tmp_path: Path,
                                                                                monkeypatch: pytest.MonkeyPatch) -> None:
-    from deploy.launcher import run_in_process
-    from dashboards.bandwidth.accounting import consistency
-    from dashboards.bandwidth.read import read_link_traffic
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.dashboards.bandwidth.accounting import consistency
+    from swarmhil.dashboards.bandwidth.read import read_link_traffic
 
-    monkeypatch.setattr("bus.memory.MemoryBus", RogueBus)
+    monkeypatch.setattr("swarmhil.bus.memory.MemoryBus", RogueBus)
     sc = load_scenario(write_small(tmp_path, duration=100.0))
     res = run_in_process(sc, tmp_path / "rogue", "rogue")
     s = res.summary

@@ -57,8 +57,8 @@ RACES = {"channel": {"delay_rx": {"/clock": 0.08}}, f"agent-{LATE_AGENT}": {"del
 
 
 def _run(tmp_path_factory: pytest.TempPathFactory, name: str, p_loss: float, faults: dict | None = None) -> Path:
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     d = tmp_path_factory.mktemp(name)
     path = d / "link-zenoh.toml"
@@ -131,9 +131,9 @@ def test_no_delivery_beyond_range_and_binomial_loss(zenoh_run: Path) -> None:
 
 
 def test_report_totals_equal_the_recording_and_the_channel_counters(zenoh_run: Path) -> None:
-    from dashboards.bandwidth.accounting import consistency, totals
-    from dashboards.bandwidth.page import write_bandwidth_report
-    from dashboards.bandwidth.read import read_link_traffic
+    from swarmhil.dashboards.bandwidth.accounting import consistency, totals
+    from swarmhil.dashboards.bandwidth.page import write_bandwidth_report
+    from swarmhil.dashboards.bandwidth.read import read_link_traffic
 
     rec = _recording(zenoh_run)
     overhead = rec["config"][0]["overhead_bytes"]

@@ -13,7 +13,7 @@ from conftest import ROOT
 
 
 def _reg():  # type: ignore[no-untyped-def]
-    from claims.registry import registry
+    from swarmhil.claims.registry import registry
 
     return registry()
 
@@ -22,7 +22,7 @@ def test_every_claim_has_a_recorded_value_and_the_other_kernel_sets():
     reg = _reg()
     missing = [c.id for c in reg.claims.values() if c.value is None]
     assert not missing, f"not recorded (swarmhil claims --all --record): {missing}"
-    from claims.coverage import ALT_PENDING
+    from swarmhil.claims.coverage import ALT_PENDING
 
     no_alt = [c.id for c in reg.claims.values()
               if c.alt is None and reg.tier(c) in ("quick", "all") and c.source not in ALT_PENDING]
@@ -38,7 +38,7 @@ def test_nudged_runs_are_recorded_and_widen_the_tolerance():
     """A source that declares one-ulp nudged runs has them recorded for each numeric claim, every one
     inside the claim's tolerance; the tolerance is 1.5 x the range of value, alt and the nudges
     (docs/claims.md "One-ulp nudges")."""
-    from claims.model import Tol, resolve_tol
+    from swarmhil.claims.model import Tol, resolve_tol
 
     reg = _reg()
     declared = [c for c in reg.claims.values() if reg.sources[c.source].nudged is not None
@@ -61,8 +61,8 @@ def test_paper000_stack_sources_compute_their_claims_from_a_short_run():
     metric fails here and not only in a study run."""
     import math
 
-    from claims.paper000_repro import across_seeds
-    from claims.paper000_stack import stack_run
+    from swarmhil.claims.paper000_repro import across_seeds
+    from swarmhil.claims.paper000_stack import stack_run
 
     reg = _reg()
     res = stack_run((), duration_s=2.0)
@@ -81,7 +81,7 @@ def test_paper000_stack_sources_compute_their_claims_from_a_short_run():
 
 
 def test_docs_tables_are_what_the_registry_renders():
-    from claims.render import doc_drift
+    from swarmhil.claims.render import doc_drift
 
     reg = _reg()
     assert doc_drift(reg.tables, reg.claims) == []
@@ -90,7 +90,7 @@ def test_docs_tables_are_what_the_registry_renders():
 def test_every_number_of_a_claims_table_is_a_claim():
     """Numbers in the measured columns come from placeholders, except declared parameters; each
     claim is shown; each table row has a computed verdict where the table has a verdict column."""
-    from claims.model import check_row_numbers
+    from swarmhil.claims.model import check_row_numbers
 
     reg = _reg()
     shown: set[str] = set()
@@ -105,7 +105,7 @@ def test_every_number_of_a_claims_table_is_a_claim():
 
 
 def test_typed_numbers_are_caught():
-    from claims.model import Row, check_row_numbers, literal_numbers
+    from swarmhil.claims.model import Row, check_row_numbers, literal_numbers
 
     assert literal_numbers("min {p.x} m at 20 h, sc07 (Fig. 10), mm/s^2") == ["20"]
     assert check_row_numbers(Row(("a", "min {p.x} m, 3.45 h")), (1,)) == ["3.45"]
@@ -113,8 +113,8 @@ def test_typed_numbers_are_caught():
 
 
 def test_marked_tables_are_rewritten_and_nothing_else():
-    from claims.model import Claim, Row, Table, Tol
-    from claims.render import blocks, render_table, rewrite
+    from swarmhil.claims.model import Claim, Row, Table, Tol
+    from swarmhil.claims.render import blocks, render_table, rewrite
 
     c = Claim("t.v", "s", lambda s: s["v"], Tol(abs=0.1), "a value", ".2f", value=2.441)
     t = Table("t-x", "doc.md", ("claim", "measured", "verdict"), (
@@ -131,8 +131,8 @@ def test_marked_tables_are_rewritten_and_nothing_else():
 
 
 def test_every_required_table_is_covered_or_listed_as_not_yet():
-    from claims.coverage import NOT_YET, REQUIRED
-    from claims.render import blocks
+    from swarmhil.claims.coverage import NOT_YET, REQUIRED
+    from swarmhil.claims.render import blocks
 
     reg = _reg()
     for r in REQUIRED:
@@ -151,7 +151,7 @@ def test_every_required_table_is_covered_or_listed_as_not_yet():
 
 def test_quick_claims_hold_and_keep_their_verdicts():
     """`swarmhil claims --quick`, in-process: e.g. paper 002's 24 h sabatini-20 run in batch mode."""
-    from claims.runner import SourceCache, rerun, verdict_changes
+    from swarmhil.claims.runner import SourceCache, rerun, verdict_changes
 
     reg = _reg()
     outs = rerun(reg.select(("quick",)), SourceCache(reg.sources))
@@ -167,7 +167,7 @@ def test_quick_claims_hold_and_keep_their_verdicts():
 def test_all_claims_hold():
     """`swarmhil claims --all --untested --jobs 2`: the minutes-long sources (paper 002's noise runs,
     ...), two at a time; the runs a CI test makes itself are checked by that test (`checked_by`)."""
-    res = subprocess.run([sys.executable, "-m", "deploy.cli", "claims", "--all", "--untested", "--jobs", "2"], cwd=ROOT,
+    res = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "claims", "--all", "--untested", "--jobs", "2"], cwd=ROOT,
                          capture_output=True, text=True, timeout=1800)
     assert res.returncode == 0, res.stdout[-4000:] + res.stderr[-2000:]
 
@@ -203,7 +203,7 @@ def test_claim_failures_name_the_claims_a_run_misses():
 
     import numpy as np
 
-    from claims.check import claim_failures
+    from swarmhil.claims.check import claim_failures
 
     reg = _reg()
     want = {k: reg.claims[f"p003.tt-g1.{k}"].value for k in ("tt-end", "ratio", "first10", "peak")}
@@ -217,7 +217,7 @@ def test_claim_failures_name_the_claims_a_run_misses():
 
 def test_sources_run_in_worker_processes_once():
     """`--jobs 2`: the sources are computed in two worker processes, with the same results."""
-    from claims.runner import SourceCache
+    from swarmhil.claims.runner import SourceCache
 
     reg = _reg()
     names = [n for n in reg.sources if n.startswith("p002.init-")][:3]
@@ -236,10 +236,10 @@ def test_the_release_study_builds_and_its_recorded_rows_are_the_docs():
     the very row docs/paper001.md shows, so recording the rest is all that registering takes."""
     import dataclasses
 
-    from claims import paper001_study as study
-    from claims.model import PLACEHOLDER, check_row_numbers
-    from claims.registry import modules, read_recorded
-    from claims.render import fill
+    from swarmhil.claims import paper001_study as study
+    from swarmhil.claims.model import PLACEHOLDER, check_row_numbers
+    from swarmhil.claims.registry import modules, read_recorded
+    from swarmhil.claims.render import fill
 
     reg = _reg()
     names = [s.name for s in study.SOURCES]

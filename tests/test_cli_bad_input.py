@@ -14,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import ROOT, SCENARIOS
-from deploy.cli import main
+from swarmhil.deploy.cli import main
 
 DEMO = str(SCENARIOS / "demo.toml")
 MAGIC = b"\x89MCAP0\r\n"
@@ -228,7 +228,7 @@ def test_multi_process_run_refuses_when_memory_is_short(files: dict[str, Path]) 
     if psutil.virtual_memory().available > 55e9:
         pytest.skip("this machine has the memory for 1000 agents")
     out = files["d"] / "big"
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "run", DEMO, "--duration", "20", "--out", str(out),
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", DEMO, "--duration", "20", "--out", str(out),
                         "--set", "dispersion.count=1000", "--set", "dispersion.require_weakly_connected=false"],
                        cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert p.returncode == 3, p.stderr

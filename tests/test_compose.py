@@ -21,14 +21,14 @@ import pytest
 import yaml
 
 from conftest import ROOT, SCENARIOS, read_mcap
-from deploy.compose import compose_document, write_compose
-from deploy.scenario import load_scenario
+from swarmhil.deploy.compose import compose_document, write_compose
+from swarmhil.deploy.scenario import load_scenario
 from system_tools import require_compose
 
 
 def _project(tmp_path: Path, scenario: str = "drift-20.toml", run: str = "c1", *extra: str) -> tuple[Path, dict]:
     out = tmp_path / "proj" / "compose.yml"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "compose", str(SCENARIOS / scenario), "--out", str(out),
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "compose", str(SCENARIOS / scenario), "--out", str(out),
                         "--run-id", run, *extra], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     return out, yaml.safe_load(out.read_text())
@@ -134,7 +134,7 @@ LOOPBACK_SCENARIO = "sabatini-20-beacon.toml"
 def test_compose_services_run_together_as_plain_processes(tmp_path: Path) -> None:
     """The compose file's own commands, environment, secrets and healthcheck, run as processes on
     loopback (no Docker engine on these machines): an authenticated mutual-TLS run that completes."""
-    from bus.zenoh_bus import endpoint, free_loopback_port
+    from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port
     from compose_local import run_to_end, services, tail
 
     out = tmp_path / "proj" / "compose.yml"
@@ -164,7 +164,7 @@ def test_compose_set_overrides_like_run(tmp_path: Path) -> None:
     resolved = json.loads((out.parent / "scenario.json").read_text())
     assert resolved["doc"]["run"]["duration_s"] == 120 and resolved["doc"]["link"]["loss_probability"] == 0.25
     assert resolved["sets"] == ["run.duration_s=120", "link.loss_probability=0.25"]
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "compose", str(SCENARIOS / "drift-20.toml"), "--out",
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "compose", str(SCENARIOS / "drift-20.toml"), "--out",
                         str(tmp_path / "bad" / "compose.yml"), "--set", "run.duration_s=-5"],
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr

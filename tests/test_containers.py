@@ -101,7 +101,7 @@ class Engine:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
-        from deploy.image import mounts_under
+        from swarmhil.deploy.image import mounts_under
 
         for m in reversed(mounts_under(self.run_dir)):  # dockerd leaves the host's netns bound at exec/netns/default
             subprocess.run(["umount", m], check=True)
@@ -134,7 +134,7 @@ def _host_network_override(doc: dict, path: Path) -> Path:
 
 
 def _swarmhil(*args: str, env: dict[str, str] | None = None) -> None:
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", *args], cwd=ROOT, capture_output=True, text=True, env=env)
     assert r.returncode == 0, f"swarmhil {' '.join(args)}: {r.stderr[-3000:]}"
 
 
@@ -153,9 +153,9 @@ def test_compose_project_in_containers_equals_swarmhil_run(tmp_path: Path) -> No
     require_command("ip", "iproute2")
     compose = require_compose()
 
-    from bus.zenoh_bus import endpoint, free_loopback_port
-    from deploy.compose import write_compose
-    from deploy.scenario import load_scenario
+    from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port
+    from swarmhil.deploy.compose import write_compose
+    from swarmhil.deploy.scenario import load_scenario
 
     sets = [a for s in SETS for a in ("--set", s)]
     single = tmp_path / "single"

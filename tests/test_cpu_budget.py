@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from conftest import SCENARIOS, read_mcap
-from deploy.cpu_budget import available, limit, period_quota_us
+from swarmhil.deploy.cpu_budget import available, limit, period_quota_us
 
 BURN_S = 0.02
 FRACTION = 0.05
 BURN_PLUGIN = f'''
 import sys, time
 if sys.argv[1:2] == ["agent"]:
-    import agent.controllers as _c
+    import swarmhil.agent.controllers as _c
     _step = _c.DriftNullController.step
     def step(self, obs):
         t_end = time.thread_time() + {BURN_S}
@@ -80,8 +80,8 @@ def test_a_budgeted_agent_computes_slower_by_about_its_fraction(tmp_path: Path, 
     fraction), and longer than the unbudgeted agents'; the kernel counted the throttling. (The ratio to
     an unbudgeted agent is about 1/fraction only on an idle machine: under load the unbudgeted agents
     wait for the CPU too.)"""
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     _require_cgroup_cpu(tmp_path)
     scen = _scenario(tmp_path, monkeypatch, 20)
@@ -101,8 +101,8 @@ def test_a_budgeted_agent_computes_slower_by_about_its_fraction(tmp_path: Path, 
 def test_a_budgeted_agent_misses_real_time_and_the_run_goes_on(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Real time at x50 (0.2 s a step) with the budgeted agent needing about 0.4 s a step: its misses
     are counted (deadline_missed events, summary missed_deadlines), it is not dropped, the run ends."""
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     _require_cgroup_cpu(tmp_path)
     scen = _scenario(tmp_path, monkeypatch, 30)

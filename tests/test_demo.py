@@ -15,12 +15,12 @@ from conftest import ROOT
 
 @pytest.mark.system
 def test_demo_writes_the_rrd_and_the_report_and_says_how_to_open_them(tmp_path: Path) -> None:
-    from dashboards.viz_node import disable_analytics, rerun_exe
+    from swarmhil.dashboards.viz_node import disable_analytics, rerun_exe
 
     out = tmp_path / "demo"
     # in-process: the same demo command, run and report (the multi-process --viz save path is
     # tests/test_viz_run.py's); multi-process it took 100 s at a load average of 60
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "demo", "--out", str(out), "--in-process"], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "demo", "--out", str(out), "--in-process"], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)  # ~80 s on a quiet machine; 170 s was exceeded at load ~15
     assert p.returncode == 0, p.stdout + p.stderr
     tail = p.stdout.strip().splitlines()[-4:]

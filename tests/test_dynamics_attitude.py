@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from plant.dynamics.attitude import (
+from swarmhil.plant.dynamics.attitude import (
     AttitudePropagator,
     quat_conjugate,
     quat_from_axis_angle,

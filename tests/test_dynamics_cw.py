@@ -18,8 +18,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from plant.dynamics import cw
-from plant.dynamics.propagator import Propagator, make_propagator
+from swarmhil.plant.dynamics import cw
+from swarmhil.plant.dynamics.propagator import Propagator, make_propagator
 
 MU = 3.986004418e14
 A_LEO_M = 6878.0e3

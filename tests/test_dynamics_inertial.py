@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plant.dynamics.absolute_j2 import kepler_to_eci, qns_to_eci, roe_to_absolute_elements
-from plant.dynamics.inertial import InertialPropagator
-from plant.dynamics.propagator import Propagator, make_propagator
+from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci, qns_to_eci, roe_to_absolute_elements
+from swarmhil.plant.dynamics.inertial import InertialPropagator
+from swarmhil.plant.dynamics.propagator import Propagator, make_propagator
 
 MU = 3.986004418e14
 RE = 6378137.0

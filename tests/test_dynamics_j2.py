@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plant.dynamics.absolute_j2 import (
+from swarmhil.plant.dynamics.absolute_j2 import (
     AbsoluteJ2Plant,
     eci_to_lvlh,
     kepler_to_eci,
     qns_to_eci,
     roe_to_absolute_elements,
 )
-from plant.dynamics.roe_linear import LinearRoePlant, roe_to_lvlh
+from swarmhil.plant.dynamics.roe_linear import LinearRoePlant, roe_to_lvlh
 
 MU = 3.986004418e14
 RE = 6378137.0

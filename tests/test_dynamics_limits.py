@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plant.dynamics.limits import force_to_accel, limit_command, limit_norm, limit_per_axis
+from swarmhil.plant.dynamics.limits import force_to_accel, limit_command, limit_norm, limit_per_axis
 
 
 def test_per_axis_clips_each_axis() -> None:
@@ -77,7 +77,7 @@ def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
     so the same bits on any CPU)."""
     import math
 
-    from plant.world import World
+    from swarmhil.plant.world import World
 
     cmds = np.array([
         [3e-4, 4e-4, 0.0],      # |a| = 5e-4, under the 1e-3 limit on every axis

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from plant.dynamics.roe_linear import (
+from swarmhil.plant.dynamics.roe_linear import (
     LinearRoePlant,
     input_matrix,
     lvlh_to_roe,

@@ -9,16 +9,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plant.dynamics import propagator as propagator_module
-from plant.dynamics import roe_linear
-from plant.dynamics.absolute_j2 import AbsoluteJ2Plant
-from plant.dynamics.propagator import (
+from swarmhil.plant.dynamics import propagator as propagator_module
+from swarmhil.plant.dynamics import roe_linear
+from swarmhil.plant.dynamics.absolute_j2 import AbsoluteJ2Plant
+from swarmhil.plant.dynamics.propagator import (
     Propagator,
     make_propagator,
     propagator_names,
     register_propagator,
 )
-from plant.world import World
+from swarmhil.plant.world import World
 
 A_M, INC, RAAN, U0 = 6878137.0, 1.7, 0.3, 0.5
 

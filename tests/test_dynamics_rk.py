@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from plant.dynamics.rk_tableau import DOP853_A, DOP853_B, DOP853_C, DOP853_N_STAGES, rk_step
+from swarmhil.plant.dynamics.rk_tableau import DOP853_A, DOP853_B, DOP853_C, DOP853_N_STAGES, rk_step
 
 
 def test_tableau_equals_scipy_bit_for_bit() -> None:

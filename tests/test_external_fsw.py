@@ -16,10 +16,10 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, SCENARIOS, read_mcap
-from deploy.scenario import ScenarioError, load_scenario, parse_scenario
+from swarmhil.deploy.scenario import ScenarioError, load_scenario, parse_scenario
 
 SCENARIO = SCENARIOS / "hil-3.toml"
-SWARMHIL = [sys.executable, "-m", "deploy.cli"]
+SWARMHIL = [sys.executable, "-m", "swarmhil.deploy.cli"]
 FC = ROOT / "examples" / "external_fsw"
 
 
@@ -42,7 +42,7 @@ def _started_pids(out: Path) -> list[int]:
 
 def test_external_spacecraft_is_validated() -> None:
     sc = load_scenario(SCENARIO)
-    from deploy.external import external_ids, join_timeout_s, plant_ready_timeout_s
+    from swarmhil.deploy.external import external_ids, join_timeout_s, plant_ready_timeout_s
 
     assert external_ids(sc) == ["sc02"] and join_timeout_s(sc, "sc02") == 300.0
     assert plant_ready_timeout_s(sc.with_overrides()) == 600.0
@@ -79,7 +79,7 @@ def test_join_listen_is_checked_before_anything_starts(tmp_path: Path) -> None:
              (SCENARIOS / "demo.toml", ["--join-listen", "tcp/10.213.1.1:7447"], "no spacecraft with fsw = \"external\"")]
     from click.testing import CliRunner
 
-    from deploy.cli import main
+    from swarmhil.deploy.cli import main
 
     for i, (scenario, args, why) in enumerate(cases):
         r = CliRunner().invoke(main, ["run", str(scenario), "--out", str(tmp_path / str(i)), *args])
@@ -165,7 +165,7 @@ def _forge_commands(kit: Path, stop: threading.Event) -> None:
     stopped: were they let through, the plant would take them (right run, source = the key's id)."""
     import zenoh
 
-    from bus import swarmhil_pb2 as pb
+    from swarmhil.bus import swarmhil_pb2 as pb
 
     doc = json.loads((kit / "join.json").read_text())
     cfg = zenoh.Config()
@@ -196,7 +196,7 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
     """sc02 of hil-3 flown by examples/external_fsw/fc.py (imports nothing of the project) in a
     multi-process lockstep run: the truth is byte for byte the one of the same run with sc02's
     built-in drift-null agent, and sc02's commands are non-zero and follow its stimuli."""
-    from deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.launcher import MultiProcessRun
 
     steps = ["--duration", "1000"]
     flight = Flight(tmp_path / "ext", "hil1", fc_build, steps)
@@ -359,7 +359,7 @@ def test_external_flight_computer_over_mutual_tls_from_its_own_namespace(tmp_pat
     from system_tools import require_command, require_root
     from test_multihost import ROUTER_IP, Hosts
 
-    from deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.launcher import MultiProcessRun
 
     require_root("network namespaces")
     require_command("ip", "iproute2")

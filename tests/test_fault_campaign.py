@@ -30,7 +30,7 @@ IDS = [f"sc{i:02d}" for i in range(1, 21)]
 
 
 def _draws(tmp_path: Path, text: str):
-    from deploy.fault_draws import load_fault_draws
+    from swarmhil.deploy.fault_draws import load_fault_draws
 
     p = tmp_path / "f.toml"
     p.write_text(text)
@@ -38,7 +38,7 @@ def _draws(tmp_path: Path, text: str):
 
 
 def test_draws_are_seeded_inside_their_ranges_and_independent_of_each_others_hits(tmp_path: Path) -> None:
-    from deploy.fault_draws import draw_faults
+    from swarmhil.deploy.fault_draws import draw_faults
 
     text = """
 [[draw]]
@@ -99,7 +99,7 @@ accel_mps2 = [0.0, 1e-4, 0.0]
     ('[[draw]\n', r"f.toml: not TOML"),
 ])
 def test_bad_faults_files_are_one_precise_line(tmp_path: Path, body: str, message: str) -> None:
-    from deploy.fault_draws import FaultDrawError
+    from swarmhil.deploy.fault_draws import FaultDrawError
 
     with pytest.raises(FaultDrawError, match=message) as info:
         _draws(tmp_path, body)
@@ -109,7 +109,7 @@ def test_bad_faults_files_are_one_precise_line(tmp_path: Path, body: str, messag
 def test_cli_refuses_a_bad_faults_file_and_a_baseline_without_faults(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text('[[draw]]\nkind = "thruster_stuck_off"\nstart_s = 0.0\nduration_s = 0.0\n')
-    cli = [sys.executable, "-m", "deploy.cli", "campaign", str(SCENARIO), "--seeds", "2", "--out", str(tmp_path / "c")]
+    cli = [sys.executable, "-m", "swarmhil.deploy.cli", "campaign", str(SCENARIO), "--seeds", "2", "--out", str(tmp_path / "c")]
     for extra, why in ((["--faults", str(bad)], "[[fault]][0].duration_s Input should be greater than 0"),
                        (["--baseline"], "--baseline needs --faults")):
         r = subprocess.run([*cli, *extra], capture_output=True, text=True, cwd=ROOT, timeout=120)
@@ -118,7 +118,7 @@ def test_cli_refuses_a_bad_faults_file_and_a_baseline_without_faults(tmp_path: P
 
 
 def test_recovery_fraction_judges_only_what_it_can() -> None:
-    from deploy.campaign import fault_stats
+    from swarmhil.deploy.campaign import fault_stats
 
     def fault(ttr, end_s=1000.0, run_end_s=5000.0, ended=True):
         return {"kind": "k", "end_s": end_s, "run_end_s": run_end_s, "ended_in_run": ended,
@@ -140,10 +140,10 @@ def test_dask_fault_campaign_rows_equal_single_runs_of_the_drawn_scenario(tmp_pa
     require_module("dask.distributed")
     import tomllib
 
-    from deploy.campaign import run_campaign
-    from deploy.fault_draws import draw_faults, load_fault_draws
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.campaign import run_campaign
+    from swarmhil.deploy.fault_draws import draw_faults, load_fault_draws
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     duration, seeds = 5400.0, [0, 1, 2]
     res = run_campaign(str(SCENARIO), seeds, tmp_path / "c", duration_s=duration, executor="dask", jobs=2,

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import read_mcap
-from deploy.scenario import ScenarioError, parse_scenario
+from swarmhil.deploy.scenario import ScenarioError, parse_scenario
 
 
 def doc(*faults: dict, n: int = 3, duration_s: float = 100.0) -> dict:
@@ -46,7 +46,7 @@ def test_bad_faults_are_one_precise_line(fault: dict, message: str) -> None:
 
 
 def test_faults_are_typed_with_windows_in_steps() -> None:
-    from plant.faults import FaultWindow, ThrusterStuckOff, transitions
+    from swarmhil.plant.faults import FaultWindow, ThrusterStuckOff, transitions
 
     sc = parse_scenario(doc(STUCK, {"kind": "sensor_bias", "targets": ["s0", "s2"], "start_s": 15.0,
                                     "duration_s": 30.0, "bias_m": [1.0, 2.0, 3.0]},
@@ -79,7 +79,7 @@ def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.
 
 
 def run(sc, out) -> list:
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     run_in_process(sc, out, "faults")
     return read_mcap(out / "run.mcap")
@@ -125,10 +125,10 @@ def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp
            and e.spheres[0].color.g < 0.2}
     assert red == {(k, s) for k in range(10, 20) for s in ("sc05", "sc06")}, sorted(red)
     # the report's recovery figures, against the truth read independently here
-    from dashboards.sections import SectionContext
-    from dashboards.sections.faults import faults
-    from dashboards.truth_io import read_truth
-    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+    from swarmhil.dashboards.sections import SectionContext
+    from swarmhil.dashboards.sections.faults import faults
+    from swarmhil.dashboards.truth_io import read_truth
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
 
     truth = read_truth(tmp_path / "r" / "run.mcap")
     rec = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), truth)).metrics
@@ -143,7 +143,7 @@ def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp
 
 
 def test_recovery_reads_the_window_and_the_reconnection() -> None:
-    from dashboards.sections.faults import recovery
+    from swarmhil.dashboards.sections.faults import recovery
 
     t = np.arange(8) * 10.0
     dv = np.outer(np.arange(8.0), [1.0, 2.0])        # the swarm spends 3 m/s a step
@@ -157,7 +157,7 @@ def test_recovery_reads_the_window_and_the_reconnection() -> None:
 
 
 def test_excursion_reads_a_mission_error_around_the_window() -> None:
-    from dashboards.sections.faults import excursion
+    from swarmhil.dashboards.sections.faults import excursion
 
     t = np.arange(8) * 10.0
     e = np.array([5.0, 4.0, 3.0, 9.0, 7.0, 6.0, 8.0, 2.0])
@@ -174,9 +174,9 @@ def test_servicing_fault_scenario_reports_the_tracking_error_around_each_fault(t
     window, equal to max_i |q0 - q_i| recounted here from the recorded truth (defunct body and
     servicers); the stuck-off fault after the run's end never started."""
     from conftest import SCENARIOS
-    from dashboards.report import write_report
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / "servicing-6-faults.toml").with_overrides(duration_s=100.0)
     out = tmp_path / "s6f"
@@ -210,9 +210,9 @@ def test_body_manoeuvre_and_spin_in_closed_form_match_independent_integration() 
     from scipy.integrate import solve_ivp
     from scipy.spatial.transform import Rotation
 
-    from plant.bodies import Kinematic
-    from plant.faults import BodyFault, FaultWindow, manoeuvre_displacement, parse_faults
-    from plant.mission_world import kinematic_pose
+    from swarmhil.plant.bodies import Kinematic
+    from swarmhil.plant.faults import BodyFault, FaultWindow, manoeuvre_displacement, parse_faults
+    from swarmhil.plant.mission_world import kinematic_pose
 
     a = np.array([1e-3, -2e-3, 5e-4])
     sol = solve_ivp(lambda t, y: np.r_[y[3:], a * (10.0 <= t < 30.0)], (0.0, 50.0), np.zeros(6), max_step=0.01,
@@ -247,7 +247,7 @@ def test_body_manoeuvre_and_spin_in_closed_form_match_independent_integration() 
     ({"kind": "body_manoeuvre", "bodies": ["tgt"]}, ".accel_mps2 Field required"),
 ])
 def test_bad_body_faults_are_one_precise_line(fault: dict, message: str) -> None:
-    from plant.faults import FaultError, parse_faults
+    from swarmhil.plant.faults import FaultError, parse_faults
 
     with pytest.raises(FaultError, match=re.escape(message)):
         parse_faults("x.toml", [fault], ["s0"], 1.0, {"tgt": "kinematic", "prop": "propagated"})
@@ -260,8 +260,8 @@ def test_a_targets_spin_change_and_manoeuvre_are_in_the_recorded_truth(tmp_path)
     from scipy.spatial.transform import Rotation
 
     from conftest import SCENARIOS
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     text = (SCENARIOS / "capture-10.toml").read_text()
     faulty = tmp_path / "c10f.toml"
@@ -298,7 +298,7 @@ def test_a_targets_spin_change_and_manoeuvre_are_in_the_recorded_truth(tmp_path)
 
 
 def test_efficiency_and_misalignment_are_pure_functions_of_the_applied_acceleration() -> None:
-    from plant.faults import ActuationFaults, parse_faults
+    from swarmhil.plant.faults import ActuationFaults, parse_faults
 
     faults = parse_faults("t", [{"kind": "thruster_efficiency", "targets": ["b"], "factor": 0.25},
                                 {"kind": "thruster_misaligned", "targets": ["c"], "angle_deg": 90.0},
@@ -380,8 +380,8 @@ def test_a_partition_delivers_nothing_across_the_groups_and_counts_the_drops(tmp
     assert events == [("fault_start", 10), ("fault_end", 20)]
     logs = [m.message for t, _l, _p, m in msgs if t == "foxglove/log" and "fault_" in m.message]
     assert len(logs) == 2 and logs[0].startswith("fault_start fault0: ")
-    from dashboards.sections import SectionContext
-    from dashboards.sections.faults import faults
+    from swarmhil.dashboards.sections import SectionContext
+    from swarmhil.dashboards.sections.faults import faults
 
     res = faults(SectionContext(tmp_path / "r", tmp_path / "r" / "run.mcap", tmp_path, {}, sc.resolved(), None))
     assert res.metrics == {"fault0": {"kind": "link_partition", "started_t_s": 100.0, "ended_t_s": 200.0}}
@@ -389,8 +389,8 @@ def test_a_partition_delivers_nothing_across_the_groups_and_counts_the_drops(tmp
 
 
 def test_degraded_links_add_loss_and_latency_between_their_sets() -> None:
-    from link.faults import LinkFaults
-    from plant.faults import parse_faults
+    from swarmhil.link.faults import LinkFaults
+    from swarmhil.plant.faults import parse_faults
 
     ids = ["a", "b", "c", "d"]
     faults = parse_faults("t", [{"kind": "link_degraded", "between": [["a"], ["b", "c"]], "loss_probability": 0.5,
@@ -417,7 +417,7 @@ def raw(path, topic: str) -> list[bytes]:
 def twice(sc, tmp_path, scenario: str) -> list:
     """[(out, result)] of two multi-process runs of sc (each must succeed)."""
     from conftest import SCENARIOS
-    from deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.launcher import MultiProcessRun
 
     runs = []
     for i in range(2):
@@ -436,7 +436,7 @@ def test_a_lockstep_run_with_faults_is_bit_identical_on_rerun(tmp_path) -> None:
     import tomllib
 
     from conftest import SCENARIOS
-    from deploy.launcher import run_in_process
+    from swarmhil.deploy.launcher import run_in_process
 
     d = tomllib.loads((SCENARIOS / "sabatini-20-beacon.toml").read_text())
     d["run"]["duration_s"] = 300.0
@@ -477,10 +477,10 @@ def test_contacts_and_near_misses_are_recorded_and_flagged_in_the_overview(tmp_p
     the rock's nearer sphere (1 m, centre y = 52) at y ~ 50.5 (step 11; within 2 m of it at step 9),
     goes through, and meets the far sphere (y = 58) at y ~ 56.5 (step 17). Read from the recording,
     and the report section and overview say so; with point masses no contact is looked for."""
-    from dashboards.sections import SectionContext
-    from dashboards.sections.contact import contact, overview_rows
-    from deploy.launcher import run_in_process
-    from deploy.scenario import parse_scenario
+    from swarmhil.dashboards.sections import SectionContext
+    from swarmhil.dashboards.sections.contact import contact, overview_rows
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import parse_scenario
 
     sc = parse_scenario(closing(keep_out_m=2.0), "hulls.toml")
     run_in_process(sc, tmp_path / "r", "hulls")

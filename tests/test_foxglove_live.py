@@ -88,10 +88,10 @@ def test_live_run_serves_scene_transforms_and_truth(tmp_path: Path) -> None:
     from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-    from bus.zenoh_bus import free_loopback_port
+    from swarmhil.bus.zenoh_bus import free_loopback_port
 
     port = free_loopback_port()
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"), "--viz", "foxglove",
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"), "--viz", "foxglove",
            "--viz-port", str(port), "--mode", "realtime", "--speed", "40", "--duration", "400", "--out", str(tmp_path / "run"),
            "--no-progress"]
     log_path = tmp_path / "cli.log"   # a file, not a pipe nobody reads while the client watches
@@ -139,7 +139,7 @@ def test_busy_port_is_one_line_and_exit_2(tmp_path: Path) -> None:
         s.bind(("127.0.0.1", 0))
         s.listen()
         port = s.getsockname()[1]
-        r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),
+        r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"),
                             "--viz", "foxglove", "--viz-port", str(port), "--out", str(tmp_path / "x")],
                            cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "Traceback" not in r.stderr and f"127.0.0.1:{port}" in r.stderr

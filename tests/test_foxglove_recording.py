@@ -35,8 +35,8 @@ def _decoded(path: Path):
 @pytest.fixture(scope="module")
 def surround(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """surround-6 (six spacecraft and a spheres-shaped target) for 20 steps, in process."""
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     d = tmp_path_factory.mktemp("fox")
     text = (SCENARIOS / "surround-6.toml").read_text()
@@ -93,8 +93,8 @@ def test_frames_and_scene_of_every_body_at_every_step_on_the_simulated_timeline(
 
 
 def test_attitude_is_the_frame_rotation_identity_otherwise(tmp_path: Path) -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.recorder import McapRecorder
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.recorder import McapRecorder
 
     r = McapRecorder(tmp_path / "a.mcap", "att", config={"body": [{"id": "t", "shape": {"kind": "ellipsoid",
                                                                                         "semi_axes_m": [1, 2, 3]}}]})
@@ -119,7 +119,7 @@ def test_attitude_is_the_frame_rotation_identity_otherwise(tmp_path: Path) -> No
 
 
 def test_epoch_is_validated() -> None:
-    from deploy.scenario import ScenarioError, parse_scenario
+    from swarmhil.deploy.scenario import ScenarioError, parse_scenario
 
     doc = {"run": {"name": "x", "epoch_utc": "2024-02-30T00:00:00Z"}, "spacecraft": [{"id": "a", "roe_m": [0] * 6}]}
     with pytest.raises(ScenarioError, match=r"\[run\].epoch_utc"):
@@ -178,8 +178,8 @@ def _as_old_recording(src: Path, dst: Path, run: str) -> None:
 
 
 def test_readers_accept_old_prefixed_topics(surround: Path, tmp_path: Path) -> None:
-    from dashboards.replay import run_id_of
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.replay import run_id_of
+    from swarmhil.dashboards.truth_io import read_truth
 
     old = tmp_path / "old" / "run.mcap"
     old.parent.mkdir()
@@ -193,9 +193,9 @@ def test_readers_accept_old_prefixed_topics(surround: Path, tmp_path: Path) -> N
 def test_spacecraft_spheres_take_their_agents_mode_colour(tmp_path: Path) -> None:
     """The scene colours a spacecraft by the mode of its newest telemetry (the viewer's colours),
     blue before any, grey once dead."""
-    from bus import swarmhil_pb2 as pb
-    from bus.foxglove_scene import MODE_COLOURS
-    from bus.recorder import McapRecorder
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.foxglove_scene import MODE_COLOURS
+    from swarmhil.bus.recorder import McapRecorder
 
     r = McapRecorder(tmp_path / "m.mcap", "mode")
 

@@ -34,7 +34,7 @@ def test_each_process_role_imports_only_what_it_needs(tmp_path: Path) -> None:
     audit, out = tmp_path / "audit", tmp_path / "run"
     audit.mkdir()
     env = dict(os.environ, SWARMHIL_IMPORT_AUDIT=str(audit), SWARMHIL_CACHE_DIR=str(tmp_path / "cache"))
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"),
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"),
                         "--duration", "60", "--out", str(out), "--no-progress", "--set", "dispersion.count=4"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
     assert p.returncode == 0, p.stdout + p.stderr

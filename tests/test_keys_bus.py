@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import pytest
 
-from bus.base import key_matches
-from bus.keys import Keys
-from bus.memory import MemoryBus
+from swarmhil.bus.base import key_matches
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.memory import MemoryBus
 
 
 def test_contract_keys() -> None:

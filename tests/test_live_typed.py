@@ -81,7 +81,7 @@ def test_plain_client_decodes_every_live_key(tmp_path: Path) -> None:
     classes = _classes(tmp_path)
     out = tmp_path / "run"
     # four agents, the link channel and beacons: every kind of key the stack publishes
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"), "--out", str(out),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20-beacon.toml"), "--out", str(out),
            "--run-id", RUN, "--no-progress", "--duration", "400", "--mode", "realtime", "--speed", "80",
            "--set", "dispersion.count=4", "--set", "dispersion.require_weakly_connected=false",
            "--insecure"]  # the plain client has no credentials: an open router (the ACL: tests/test_security.py)

@@ -17,13 +17,13 @@ from pathlib import Path
 import pytest
 
 from conftest import SCENARIOS, read_mcap
-from deploy.launcher import MultiProcessRun, run_in_process
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import MultiProcessRun, run_in_process
+from swarmhil.deploy.scenario import load_scenario
 
 SLOW_PLUGIN = '''
 import sys, time
 if sys.argv[1:2] == ["agent"] and "sc02" in sys.argv:
-    import agent.node as _n
+    import swarmhil.agent.node as _n
     _handle = _n.AgentNode.handle
     def handle(self, stim):
         if int(stim.header.step) == 3:

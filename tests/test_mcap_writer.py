@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
-from bus.mcap_writer import ZSTD_LEVEL, RecorderWriter
+from swarmhil.bus.mcap_writer import ZSTD_LEVEL, RecorderWriter
 
 
 def _write(w: Writer, rng: np.random.Generator, n: int) -> None:

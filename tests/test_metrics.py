@@ -4,12 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dashboards.metrics import (
+from swarmhil.dashboards.metrics import (
     closest_approach, closest_approach_series, closest_visible, delta_v_from_accel, ellipse_dims, parallelism,
     relative_to_com, visibility_series, visible_pair_parallelism, weak_components,
 )
-from plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.plant.dynamics.roe_linear import mean_motion, roe_to_lvlh
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
 CAM = CameraGeometry()  # paper 002: 500 m, square FOV tan = 0.54, boresight +y
 A_M = 6878137.0
@@ -172,7 +172,7 @@ def test_closest_approach_finds_a_fast_pass_between_samples():
 
 
 def test_window_union_keeps_links_seen_within_the_window():
-    from dashboards.metrics import window_union
+    from swarmhil.dashboards.metrics import window_union
 
     t = np.arange(0.0, 100.0, 10.0)
     vis = np.zeros((t.size, 3, 3), dtype=bool)
@@ -210,7 +210,7 @@ def test_pruned_closest_approach_equals_every_pair_evaluated():
     """Issue 16: the series with the pairs that cannot be an interval's minimum left out is the one
     of evaluating every pair, value for value (random swarms with fast close passes, ties of
     coincident pairs, NaN and dead spacecraft, and the relative orbits of a ROE swarm)."""
-    from dashboards.metrics import closest_approach_series, closest_approach_series_all
+    from swarmhil.dashboards.metrics import closest_approach_series, closest_approach_series_all
 
     rng = np.random.default_rng(16)
     for case in range(60):
@@ -245,7 +245,7 @@ def test_series_over_many_steps_equal_the_per_step_functions():
     """visibility_series (many steps per numpy call) and visible_pair_parallelism (visible pairs
     only), issue 16: equal to plant/sensors.visibility_matrix step by step and to the parallelism
     of every pair, on a ROE swarm with dead spacecraft."""
-    from dashboards.metrics import visible_pair_parallelism
+    from swarmhil.dashboards.metrics import visible_pair_parallelism
 
     rng = np.random.default_rng(7)
     n_radps = mean_motion(6878137.0)

@@ -9,11 +9,11 @@ import copy
 import numpy as np
 import pytest
 
-from deploy.scenario import ScenarioError, parse_scenario, plant_config
-from plant.dynamics.absolute_j2 import kepler_to_eci
-from plant.dynamics.constants import MU_EARTH_M3PS2
-from plant.dynamics.frames import lvlh_basis
-from plant.mission_world import MissionWorld
+from swarmhil.deploy.scenario import ScenarioError, parse_scenario, plant_config
+from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci
+from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2
+from swarmhil.plant.dynamics.frames import lvlh_basis
+from swarmhil.plant.mission_world import MissionWorld
 
 DOC = {
     "run": {"duration_s": 10.0, "step_s": 0.1},

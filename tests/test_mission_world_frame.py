@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from deploy.scenario import parse_scenario, plant_config
-from plant.mission_world import MissionWorld
+from swarmhil.deploy.scenario import parse_scenario, plant_config
+from swarmhil.plant.mission_world import MissionWorld
 
 
 def _world() -> tuple[MissionWorld, float]:

@@ -82,9 +82,9 @@ def test_three_host_run_equals_the_single_host_run(tmp_path: Path) -> None:
     require_command("openssl", "openssl")
 
     from compose_local import run_to_end, services, tail
-    from deploy.compose import write_compose
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.compose import write_compose
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / SCENARIO, SETS)
     # the single-host run: the launcher, its router on loopback

@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agent.blob import exact_blobs, extract_blobs
-from agent.camera import Camera, Renderer, SpacecraftShape
-from agent.nav import EkfNavigator, RoughNavigator, make_navigator, observation_arrays
-from agent.nav.ekf import input_gamma, lvlh_to_roe_matrices, transition
-from plant.dynamics import roe_linear
-from plant.scene import scene
+from swarmhil.agent.blob import exact_blobs, extract_blobs
+from swarmhil.agent.camera import Camera, Renderer, SpacecraftShape
+from swarmhil.agent.nav import EkfNavigator, RoughNavigator, make_navigator, observation_arrays
+from swarmhil.agent.nav.ekf import input_gamma, lvlh_to_roe_matrices, transition
+from swarmhil.plant.dynamics import roe_linear
+from swarmhil.plant.scene import scene
 
 A_M = 6878137.0
 N_RADPS = roe_linear.mean_motion(A_M)
@@ -175,7 +175,7 @@ PIPELINE_BOUNDS = {
 
 @pytest.mark.parametrize("imaging, navigator", list(PIPELINE_BOUNDS))
 def test_vision_nav_pipeline(imaging, navigator):
-    from agent.nav.pipeline import VisionNav
+    from swarmhil.agent.nav.pipeline import VisionNav
 
     vn = VisionNav(A_M, N_RADPS, imaging=imaging, navigator=navigator)
     roe = np.array([[2.0, 250.0, 5.0, -5.0, 10.0, 0.0]])

@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from agent.blob import Blobs, extract_blobs
-from agent.camera import Camera, Renderer, SpacecraftShape
-from agent.nav import EkfConfig, EkfNavigator
-from plant.dynamics import roe_linear
-from plant.scene import scene
+from swarmhil.agent.blob import Blobs, extract_blobs
+from swarmhil.agent.camera import Camera, Renderer, SpacecraftShape
+from swarmhil.agent.nav import EkfConfig, EkfNavigator
+from swarmhil.plant.dynamics import roe_linear
+from swarmhil.plant.scene import scene
 
 A_M = 6878137.0
 N_RADPS = roe_linear.mean_motion(A_M)
@@ -98,7 +98,7 @@ def test_track_creation_confirmation_gating_and_deletion():
 
 
 def test_tracks_behind_the_camera_or_with_singular_s_are_not_associated_and_nothing_raises():
-    from agent.nav.ekf import gated_distances
+    from swarmhil.agent.nav.ekf import gated_distances
 
     nu = np.array([[[1.0, 1.0, 0.1]], [[1.0, 1.0, 0.1]], [[1.0, 1.0, 0.1]], [[0.5, -0.5, 0.0]]])
     s = np.stack([np.eye(3)[None], np.eye(3)[None], np.zeros((1, 3, 3)), 4.0 * np.eye(3)[None]])

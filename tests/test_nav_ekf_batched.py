@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from agent.camera.model import R_CAM_FROM_LVLH
-from agent.nav import EkfConfig
-from agent.nav.pipeline import VisionNav
-from agent.roe import roe_to_lvlh
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH
+from swarmhil.agent.nav import EkfConfig
+from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.roe import roe_to_lvlh
 
 sys.path.insert(0, str(ROOT / "bench"))
 from bench_camera_pipeline import A_M, N_RADPS, SCENARIO, neighbours
@@ -72,7 +72,7 @@ def test_a_singular_s_skips_only_that_tracks_update_and_counts_a_fault() -> None
             tr.xm[:] = x
             tr.combine()
         nv.tracks[0].pm[:] = 0.0
-    from agent.nav.measure import camera_position_matrix
+    from swarmhil.agent.nav.measure import camera_position_matrix
 
     t_cam = camera_position_matrix(0.3, N_RADPS)
     z, r = np.array([[500.0, 520.0, 3.0], [560.0, 530.0, 2.0]]), np.stack([np.zeros((3, 3)), 0.01 * np.eye(3)])

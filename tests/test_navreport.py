@@ -16,11 +16,11 @@ import pytest
 from scipy.stats import chi2
 
 from conftest import SCENARIOS, read_mcap, weakly_connected_by_hand
-from dashboards.navreport.analysis import analyse_run, associate, nees_of
-from dashboards.navreport.page import write_comparison, write_nav_report
-from dashboards.navreport.read import TrackRows, read_tracks
-from deploy.launcher import run_in_process
-from deploy.scenario import parse_scenario
+from swarmhil.dashboards.navreport.analysis import analyse_run, associate, nees_of
+from swarmhil.dashboards.navreport.page import write_comparison, write_nav_report
+from swarmhil.dashboards.navreport.read import TrackRows, read_tracks
+from swarmhil.deploy.launcher import run_in_process
+from swarmhil.deploy.scenario import parse_scenario
 
 
 def _small(name: str, count: int, duration_s: float) -> dict:
@@ -176,7 +176,7 @@ def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None, used_on
     rows and their associations, the coverage of truly visible pairs by the plant's own rule
     (plant.sensors.visibility_matrix per truth message, not dashboards.metrics); used_only: by the
     tracks the controller used."""
-    from plant.sensors import CameraGeometry, visibility_matrix
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
     truth = [m for topic, _l, _p, m in read_mcap(run_dir / "run.mcap") if topic == "truth"]
     dv = sum(b.delta_v_mps for b in truth[-1].bodies)
@@ -198,7 +198,7 @@ def _truth_dv_and_coverage(run_dir: Path, run: str, rows=None, err=None, used_on
 
 
 def _vis_of(truth_msg) -> np.ndarray:
-    from plant.sensors import CameraGeometry, visibility_matrix
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
     pos = np.array([[b.position_m.x, b.position_m.y, b.position_m.z] for b in truth_msg.bodies])
     return visibility_matrix(pos, CameraGeometry(500.0, 1080, 1000.0), np.array([b.alive for b in truth_msg.bodies]))

@@ -7,14 +7,14 @@ from typing import Callable
 
 import numpy as np
 
-from bus.keys import Keys
-from bus.memory import MemoryBus
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.memory import MemoryBus
 from conftest import SCENARIOS
-from deploy.batch import BatchHook
-from deploy.scenario import load_scenario, plant_config
-from plant.flight import LocalFlightSoftware, StimulusBatch
-from plant.node import PlantNode
-from plant.sensing import SensingContext
+from swarmhil.deploy.batch import BatchHook
+from swarmhil.deploy.scenario import load_scenario, plant_config
+from swarmhil.plant.flight import LocalFlightSoftware, StimulusBatch
+from swarmhil.plant.node import PlantNode
+from swarmhil.plant.sensing import SensingContext
 
 ACCEL_MPS2 = 1e-5
 

@@ -16,7 +16,7 @@ def test_generated_code_matches_proto(tmp_path: Path) -> None:
 
 
 def test_every_message_starts_with_header() -> None:
-    from bus import swarmhil_pb2 as pb
+    from swarmhil.bus import swarmhil_pb2 as pb
 
     exempt = {"Header", "Vector3", "Quaternion", "BodyState", "RelativeState", "ScenePose", "NeighbourDecision",
               "TrackEstimate", "LinkCounter", "Beacon", "Measurement"}  # parts of messages

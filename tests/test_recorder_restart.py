@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 from conftest import ROOT, SCENARIOS, read_mcap
-from deploy.launcher import MultiProcessRun
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import MultiProcessRun
+from swarmhil.deploy.scenario import load_scenario
 from test_restart import _no_process_left
 
 
@@ -65,7 +65,7 @@ def test_a_killed_recorder_is_restarted_into_a_segment_and_merged(tmp_path: Path
     assert meta["swarmhil.run"]["run"] == "recrs" and meta["swarmhil.segment"]["index"] == "1"
     assert [s["file"] for s in json.loads(meta["swarmhil.segments"]["json"])] == ["run.000.mcap", "run.001.mcap"]
     # the command line does the same from the segments
-    cli = subprocess.run([sys.executable, "-m", "deploy.cli", "mcap", "merge", str(out / "run.000.mcap"),
+    cli = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "mcap", "merge", str(out / "run.000.mcap"),
                           str(out / "run.001.mcap"), str(tmp_path / "m.mcap")], cwd=ROOT, capture_output=True, text=True)
     assert cli.returncode == 0, cli.stderr
     assert json.loads(cli.stdout)["messages"] == len(msgs)

@@ -20,15 +20,15 @@ from pathlib import Path
 
 from mcap.reader import make_reader
 
-from bus import swarmhil_pb2 as pb
+from swarmhil.bus import swarmhil_pb2 as pb
 from conftest import SCENARIOS
-from deploy.scenario import load_scenario
+from swarmhil.deploy.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def swarmhil(*args: str, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "deploy.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout)
 
 

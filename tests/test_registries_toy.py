@@ -25,10 +25,10 @@ TOY_MODULE = '''
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from agent.controller import Command, register
-from bus import swarmhil_pb2 as pb
-from bus.codec import add_measurement
-from plant.sensing import register_sensing
+from swarmhil.agent.controller import Command, register
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import add_measurement
+from swarmhil.plant.sensing import register_sensing
 
 
 class ToyParams(BaseModel):
@@ -139,7 +139,7 @@ def toy_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     outs = []
     for label, extra in (("mp", []), ("ip", ["--in-process"])):
         out = d / label
-        r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(d / "toy.toml"), "--out", str(out),
+        r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(d / "toy.toml"), "--out", str(out),
                             "--no-progress", "--run-id", "toy-run", *extra], capture_output=True, text=True, cwd=d, env=env, timeout=300)
         assert r.returncode == 0, r.stderr + r.stdout
         outs.append(out)

@@ -45,8 +45,8 @@ roe_m = [3.0, 2000.0, 0.0, 0.0, 0.0, 0.0]
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory) -> Path:
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     d = tmp_path_factory.mktemp("tiny")
     (d / "tiny.toml").write_text(SCENARIO)
@@ -55,7 +55,7 @@ def tiny_run(tmp_path_factory) -> Path:
 
 
 def test_read_truth_matches_an_independent_decode(tiny_run):
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.truth_io import read_truth
 
     tr = read_truth(tiny_run / "run.mcap")
     msgs = [m for topic, _lt, _pt, m in read_mcap(tiny_run / "run.mcap") if topic == "truth"]
@@ -69,9 +69,9 @@ def test_read_truth_matches_an_independent_decode(tiny_run):
 
 
 def test_report_command_writes_figures_and_metrics(tiny_run):
-    from dashboards.metrics import delta_v_from_accel
-    from dashboards.truth_io import read_truth
-    from deploy.cli import main
+    from swarmhil.dashboards.metrics import delta_v_from_accel
+    from swarmhil.dashboards.truth_io import read_truth
+    from swarmhil.deploy.cli import main
 
     res = CliRunner().invoke(main, ["report", str(tiny_run), "--steady-from-h", "0.1"])
     assert res.exit_code == 0, res.output
@@ -122,7 +122,7 @@ def overview_of(page: str) -> str:
 def test_paper002_metrics_are_in_its_section_not_in_the_overview(tiny_run):
     """Issue 25: the overview is what every mission has; paper 002's ROE metrics and figures are its
     section's (missions/p002_sabatini/report.py), with the same rows and figures as before."""
-    from dashboards.report import write_report
+    from swarmhil.dashboards.report import write_report
 
     page = write_report(tiny_run, steady_from_s=360.0, interactive=False, export=()).read_text()
     overview, section = overview_of(page), page.split('<h2 id="p002-swarm">', 1)[1].split("<h2", 1)[0]
@@ -140,7 +140,7 @@ def test_paper002_metrics_are_in_its_section_not_in_the_overview(tiny_run):
 
 
 def test_parse_values_and_set_param():
-    from deploy.cli_report import parse_values, set_param
+    from swarmhil.deploy.cli_report import parse_values, set_param
 
     assert parse_values("0,0.1, 0.35") == [0, 0.1, 0.35]
     assert parse_values("[1,2,3],[4,5,6],x") == [[1, 2, 3], [4, 5, 6], "x"]
@@ -160,7 +160,7 @@ def _png_size(path: Path) -> tuple[int, int]:
 
 
 def test_sweep_command_runs_cases_in_parallel(tmp_path):
-    from deploy.cli import main
+    from swarmhil.deploy.cli import main
 
     (tmp_path / "tiny.toml").write_text(SCENARIO)
     out = tmp_path / "sweep"
@@ -178,7 +178,7 @@ def test_sweep_command_runs_cases_in_parallel(tmp_path):
         assert f'src="{png}"' in html
         w, h = _png_size(out / "report" / png)
         assert w > 300 and h > 200, (png, w, h)  # a real figure, not an empty or broken file
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.truth_io import read_truth
 
     for c in sweep["cases"]:
         assert not (Path(c["dir"]) / "report").exists()
@@ -204,7 +204,7 @@ def test_sweep_command_runs_cases_in_parallel(tmp_path):
 def test_accel_alignment_from_either_recording_convention():
     """accel_cmd_mps2 of step k was 'applied over [t_k, t_k+1)' in early recordings and is 'applied over
     [t_k-1, t_k)' now; the dV increments tell which, and both give the same aligned commands."""
-    from dashboards.truth_io import align_accel
+    from swarmhil.dashboards.truth_io import align_accel
 
     rng = np.random.default_rng(2)
     t = np.arange(0.0, 60.0, 10.0)

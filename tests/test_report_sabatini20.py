@@ -17,9 +17,9 @@ from conftest import ROOT, SCENARIOS
 
 
 def test_explicit_scenario_has_the_generated_initial_conditions():
-    from deploy.scenario import load_scenario
-    from plant.dynamics.roe_linear import roe_to_lvlh
-    from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+    from swarmhil.deploy.scenario import load_scenario
+    from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
 
     gen = load_scenario(SCENARIOS / "sabatini-20.toml")
     exp = load_scenario(SCENARIOS / "sabatini-20-explicit.toml")
@@ -36,7 +36,7 @@ def test_explicit_scenario_has_the_generated_initial_conditions():
 
 
 def _cli(*args: str, timeout_s: float) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "deploy.cli", *args], cwd=ROOT, capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", *args], cwd=ROOT, capture_output=True, text=True,
                           timeout=timeout_s)
 
 
@@ -58,9 +58,9 @@ def test_sabatini20_24h_multiprocess_run_and_report(tmp_path):
 
 @pytest.mark.system
 def test_explicit_scenario_gives_the_same_truth_as_the_generated_one(tmp_path):
-    from dashboards.truth_io import read_truth
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.truth_io import read_truth
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     truths = []
     for name in ("sabatini-20", "sabatini-20-explicit"):
@@ -87,9 +87,9 @@ def test_paper002_section_is_unchanged_by_its_room(tmp_path):
     content: a 20 min sabatini-20 run's section has the rows, values and figures that main's gave
     before the move (tests/data/p002_section_sabatini20_20min.json, same machine class: the values are
     printed to 3 significant digits), and the overview none of them."""
-    from dashboards.report import write_report
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     want = json.loads((ROOT / "tests" / "data" / "p002_section_sabatini20_20min.json").read_text())
     sc = load_scenario(SCENARIOS / "sabatini-20.toml").with_overrides(duration_s=want["duration_s"])

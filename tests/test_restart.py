@@ -14,14 +14,14 @@ from pathlib import Path
 import pytest
 
 from conftest import SCENARIOS, read_mcap
-from deploy.launcher import MultiProcessRun
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import MultiProcessRun
+from swarmhil.deploy.scenario import load_scenario
 from test_supervision import _alive
 
 CRASH_PLUGIN = '''
 import os, sys
 if sys.argv[1:2] == ["agent"] and "sc02" in sys.argv:
-    import agent.node as _n
+    import swarmhil.agent.node as _n
     _handle = _n.AgentNode.handle
     def handle(self, stim):
         if {when}:

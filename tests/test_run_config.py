@@ -18,9 +18,9 @@ import pytest
 from mcap.reader import make_reader
 
 from conftest import ROOT, read_mcap
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
-CLI = [sys.executable, "-m", "deploy.cli"]
+CLI = [sys.executable, "-m", "swarmhil.deploy.cli"]
 
 SCENARIO = """
 [run]
@@ -139,7 +139,7 @@ def test_every_report_and_the_replay_work_from_the_recording_alone(recorded: Pat
     # the replay: a recording that `rerun rrd verify` accepts (not only a file of some size)
     r = _cli("replay", str(recorded / "run.mcap"), "--rrd", str(tmp_path / "replay.rrd"), cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    from dashboards.viz_node import disable_analytics, rerun_exe
+    from swarmhil.dashboards.viz_node import disable_analytics, rerun_exe
 
     disable_analytics()
     v = subprocess.run([rerun_exe(), "rrd", "verify", str(tmp_path / "replay.rrd")], capture_output=True, text=True,

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from conftest import SCENARIOS
-from deploy.scenario import ScenarioError, load_scenario, parse_scenario
-from plant.dynamics.roe_linear import roe_to_lvlh
-from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+from swarmhil.deploy.scenario import ScenarioError, load_scenario, parse_scenario
+from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
 
 
 def base() -> dict:

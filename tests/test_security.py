@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 import zenoh
 
-from bus import swarmhil_pb2 as pb
-from bus.acl import acl_config, make_run_security
-from bus.codec import RejectedPacket, decode, header, vec
-from bus.keys import Keys
-from bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.acl import acl_config, make_run_security
+from swarmhil.bus.codec import RejectedPacket, decode, header, vec
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
 from conftest import assert_refused, read_mcap
 
 RUN = "secrun"
@@ -61,7 +61,7 @@ def test_credential_files_are_private(tmp_path: Path) -> None:
 
 
 def test_no_or_wrong_credentials_cannot_connect(secured, monkeypatch: pytest.MonkeyPatch) -> None:
-    from bus import acl
+    from swarmhil.bus import acl
 
     sec, ep, _bus = secured
     # no credential, a wrong password, and a password of another process (agent-b's) for agent-a;
@@ -137,7 +137,7 @@ def test_a_message_without_header_is_rejected() -> None:
 def test_a_non_finite_value_in_a_long_array_is_rejected() -> None:
     """The walk sums each repeated double field first (issue 29): a NaN/inf anywhere in a long
     array (a landmark cloud) is still found and named; finite values whose sum overflows pass."""
-    from bus.codec import add_measurement
+    from swarmhil.bus.codec import add_measurement
 
     rng = np.random.default_rng(29)
     for bad in (math.nan, math.inf, -math.inf):
@@ -154,8 +154,8 @@ def test_a_non_finite_value_in_a_long_array_is_rejected() -> None:
 
 
 def test_a_truncated_command_is_rejected() -> None:
-    from plant.node import PlantNode  # noqa: F401  (the plant runs check_complete_command on every command)
-    from bus.codec import check_complete_command
+    from swarmhil.plant.node import PlantNode  # noqa: F401  (the plant runs check_complete_command on every command)
+    from swarmhil.bus.codec import check_complete_command
 
     full = pb.ActuatorCommand(header=header(RUN, "a", 3, 30.0, 3), accel_mps2=vec([1e-3, 0, 0]), controller="null")
     data = full.SerializeToString()
@@ -208,8 +208,8 @@ def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bo
     """A neighbour holding agent sc01's credentials: keeps forging sc02's and sc03's commands (their
     key, their id in header.source, every step) and the plant's final tick; and one with no
     credentials at all."""
-    from bus import zenoh_bus
-    from bus.acl import read_credential
+    from swarmhil.bus import zenoh_bus
+    from swarmhil.bus.acl import read_credential
 
     while not (out / "run.json").exists() and not stop.is_set():
         time.sleep(0.02)
@@ -247,8 +247,8 @@ def _attack(out: Path, stop: threading.Event, report: dict, with_credentials: bo
 
 
 def _secure_run(d: Path, attack: bool, secure: bool = True, final_tick: bool = True) -> tuple[Path, dict]:
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     d.mkdir(parents=True, exist_ok=True)
     path = d / "sec.toml"

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from bus import swarmhil_pb2 as pb
-from bus.memory import MemoryBus
-from bus.recorder import RecorderNode, ack_key, flush_key
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.memory import MemoryBus
+from swarmhil.bus.recorder import RecorderNode, ack_key, flush_key
 from conftest import read_mcap
 
 
@@ -39,7 +39,7 @@ def test_recorder_answers_a_flush_with_what_it_wrote_and_whether_run_end_is_in(t
 
 
 def test_router_takes_another_port_when_its_free_port_was_taken_meanwhile() -> None:
-    from bus.zenoh_bus import free_loopback_port, open_loopback_router
+    from swarmhil.bus.zenoh_bus import free_loopback_port, open_loopback_router
 
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as taken:
         taken.bind(("127.0.0.1", 0))

@@ -56,9 +56,9 @@ roe_m = [0.0, 0.0, -15.0, 15.0, -15.0, 15.0]
 
 
 def _tiny(tmp: Path, name: str, duration: float, step: float) -> Path:
-    from dashboards.report import write_report
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     p = tmp / f"{name}.toml"
     p.write_text(TINY.format(name=name, duration=duration, step=step))
@@ -76,9 +76,9 @@ def short_and_long(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path
 @pytest.fixture(scope="module")
 def site_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 20-minute run with every kind of page, reported with `swarmhil report` (the CLI)."""
-    from deploy.cli import main
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.cli import main
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     out = tmp_path_factory.mktemp("site") / "run"
     run_in_process(load_scenario(SITE_SCENARIO), out, "site-20min", progress=False)
@@ -94,7 +94,7 @@ def _svg_texts(path: Path) -> list[str]:
 
 
 def test_windows_and_titles_follow_the_run(short_and_long: tuple[Path, Path]) -> None:
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.truth_io import read_truth
 
     for run, long in zip(short_and_long, (False, True)):
         tr = read_truth(run / "run.mcap")
@@ -123,10 +123,10 @@ def test_windows_and_titles_follow_the_run(short_and_long: tuple[Path, Path]) ->
 
 
 def test_figures_fit_count_in_integers_and_are_150_dpi(short_and_long: tuple[Path, Path]) -> None:
-    from dashboards.figstyle import draw_static, overflowing_texts
-    from dashboards.metrics import compute_metrics
-    from missions.p002_sabatini.report import draw_digraph, spec_components
-    from dashboards.truth_io import read_truth
+    from swarmhil.dashboards.figstyle import draw_static, overflowing_texts
+    from swarmhil.dashboards.metrics import compute_metrics
+    from swarmhil.missions.p002_sabatini.report import draw_digraph, spec_components
+    from swarmhil.dashboards.truth_io import read_truth
 
     run = short_and_long[1]
     tr = read_truth(run / "run.mcap")

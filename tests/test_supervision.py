@@ -30,9 +30,9 @@ def _wait_for(path: Path, timeout_s: float = 90.0) -> dict:
 
 
 def _wait_steps(out: Path, info: dict, n: int, timeout_s: float = 90.0) -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.acl import read_credential
-    from bus.zenoh_bus import ZenohBus
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.acl import read_credential
+    from swarmhil.bus.zenoh_bus import ZenohBus
 
     seen = threading.Event()
     bus = ZenohBus(info["router"], credential=read_credential(out / "secrets" / "launcher.cred"))
@@ -63,7 +63,7 @@ def _left(pids: dict[str, int], within_s: float) -> list[str]:
 
 
 def _launch(out: Path, run_id: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
+    return subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "demo.toml"), "--out", str(out),
                              "--run-id", run_id, "--mode", "realtime", "--speed", "20", "--no-progress"],
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
 
@@ -117,8 +117,8 @@ if "agent" in sys.argv and "sc02" in sys.argv:
 
 
 def test_agent_dying_at_start_up_fails_the_run_at_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from deploy.launcher import MultiProcessRun
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
 
     (tmp_path / "crash_sc02_plugin.py").write_text(CRASH_PLUGIN)
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -181,7 +181,7 @@ print(f"stopped {{time.monotonic() - t0:.2f}}", flush=True)
 
 
 @pytest.mark.parametrize("setup, stops", [
-    ("from deploy.stopping import stop_on_signals\nstop = stop_on_signals(signal.SIGTERM)", True),
+    ("from swarmhil.deploy.stopping import stop_on_signals\nstop = stop_on_signals(signal.SIGTERM)", True),
     # what the children did before: an untimed Event.wait() in the main thread is never woken
     ("stop = threading.Event()\nsignal.signal(signal.SIGTERM, lambda *_: stop.set())", False),
 ])

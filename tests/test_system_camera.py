@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 
 from conftest import SCENARIOS
-from deploy.launcher import MultiProcessRun
-from deploy.scenario import load_scenario
+from swarmhil.deploy.launcher import MultiProcessRun
+from swarmhil.deploy.scenario import load_scenario
 
 CAMERA_SCENARIOS = ["sabatini-20-camera-exact.toml", "sabatini-20-camera-rough.toml", "sabatini-20-camera-filter.toml"]
 
@@ -58,7 +58,7 @@ def test_camera_scenario_24h_multiprocess_lockstep(name: str, tmp_path: Path) ->
 def _check_refly(run_dir: Path, sid: str) -> None:
     """`swarmhil refly` (issue 26) on this multi-process recording: the agent's camera, EKF and
     controller re-flown alone reproduce its every command bit for bit; the wall is printed."""
-    from deploy.refly import agent_config_of, read_recorded, refly
+    from swarmhil.deploy.refly import agent_config_of, read_recorded, refly
 
     t0 = time.monotonic()
     rec = read_recorded(run_dir, sid)
@@ -72,8 +72,8 @@ def _check_filter_against_ideal(tmp_path: Path, duration: float) -> None:
     digraphs over each orbit, as ideal sensing does) and costs at most 1.5x the dV of ideal sensing."""
     import json
 
-    from dashboards.report import write_report
-    from deploy.launcher import run_in_process
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.launcher import run_in_process
 
     ideal = load_scenario(SCENARIOS / "sabatini-20.toml").with_overrides(duration_s=duration)
     run_in_process(ideal, tmp_path / "ideal", "sys-ideal", progress=False)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from conftest import SCENARIOS, read_mcap
-from deploy.launcher import MultiProcessRun, run_in_process
-from deploy.scenario import load_scenario, parse_scenario
-from plant.dynamics.propagator import make_propagator
-from plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+from swarmhil.deploy.launcher import MultiProcessRun, run_in_process
+from swarmhil.deploy.scenario import load_scenario, parse_scenario
+from swarmhil.plant.dynamics.propagator import make_propagator
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
 
 
 def _truth_arrays(path: Path, run: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -106,7 +106,7 @@ def test_j2_plant_through_the_stack_equals_an_independent_j2_integration(tmp_pat
     independent integration of two-body + J2 (`_reference_lvlh`: scipy DOP853, the test's own force
     and frame) from the same initial ECI states, driven by the same (zero: null controller)
     commands; and J2 matters: the same reference with J2 off ends metres away."""
-    from plant.dynamics.absolute_j2 import qns_to_eci, roe_to_absolute_elements
+    from swarmhil.plant.dynamics.absolute_j2 import qns_to_eci, roe_to_absolute_elements
 
     doc = tomllib.loads((SCENARIOS / "drift-20.toml").read_text())
     doc["dispersion"]["count"] = 6

@@ -30,7 +30,7 @@ def expected(xs: list[float]) -> tuple[int, float, float, float]:
 
 
 def run_and_report(tmp: Path, *args: str) -> tuple[dict, str]:
-    from deploy.cli import main
+    from swarmhil.deploy.cli import main
 
     out = tmp / "run"
     res = CliRunner().invoke(main, ["run", str(SCENARIOS / "sabatini-2-collision.toml"), "--in-process",
@@ -65,8 +65,8 @@ def test_real_time_past_the_deadline_is_flagged(tmp_path) -> None:
     """Real time at speed 1e6: a 10 s step is due every 10 us of wall time, less than any agent's
     compute time per step, so every agent's p99 is over the deadline; the same recording read as at
     speed 1 (a 10 s deadline) flags nobody."""
-    from dashboards.sections import SectionContext
-    from dashboards.sections.timing import timing
+    from swarmhil.dashboards.sections import SectionContext
+    from swarmhil.dashboards.sections.timing import timing
 
     summary, page = run_and_report(tmp_path, "--mode", "realtime", "--speed", "1e6")
     m = summary["metrics"]["timing"]

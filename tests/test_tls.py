@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from bus.acl import make_run_security
-from bus.keys import Keys
-from bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
+from swarmhil.bus.acl import make_run_security
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.zenoh_bus import ZenohBus, endpoint, free_loopback_port, open_router
 from conftest import assert_refused
 from system_tools import require_command
 
@@ -37,7 +37,7 @@ def test_tls_files_are_private_and_the_ca_key_is_gone(tmp_path: Path) -> None:
 
 
 def test_only_a_certificate_of_the_run_opens_a_session(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from bus.acl import Credential
+    from swarmhil.bus.acl import Credential
 
     for d in ("run", "other"):
         (tmp_path / d).mkdir()
@@ -107,16 +107,16 @@ def test_swarmhil_run_tls(tmp_path: Path) -> None:
 
     scen = tmp_path / "s.toml"
     scen.write_text(SMALL)
-    bad = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--tls", "--insecure", "--out",
+    bad = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(scen), "--tls", "--insecure", "--out",
                           str(tmp_path / "bad")], cwd=ROOT, capture_output=True, text=True)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "Traceback" not in bad.stderr
     # the scenario's own [security].tls = true does what --tls does (and --insecure conflicts with it)
     scen.write_text(SMALL + "\n[security]\ntls = true\n")
-    bad = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--insecure", "--out",
+    bad = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(scen), "--insecure", "--out",
                           str(tmp_path / "bad2")], cwd=ROOT, capture_output=True, text=True)
     assert bad.returncode == 2 and "[security].tls" in bad.stderr and "Traceback" not in bad.stderr, bad.stderr
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(scen), "--no-progress", "--out", str(out)],
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(scen), "--no-progress", "--out", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=240)
     assert r.returncode == 0, r.stderr
     s = json.loads((out / "summary.json").read_text())
@@ -132,7 +132,7 @@ def test_swarmhil_run_tls(tmp_path: Path) -> None:
     ("[security]\ncert = \"x\"\n", "cert"),
 ])
 def test_security_table_is_validated(tmp_path: Path, table: str, says: str) -> None:
-    from deploy.scenario import ScenarioError, load_scenario
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario
 
     scen = tmp_path / "s.toml"
     scen.write_text(SMALL + "\n" + table)
@@ -142,7 +142,7 @@ def test_security_table_is_validated(tmp_path: Path, table: str, says: str) -> N
 
 
 def test_security_defaults_and_resolved_configuration(tmp_path: Path) -> None:
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     scen = tmp_path / "s.toml"
     scen.write_text(SMALL)

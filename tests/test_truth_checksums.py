@@ -54,8 +54,8 @@ def test_truth_of_the_first_ten_minutes_holds_the_reference(tmp_path: Path) -> N
 
 def test_the_reference_check_sees_a_change_of_the_law(tmp_path: Path) -> None:
     """Positive control: the same check fails on a run whose eccentricity gain is 1.2 instead of 1.1."""
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     scenario = str(SCENARIOS / "sabatini-20.toml")
     sc = load_scenario(scenario, ["controller.params.k_ecc=1.2"]).with_overrides(duration_s=600.0)

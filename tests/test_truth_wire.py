@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bus import swarmhil_pb2 as pb
-from bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
 
 
 def _protobuf(run, source, step, t, seq, u, a, n, ids, kinds, pos, vel, dv, alive, acc, roe) -> bytes:
@@ -66,7 +66,7 @@ def test_random_truths_equal_protobuf() -> None:
 
 
 def test_more_patterns_than_kept(monkeypatch) -> None:
-    import bus.truth_wire as tw
+    import swarmhil.bus.truth_wire as tw
 
     monkeypatch.setattr(tw, "MAX_PLANS", 3)
     rng = np.random.default_rng(3)
@@ -104,8 +104,8 @@ def test_recorded_truths_equal_protobuf(tmp_path, scenario) -> None:
     from mcap.reader import make_reader
 
     from conftest import SCENARIOS
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / f"{scenario}.toml").with_overrides(duration_s=300.0)
     run_in_process(sc, tmp_path, "wire", record="truth")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
 
 def _as_written(pos: np.ndarray, cam: CameraGeometry, alive: np.ndarray | None) -> np.ndarray:

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components, weakly_connected
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, visibility_series, weak_components, weakly_connected
 
 CAMS = [CameraGeometry(), CameraGeometry(detection_range_m=150.0, image_px=640, focal_px=300.0)]
 
@@ -56,7 +56,7 @@ def _weak_count(vis: np.ndarray, nodes: np.ndarray) -> int:
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
 def test_the_plant_the_reports_and_the_viewer_see_the_same_and_count_the_same() -> None:
     pytest.importorskip("rerun")
-    from dashboards.rerun_bridge import CameraRule
+    from swarmhil.dashboards.rerun_bridge import CameraRule
 
     rng = np.random.default_rng(25)
     edges = 0

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from agent.roe import roe_to_lvlh
-from bus import swarmhil_pb2 as pb
-from bus.codec import vec
-from bus.keys import Keys
-from dashboards.replay import read_rrd
-from dashboards.rerun_bridge import DEAD_COLOUR, MODE_COLOURS, CameraRule, Paths, SwarmLogger, mode_colour
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.agent.roe import roe_to_lvlh
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import vec
+from swarmhil.bus.keys import Keys
+from swarmhil.dashboards.replay import read_rrd
+from swarmhil.dashboards.rerun_bridge import DEAD_COLOUR, MODE_COLOURS, CameraRule, Paths, SwarmLogger, mode_colour
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
 RUN = "viztest"
 K = Keys(RUN)
@@ -248,7 +248,7 @@ def test_foreign_samples_are_rejected_not_logged(logged: dict) -> None:
 def test_rrd_passes_rerun_verify(logged: dict) -> None:
     import subprocess
 
-    from dashboards.viz_node import disable_analytics, rerun_exe
+    from swarmhil.dashboards.viz_node import disable_analytics, rerun_exe
 
     disable_analytics()
     r = subprocess.run([rerun_exe(), "rrd", "verify", str(logged["path"])], capture_output=True, text=True, timeout=120)
@@ -256,7 +256,7 @@ def test_rrd_passes_rerun_verify(logged: dict) -> None:
 
 
 def test_blueprint_has_3d_view_time_series_and_log() -> None:
-    from dashboards.rerun_bridge import blueprint
+    from swarmhil.dashboards.rerun_bridge import blueprint
 
     def views(part: object) -> list[object]:
         import rerun.blueprint as rrb
@@ -273,7 +273,7 @@ def blueprints_in(path: object) -> int:
     """Blueprints sent into a .rrd: `rerun rrd print` lists one activation command per blueprint."""
     import subprocess
 
-    from dashboards.viz_node import disable_analytics, rerun_exe
+    from swarmhil.dashboards.viz_node import disable_analytics, rerun_exe
 
     disable_analytics()
     r = subprocess.run([rerun_exe(), "rrd", "print", str(path)], capture_output=True, text=True, timeout=120)
@@ -309,7 +309,7 @@ def test_spacecraft_frames_hold_truth_position_and_attitude_in_lvlh(logged: dict
 def test_cameras_are_pinholes_on_the_paper_002_mount(logged: dict) -> None:
     """A pinhole per spacecraft, sized as the debug frames (1080 px / 4, f = 1000 / 4), mounted so
     that the camera frame maps to LVLH as the flight software's camera model says."""
-    from agent.camera.model import R_LVLH_FROM_CAM
+    from swarmhil.agent.camera.model import R_LVLH_FROM_CAM
 
     rows = logged["rows"]
     for sid in IDS:
@@ -345,8 +345,8 @@ def test_p000_sensor_cone_and_landmark_returns(tmp_path) -> None:
     body frame (outliers red), agents coloured by mode, no camera."""
     from pathlib import Path
 
-    from dashboards.rerun_bridge import LANDMARK_COLOUR, OUTLIER_COLOUR
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.rerun_bridge import LANDMARK_COLOUR, OUTLIER_COLOUR
+    from swarmhil.deploy.scenario import load_scenario
 
     cfg = load_scenario(Path(__file__).resolve().parent.parent / "deploy" / "scenarios" / "capture-10.toml").resolved()
     path = tmp_path / "p000.rrd"

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dashboards.replay import read_rrd
-from dashboards.viz_node import disable_analytics, rerun_exe
+from swarmhil.dashboards.replay import read_rrd
+from swarmhil.dashboards.viz_node import disable_analytics, rerun_exe
 from conftest import sigint_default
-from dashboards.rerun_bridge import MODE_COLOURS
+from swarmhil.dashboards.rerun_bridge import MODE_COLOURS
 from test_viz_bridge import blueprints_in
-from deploy.cli import main as cli_main
+from swarmhil.deploy.cli import main as cli_main
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "deploy" / "scenarios"
@@ -106,8 +106,8 @@ def check_same_views(live: Path, replayed: Path) -> None:
 
 @pytest.fixture(scope="module")
 def in_process_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     out = tmp_path_factory.mktemp("viz-inproc")
     sc = load_scenario(SCENARIOS / "demo.toml").with_overrides(duration_s=400.0)
@@ -141,7 +141,7 @@ def test_viz_option_validation() -> None:
 
 
 def _cli_run(scenario: Path, out: Path, duration_s: float) -> None:
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(scenario), "--viz", "save", "--out", str(out),
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(scenario), "--viz", "save", "--out", str(out),
            "--duration", str(duration_s), "--no-progress"]
     r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -181,8 +181,8 @@ def test_p000_capture_with_viz_save_and_replay(tmp_path: Path) -> None:
 
     from scipy.spatial.transform import Rotation
 
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     text = (SCENARIOS / "capture-10.toml").read_text()
     a0 = np.array([float(v) for v in re.search(r'id = "a0".*?position_m = \[(.*?)\]', text, re.S).group(1).split(",")])
@@ -218,7 +218,7 @@ def check_returns_on_the_surface(rows: dict, sid: str, semi_axes: tuple[float, f
     target's frame: the agent's and the target's drawn attitudes agree with the sensor's frames."""
     from scipy.spatial.transform import Rotation
 
-    from dashboards.rerun_bridge import LANDMARK_COLOUR
+    from swarmhil.dashboards.rerun_bridge import LANDMARK_COLOUR
 
     sc_tf, tg_tf = rows[f"/world/sc/{sid}"], rows["/world/targets/target"]
     lm = rows[f"/world/sc/{sid}/landmarks"]
@@ -260,9 +260,9 @@ def test_connect_mode_streams_to_a_running_server(tmp_path: Path) -> None:
     import socket
     import time
 
-    from dashboards.viz_node import free_port
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.viz_node import free_port
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     disable_analytics()
     port = free_port()

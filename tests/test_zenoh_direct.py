@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from bus.zenoh_bus import ZenohBus, open_loopback_router
+from swarmhil.bus.zenoh_bus import ZenohBus, open_loopback_router
 
 
 @pytest.mark.parametrize("direct", [True, False])

@@ -1,4 +1,4 @@
 """Blob extraction in regions of interest (issue 4): connected components, sub-pixel centroid and area."""
-from agent.blob.blobs import Blobs, blobs_in_stack, exact_blobs, extract_blobs, extract_blobs_full
+from swarmhil.agent.blob.blobs import Blobs, blobs_in_stack, exact_blobs, extract_blobs, extract_blobs_full
 
 __all__ = ["Blobs", "blobs_in_stack", "exact_blobs", "extract_blobs", "extract_blobs_full"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from agent.camera.render import Detector, RoiStack, silhouette_area_px
+from swarmhil.agent.camera.render import Detector, RoiStack, silhouette_area_px
 
 _PLANAR_8 = np.zeros((3, 3, 3), dtype=bool)
 _PLANAR_8[1] = True  # 8-connectivity within a canvas, none across canvases of a stack
@@ -95,7 +95,7 @@ def blobs_in_stack(
 
 
 def _blobs_numba(image_e, origin_px, size_px, detector: Detector, min_pixels: int) -> Blobs:
-    from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
+    from swarmhil.agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
     return Blobs(
         *_fast.blobs(

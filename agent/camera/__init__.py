@@ -1,7 +1,7 @@
 """Camera stage of the flight software (issue 4): pinhole model, spacecraft silhouette, ROI renderer."""
-from agent.camera.model import R_CAM_FROM_LVLH, R_LVLH_FROM_CAM, Camera, quat_to_matrix
-from agent.camera.render import Detector, Renderer, RoiStack, compose_frame, silhouette_area_px
-from agent.camera.shape import SpacecraftShape
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH, R_LVLH_FROM_CAM, Camera, quat_to_matrix
+from swarmhil.agent.camera.render import Detector, Renderer, RoiStack, compose_frame, silhouette_area_px
+from swarmhil.agent.camera.shape import SpacecraftShape
 
 __all__ = [
     "Camera",

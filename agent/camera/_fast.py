@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bus.optional import require
+from swarmhil.bus.optional import require
 
 njit = require("numba", "[nav] backend = 'numba'").njit
 

@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.camera.model import Camera
-from agent.camera.shape import SpacecraftShape
-from bus.optional import require
+from swarmhil.agent.camera.model import Camera
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.bus.optional import require
 
 ROI_MARGIN_PX = 2
 Z_NEAR_M = 0.05
@@ -297,7 +297,7 @@ class Renderer:
     def _coverage(self, pos, rot, canvas_of_body, origin, size, hp, wp, sil=None) -> np.ndarray:
         cam, shp = self.camera, self.shape
         if self.backend == "numba":
-            from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
+            from swarmhil.agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
             return _fast.render_canvases(
                 shp.vertices_m, shp.normals, shp.face_offsets_m, shp.edges, pos, rot,
@@ -338,7 +338,7 @@ class Renderer:
         return [RoiStack(img, origin, size, idx, group)]
 
     def _render_rois_numba(self, pos: np.ndarray, rot: np.ndarray, frame: int, noise: bool) -> list[RoiStack]:
-        from agent.camera import _fast  # camera extra: numba kernels, only with backend numba
+        from swarmhil.agent.camera import _fast  # camera extra: numba kernels, only with backend numba
 
         cam, shp, det = self.camera, self.shape, self.detector
         canvas, origin, size = _fast.plan_canvases(shp.vertices_m, pos, rot, cam.focal_px, cam.cx, cam.cy, cam.height_px, cam.width_px, ROI_MARGIN_PX)

@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from agent.camera.model import Camera
-from agent.camera.shape import SpacecraftShape
-from agent.nav.base import Navigator, Track, observation_arrays
-from agent.nav.ekf import EkfConfig, EkfNavigator
-from agent.nav.rough import RoughNavigator
+from swarmhil.agent.camera.model import Camera
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.agent.nav.base import Navigator, Track, observation_arrays
+from swarmhil.agent.nav.ekf import EkfConfig, EkfNavigator
+from swarmhil.agent.nav.rough import RoughNavigator
 
 
 def make_navigator(kind: str, camera: Camera, shape: SpacecraftShape, a_m: float, n_radps: float, params: dict[str, Any] | None = None) -> Navigator:

@@ -13,7 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from agent.blob.blobs import Blobs
+from swarmhil.agent.blob.blobs import Blobs
 
 
 @dataclass

@@ -49,19 +49,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.blob.blobs import Blobs
-from agent.camera.model import R_LVLH_FROM_CAM, Camera
-from agent.camera.shape import SpacecraftShape
-from agent.nav.associate import assign
-from agent.nav.base import Track
-from agent.nav.measure import (
+from swarmhil.agent.blob.blobs import Blobs
+from swarmhil.agent.camera.model import R_LVLH_FROM_CAM, Camera
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.agent.nav.associate import assign
+from swarmhil.agent.nav.base import Track
+from swarmhil.agent.nav.measure import (
     MeasurementModel,
     camera_position_matrix,
     noise_cov,
     noise_cov_many,
     predict_many,
 )
-from agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
+from swarmhil.agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
 
 
 @dataclass(frozen=True)

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.camera.model import R_CAM_FROM_LVLH, Camera
-from agent.camera.shape import SpacecraftShape
-from agent.roe import roe_to_lvlh
+from swarmhil.agent.camera.model import R_CAM_FROM_LVLH, Camera
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.agent.roe import roe_to_lvlh
 
 
 @dataclass(frozen=True)

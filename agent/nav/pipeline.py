@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 
-from agent.blob.blobs import Blobs, exact_blobs, extract_blobs
-from agent.camera.model import Camera
-from agent.camera.render import Detector, Renderer, RoiStack
-from agent.camera.shape import SpacecraftShape
-from agent.nav import make_navigator
-from agent.nav.base import Track
+from swarmhil.agent.blob.blobs import Blobs, exact_blobs, extract_blobs
+from swarmhil.agent.camera.model import Camera
+from swarmhil.agent.camera.render import Detector, Renderer, RoiStack
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.agent.nav import make_navigator
+from swarmhil.agent.nav.base import Track
 
 
 class VisionNav:

@@ -16,13 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agent.blob.blobs import Blobs
-from agent.camera.model import R_LVLH_FROM_CAM, Camera
-from agent.camera.shape import SpacecraftShape
-from agent.nav.associate import assign
-from agent.nav.base import Track
-from agent.nav.measure import rough_position_cam
-from agent.roe import lvlh_to_roe
+from swarmhil.agent.blob.blobs import Blobs
+from swarmhil.agent.camera.model import R_LVLH_FROM_CAM, Camera
+from swarmhil.agent.camera.shape import SpacecraftShape
+from swarmhil.agent.nav.associate import assign
+from swarmhil.agent.nav.base import Track
+from swarmhil.agent.nav.measure import rough_position_cam
+from swarmhil.agent.roe import lvlh_to_roe
 
 
 @dataclass

@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.bandwidth.read import LinkTraffic
-from link.model import DROP_CAUSES, TX_ROW
+from swarmhil.dashboards.bandwidth.read import LinkTraffic
+from swarmhil.link.model import DROP_CAUSES, TX_ROW
 
 _MSG, _PAY, _WIRE = 0, 1, 2
 

@@ -7,18 +7,18 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.bandwidth.accounting import (
+from swarmhil.dashboards.bandwidth.accounting import (
     bin_width_s,
     drops_by_transmitter,
     link_matrix,
     per_agent_series,
 )
-from dashboards.bandwidth.read import LinkTraffic
-from dashboards.figstyle import Line, LineFigure, Panel, colors, integer_axis, legend
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.figstyle import time_axis as _time_axis
-from link.model import DROP_CAUSES
+from swarmhil.dashboards.bandwidth.read import LinkTraffic
+from swarmhil.dashboards.figstyle import Line, LineFigure, Panel, colors, integer_axis, legend
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.figstyle import time_axis as _time_axis
+from swarmhil.link.model import DROP_CAUSES
 
 
 def fig_per_agent(lt: LinkTraffic, path: Path, bin_s: float) -> str:

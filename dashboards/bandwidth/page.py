@@ -6,8 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from dashboards.bandwidth.accounting import bin_width_s, consistency, link_matrix, totals
-from dashboards.bandwidth.figures import (
+from swarmhil.dashboards.bandwidth.accounting import bin_width_s, consistency, link_matrix, totals
+from swarmhil.dashboards.bandwidth.figures import (
     fig_compare,
     fig_drops,
     fig_matrix,
@@ -15,12 +15,12 @@ from dashboards.bandwidth.figures import (
     fig_rate,
     spec_per_agent,
 )
-from dashboards.bandwidth.read import LinkTraffic, traffic_of, read_link_traffic
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.interactive import plotly_div
-from dashboards.kit import bar_for, figure_html, render, static_figure
-from link.model import COUNTER_FIELDS, DROP_CAUSES, TX_ROW
+from swarmhil.dashboards.bandwidth.read import LinkTraffic, traffic_of, read_link_traffic
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.interactive import plotly_div
+from swarmhil.dashboards.kit import bar_for, figure_html, render, static_figure
+from swarmhil.link.model import COUNTER_FIELDS, DROP_CAUSES, TX_ROW
 
 
 def _num(v: Any) -> str:

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from bus.keys import split_topic
-from bus.mcap_tools import run_of_recording
-from link.model import (
+from swarmhil.bus.keys import split_topic
+from swarmhil.bus.mcap_tools import run_of_recording
+from swarmhil.link.model import (
     COUNTER_FIELDS,
     DROP_CAUSES,
     check_tx,

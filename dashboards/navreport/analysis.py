@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.navreport.read import DecisionRows, TrackRows, read_tracks
-from dashboards.run_config import run_camera
-from dashboards.truth_io import TruthArrays, read_truth, run_id_of
-from plant.sensors import visibility_series, weak_components
+from swarmhil.dashboards.navreport.read import DecisionRows, TrackRows, read_tracks
+from swarmhil.dashboards.run_config import run_camera
+from swarmhil.dashboards.truth_io import TruthArrays, read_truth, run_id_of
+from swarmhil.plant.sensors import visibility_series, weak_components
 
 H = 3600.0
 

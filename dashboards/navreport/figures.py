@@ -6,11 +6,11 @@ from typing import Sequence
 
 import numpy as np
 
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.figstyle import time_unit
-from dashboards.navreport.analysis import H, NavErrors, RunNav, roe_error_magnitudes
-from dashboards.navreport.read import TrackRows
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.figstyle import time_unit
+from swarmhil.dashboards.navreport.analysis import H, NavErrors, RunNav, roe_error_magnitudes
+from swarmhil.dashboards.navreport.read import TrackRows
 
 ROE_COMPONENTS = ["a da", "a dl", "a dex", "a dey", "a dix", "a diy"]
 

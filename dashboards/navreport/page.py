@@ -10,10 +10,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dashboards.kit import figures_of, render
-from dashboards.navreport.analysis import H, analyse_run
-from dashboards.navreport.figures import nav_figures
-from dashboards.run_metrics import summary_with_metrics
+from swarmhil.dashboards.kit import figures_of, render
+from swarmhil.dashboards.navreport.analysis import H, analyse_run
+from swarmhil.dashboards.navreport.figures import nav_figures
+from swarmhil.dashboards.run_metrics import summary_with_metrics
 
 
 def _fmt(v: Any, digits: int = 3) -> str:

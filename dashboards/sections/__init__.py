@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from bus.discovery import import_all, import_role
+from swarmhil.bus.discovery import import_all, import_role
 
 
 @dataclass

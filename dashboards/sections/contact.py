@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from dashboards.sections import SectionContext, SectionResult, register_section
-from dashboards.sections.faults import read_events, table
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section
+from swarmhil.dashboards.sections.faults import read_events, table
 
 
 @register_section("contact", applies=lambda cfg: True)

@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.run_config import camera_from_config
-from dashboards.run_metrics import SERIES
-from dashboards.sections import (SectionContext, SectionResult, controllers_of, error_metrics_for,
+from swarmhil.dashboards.run_config import camera_from_config
+from swarmhil.dashboards.run_metrics import SERIES
+from swarmhil.dashboards.sections import (SectionContext, SectionResult, controllers_of, error_metrics_for,
                                  register_section)
-from plant.sensors import visibility_series, weak_components
+from swarmhil.plant.sensors import visibility_series, weak_components
 
 
 def read_events(mcap: Path, topic: str, kinds: tuple[str, ...] | None = None) -> list[Any]:

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.sections import SectionContext, SectionResult, register_section
-from dashboards.sections.faults import table
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section
+from swarmhil.dashboards.sections.faults import table
 
 _TM = re.compile(r"(?:^|/)sc/([^/]+)/tm$")  # `sc/<id>/tm`, or the full key of recordings before the contract
 

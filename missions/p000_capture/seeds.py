@@ -6,7 +6,7 @@ rewrites a scenario's spacecraft positions and attitudes with seed s's draw, the
 outside the R_buffer shell of the target at t = 0; then attitudes, normalised Gaussian 4-vectors;
 both from `numpy.random.default_rng(s)`. `[run].seed` becomes s too (the sensor noise key).
 
-    python -m missions.p000_capture.seeds deploy/scenarios/capture-20.toml 2 runs/capture-20-s2.toml
+    python -m swarmhil.missions.p000_capture.seeds deploy/scenarios/capture-20.toml 2 runs/capture-20-s2.toml
 """
 from __future__ import annotations
 
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from missions.p000_capture.fsw import quaternion as quat
-from missions.p000_capture.contract import Ellipsoid, signed_distance
+from swarmhil.missions.p000_capture.fsw import quaternion as quat
+from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance
 
 
 def initial_state(n: int, semi_axes_m, seed: int, r_buffer_m: float = 1.0,
@@ -57,7 +57,7 @@ def seeded_scenario(text: str, seed: int) -> str:
 
 def main(argv: list[str]) -> int:
     if len(argv) != 3 or not argv[1].isdigit():
-        print("usage: python -m missions.p000_capture.seeds SCENARIO.toml SEED OUT.toml", file=sys.stderr)
+        print("usage: python -m swarmhil.missions.p000_capture.seeds SCENARIO.toml SEED OUT.toml", file=sys.stderr)
         return 2
     try:
         out = seeded_scenario(Path(argv[0]).read_text(), int(argv[1]))

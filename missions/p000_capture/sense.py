@@ -36,12 +36,12 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import add_measurement
-from missions.p000_capture import contract as c
-from plant.config import PlantConfig
-from plant.sensing.builtin import RelBatch
-from plant.sensing.registry import SensingContext, register_sensing
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import add_measurement
+from swarmhil.missions.p000_capture import contract as c
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.sensing.builtin import RelBatch
+from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
 KIND = c.SENSING_KIND
 NOISE_TAG = 0x0C0

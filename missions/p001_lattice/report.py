@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
-from missions.p001_lattice.contract import (
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from swarmhil.missions.p001_lattice.contract import (
     CONTROLLER,
     LatticeParams,
     check_hexagon,

@@ -17,16 +17,16 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import Line, LineFigure, Panel, span_text, time_axis, window_text
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
-from dashboards.metrics import SwarmMetrics, relative_to_com
-from dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
-from dashboards.truth_io import TruthArrays
-from missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
-from plant.sensors import weak_components
+from swarmhil.dashboards.figstyle import Line, LineFigure, Panel, span_text, time_axis, window_text
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.kit import approach, check, fmt, head_table, line_figure, pct, static_figure
+from swarmhil.dashboards.metrics import SwarmMetrics, relative_to_com
+from swarmhil.dashboards.sections import SectionContext, SectionResult, controllers_of, register_section
+from swarmhil.dashboards.truth_io import TruthArrays
+from swarmhil.missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from swarmhil.plant.sensors import weak_components
 
 NAME = "p002-swarm"
 PAPER002_CONTROLLERS = {"null", "drift-null", CONTROLLER}  # its law and the baselines of its Figs. 7-9

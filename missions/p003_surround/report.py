@@ -17,13 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.sections import (ErrorSeries, SectionContext, SectionResult, register_error_metric,
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.sections import (ErrorSeries, SectionContext, SectionResult, register_error_metric,
                                  register_section, uses_controller)
-from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p003_surround.contract import (
+from swarmhil.dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
+from swarmhil.missions.p003_surround.contract import (
     LEADER_CONTROLLER,
     SERVICER_CONTROLLER,
     SLOT_OFFSETS_M,

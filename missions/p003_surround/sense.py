@@ -21,11 +21,11 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import add_measurement
-from plant.config import PlantConfig
-from missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
-from plant.sensing.registry import SensingContext, register_sensing
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import add_measurement
+from swarmhil.plant.config import PlantConfig
+from swarmhil.missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
+from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
 
 class P003Params(BaseModel):

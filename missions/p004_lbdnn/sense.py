@@ -27,11 +27,11 @@ import math
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import add_measurement
-from missions.p004_lbdnn.contract import CONTROLLER, KEY_D, KEY_Y, ServicerConfig, mission_from_params
-from plant.config import PlantConfig
-from plant.sensing.registry import SensingContext, register_sensing
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import add_measurement
+from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, KEY_D, KEY_Y, ServicerConfig, mission_from_params
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
 KIND = "p004-partial"
 NOISE_TAG = 0x004

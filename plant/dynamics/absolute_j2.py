@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from plant.dynamics.constants import (
+from swarmhil.plant.dynamics.constants import (
     ATMOSPHERE_H0_M,
     ATMOSPHERE_RHO0_KGPM3,
     ATMOSPHERE_SCALE_HEIGHT_M,
@@ -29,8 +29,8 @@ from plant.dynamics.constants import (
     OMEGA_EARTH_RADPS,
     R_EARTH_M,
 )
-from plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
-from plant.dynamics.rk_tableau import rk_step
+from swarmhil.plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
+from swarmhil.plant.dynamics.rk_tableau import rk_step
 
 __all__ = [
     "AbsoluteJ2Plant",

@@ -20,9 +20,9 @@ import math
 
 import numpy as np
 
-from plant.dynamics.frames import cross
-from plant.dynamics.limits import limit_norm
-from plant.dynamics.step_clock import StepClock
+from swarmhil.plant.dynamics.frames import cross
+from swarmhil.plant.dynamics.limits import limit_norm
+from swarmhil.plant.dynamics.step_clock import StepClock
 
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:

@@ -25,8 +25,8 @@ import math
 
 import numpy as np
 
-from plant.dynamics.constants import MU_EARTH_M3PS2
-from plant.dynamics.step_clock import StepClock
+from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2
+from swarmhil.plant.dynamics.step_clock import StepClock
 
 
 def mean_motion(a_m: float, mu_m3ps2: float = MU_EARTH_M3PS2) -> float:

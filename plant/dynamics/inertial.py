@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-from plant.dynamics.absolute_j2 import drag_accel, gravity_j2_accel
-from plant.dynamics.constants import ATMOSPHERE_H0_M, ATMOSPHERE_RHO0_KGPM3, ATMOSPHERE_SCALE_HEIGHT_M
-from plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
-from plant.dynamics.limits import force_to_accel
-from plant.dynamics.rk_tableau import rk_step
-from plant.dynamics.step_clock import StepClock
+from swarmhil.plant.dynamics.absolute_j2 import drag_accel, gravity_j2_accel
+from swarmhil.plant.dynamics.constants import ATMOSPHERE_H0_M, ATMOSPHERE_RHO0_KGPM3, ATMOSPHERE_SCALE_HEIGHT_M
+from swarmhil.plant.dynamics.frames import argument_of_latitude, eci_to_lvlh, lvlh_vector_to_eci
+from swarmhil.plant.dynamics.limits import force_to_accel
+from swarmhil.plant.dynamics.rk_tableau import rk_step
+from swarmhil.plant.dynamics.step_clock import StepClock
 
 THRUST_FRAMES = ("eci", "lvlh")
 

@@ -26,9 +26,9 @@ from typing import Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
-from plant.dynamics import cw, inertial, roe_linear
-from plant.dynamics.absolute_j2 import AbsoluteJ2Plant
-from plant.dynamics.step_clock import StepClock
+from swarmhil.plant.dynamics import cw, inertial, roe_linear
+from swarmhil.plant.dynamics.absolute_j2 import AbsoluteJ2Plant
+from swarmhil.plant.dynamics.step_clock import StepClock
 
 
 @runtime_checkable

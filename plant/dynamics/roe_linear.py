@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from plant.dynamics.constants import MU_EARTH_M3PS2
+from swarmhil.plant.dynamics.constants import MU_EARTH_M3PS2
 
 DA, DL, DEX, DEY, DIX, DIY = range(6)
 

@@ -12,7 +12,7 @@ The kind's message goes out on `sc/<id>/sense/<kind>`; `rel` and `scene` have th
 which the agent turns into `Observation.extra`. `[sensing.params]` is validated at scenario load
 by the kind's `validate`.
 """
-from plant.sensing.registry import (  # noqa: F401
+from swarmhil.plant.sensing.registry import (  # noqa: F401
     SensingContext,
     has_batch_form,
     known_sensing,

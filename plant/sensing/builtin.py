@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from bus import swarmhil_pb2 as pb
-from bus.codec import add_measurement
-from plant.config import PlantConfig
-from plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
-from plant.sensing.registry import SensingContext, register_sensing
-from plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.codec import add_measurement
+from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
+from swarmhil.plant.sensing.registry import SensingContext, register_sensing
+from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
 
 
 class _SensorNoise:
@@ -106,7 +106,7 @@ class SceneKind:
     message = pb.SceneStimulus
 
     def __init__(self, scenario: PlantConfig) -> None:
-        from plant.scene_stimulus import SceneStimulusBuilder  # scene sensing only: the scene model and scipy's Rotation
+        from swarmhil.plant.scene_stimulus import SceneStimulusBuilder  # scene sensing only: the scene model and scipy's Rotation
 
         self.builder = SceneStimulusBuilder(scenario)
 

@@ -8,9 +8,9 @@ from typing import Any, Callable, Protocol
 import numpy as np
 from google.protobuf.message import Message
 
-from bus import swarmhil_pb2 as pb
-from bus.discovery import import_all, import_role
-from plant.config import PlantConfig
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.discovery import import_all, import_role
+from swarmhil.plant.config import PlantConfig
 
 
 @dataclass
@@ -43,7 +43,7 @@ class SensingKind(Protocol):
 _KINDS: dict[str, Callable[[PlantConfig], SensingKind]] = {}
 _VALIDATORS: dict[str, Callable[[dict[str, Any]], Any]] = {}
 # modules that register kinds on import (built-ins and the missions' plant-side sensors)
-_PROVIDERS = ["plant.sensing.builtin"]
+_PROVIDERS = ["swarmhil.plant.sensing.builtin"]
 
 
 def register_sensing(name: str, validate: Callable[[dict[str, Any]], Any] | None = None
@@ -69,7 +69,7 @@ def _load() -> None:
     decorator: nothing else is edited)."""
     for m in list(_PROVIDERS):
         importlib.import_module(m)
-    import_all("plant.sensing", skip=("registry",))
+    import_all("swarmhil.plant.sensing", skip=("registry",))
     import_role("sense")
 
 

@@ -16,14 +16,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from agent.controller import Observation, OrbitInfo
-from missions.p000_capture.fsw import payload as pl
-from missions.p000_capture.fsw import quaternion as quat
-from missions.p000_capture.fsw.controller import CaptureController
-from missions.p000_capture.contract import CaptureParams
-from missions.p000_capture.fsw.sensing import CaptureSensing
-from claims.check import claim_failures
-from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p000_capture.fsw import payload as pl
+from swarmhil.missions.p000_capture.fsw import quaternion as quat
+from swarmhil.missions.p000_capture.fsw.controller import CaptureController
+from swarmhil.missions.p000_capture.contract import CaptureParams
+from swarmhil.missions.p000_capture.fsw.sensing import CaptureSensing
+from swarmhil.claims.check import claim_failures
+from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance, surface_frame, surface_landmarks
 
 N_RADPS = float(np.sqrt(3.986004418e14 / 6878137.0 ** 3))  # 500 km circular LEO
 SETTLE_S = 20.0  # estimate errors are scored for agents in chase at least this long
@@ -307,7 +307,7 @@ def test_system_literal_chase_law_flies_into_the_target() -> None:
 def test_case_result_feeds_every_paper000_claim() -> None:
     """claims/paper000.py reads a run through `case_result`: every claim of a column computes from a
     short run (5 s at 0.1 s, seconds), so a renamed field fails here and not after a 550 s run."""
-    from claims.paper000 import CLAIMS, POLICIES, case_result
+    from swarmhil.claims.paper000 import CLAIMS, POLICIES, case_result
 
     run = run_capture(duration_s=5.0, dt_s=0.1, seed=1)
     out = case_result(run)

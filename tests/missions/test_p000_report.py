@@ -2,7 +2,7 @@
 
 23 s of deploy/scenarios/capture-10.toml in-process (~6 s wall: the first three agents enter chase at
 21.70-21.75 s, so the run has chase entries, state broadcasts and landmark packets; 3 s has no
-traffic), then `python -m deploy.cli report RUN` as its own process. The section's metrics in
+traffic), then `python -m swarmhil.deploy.cli report RUN` as its own process. The section's metrics in
 summary.json must equal a recomputation written out here from the MCAP (tests/conftest.py read_mcap
 via test_p000_stack.load_run, the scenario file for the semi-axes; plain loops over the room's
 signed_distance, the sensor's CW-frame attitude for pointing, the isl/tx packets for the counters),
@@ -34,10 +34,10 @@ FIGURES = ("p000_paths3d.png", "p000_surface.png", "p000_pairs.png", "p000_messa
 
 def recompute(run: dict) -> dict:
     """The section's headline metrics from the recording, written out independently."""
-    from missions.p000_capture.fsw import quaternion as quat
-    from missions.p000_capture.contract import Ellipsoid, signed_distance
-    from missions.p000_capture.contract import dcm
-    from missions.p000_capture.sense import inertial_to_cw
+    from swarmhil.missions.p000_capture.fsw import quaternion as quat
+    from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance
+    from swarmhil.missions.p000_capture.contract import dcm
+    from swarmhil.missions.p000_capture.sense import inertial_to_cw
 
     doc = tomllib.loads(CASE_I.read_text())
     axes = np.array(doc["body"][0]["shape"]["semi_axes_m"], dtype=float)
@@ -81,7 +81,7 @@ def recompute(run: dict) -> dict:
 def test_report_has_the_capture_section(tmp_path: Path) -> None:
     run_dir = tmp_path / "c10"
     run = swarmhil_run(CASE_I, run_dir, "--in-process", "--set", f"run.duration_s={DURATION_S}")
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "report", str(run_dir)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run_dir)], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     summary = json.loads((run_dir / "summary.json").read_text())
@@ -134,7 +134,7 @@ def test_report_has_the_capture_section(tmp_path: Path) -> None:
 
 
 def test_section_applies_to_p000_runs_only() -> None:
-    from dashboards.sections import sections_for
+    from swarmhil.dashboards.sections import sections_for
 
     def names(cfg: dict) -> list[str]:
         return [n for n, _f in sections_for(cfg)]

@@ -39,7 +39,7 @@ def initial_state(n: int, semi_axes: tuple[float, float, float], seed: int = 1):
     """The room loop's initial state (run_capture: positions, then attitudes, from default_rng(seed))."""
     from test_p000_closed_loop import Target, initial_positions
 
-    from missions.p000_capture.fsw import quaternion as quat
+    from swarmhil.missions.p000_capture.fsw import quaternion as quat
 
     rng = np.random.default_rng(seed)
     r = initial_positions(rng, n, Target(np.array(semi_axes, float)), 1.0)
@@ -49,7 +49,7 @@ def initial_state(n: int, semi_axes: tuple[float, float, float], seed: int = 1):
 
 @pytest.mark.parametrize("path,n,axes", [(CASE_I, 10, (2.6, 1.9, 1.4)), (CASE_II, 20, (4.0, 1.3, 1.0))])
 def test_scenarios_hold_the_papers_cases_and_the_room_loops_initial_state(path: Path, n: int, axes) -> None:
-    from deploy.scenario import load_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     doc = tomllib.loads(path.read_text())
     r, q = initial_state(n, axes)
@@ -73,8 +73,8 @@ def test_scenarios_hold_the_papers_cases_and_the_room_loops_initial_state(path: 
 @pytest.mark.parametrize("path,n,axes", [(CASE_I, 10, (2.6, 1.9, 1.4)), (CASE_II, 20, (4.0, 1.3, 1.0))])
 def test_seeded_scenarios_draw_the_room_loops_initial_state(path: Path, n: int, axes, tmp_path: Path) -> None:
     """missions/p000_capture/seeds.py: seed 1 gives the committed file; seed s the room loop's seed-s draw."""
-    from missions.p000_capture.seeds import seeded_scenario
-    from deploy.scenario import load_scenario
+    from swarmhil.missions.p000_capture.seeds import seeded_scenario
+    from swarmhil.deploy.scenario import load_scenario
 
     text = path.read_text()
     assert seeded_scenario(text, 1) == text
@@ -85,18 +85,18 @@ def test_seeded_scenarios_draw_the_room_loops_initial_state(path: Path, n: int, 
         assert [s["position_m"] for s in doc["spacecraft"]] == r.tolist()
         assert [s["attitude_q"] for s in doc["spacecraft"]] == q.tolist()
         out = tmp_path / f"s{seed}.toml"
-        p = subprocess.run([sys.executable, "-m", "missions.p000_capture.seeds", str(path), str(seed), str(out)], cwd=ROOT,
+        p = subprocess.run([sys.executable, "-m", "swarmhil.missions.p000_capture.seeds", str(path), str(seed), str(out)], cwd=ROOT,
                            capture_output=True, text=True, timeout=60)
         assert p.returncode == 0 and tomllib.loads(out.read_text()) == doc, p.stderr
         assert load_scenario(out).seed == seed
-    bad = subprocess.run([sys.executable, "-m", "missions.p000_capture.seeds", str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"),
+    bad = subprocess.run([sys.executable, "-m", "swarmhil.missions.p000_capture.seeds", str(ROOT / "deploy" / "scenarios" / "sabatini-20.toml"),
                           "2", str(tmp_path / "x.toml")], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
 
 def test_capture_params_ignore_the_loaders_max_accel() -> None:
     """deploy/scenario.py passes [actuator].max_accel_mps2 to every controller (the one room edit)."""
-    from missions.p000_capture.contract import CaptureParams
+    from swarmhil.missions.p000_capture.contract import CaptureParams
 
     assert CaptureParams.from_dict({"max_accel_mps2": 1e-3}) == CaptureParams()
     with pytest.raises(ValueError, match="unknown"):
@@ -105,8 +105,8 @@ def test_capture_params_ignore_the_loaders_max_accel() -> None:
 
 # --- the sensing kind -----------------------------------------------------------------------------
 def _ctx(sc, steps: int = 0, torque: np.ndarray | None = None):
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext
 
     w = MissionWorld(sc)
     for _ in range(steps):
@@ -116,15 +116,15 @@ def _ctx(sc, steps: int = 0, torque: np.ndarray | None = None):
 
 
 def test_sensing_kind_measures_what_the_room_reads() -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from missions.p000_capture.fsw import quaternion as quat
-    from missions.p000_capture.fsw.sensing import CaptureSensing
-    from missions.p000_capture.contract import Ellipsoid, signed_distance, surface_landmarks
-    from plant.sensing import make_sensing
-    from missions.p000_capture.contract import dcm
-    from missions.p000_capture.sense import inertial_to_cw
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.codec import measurements_to_dict
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario, plant_config
+    from swarmhil.missions.p000_capture.fsw import quaternion as quat
+    from swarmhil.missions.p000_capture.fsw.sensing import CaptureSensing
+    from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance, surface_landmarks
+    from swarmhil.plant.sensing import make_sensing
+    from swarmhil.missions.p000_capture.contract import dcm
+    from swarmhil.missions.p000_capture.sense import inertial_to_cw
 
     sc = plant_config(load_scenario(CASE_I))
     # 200 steps (10 s) with a torque on every craft: the attitude moves, the CW frame has turned n t
@@ -219,7 +219,7 @@ def load_run(run_dir: Path) -> dict:
 def metrics(run: dict) -> dict:
     """The figures of docs/paper000.md "On the stack" from the recorded truth, telemetry and link
     (the shared computations are the report section's, missions/p000_capture/report/__init__.py)."""
-    from missions.p000_capture.report import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
+    from swarmhil.missions.p000_capture.report import chase_entry, link_by_type, pair_distance, surface_distance, target_axes
 
     s = run["summary"]
     axes = target_axes(s["config"])
@@ -243,7 +243,7 @@ def metrics(run: dict) -> dict:
 
 
 def swarmhil_run(scenario: Path, out: Path, *extra: str) -> dict:
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(scenario), "--out", str(out), "--no-progress", *extra]
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(scenario), "--out", str(out), "--no-progress", *extra]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     return load_run(out)
@@ -268,7 +268,7 @@ def assert_stack_run(mp: dict, ip: dict, steps: int) -> dict:
     # 3. attitude: unit quaternions; J dω = τ dt exactly (J = 0.075 I: ω × Jω = 0); the quaternion
     #    turns by the mean rate over the step (to the commutator term ~ dt³ |ω × ω̇| / 12: measured
     #    4e-7 against a turn of up to ~5e-3 per step)
-    from missions.p000_capture.fsw import quaternion as quat
+    from swarmhil.missions.p000_capture.fsw import quaternion as quat
 
     assert np.abs(np.linalg.norm(mp["q"], axis=2) - 1).max() < 1e-12
     dw = np.diff(mp["w"], axis=0)

@@ -24,7 +24,7 @@ def _run(parent: Path, name: str, state_tx: int, lm_bytes: int = 1000) -> None:
 
 
 def test_reduction_pairs_runs_by_seed_and_case(tmp_path: Path) -> None:
-    from missions.p000_capture.report.sweep import load_runs, reduction_table
+    from swarmhil.missions.p000_capture.report.sweep import load_runs, reduction_table
 
     for seed, (ev, per, every) in {1: (20, 40, 1000), 2: (30, 50, 1250)}.items():
         _run(tmp_path, f"c10-s{seed}-event", ev)
@@ -41,13 +41,13 @@ def test_reduction_pairs_runs_by_seed_and_case(tmp_path: Path) -> None:
     assert "| event / 1 Hz (separate runs, same seed) | 0.550 ± 0.071 (0.500–0.600, n = 2) |" in t
     assert "| event / every-step (separate runs, same seed) | 0.022 ± 0.003 (0.020–0.024, n = 2) |" in t
     assert "| 1 Hz run: state packets sent | — |" in reduction_table(rows, 20)  # no baseline run for case (ii)
-    p = subprocess.run([sys.executable, "-m", "missions.p000_capture.report.sweep", str(tmp_path / "not-a-run")], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.missions.p000_capture.report.sweep", str(tmp_path / "not-a-run")], cwd=ROOT,
                        capture_output=True, text=True, timeout=60)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
 
 
 def test_spread_by_hand() -> None:
-    from missions.p000_capture.report.sweep import spread
+    from swarmhil.missions.p000_capture.report.sweep import spread
 
     assert spread([]) == "—" and spread([0.5]) == "0.5" and spread([0.5], "{:.3f}") == "0.500"
     assert spread([1.0, 2.0, 6.0]) == "3 ± 2.65 (1–6, n = 3)"  # std sqrt((4 + 1 + 9) / 2) = sqrt(7)
@@ -57,7 +57,7 @@ def test_spread_by_hand() -> None:
 def test_settle_time_is_the_last_crossing() -> None:
     import numpy as np
 
-    from missions.p000_capture.report import settle_time
+    from swarmhil.missions.p000_capture.report import settle_time
 
     t = np.arange(6.0)
     err = np.array([[5, 0.1, 5], [2, 0.1, 5], [0.5, 0.1, 5], [3, 0.1, 5], [0.2, 0.1, 5], [0.1, np.nan, 0.5]])

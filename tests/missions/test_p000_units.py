@@ -7,22 +7,22 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from agent.catalogue import make_controller
-from agent.controller import Command, OrbitInfo
-from missions.p000_capture.fsw import payload as pl
-from missions.p000_capture.fsw import quaternion as quat
-from missions.p000_capture.fsw.apf import apf_force, apf_potential, buffer_force
-from missions.p000_capture.fsw.attitude import desired_attitude, pointing_error_rad, pointing_torque
-from missions.p000_capture.fsw.chase import chase_force
-from missions.p000_capture.fsw.ellipsoid import buffer_slot, closest_point
-from missions.p000_capture.fsw.estimate import TargetEstimate, consensus
-from missions.p000_capture.fsw.gnc_tls import gnc_tls_fit
-from missions.p000_capture.fsw.limits import saturate_norm
-from missions.p000_capture.fsw.modes import bounce_force, next_mode
-from missions.p000_capture.contract import CaptureParams
-from missions.p000_capture.fsw.sensing import CaptureSensing
-from missions.p000_capture.fsw.trigger import TriggerSettings, fires, threshold
-from missions.p000_capture.contract import Ellipsoid, closest_point_principal, signed_distance, surface_landmarks
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Command, OrbitInfo
+from swarmhil.missions.p000_capture.fsw import payload as pl
+from swarmhil.missions.p000_capture.fsw import quaternion as quat
+from swarmhil.missions.p000_capture.fsw.apf import apf_force, apf_potential, buffer_force
+from swarmhil.missions.p000_capture.fsw.attitude import desired_attitude, pointing_error_rad, pointing_torque
+from swarmhil.missions.p000_capture.fsw.chase import chase_force
+from swarmhil.missions.p000_capture.fsw.ellipsoid import buffer_slot, closest_point
+from swarmhil.missions.p000_capture.fsw.estimate import TargetEstimate, consensus
+from swarmhil.missions.p000_capture.fsw.gnc_tls import gnc_tls_fit
+from swarmhil.missions.p000_capture.fsw.limits import saturate_norm
+from swarmhil.missions.p000_capture.fsw.modes import bounce_force, next_mode
+from swarmhil.missions.p000_capture.contract import CaptureParams
+from swarmhil.missions.p000_capture.fsw.sensing import CaptureSensing
+from swarmhil.missions.p000_capture.fsw.trigger import TriggerSettings, fires, threshold
+from swarmhil.missions.p000_capture.contract import Ellipsoid, closest_point_principal, signed_distance, surface_landmarks
 
 
 def brute_closest(p: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -232,7 +232,7 @@ def test_gnc_recovers_the_case_ii_ellipsoid_with_20_percent_outliers(seed: int) 
 
 def test_controller_registered_and_command_has_torque() -> None:
     ctl = make_controller("p000-capture", "a1", OrbitInfo(6878e3, 0.0011), {})
-    from agent.controller import Observation
+    from swarmhil.agent.controller import Observation
     obs = Observation(0, 0.0, 0.0, [], np.zeros((0, 3)), np.zeros((0, 3)),
                       extra=CaptureSensing(np.array([1.0, 0, 0, 0]), np.zeros(3), np.array([8.0, 0, 0]),
                                            np.zeros(3)).to_dict())
@@ -248,7 +248,7 @@ def test_gnc_solver_jacobian_matches_finite_differences() -> None:
     of the residuals along the same moves."""
     from scipy.optimize._numdiff import approx_derivative
 
-    from missions.p000_capture.fsw.gnc_tls import Model, _moved, residuals_and_jacobian
+    from swarmhil.missions.p000_capture.fsw.gnc_tls import Model, _moved, residuals_and_jacobian
     rng = np.random.default_rng(0)
     pts = (rng.normal(size=(30, 3)) * 2).T.copy()
     model = Model(np.array([0.1, -0.2, 0.3]), Rotation.from_rotvec([0.4, -0.5, 0.6]).as_matrix(),
@@ -267,7 +267,7 @@ def test_warm_fit_converges_to_the_cold_fits_solution(seed: int) -> None:
     by 2 %. Tolerance: 1 µm on the centre and 1e-6 of each semi-axis — the same minimum, far below
     the fit's own error against the truth (~5 mm, ~0.5 %) — and the same inlier set. Measured:
     9e-10 m and 2.5e-9 (one solver iteration per stage instead of six: 2.5e-5 m, 9e-5: fails)."""
-    from missions.p000_capture.fsw.gnc_tls import warm_fit
+    from swarmhil.missions.p000_capture.fsw.gnc_tls import warm_fit
     axes = np.array([2.6, 1.9, 1.4]) if seed % 2 == 0 else np.array([4.0, 1.3, 1.0])
     pts, c, _ = _noisy_ellipsoid(seed, axes, 0.2)
     cold = gnc_tls_fit(pts)
@@ -286,7 +286,7 @@ def test_warm_fit_converges_to_the_cold_fits_solution(seed: int) -> None:
 def test_warm_fit_reports_a_lost_track() -> None:
     """A previous estimate that explains none of the points: ValueError, the controller's cue for a
     cold fit."""
-    from missions.p000_capture.fsw.gnc_tls import warm_fit
+    from swarmhil.missions.p000_capture.fsw.gnc_tls import warm_fit
     pts, c, _ = _noisy_ellipsoid(0, np.array([2.6, 1.9, 1.4]), 0.1)
     with pytest.raises(ValueError, match="track lost"):
         warm_fit(pts, Ellipsoid(c + 5.0, np.eye(3), np.full(3, 1.0)))
@@ -297,7 +297,7 @@ def test_the_pointing_law_over_arrays_gives_each_rows_bits() -> None:
     rows equal `desired_attitude` and `pointing_torque` row by row, bit for bit: random attitudes,
     rates (saturated and not, zero), lines of sight (one exactly behind body +x: shortest_arc's
     opposite branch), the error quaternion's sign flip on both sides."""
-    from missions.p000_capture.fsw.attitude import desired_attitudes, pointing_torques
+    from swarmhil.missions.p000_capture.fsw.attitude import desired_attitudes, pointing_torques
 
     rng = np.random.default_rng(29)
     n = 400
@@ -327,7 +327,7 @@ def test_the_apf_of_many_agents_gives_each_ones_bits() -> None:
     """The batch path's APF (issue 29): `apf_forces` over CSR neighbour rows equals `apf_force` of
     each agent's rows bit for bit: agents without neighbours (+0), with neighbours none of them
     within R_h or at d = 0 (numpy's -0 of an empty sum, negated), with up to 19 near ones."""
-    from missions.p000_capture.fsw.apf import apf_forces
+    from swarmhil.missions.p000_capture.fsw.apf import apf_forces
 
     rng = np.random.default_rng(16)
     counts = rng.integers(0, 20, 300)
@@ -346,8 +346,8 @@ def test_the_event_trigger_of_many_agents_gives_each_ones_answer() -> None:
     """The batch path's trigger (issue 29): `fires_rows` equals `fires(..., cw_disturbance_bound)`
     agent by agent, and its sample error and threshold are the scalar code's bits (rows set right
     at the threshold: any other summation order would flip some)."""
-    from missions.p000_capture.fsw.limits import dot_rows
-    from missions.p000_capture.fsw.trigger import cw_disturbance_bound, fires_rows, sample_error
+    from swarmhil.missions.p000_capture.fsw.limits import dot_rows
+    from swarmhil.missions.p000_capture.fsw.trigger import cw_disturbance_bound, fires_rows, sample_error
 
     rng = np.random.default_rng(27)
     s, n_radps = TriggerSettings(), 0.0011
@@ -373,7 +373,7 @@ def test_surface_frames_over_arrays_give_each_rows_bits() -> None:
     the surface, on a principal plane (a zero local coordinate: the scalar branch) and at the centre."""
     from scipy.spatial.transform import Rotation
 
-    from missions.p000_capture.contract import surface_frame, surface_frames
+    from swarmhil.missions.p000_capture.contract import surface_frame, surface_frames
 
     rng = np.random.default_rng(14)
     ells, pts = [], []

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from missions.p001_lattice.contract import check_hexagon, hexagon_vertices, structure_name
-from missions.p001_lattice.fsw.sensing import OwnState
-from claims.check import claim_failures
-from claims.registry import registry
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p001_lattice.contract import check_hexagon, hexagon_vertices, structure_name
+from swarmhil.missions.p001_lattice.fsw.sensing import OwnState
+from swarmhil.claims.check import claim_failures
+from swarmhil.claims.registry import registry
 
 N_GEO = 7.2921e-5
 R_SENSE_M = 21.0

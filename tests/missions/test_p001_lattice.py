@@ -6,16 +6,16 @@ import pytest
 from scipy.linalg import expm
 from scipy.optimize import minimize_scalar
 
-from agent.catalogue import known_controllers, make_controller
-from agent.controller import Observation, OrbitInfo
-from missions.p001_lattice.fsw.cw import ballistic_velocity, far_accel
-from missions.p001_lattice.contract import check_hexagon, hexagon_vertices, mean_relative_error
-from missions.p001_lattice.fsw.layers import Layer, next_layer
-from missions.p001_lattice.contract import LatticeParams
-from missions.p001_lattice.fsw.sensing import OwnState
-from missions.p001_lattice.fsw.tersoff import energy, forces, gradient, tersoff_params
-from missions.p001_lattice.contract import A_E_MPS2, TB_GAIN
-from missions.p001_lattice.fsw.wells import planar_well, point_well, saturate
+from swarmhil.agent.catalogue import known_controllers, make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p001_lattice.fsw.cw import ballistic_velocity, far_accel
+from swarmhil.missions.p001_lattice.contract import check_hexagon, hexagon_vertices, mean_relative_error
+from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
+from swarmhil.missions.p001_lattice.contract import LatticeParams
+from swarmhil.missions.p001_lattice.fsw.sensing import OwnState
+from swarmhil.missions.p001_lattice.fsw.tersoff import energy, forces, gradient, tersoff_params
+from swarmhil.missions.p001_lattice.contract import A_E_MPS2, TB_GAIN
+from swarmhil.missions.p001_lattice.fsw.wells import planar_well, point_well, saturate
 
 N_GEO = 7.2921e-5
 READINGS = ["normalised", "literal"]

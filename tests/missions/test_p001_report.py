@@ -27,7 +27,7 @@ FIGS = ["p001_paths.png", "p001_pattern.png", "p001_speed_accel.png", "p001_eq16
 
 
 def _cli(*args: str) -> None:
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", *args], capture_output=True, text=True, cwd=ROOT, timeout=600)
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", *args], capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert r.returncode == 0, r.stderr + r.stdout
 
 
@@ -66,7 +66,7 @@ def _eq16(p: np.ndarray, side: float) -> float:
 
 
 def test_section_metrics_match_the_recording(run: Path) -> None:
-    from missions.p001_lattice.contract import check_hexagon, structure_name
+    from swarmhil.missions.p001_lattice.contract import check_hexagon, structure_name
 
     met = json.loads((run / "summary.json").read_text())["metrics"]["p001-formation"]
     rec = _recorded(run)
@@ -142,7 +142,7 @@ def test_figures_exist_and_are_on_the_page(run: Path) -> None:
 
 
 def test_section_applies_to_p001_runs_only() -> None:
-    from dashboards.sections import sections_for
+    from swarmhil.dashboards.sections import sections_for
 
     assert "p001-formation" in [n for n, _ in sections_for({"controller": {"name": "p001-lattice"}})]
     assert "p001-formation" in [n for n, _ in sections_for({"controller": {"name": "null"},

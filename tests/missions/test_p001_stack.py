@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from claims.check import claim_failures
+from swarmhil.claims.check import claim_failures
 from conftest import ROOT, SCENARIOS, read_mcap
-from dashboards.truth_io import read_truth
+from swarmhil.dashboards.truth_io import read_truth
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_p001_closed_loop import simulate, sphere_directions  # noqa: E402
@@ -27,7 +27,7 @@ SCENARIO = SCENARIOS / "tersoff-6.toml"
 
 
 def _run(out: Path, *args: str) -> None:
-    r = subprocess.run([sys.executable, "-m", "deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress",
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress",
                         "--run-id", "tersoff-stack", *args], capture_output=True, text=True, cwd=ROOT, timeout=900)
     assert r.returncode == 0, r.stderr + r.stdout
 
@@ -69,7 +69,7 @@ def test_multi_process_equals_in_process_and_the_rooms_own_loop(runs: tuple[Path
 
 @pytest.mark.system
 def test_full_run_forms_the_hexagon_of_side_10_m(tmp_path: Path) -> None:
-    from missions.p001_lattice.contract import check_hexagon, structure_name
+    from swarmhil.missions.p001_lattice.contract import check_hexagon, structure_name
 
     _run(tmp_path / "full", "--in-process")
     _raw, pos, acc = _truth(tmp_path / "full")

@@ -27,10 +27,10 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo  # noqa: E402
-from claims.check import claim_failures  # noqa: E402
-from missions.p003_surround.contract import (  # noqa: E402
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo  # noqa: E402
+from swarmhil.claims.check import claim_failures  # noqa: E402
+from swarmhil.missions.p003_surround.contract import (  # noqa: E402
     LEADER_REL_KEY,
     SLOT_OFFSETS_M,
     TARGET_REL_KEY,
@@ -41,8 +41,8 @@ from missions.p003_surround.contract import (  # noqa: E402
     slots_in_leader_frame,
     sphere_arrays,
 )
-from missions.p003_surround.fsw import nash, sensing  # noqa: E402
-from plant.dynamics.frames import eci_to_lvlh, lvlh_angular_velocity, lvlh_basis  # noqa: E402
+from swarmhil.missions.p003_surround.fsw import nash, sensing  # noqa: E402
+from swarmhil.plant.dynamics.frames import eci_to_lvlh, lvlh_angular_velocity, lvlh_basis  # noqa: E402
 
 MU_EARTH = 3.986004418e14
 R_EARTH_M = 6378137.0
@@ -305,7 +305,7 @@ def test_tt_bias_grows_with_the_escape_force() -> None:
 
 def tt_report() -> None:
     """Leader-only runs: Table 3 groups, escape-force sweep, GEO instead of LEO."""
-    from claims.paper003 import tt_result  # the row docs/paper003.md shows (claims/paper003.py)
+    from swarmhil.claims.paper003 import tt_result  # the row docs/paper003.md shows (claims/paper003.py)
 
     def line(label: str, run: Run) -> None:
         r = tt_result(run)

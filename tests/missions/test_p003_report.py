@@ -1,6 +1,6 @@
 """`swarmhil report` of a paper 003 run: the "p003-surround" section (missions/p003_surround/report.py).
 
-A 20 s in-process run of deploy/scenarios/surround-6.toml, then `python -m deploy.cli report RUN`
+A 20 s in-process run of deploy/scenarios/surround-6.toml, then `python -m swarmhil.deploy.cli report RUN`
 as its own process; the section's metrics in summary.json must equal a recomputation written out here
 from the MCAP (tests/conftest.py read_mcap, the scenario file for the structure, masses and limits),
 and its PNGs must exist and be on the report page.
@@ -29,7 +29,7 @@ FIGURES = ("p003_tt_funnel.png", "p003_ct_errors.png", "p003_paths3d.png", "p003
 
 def recompute(run: dict) -> dict:
     """The section's headline metrics from the recorded truth, written out independently."""
-    from missions.p003_surround.contract import SLOT_OFFSETS_M
+    from swarmhil.missions.p003_surround.contract import SLOT_OFFSETS_M
 
     doc = tomllib.loads(SCENARIO.read_text())
     crafts = {s["id"]: s for s in doc["spacecraft"]}
@@ -73,7 +73,7 @@ def recompute(run: dict) -> dict:
 def test_report_has_the_surround_section(tmp_path: Path) -> None:
     run_dir = tmp_path / "s6"
     run = swarmhil_run(run_dir, "--duration", str(DURATION_S), "--in-process")
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "report", str(run_dir)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run_dir)], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     got = json.loads((run_dir / "summary.json").read_text())["metrics"]["p003-surround"]
@@ -111,9 +111,9 @@ def test_faults_section_gives_the_funnel_ratio_around_a_leader_fault(tmp_path: P
     gives paper 003's error metric (the leader's TT error over the funnel bound, registered by
     missions/p003_surround/report.py) around the window, equal to the ratio recounted here from the
     recorded truth (recompute's formula)."""
-    from dashboards.report import write_report
-    from deploy.launcher import run_in_process
-    from deploy.scenario import load_scenario
+    from swarmhil.dashboards.report import write_report
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
 
     path = tmp_path / "s6f.toml"
     path.write_text(SCENARIO.read_text() + '\n[[fault]]\nname = "lead-off"\nkind = "thruster_stuck_off"\n'

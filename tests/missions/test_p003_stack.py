@@ -66,7 +66,7 @@ def escape_manoeuvres(escape_n: float = ESCAPE_N) -> list[dict]:
 
 
 def test_scenario_holds_the_generated_escape_and_structure() -> None:
-    from missions.p003_surround.contract import sphere_arrays
+    from swarmhil.missions.p003_surround.contract import sphere_arrays
 
     doc = tomllib.loads(SCENARIO.read_text())
     body = doc["body"][0]
@@ -93,7 +93,7 @@ def load_run(run_dir: Path) -> dict:
     cmd: {id: (K-1, 3)} the agents' commanded accelerations (sc/<id>/act) by step."""
     from conftest import read_mcap
 
-    from dashboards.run_config import run_config
+    from swarmhil.dashboards.run_config import run_config
 
     summary = json.loads((Path(run_dir) / "summary.json").read_text())
     truths, acts = {}, {}
@@ -127,7 +127,7 @@ def load_run(run_dir: Path) -> dict:
 def metrics(run: dict) -> dict:
     """The figures of docs/paper003.md from recorded truth: the report section's own computation
     (missions/p003_surround/report.py surround_metrics) with the run's recorded configuration."""
-    from missions.p003_surround.report import setup_from_config, surround_metrics
+    from swarmhil.missions.p003_surround.report import setup_from_config, surround_metrics
 
     su = setup_from_config(run.get("config"), run["ids"])
     return surround_metrics(run["t"], run["pos"], run["vel"], run["accel"][1:], run["target_pos"], su)
@@ -135,13 +135,13 @@ def metrics(run: dict) -> dict:
 
 # --- the sensing kind -----------------------------------------------------------------------------
 def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
-    from missions.p003_surround.fsw import sensing
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext, make_sensing
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.codec import measurements_to_dict
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario, plant_config
+    from swarmhil.missions.p003_surround.contract import LEADER_REL_KEY, TARGET_REL_KEY
+    from swarmhil.missions.p003_surround.fsw import sensing
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
 
     sc = plant_config(load_scenario(SCENARIO, sets=["sensing.params.position_noise_m=0.5",
                                                     "sensing.params.velocity_noise_mps=0.01"]))
@@ -174,7 +174,7 @@ def test_sensing_kind_measures_relative_states_in_the_leaders_lvlh() -> None:
 def swarmhil_run(out: Path, *extra: str, env: dict[str, str] | None = None) -> dict:
     """`swarmhil run deploy/scenarios/surround-6.toml --out OUT [extra]` as its own process tree
     (`env`: variables added to this process's environment)."""
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress", *extra]
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress", *extra]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=900,
                        env=None if env is None else {**os.environ, **env})
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
@@ -185,7 +185,7 @@ def loop_prediction(duration_s: float):
     """The in-process closed loop of test_p003_closed_loop.py with the scenario's CT weights."""
     from test_p003_closed_loop import run_closed_loop
 
-    from missions.p003_surround.contract import VARIANT_FAST_CT
+    from swarmhil.missions.p003_surround.contract import VARIANT_FAST_CT
 
     game = tomllib.loads(SCENARIO.read_text())["controller"]["params"]["game"]
     assert game == VARIANT_FAST_CT
@@ -194,7 +194,7 @@ def loop_prediction(duration_s: float):
 
 def assert_stack_run(mp: dict, ip: dict, duration_s: float, loop_tol_m: float) -> dict:
     """Everything the brief asks of a stack run; returns the metrics of the multi-process run."""
-    from missions.p003_surround.contract import FunnelParams, GameParams
+    from swarmhil.missions.p003_surround.contract import FunnelParams, GameParams
 
     steps = int(round(duration_s / 0.1))
     s = mp["summary"]
@@ -254,8 +254,8 @@ def guard_margins(run: dict) -> tuple[float, float]:
     """max over the leader's steps of |q~_TL|/x1* and |q'_TL - q'_v|/x2*, where x* = tan(k e*) is the
     error at which funnel.sampled_limit's saturation starts (e* for the run's 0.1 s hold), recomputed
     from the truth (ideal sensing: the leader measured exactly this). Below 1: the guard never acted."""
-    from missions.p003_surround.contract import FunnelParams, performance
-    from missions.p003_surround.fsw.funnel import sampled_limit, virtual_velocity
+    from swarmhil.missions.p003_surround.contract import FunnelParams, performance
+    from swarmhil.missions.p003_surround.fsw.funnel import sampled_limit, virtual_velocity
 
     p, lead = FunnelParams(), run["ids"].index("lsat")
     dt = float(run["t"][1] - run["t"][0])

@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from missions.p003_surround.contract import (
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p003_surround.contract import (
     ACSB_SPHERES,
     LEADER_REL_KEY,
     SLOT_OFFSETS_M,
@@ -23,10 +23,10 @@ from missions.p003_surround.contract import (
     slots_in_leader_frame,
     sphere_arrays,
 )
-from missions.p003_surround.fsw import nash, packets, sensing
-from missions.p003_surround.fsw.funnel import tt_control
-from missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
-from missions.p003_surround.fsw.threat import (
+from swarmhil.missions.p003_surround.fsw import nash, packets, sensing
+from swarmhil.missions.p003_surround.fsw.funnel import tt_control
+from swarmhil.missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
+from swarmhil.missions.p003_surround.fsw.threat import (
     pair_threat_grads,
     pair_threats,
     structure_threat,
@@ -164,7 +164,7 @@ def funnel_loop(dt_s: float, duration_s: float = 300.0, dq0_m: np.ndarray | None
     Returns the worst max_axis |q~|/tan(k1 π/2) over the samples after t = 0 (the bound at the
     sample's time) and when, the error at the end, the peak |u_L| and the number of steps on which a
     transformed error reached its discrete-time saturation."""
-    from missions.p003_surround.fsw.funnel import sampled_limit
+    from swarmhil.missions.p003_surround.fsw.funnel import sampled_limit
 
     q_des = np.asarray(p.q_des_m)
     q = q_des + np.array([1.0e4, -3.0e3, 50.0]) + (0.0 if dq0_m is None else np.asarray(dq0_m))
@@ -249,7 +249,7 @@ def test_sampled_limit_is_where_one_held_sample_stops_overshooting() -> None:
     """e* of funnel.sampled_limit: g tan(e*) = tan(k e*) (one held sample of the law brings its error
     exactly to 0 there), e* = π/2 at k = 1, and the saturation starts within about g of the bound
     tan(k π/2) (relative; 4 g at k = μ = 0.1)."""
-    from missions.p003_surround.fsw.funnel import sampled_limit
+    from swarmhil.missions.p003_surround.fsw.funnel import sampled_limit
 
     assert sampled_limit(1.0, 0.0075) == np.pi / 2
     for k in (0.9999, 0.999, 0.99, 0.5, 0.1):
@@ -331,7 +331,7 @@ def mechanism_report(dt_s: float = 0.002, duration_s: float = 300.0) -> None:
     """Where the loop meets its bounds: the first step whose velocity error q' - q'_v is beyond
     tan(k2 π/2) (e2 > π/2, the output then at the saturation), its size there, the first step past
     the position bound, the share of steps saturated after it and outside after 10 s."""
-    from missions.p003_surround.fsw.funnel import sampled_limit
+    from swarmhil.missions.p003_surround.fsw.funnel import sampled_limit
 
     p, tr = FunnelParams(), []
     run = funnel_loop(dt_s, duration_s, trace=tr)
@@ -358,7 +358,7 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
     # [guarded|unguarded] [DURATION_S] [DT_S ...]  |  bits [guarded|unguarded] DURATION_S DT_S  |  trace [...]
     import sys
 
-    from missions.p003_surround.fsw import funnel
+    from swarmhil.missions.p003_surround.fsw import funnel
 
     args = sys.argv[1:]
     mode = args.pop(0) if args and args[0] in ("bits", "trace") else "table"

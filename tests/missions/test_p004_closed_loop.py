@@ -26,12 +26,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement
-from claims.check import claim_failures
-from claims.paper004 import slug
-from missions.p004_lbdnn.contract import SERVICERS, MissionConfig, mission_from_params
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p004_lbdnn.fsw.sensing import DefunctMeasurement
+from swarmhil.claims.check import claim_failures
+from swarmhil.claims.paper004 import slug
+from swarmhil.missions.p004_lbdnn.contract import SERVICERS, MissionConfig, mission_from_params
 
 MU = 3.986004418e14
 R_E = 6378137.0

@@ -30,7 +30,7 @@ FIGURES = ("p004_tracking.png", "p004_effort.png", "p004_paths.png")
 def reported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("p004report") / "run"
     run = swarmhil_run(out, "--in-process", "--set", f"run.duration_s={DURATION_S:g}")
-    p = subprocess.run([sys.executable, "-m", "deploy.cli", "report", str(out)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(out)], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     return out, run
@@ -112,10 +112,10 @@ def test_section_figures_exist_and_are_on_the_page(reported: tuple[Path, dict]) 
 
 def test_steady_window_metrics(reported: tuple[Path, dict], monkeypatch: pytest.MonkeyPatch) -> None:
     """The after-200 s figures, on this short run with the window moved to 5 s."""
-    import missions.p004_lbdnn.report as sec
-    from dashboards.run_config import run_config
-    from dashboards.sections import SectionContext, sections_for
-    from dashboards.truth_io import read_truth
+    import swarmhil.missions.p004_lbdnn.report as sec
+    from swarmhil.dashboards.run_config import run_config
+    from swarmhil.dashboards.sections import SectionContext, sections_for
+    from swarmhil.dashboards.truth_io import read_truth
 
     out, run = reported
     cfg = run_config(out)

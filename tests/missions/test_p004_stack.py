@@ -29,7 +29,7 @@ for p in (ROOT, ROOT / "tests", ROOT / "tests" / "missions"):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-from missions.p004_lbdnn.report import first_time_below, servicing_figures, tracking_errors  # noqa: E402
+from swarmhil.missions.p004_lbdnn.report import first_time_below, servicing_figures, tracking_errors  # noqa: E402
 
 SCENARIO = ROOT / "deploy" / "scenarios" / "servicing-6.toml"
 SERVICERS = ("s1", "s2", "s3", "s4", "s5", "s6")
@@ -47,7 +47,7 @@ def scenario_states(seed: int = SEED) -> tuple[list[list[float]], list[list[floa
     two-body frame rate, `lvlh_to_eci`)."""
     from test_p004_closed_loop import initial_state
 
-    from plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis
+    from swarmhil.plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis
 
     x = initial_state(seed).reshape(7, 6)
     r0, v0 = x[0, :3], x[0, 3:]
@@ -71,8 +71,8 @@ def paper_orbit() -> tuple[float, float]:
 def test_scenario_holds_the_loops_initial_state() -> None:
     from test_p004_closed_loop import AREA_M2, MASS_KG, initial_state
 
-    from deploy.scenario import load_scenario, plant_config
-    from plant.mission_world import MissionWorld
+    from swarmhil.deploy.scenario import load_scenario, plant_config
+    from swarmhil.plant.mission_world import MissionWorld
 
     doc = tomllib.loads(SCENARIO.read_text())
     a, e = paper_orbit()
@@ -98,14 +98,14 @@ def test_scenario_holds_the_loops_initial_state() -> None:
 
 # --- the sensing kind -----------------------------------------------------------------------------
 def test_sensing_kind_measures_neighbours_and_the_defunct_craft_in_eci() -> None:
-    from bus import swarmhil_pb2 as pb
-    from bus.codec import measurements_to_dict
-    from deploy.scenario import ScenarioError, load_scenario, plant_config
-    from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
-    from missions.p004_lbdnn.contract import PAPER_C
-    from plant.mission_world import MissionWorld
-    from plant.sensing import SensingContext, make_sensing
-    from missions.p004_lbdnn.sense import measurement_noise
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.codec import measurements_to_dict
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario, plant_config
+    from swarmhil.missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
+    from swarmhil.missions.p004_lbdnn.contract import PAPER_C
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
+    from swarmhil.missions.p004_lbdnn.sense import measurement_noise
 
     sc = plant_config(load_scenario(SCENARIO))
     w = MissionWorld(sc)
@@ -188,7 +188,7 @@ def metrics(run: dict) -> dict:
 # --- runs -----------------------------------------------------------------------------------------
 def swarmhil_run(out: Path, *extra: str) -> dict:
     """`swarmhil run deploy/scenarios/servicing-6.toml --out OUT [extra]` as its own process tree."""
-    cmd = [sys.executable, "-m", "deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress", *extra]
+    cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIO), "--out", str(out), "--no-progress", *extra]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=1800)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     return load_run(out)
@@ -199,8 +199,8 @@ def loop_prediction(duration_s: float, monkeypatch: pytest.MonkeyPatch):
     noise draws, with the plant's exponential atmosphere (the loop's own is the 300 km band)."""
     import test_p004_closed_loop as loop
 
-    from plant.dynamics import constants
-    from missions.p004_lbdnn.sense import measurement_noise
+    from swarmhil.plant.dynamics import constants
+    from swarmhil.missions.p004_lbdnn.sense import measurement_noise
 
     monkeypatch.setattr(loop, "RHO0", constants.ATMOSPHERE_RHO0_KGPM3)
     monkeypatch.setattr(loop, "H0", constants.ATMOSPHERE_H0_M)

@@ -7,11 +7,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from agent.catalogue import make_controller
-from agent.controller import Observation, OrbitInfo
-from missions.p004_lbdnn.fsw import adaptation, lbdnn, observer, packet, rho_filter
-from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement
-from missions.p004_lbdnn.contract import KEY_Y, Gains, MissionConfig, mission_from_params
+from swarmhil.agent.catalogue import make_controller
+from swarmhil.agent.controller import Observation, OrbitInfo
+from swarmhil.missions.p004_lbdnn.fsw import adaptation, lbdnn, observer, packet, rho_filter
+from swarmhil.missions.p004_lbdnn.fsw.sensing import DefunctMeasurement
+from swarmhil.missions.p004_lbdnn.contract import KEY_Y, Gains, MissionConfig, mission_from_params
 
 ORBIT = OrbitInfo(semi_major_axis_m=6878137.0, mean_motion_radps=1.1e-3)
 
@@ -201,7 +201,7 @@ def test_sensing_keys_round_trip() -> None:
 def test_stack_measurements_read_as_the_loops() -> None:
     """The plant's sensing kind (missions/p004_lbdnn/sense.py) sends named arrays p004.d_m/<j> and
     p004.y_m/<defunct>; the controller reads them exactly as rel_position_m rows and p004.y_m."""
-    from missions.p004_lbdnn.fsw.sensing import neighbour_positions
+    from swarmhil.missions.p004_lbdnn.fsw.sensing import neighbour_positions
 
     d = np.array([[100.0, 0.0, 0.0], [0.0, 50.0, 0.0]])
     y = np.array([10.0])

@@ -15,8 +15,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
-from missions.p000_capture.contract import (POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame,
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.missions.p000_capture.contract import (POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame,
                                             surface_frames)
 
 from . import payload as pl
@@ -29,7 +29,7 @@ from .estimate import TargetEstimate, alpha_beta, consensus
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
-from missions.p000_capture.contract import CaptureParams
+from swarmhil.missions.p000_capture.contract import CaptureParams
 from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires, fires_rows
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p000_capture.contract import Ellipsoid, closest_point_principal
+from swarmhil.missions.p000_capture.contract import Ellipsoid, closest_point_principal
 
 
 def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

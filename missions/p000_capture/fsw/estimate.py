@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from missions.p000_capture.contract import Ellipsoid
+from swarmhil.missions.p000_capture.contract import Ellipsoid
 
 
 @dataclass

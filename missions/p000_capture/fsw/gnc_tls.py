@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from missions.p000_capture.contract import Ellipsoid
+from swarmhil.missions.p000_capture.contract import Ellipsoid
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from missions.p000_capture.contract import dot_rows  # noqa: F401  (the flight software's row dot: attitude, trigger)
+from swarmhil.missions.p000_capture.contract import dot_rows  # noqa: F401  (the flight software's row dot: attitude, trigger)
 
 
 def norm3(vec: np.ndarray) -> float:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from missions.p000_capture.contract import (LANDMARK_IDS, LANDMARKS_BODY_M, OMEGA_BODY_RADPS, POSITION_M,
+from swarmhil.missions.p000_capture.contract import (LANDMARK_IDS, LANDMARKS_BODY_M, OMEGA_BODY_RADPS, POSITION_M,
                                             Q_BODY_TO_LVLH, SURFACE_REL_M, VELOCITY_MPS)
 
 

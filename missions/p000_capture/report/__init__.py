@@ -22,15 +22,15 @@ from typing import Any
 
 import numpy as np
 
-from bus.codec import measurements_to_dict
-from bus.keys import split_topic
-from dashboards.figstyle import colors as _colors
-from dashboards.figstyle import pyplot as _plt
-from dashboards.figstyle import save as _save
-from dashboards.rerun_bodies import register_landmark_kind
-from dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
-from dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
-from missions.p000_capture.contract import (
+from swarmhil.bus.codec import measurements_to_dict
+from swarmhil.bus.keys import split_topic
+from swarmhil.dashboards.figstyle import colors as _colors
+from swarmhil.dashboards.figstyle import pyplot as _plt
+from swarmhil.dashboards.figstyle import save as _save
+from swarmhil.dashboards.rerun_bodies import register_landmark_kind
+from swarmhil.dashboards.sections import SectionContext, SectionResult, register_section, uses_controller
+from swarmhil.dashboards.truth_io import TRUTH_SCHEMA, _truth_topic
+from swarmhil.missions.p000_capture.contract import (
     CONTROLLER,
     LANDMARK_IDS,
     LANDMARKS_BODY_M,

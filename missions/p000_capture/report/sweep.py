@@ -7,9 +7,9 @@ reduction of the event trigger against the every-step and 1 Hz runs of the same 
 own counters: `p000-state` tx packets and payload bytes), with mean ± sample standard deviation
 and the range over seeds.
 
-    python -m missions.p000_capture.report.sweep RUNS_PARENT_DIR
-    python -m missions.p000_capture.report.sweep --closest RUN_DIR [RUN_DIR ...]   # what happened at the closest approach
-    python -m missions.p000_capture.report.sweep --compare RUN_A RUN_B              # bit for bit, e.g. multi- vs in-process
+    python -m swarmhil.missions.p000_capture.report.sweep RUNS_PARENT_DIR
+    python -m swarmhil.missions.p000_capture.report.sweep --closest RUN_DIR [RUN_DIR ...]   # what happened at the closest approach
+    python -m swarmhil.missions.p000_capture.report.sweep --compare RUN_A RUN_B              # bit for bit, e.g. multi- vs in-process
 """
 from __future__ import annotations
 
@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from dashboards.truth_io import read_truth
-from missions.p000_capture.contract import Ellipsoid, dcm, surface_frame
-from missions.p000_capture.report import axes_error, centroid_error, pair_distance, read_capture, target_axes
+from swarmhil.dashboards.truth_io import read_truth
+from swarmhil.missions.p000_capture.contract import Ellipsoid, dcm, surface_frame
+from swarmhil.missions.p000_capture.report import axes_error, centroid_error, pair_distance, read_capture, target_axes
 
 NAME = re.compile(r"^c(?P<n>\d+)-s(?P<seed>\d+)-(?P<policy>event|1hz|every|literal)(?P<mp>-mp)?$")
 
@@ -213,7 +213,7 @@ def main(argv: list[str]) -> int:
                 return 2
         return 0
     if len(argv) != 1 or not Path(argv[0]).is_dir():
-        print("usage: python -m missions.p000_capture.report.sweep RUNS_PARENT_DIR", file=sys.stderr)
+        print("usage: python -m swarmhil.missions.p000_capture.report.sweep RUNS_PARENT_DIR", file=sys.stderr)
         return 2
     rows = load_runs(Path(argv[0]))
     if not rows:

@@ -5,4 +5,4 @@ measures (eq. 16, hexagon test) are the room's contract (missions/p001_lattice/c
 `tersoff` (eq. 6-13), `cw` (far layer, eq. 1-2), `wells` (eq. 3-5, 15, saturation), `layers`
 (Table 3 latching), `sensing` (own state in Observation.extra), `controller`.
 """
-from missions.p001_lattice.fsw import controller  # noqa: F401,E402  (registers "p001-lattice")
+from swarmhil.missions.p001_lattice.fsw import controller  # noqa: F401,E402  (registers "p001-lattice")

@@ -9,13 +9,13 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, Observation, OrbitInfo, register
-from missions.p001_lattice.fsw.cw import far_accel
-from missions.p001_lattice.fsw.layers import Layer, next_layer
-from missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
-from missions.p001_lattice.fsw.sensing import OwnState
-from missions.p001_lattice.fsw.tersoff import forces, tersoff_params
-from missions.p001_lattice.fsw.wells import damping, planar_well, point_well, saturate
+from swarmhil.agent.controller import Command, Observation, OrbitInfo, register
+from swarmhil.missions.p001_lattice.fsw.cw import far_accel
+from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
+from swarmhil.missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
+from swarmhil.missions.p001_lattice.fsw.sensing import OwnState
+from swarmhil.missions.p001_lattice.fsw.tersoff import forces, tersoff_params
+from swarmhil.missions.p001_lattice.fsw.wells import damping, planar_well, point_well, saturate
 
 
 def tb_accel(rel_position_m: np.ndarray, side_m: float, tb, accel_unit_mps2: float) -> np.ndarray:

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from missions.p001_lattice.contract import BRENNER_RE_ANGSTROM, CUTOFF_READINGS
+from swarmhil.missions.p001_lattice.contract import BRENNER_RE_ANGSTROM, CUTOFF_READINGS
 
 
 @dataclass(frozen=True)

@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from agent import roe
-from agent.roe import input_matrix, state_matrix
+from swarmhil.agent import roe
+from swarmhil.agent.roe import input_matrix, state_matrix
 
 TWO_PI = 2.0 * np.pi
 

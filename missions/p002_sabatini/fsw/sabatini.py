@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo, register
-from agent.roe import lvlh_to_roe, observer_roe_rows
-from missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
-from missions.p002_sabatini.fsw.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
+from swarmhil.agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo, register
+from swarmhil.agent.roe import lvlh_to_roe, observer_roe_rows
+from swarmhil.missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
+from swarmhil.missions.p002_sabatini.fsw.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
 
 CA, ALIGN, ALIGN_DRIFT, ATTRACT = "collision_avoidance", "alignment", "alignment_drift", "attraction"
 _TINY_M = 1e-9

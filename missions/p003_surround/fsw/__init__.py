@@ -7,4 +7,4 @@ and the funnel geometry are the room's contract (missions/p003_surround/contract
 `funnel` (eq. 16-17, TT control), `threat` (eq. 7-8), `nash` (eq. 12, 18-21), `relative_dynamics` (u_id),
 `sensing` (obs.extra keys), `packets` (link payloads), `controllers` (the registered controllers).
 """
-from missions.p003_surround.fsw import controllers  # noqa: F401  (registers p003-leader/servicer)
+from swarmhil.missions.p003_surround.fsw import controllers  # noqa: F401  (registers p003-leader/servicer)

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
-from missions.p003_surround.fsw import nash, packets, sensing, vectorised
-from missions.p003_surround.fsw.funnel import clip_norm, leader_accel, tt_control
-from missions.p003_surround.contract import (
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.missions.p003_surround.fsw import nash, packets, sensing, vectorised
+from swarmhil.missions.p003_surround.fsw.funnel import clip_norm, leader_accel, tt_control
+from swarmhil.missions.p003_surround.contract import (
     LEADER_CONTROLLER,
     LEADER_REL_KEY,
     SERVICER_CONTROLLER,
@@ -33,7 +33,7 @@ from missions.p003_surround.contract import (
     slots_in_leader_frame,
     sphere_arrays,
 )
-from missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
+from swarmhil.missions.p003_surround.fsw.relative_dynamics import natural_rel_accel
 
 XI0_PAPER: np.ndarray = np.array([
     [5.0, 0, 0, 0, 0, 0], [1.0, 0, 0, 0, 0, 0], [0, 4.0, 0, 0, 0, 0],

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from missions.p003_surround.contract import FunnelParams, performance, transformed_error
+from swarmhil.missions.p003_surround.contract import FunnelParams, performance, transformed_error
 
 
 def sampled_limit(k: float, gain_hold: float) -> float:

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p003_surround.contract import GameParams
-from missions.p003_surround.fsw.threat import (
+from swarmhil.missions.p003_surround.contract import GameParams
+from swarmhil.missions.p003_surround.fsw.threat import (
     pair_threat_grads,
     pair_threats,
     structure_threat,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p003_surround.contract import GameParams
+from swarmhil.missions.p003_surround.contract import GameParams
 
 
 def _gap(d: np.ndarray, radius_m: np.ndarray | float, floor_m2: float) -> tuple[np.ndarray, np.ndarray]:

@@ -7,4 +7,4 @@ The gains, C_i, b_i, the graph (H of eq. 29) and the measurement names are the r
 shared with the plant's sensing kind: missions/p004_lbdnn/contract.py. Importing the package
 registers the controller.
 """
-from missions.p004_lbdnn.fsw import controller as _controller  # noqa: F401  (registers "p004-lbdnn")
+from swarmhil.missions.p004_lbdnn.fsw import controller as _controller  # noqa: F401  (registers "p004-lbdnn")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p004_lbdnn.contract import Gains
+from swarmhil.missions.p004_lbdnn.contract import Gains
 
 
 def adaptation_direction(jac: np.ndarray, zeta_hat: np.ndarray, eta: np.ndarray, theta_i: np.ndarray,

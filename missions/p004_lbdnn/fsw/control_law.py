@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p004_lbdnn.contract import Gains
+from swarmhil.missions.p004_lbdnn.contract import Gains
 
 
 def control(phi: np.ndarray, eta: np.ndarray, zeta_hat: np.ndarray, eta_tilde: np.ndarray,

@@ -22,11 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
-from missions.p004_lbdnn.fsw import lbdnn, observer, packet, rho_filter, vectorised
-from missions.p004_lbdnn.fsw.control_law import control
-from missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
-from missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.missions.p004_lbdnn.fsw import lbdnn, observer, packet, rho_filter, vectorised
+from swarmhil.missions.p004_lbdnn.fsw.control_law import control
+from swarmhil.missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
+from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
 
 
 @dataclass(frozen=True)

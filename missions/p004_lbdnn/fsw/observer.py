@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p004_lbdnn.contract import Gains
+from swarmhil.missions.p004_lbdnn.contract import Gains
 
 
 def relative_position_error(d_m: np.ndarray, y_m: np.ndarray | None, c: np.ndarray, b: int) -> np.ndarray:

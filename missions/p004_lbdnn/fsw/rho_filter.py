@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from missions.p004_lbdnn.contract import Gains
+from swarmhil.missions.p004_lbdnn.contract import Gains
 
 
 def rho(eta_tilde: np.ndarray, nu: np.ndarray, g: Gains) -> np.ndarray:

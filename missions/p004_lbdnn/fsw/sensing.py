@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from missions.p004_lbdnn.contract import KEY_D, KEY_Y
+from swarmhil.missions.p004_lbdnn.contract import KEY_D, KEY_Y
 
 KEY_Y_VALID = "p004.y_valid"
 """bool: y_i is a fresh measurement at this step (False or absent: no line of sight). Written by the

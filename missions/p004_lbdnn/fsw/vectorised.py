@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from missions.p004_lbdnn.fsw.lbdnn import LAYER_SIZES, n_params, sigmoid
-from missions.p004_lbdnn.contract import Gains
+from swarmhil.missions.p004_lbdnn.fsw.lbdnn import LAYER_SIZES, n_params, sigmoid
+from swarmhil.missions.p004_lbdnn.contract import Gains
 
 
 @dataclass(frozen=True)
