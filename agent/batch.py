@@ -30,6 +30,7 @@ class BatchAgents:
         self.controllers = [make_controller(name, sid, orbit, params) for sid, (name, params) in zip(self.ids, controllers)]
         self.decision_period_steps = max(1, int(decision_period_steps))
         self.accel_mps2 = np.zeros((len(self.ids), 3))  # the command in force, per spacecraft
+        self.torque_nm = np.zeros((len(self.ids), 3))   # its body-frame torque (0 for a controller without one)
         self.modes = ["idle"] * len(self.ids)
         self.faults: dict[str, dict[str, int]] = {}
         self.steps = 0
@@ -40,10 +41,12 @@ class BatchAgents:
         # the class's own batch path for all of them (what `step_batch` picks), looked up once
         self._all = getattr(next(iter(kinds)), "step_batch", None) if len(kinds) == 1 else None
 
-    def _fault(self, i: int, step: int) -> None:
+    def _fault(self, i: int, step: int, logged: bool = False) -> None:
         f = self.faults.setdefault(self.ids[i], {})
         n = f["controller"] = f.get("controller", 0) + 1
-        if n == 1:
+        if logged:  # (a batch path caught and logged it: `CommandBatch.raised`)
+            log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
+        elif n == 1:
             log.exception("%s: controller fault at step %d (handled; further ones are only counted)", self.ids[i], step)
         else:
             log.warning("%s: controller fault #%d at step %d", self.ids[i], n, step)
@@ -68,26 +71,34 @@ class BatchAgents:
             return CommandBatch.of(cmds)
 
     def step(self, rows: np.ndarray, batch: ObservationBatch) -> np.ndarray:
-        """The observers `rows` (indices into ids) see `batch`; returns the (N, 3) commands in force."""
+        """The observers `rows` (indices into ids) see `batch`; returns the (N, 3) commands in force
+        (their torques: `torque_nm`)."""
         if batch.step % self.decision_period_steps == 0 and len(rows):
             cb = self._decide(rows, batch)
+            for r in cb.raised:  # counted as AgentNode counts a step that raised
+                self._fault(int(rows[r]), batch.step, logged=True)
             acc = np.asarray(cb.accel_mps2, dtype=float)
+            tq = np.zeros_like(acc) if cb.torque_nm is None else np.asarray(cb.torque_nm, dtype=float)
             modes = list(cb.modes)
-            # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed)
-            bad = None if math.isfinite(np.add.reduce(acc, axis=None)) else ~np.isfinite(acc).all(axis=1)
+            # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed).
+            # As AgentNode: a non-finite acceleration or torque commands zero (no torque) instead
+            bad = None if math.isfinite(np.add.reduce(acc, axis=None) + np.add.reduce(tq, axis=None)) else \
+                ~(np.isfinite(acc).all(axis=1) & np.isfinite(tq).all(axis=1))
             if bad is not None and bad.any():
-                acc = acc.copy()
+                acc, tq = acc.copy(), tq.copy()
                 for r in np.flatnonzero(bad).tolist():
                     i = int(rows[r])
-                    log.error("%s: controller %s returned accel %r; commanding zero", self.ids[i],
-                              self.controllers[i].name, acc[r])
-                    acc[r] = 0.0
+                    log.error("%s: controller %s returned accel %r, torque %r; commanding zero", self.ids[i],
+                              self.controllers[i].name, acc[r], tq[r])
+                    acc[r] = tq[r] = 0.0
                     modes[r] = "fault"
             if len(rows) == len(self.ids):
                 self.accel_mps2[:] = acc
+                self.torque_nm[:] = tq
                 self.modes = modes
             else:
                 self.accel_mps2[rows] = acc
+                self.torque_nm[rows] = tq
                 for r, i in enumerate(rows.tolist()):
                     self.modes[i] = modes[r]
             self.last = cb

@@ -154,21 +154,31 @@ class CommandBatch:
     accel_mps2: np.ndarray  # (N, 3)
     modes: list[str]
     build: Callable[[int], Command] | None = None  # observer i -> its full Command
+    torque_nm: np.ndarray | None = None  # (N, 3) body-frame torques (a row of 0 for a command without one); None: none at all
+    raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
 
     def command(self, i: int) -> Command:
         if self.build is not None:
             return self.build(i)
-        return Command(accel_mps2=self.accel_mps2[i].copy(), mode=self.modes[i])
+        return Command(accel_mps2=self.accel_mps2[i].copy(), mode=self.modes[i],
+                       torque_nm=None if self.torque_nm is None else self.torque_nm[i].copy())
 
     @classmethod
     def of(cls, commands: Sequence[Command]) -> "CommandBatch":
-        """From per-spacecraft commands; an acceleration that is not a 3-vector is a row of NaN."""
+        """From per-spacecraft commands; an acceleration or torque that is not a 3-vector is a row of
+        NaN, a command without a torque (None) a row of 0 (what the plant holds for it)."""
         acc = np.full((len(commands), 3), np.nan)
+        tq = None
         for i, c in enumerate(commands):
             a = np.asarray(c.accel_mps2, dtype=float)
             if a.shape == (3,):
                 acc[i] = a
-        return cls(accel_mps2=acc, modes=[c.mode for c in commands], build=list(commands).__getitem__)
+            if c.torque_nm is not None:
+                if tq is None:
+                    tq = np.zeros((len(commands), 3))
+                t = np.asarray(c.torque_nm, dtype=float)
+                tq[i] = t if t.shape == (3,) else np.nan
+        return cls(accel_mps2=acc, modes=[c.mode for c in commands], build=list(commands).__getitem__, torque_nm=tq)
 
 
 def step_batch(controllers: Sequence[Controller], batch: ObservationBatch) -> CommandBatch:

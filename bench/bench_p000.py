@@ -21,6 +21,8 @@ carries the load, printed at the start and the end).
     nice -n 10 .venv/bin/python bench/bench_p000.py --mp --duration 60   # multi-process vs in-process (this tree)
     nice -n 10 .venv/bin/python bench/bench_p000.py --profile --duration 60  # where the CPU goes (this tree)
     nice -n 10 .venv/bin/python bench/bench_p000.py --parts --duration 60    # the same parts without a profiler
+    nice -n 10 .venv/bin/python bench/bench_p000.py --against main --jobs run --record truth --record-against all
+        # this tree's batch mode (`--record truth`) against main's `swarmhil run --in-process` (every message)
 """
 from __future__ import annotations
 
@@ -98,9 +100,9 @@ def job_room(duration: float) -> dict[str, float]:
             "axes_err_max": max(res.axes_err, default=float("nan"))}
 
 
-def job_run(scenario: str, duration: float) -> dict[str, float]:
-    sc, (t, _) = _in_process(scenario, duration, _timed)
-    return {**t, "steps": sc.steps, "agents": len(sc.ids)}
+def job_run(scenario: str, duration: float, record: str = "all") -> dict[str, object]:
+    sc, (t, res) = _in_process(scenario, duration, _timed, record)
+    return {**t, "steps": sc.steps, "agents": len(sc.ids), "batch": getattr(res, "summary", {}).get("batch")}
 
 
 # The rows of the two tables of docs/paper000-reproduction.md: (label, where `--profile` finds it:
@@ -112,6 +114,8 @@ ROWS = [
      ("swarmhil.plant.node", "PlantNode.publish_step")),
     ("the 20 agents' stimulus handling (decode, flight software, command, telemetry)", ("agent/node", "_on_stimulus"),
      ("swarmhil.agent.node", "AgentNode._on_stimulus")),
+    ("batch mode (`--record truth`): the flight software of all agents (`BatchHook.commands`, stimuli included)",
+     ("deploy/batch", "commands"), ("swarmhil.deploy.batch", "BatchHook.commands")),
     ("of which the flight software's `step`", ("p000_capture/fsw/controller", "step"),
      ("swarmhil.missions.p000_capture.fsw.controller", "CaptureController.step")),
     ("of which the landmark fits (`_fit`: pool, cold GNC-TLS and warm fits)", ("p000_capture/fsw/controller", "_fit"),
@@ -138,23 +142,25 @@ ROWS = [
 ]
 
 
-def _in_process(scenario: str, duration: float, around: Callable[[Callable[[], object]], object]) -> tuple[object, object]:
-    """The scenario's in-process run of `duration` s, called through `around` (timing, profiling)."""
+def _in_process(scenario: str, duration: float, around: Callable[[Callable[[], object]], object],
+                record: str = "all") -> tuple[object, object]:
+    """The scenario's in-process run of `duration` s, called through `around` (timing, profiling);
+    `record="truth"`: the batch mode where the tree has it for the scenario."""
     from swarmhil.deploy.launcher import run_in_process
     from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration)
     with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-") as out:
-        return sc, around(lambda: run_in_process(sc, Path(out), "bench-p000"))
+        return sc, around(lambda: run_in_process(sc, Path(out), "bench-p000", record=record))
 
 
-def job_profile(scenario: str, duration: float) -> dict[str, object]:
+def job_profile(scenario: str, duration: float, record: str = "all") -> dict[str, object]:
     """The in-process run under cProfile counting CPU time; the cumulative seconds of ROWS."""
     import cProfile
     import pstats
 
     prof = cProfile.Profile(time.process_time)
-    sc, _ = _in_process(scenario, duration, prof.runcall)
+    sc, _ = _in_process(scenario, duration, prof.runcall, record)
     stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
     rows = {}
     for label, found, _w in ROWS:
@@ -164,7 +170,7 @@ def job_profile(scenario: str, duration: float) -> dict[str, object]:
     return {"steps": sc.steps, "agents": len(sc.ids), "rows": rows}
 
 
-def job_parts(scenario: str, duration: float) -> dict[str, object]:
+def job_parts(scenario: str, duration: float, record: str = "all") -> dict[str, object]:
     """The in-process run with ROWS' methods wrapped (one process_time pair per call, ~1 us): CPU s and calls."""
     import importlib
 
@@ -188,7 +194,7 @@ def job_parts(scenario: str, duration: float) -> dict[str, object]:
             for m in wrapped[1].split():
                 cls, name = m.split(".")
                 wrap(label, getattr(importlib.import_module(wrapped[0]), cls), name)
-    sc, (t, _) = _in_process(scenario, duration, _timed)
+    sc, (t, _) = _in_process(scenario, duration, _timed, record)
     return {**t, "steps": sc.steps, "agents": len(sc.ids),
             "rows": {label: (cpu.get(label, 0.0), calls.get(label, 0)) for label, _f, w in ROWS if w is not None}}
 
@@ -199,20 +205,20 @@ def worker(a: argparse.Namespace) -> None:
     if a.job == "fits":
         out = job_fits(a.fits, a.outliers)
     elif a.job == "profile":
-        out = job_profile(a.scenario, a.duration)
+        out = job_profile(a.scenario, a.duration, a.record)
     elif a.job == "parts":
-        out = job_parts(a.scenario, a.duration)
+        out = job_parts(a.scenario, a.duration, a.record)
     elif a.job == "room":
         out = job_room(a.room_duration)
     else:
-        out = job_run(a.scenario, a.duration)
+        out = job_run(a.scenario, a.duration, a.record)
     print(json.dumps(out))
 
 
-def run_side(tree: Path, job: str, a: argparse.Namespace) -> dict[str, float]:
+def run_side(tree: Path, job: str, a: argparse.Namespace, record: str | None = None) -> dict[str, float]:
     cmd = [sys.executable, str(ROOT / "bench" / "bench_p000.py"), "--worker", job, "--fits", str(a.fits),
            "--outliers", str(a.outliers), "--room-duration", str(a.room_duration), "--scenario", a.scenario,
-           "--duration", str(a.duration)]
+           "--duration", str(a.duration), "--record", record or a.record]
     p = subprocess.run(cmd, cwd=tree, capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(f"{job} on {tree} failed: {p.stderr.strip().splitlines()[-1:]}")
@@ -254,6 +260,10 @@ def main() -> None:
     ap.add_argument("--room-duration", type=float, default=60.0, help="simulated seconds of the room loop")
     ap.add_argument("--scenario", default=CAPTURE_20, help="scenario of the in-process run (from the tree's root)")
     ap.add_argument("--duration", type=float, default=60.0, help="simulated seconds of the in-process run")
+    ap.add_argument("--record", choices=["all", "truth"], default="all",
+                    help="what the in-process run records (truth: the batch mode where the tree has it)")
+    ap.add_argument("--record-against", choices=["all", "truth"], default=None,
+                    help="the older tree's --record (default: the same)")
     ap.add_argument("--mp", action="store_true", help="only this tree: multi-process vs in-process")
     ap.add_argument("--profile", action="store_true", help="only this tree: where the in-process run's CPU goes")
     ap.add_argument("--parts", action="store_true", help="only this tree: CPU of each part, no profiler")
@@ -287,7 +297,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix="swarmhil-bench-p000-old-") as d:
             old_tree = export(a.against, Path(d))
             for job in jobs:
-                old, new = run_side(old_tree, job, a), run_side(ROOT, job, a)
+                old, new = run_side(old_tree, job, a, a.record_against), run_side(ROOT, job, a)
                 res[job] = {"old": old, "new": new}
                 if job == "fits":
                     print(f"GNC-TLS, 200 points, {a.outliers:.0%} outliers, {a.fits} fits (CPU, median): cold "
@@ -298,7 +308,9 @@ def main() -> None:
                           f"(x{old['update_median_s'] / new['update_median_s']:.1f})")
                 else:
                     what = (f"room loop, case (i), {a.room_duration:g} s" if job == "room"
-                            else f"{Path(a.scenario).name} in-process, {a.duration:g} s")
+                            else f"{Path(a.scenario).name} in-process, {a.duration:g} s (record "
+                                 f"{a.record_against or a.record} -> {a.record}, batch mode {old.get('batch')} -> "
+                                 f"{new.get('batch')})")
                     print(f"{what}: CPU {old['cpu_s']:.1f} -> {new['cpu_s']:.1f} s "
                           f"(x{old['cpu_s'] / new['cpu_s']:.2f}), wall {old['wall_s']:.1f} -> {new['wall_s']:.1f} s "
                           f"(x{old['wall_s'] / new['wall_s']:.2f})")

@@ -2,6 +2,7 @@
 
     python bench/truth_checksums.py [--duration 7200] SCENARIO...                 # sha256 per scenario
     python bench/truth_checksums.py --reference DIR [--duration 600] SCENARIO...   # write DIR/NAME-600s.json
+    python bench/truth_checksums.py --record truth --duration 60 SCENARIO...       # the batch mode's truth
 
 Runs each scenario in-process (deterministic, same code path as multi-process). The checksum (sha256
 of every `truth` payload in order) is a promise for one machine and one set of packages: compare
@@ -25,14 +26,16 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 
-def truth_sha256(scenario: str, duration_s: float, out: Path) -> str:
+def truth_sha256(scenario: str, duration_s: float, out: Path, record: str = "all") -> str:
+    """sha256 of every truth payload of the scenario's in-process run; `record="truth"`: the batch
+    mode where the scenario allows it (deploy/batch.py), whose truth must be the per-agent run's."""
     from mcap.reader import make_reader
 
     from swarmhil.deploy.launcher import run_in_process
     from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(scenario).with_overrides(duration_s=duration_s)
-    run_in_process(sc, out, "checksum")
+    run_in_process(sc, out, "checksum", record=record)
     h = hashlib.sha256()
     with open(out / "run.mcap", "rb") as f:
         for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
@@ -77,12 +80,14 @@ def main() -> None:
     ap.add_argument("scenarios", nargs="+")
     ap.add_argument("--duration", type=float, default=7200.0)
     ap.add_argument("--reference", type=Path, default=None, help="write truth references into this folder")
+    ap.add_argument("--record", choices=["all", "truth"], default="all",
+                    help="truth: run in batch mode where the scenario allows (the same truth, bit for bit)")
     a = ap.parse_args()
     out = {}
     with tempfile.TemporaryDirectory() as d:
         for s in a.scenarios:
             run_dir = Path(d) / Path(s).stem
-            out[Path(s).stem] = truth_sha256(s, a.duration, run_dir)
+            out[Path(s).stem] = truth_sha256(s, a.duration, run_dir, a.record)
             print(Path(s).stem, out[Path(s).stem], file=sys.stderr, flush=True)
             if a.reference is not None:
                 path = reference_path(a.reference, s, a.duration)

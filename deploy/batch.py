@@ -15,7 +15,8 @@ the bus, read by the agent's own `observation_from_rel`), and the inter-satellit
 channel's own model (`BatchLink`: link/model.py `LinkModel`, fed as link/node.py feeds it, so the
 same packets reach the same receivers at the same steps; tests/test_batch_missions.py). Anything a
 batch run would have to drop instead falls back to the message path: a camera pipeline, beacons,
-sensing faults, the viewer companion, or spacecraft that fly attitude (torques).
+sensing faults or the viewer companion. Spacecraft that fly attitude (paper 000) run in it too: the
+commands carry their torques (the plant's (N, 6) form, plant/flight.py).
 """
 from __future__ import annotations
 
@@ -47,8 +48,6 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
         return "batch mode off (opts batch = false)"
     if sc.fidelity not in ("linear", "j2", "cw", "inertial"):
         return f"plant fidelity {sc.fidelity!r}"
-    if any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft):
-        return "spacecraft that fly attitude (torques)"
     kind = sc.sensing["kind"]
     if not has_batch_form(kind) and sensing_message(kind) is not pb.Measurements:
         return f"sensing kind {kind!r} has no batch form"
@@ -101,10 +100,10 @@ class BatchLink:
 
     def send(self, step: int, rows: np.ndarray, cb: CommandBatch) -> None:
         """The transmissions of the observers' commands of `step` (none from a command the agent
-        replaces by zero: a non-finite acceleration)."""
+        replaces by zero: a non-finite acceleration or torque)."""
         t = step * self.step_s
         for r, i in enumerate(rows.tolist()):
-            if not np.isfinite(cb.accel_mps2[r]).all():
+            if not np.isfinite(cb.accel_mps2[r]).all() or (cb.torque_nm is not None and not np.isfinite(cb.torque_nm[r]).all()):
                 continue
             src = self.ids[i]
             for tx in cb.command(r).transmissions:
@@ -150,6 +149,8 @@ class BatchHook(LocalFlightSoftware):
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
         self._empty: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # observers -> (offsets, (0, 3))
         self.link = BatchLink(run, sc) if channel_enabled(sc, {}) else None  # the channel's own test of [link]
+        # spacecraft that fly attitude: the commands go back with their torques, (N, 6) (plant/flight.py)
+        self.attitude = any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft)
 
     def commands(self, ctx: SensingContext, rows: np.ndarray,
                  sense: Callable[[], StimulusBatch | StimulusMessages]) -> np.ndarray:
@@ -160,7 +161,7 @@ class BatchHook(LocalFlightSoftware):
         observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
         link = self.link
         if link is None:
-            return self.agents.step(rows, self._observe(ctx, rows, observers, sense))
+            return self._with_torques(self.agents.step(rows, self._observe(ctx, rows, observers, sense)))
         link.truth(ctx)
         decide = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
         batch = self._observe(ctx, rows, observers, sense)
@@ -170,7 +171,10 @@ class BatchHook(LocalFlightSoftware):
         if decide and self.agents.last is not None:
             link.send(ctx.step, rows, self.agents.last)
         link.window(ctx.step)
-        return acc
+        return self._with_torques(acc)
+
+    def _with_torques(self, acc: np.ndarray) -> np.ndarray:
+        return np.concatenate([acc, self.agents.torque_nm], axis=1) if self.attitude else acc
 
     def _observe(self, ctx: SensingContext, rows: np.ndarray, observers: list[str],
                  sense: Callable[[], StimulusBatch | StimulusMessages]) -> ObservationBatch:

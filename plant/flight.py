@@ -13,7 +13,8 @@ owns, so that the plant calls flight software without importing it (nor the depl
 
 It returns the (N, 3) commanded accelerations in the scenario frame of all N spacecraft (rows
 other than `rows` are ignored): the commands in force over step k, as the agents' messages would
-have carried them. deploy/batch.py `BatchHook` implements it with the agent's `BatchAgents`.
+have carried them; where spacecraft fly attitude, (N, 6): each row's acceleration and then its
+body-frame torque (0 for a command without one, as an `ActuatorCommand` without `torque_nm`). deploy/batch.py `BatchHook` implements it with the agent's `BatchAgents`.
 """
 from __future__ import annotations
 

@@ -367,8 +367,11 @@ class PlantNode:
                 self._after_step(k)
                 return
             alive = self.world.alive
-            self.held[alive, :3] = cmd[alive]
-            self.held[alive, 3:] = 0.0
+            if cmd.shape[1] == 6:  # accelerations and torques (spacecraft that fly attitude)
+                self.held[alive] = cmd[alive]
+            else:
+                self.held[alive, :3] = cmd[alive]
+                self.held[alive, 3:] = 0.0
             self._advance(k)
             return
         live = self.live_ids()

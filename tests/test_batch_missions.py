@@ -1,4 +1,4 @@
-"""Issue 29: the batch mode of papers 001, 003 and 004 (the mission worlds: cw and inertial plants,
+"""Issue 29: the batch mode of papers 000, 001, 003 and 004 (the mission worlds: cw and inertial plants,
 sensing kinds that send `Measurements`, packets over the link) gives the truth of the per-agent
 in-process run, bit for bit: every truth message (positions, velocities, the commands in force,
 dV) equal, with equal log times, and the link carried the same packets (deploy/batch.py
@@ -27,9 +27,11 @@ def _truths(path: Path) -> list[tuple[int, bytes]]:
 CLUSTER = [f"spacecraft.{i}.position_m={p}" for i, p in enumerate(
     ["[3.0,9.0,1.0]", "[-2.0,-8.0,4.0]", "[1.0,4.0,-9.0]", "[0.5,-5.0,-7.0]", "[60.0,10.0,5.0]", "[-2.0,7.0,8.5]"])]
 # (id, scenario, simulated seconds, --set): 60 s of 0.1 s steps for papers 004 and 003, 200 steps of
-# paper 001 (far layer), and 100 steps of it in the shaping and near layers (LatticeController.step_batch)
+# paper 001 (far layer), 100 steps of it in the shaping and near layers (LatticeController.step_batch),
+# and 600 steps of paper 000's case (i) (attitude flown: torques; landmark fits and packets from ~15 s)
 CASES = [("servicing-6", "servicing-6", 60.0, []), ("surround-6", "surround-6", 60.0, []),
-         ("tersoff-6", "tersoff-6", 1000.0, []), ("tersoff-6-cluster", "tersoff-6", 500.0, CLUSTER)]
+         ("tersoff-6", "tersoff-6", 1000.0, []), ("tersoff-6-cluster", "tersoff-6", 500.0, CLUSTER),
+         ("capture-10", "capture-10", 30.0, [])]
 
 
 @pytest.mark.parametrize("case,name,duration,sets", CASES, ids=[c[0] for c in CASES])
@@ -155,3 +157,100 @@ def test_p003_relative_batch_equals_its_messages() -> None:
     noisy = make_sensing("p003-relative", plant_config(load_scenario(
         SCENARIOS / "surround-6.toml", ["sensing.params.position_noise_m=0.1"])))
     assert not hasattr(noisy, "batch")
+
+
+@pytest.mark.parametrize("dead", [(), (3,)], ids=["all-alive", "one-dead"])
+def test_p000_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
+    """Paper 000's sensing kind (`p000-landmarks`) as arrays: on capture-20's first truth, every
+    observer's neighbours and relative states, and every named measurement (attitude, rate, own
+    state, landmark returns and ids, the surface within R_h), equal what the agent reads from its
+    message (agent/node.py), shapes and bits."""
+    from swarmhil.agent.node import observation_from_rel
+    from swarmhil.bus.codec import header
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.plant.mission_world import MissionWorld
+    from swarmhil.plant.sensing import SensingContext, make_sensing
+
+    cfg = plant_config(load_scenario(SCENARIOS / "capture-20.toml"))
+    world = MissionWorld(cfg)
+    alive = np.ones(len(cfg.ids), dtype=bool)
+    alive[list(dead)] = False
+    pos, vel = world.lvlh()
+    ctx = SensingContext(step=7, t_s=0.35, u_rad=0.1, ids=list(cfg.ids), position_m=pos, velocity_mps=vel,
+                         alive=alive, world=world)
+    rows = np.flatnonzero(alive)
+    rel = make_sensing("p000-landmarks", cfg).batch(ctx, rows)
+    kind = make_sensing("p000-landmarks", cfg)  # (a fresh kind: nothing cached from the batch)
+    pairs = returns = surfaces = 0
+    for r, j in enumerate(rows.tolist()):
+        o = observation_from_rel(kind.stimulus(ctx, j, header("run", "plant", 7, 0.35, 0)))
+        a, b = rel.offsets[r], rel.offsets[r + 1]
+        assert [cfg.ids[k] for k in rel.neighbour[a:b]] == o.neighbour_ids
+        assert rel.rel_position_m[a:b].tobytes() == o.rel_position_m.reshape(-1, 3).tobytes()
+        assert rel.rel_velocity_mps[a:b].tobytes() == o.rel_velocity_mps.reshape(-1, 3).tobytes()
+        assert rel.owner is not None and (rel.owner[a:b] == r).all()
+        assert rel.extra is not None and list(rel.extra[r]) == list(o.extra)
+        for key, value in o.extra.items():
+            got = rel.extra[r][key]
+            assert got.dtype == value.dtype and got.shape == value.shape and got.tobytes() == value.tobytes(), key
+        pairs += b - a
+        returns += len(o.extra["p000_landmarks_body_m"])
+        surfaces += "p000_surface_rel_m" in o.extra
+    assert pairs > 0 and returns > 0 and surfaces > 0  # neighbours, landmark returns, surface proximity seen
+
+
+def test_p000_visibility_of_many_sensors_equals_each_ones() -> None:
+    """`visible_landmarks` over N sensors at once, row j, equals sensor j's alone, and so do the
+    distances, facing and cone products it compares (the norm, einsum and matmul of a stack against
+    each sensor's own: the same bits), for random target poses and sensors whose boresights are
+    columns of their attitude matrices (strided, as the kind passes them)."""
+    from scipy.spatial.transform import Rotation
+
+    from swarmhil.missions.p000_capture.contract import dcm, surface_landmarks
+    from swarmhil.missions.p000_capture.sense import P000Params, visible_landmarks
+
+    p = P000Params()
+    rng = np.random.default_rng(3)
+    lm0, nrm0 = surface_landmarks(np.array([4.0, 1.3, 1.0]), 400)
+    seen = 0
+    for trial in range(40):
+        rot = Rotation.random(random_state=trial).as_matrix()
+        lm, nrm = rng.normal(size=3) + lm0 @ rot.T, nrm0 @ rot.T
+        q = rng.normal(size=(20, 4))
+        att = dcm(q / np.linalg.norm(q, axis=1, keepdims=True))
+        pos = rng.uniform(-10.0, 10.0, (20, 3))
+        pos[:5] = lm[rng.integers(0, 400, 5)] * 1.8  # some right in front of the surface
+        rel = lm[None, :, :] - pos[:, None, :]
+        vis = visible_landmarks(rel, nrm, att[:, :, 0], p)
+        for j in range(20):
+            alone = visible_landmarks(lm - pos[j], nrm, att[j][:, 0], p)
+            assert np.array_equal(vis[j], alone), (trial, j)
+            assert np.einsum("ij,nij->ni", nrm, -rel)[j].tobytes() == np.einsum("ij,ij->i", nrm, -(lm - pos[j])).tobytes()
+            assert np.matmul(rel, att[:, :, 0][:, :, None])[j, :, 0].tobytes() == ((lm - pos[j]) @ att[j][:, 0]).tobytes()
+            seen += int(alone.sum())
+    assert seen > 0
+
+
+def test_p000_batch_path_handles_a_raising_spacecraft_as_the_agent_node(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Paper 000's step_batch: a spacecraft whose flight software raises (here a3 at steps 40-42,
+    after perception and its state's updates, where `step` raises too) commands zero and is counted
+    as a controller fault, as the agent node counts it; the others fly on: the same truth, faults
+    and dV as the per-agent run."""
+    from swarmhil.missions.p000_capture.fsw import controller as cc
+
+    act = cc.CaptureController._act
+
+    def raising(self: cc.CaptureController, obs, *args, **kw):  # type: ignore[no-untyped-def]
+        plan = act(self, obs, *args, **kw)
+        if self.sc_id == "a3" and 40 <= obs.step <= 42:
+            raise RuntimeError("injected")
+        return plan
+
+    monkeypatch.setattr(cc.CaptureController, "_act", raising)
+    sc = load_scenario(SCENARIOS / "capture-10.toml").with_overrides(duration_s=3.0)
+    full = run_in_process(sc, tmp_path / "all", "same")
+    batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
+    assert batch.summary["batch"]["used"]
+    assert _truths(tmp_path / "all" / "run.mcap") == _truths(tmp_path / "truth" / "run.mcap")
+    assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {"a3": {"controller": 3}}
+    assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0

@@ -153,6 +153,81 @@ def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, n
     return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 
+def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a_i · b_i of (N, 3) rows, summed left to right as numpy's dot of two 3-vectors sums (the
+    same bits as `a[i] @ b[i]`, so sqrt of it is `math.sqrt(float(a[i] @ a[i]))`'s; einsum and
+    matmul order or fuse differently)."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def closest_points_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> np.ndarray:
+    """`closest_point_principal` of N points (rows of p) on N ellipsoids (rows of a), row i the
+    bits of row i's: the same Newton steps written out over arrays (a row stops where the scalar
+    loop breaks), the start test `Σ(a_k y_k/(d_k + u))² > 1` in Python floats per row (`x ** 2` is
+    libm's pow there, not x·x). Rows off the general branch (a zero coordinate, or no root to
+    find) go through the scalar function."""
+    pts = np.asarray(p, dtype=float).reshape(-1, 3)
+    al = np.asarray(a, dtype=float).reshape(-1, 3)
+    y = np.abs(pts)
+    aa = al * al
+    m = np.argmin(aa, axis=1)  # (the first smallest, as list.index(min))
+    aam = aa[np.arange(len(aa)), m]
+    ay = al * y
+    d = aa - aam[:, None]
+    u = 1e-15 * np.where(aam > 1.0, aam, 1.0)
+    start = [(a0 / (d0 + uu)) ** 2 + (a1 / (d1 + uu)) ** 2 + (a2 / (d2 + uu)) ** 2 > 1.0
+             for (a0, a1, a2), (d0, d1, d2), uu in zip(ay.tolist(), d.tolist(), u.tolist())]
+    general = np.array(start, dtype=bool) & (y > (1e-12 * al.max(axis=1))[:, None]).all(axis=1)
+    out = np.empty_like(pts)
+    for i in np.flatnonzero(~general).tolist():
+        out[i] = closest_point_principal(pts[i], al[i], iters)
+    g = np.flatnonzero(general)
+    if len(g) == 0:
+        return out
+    ay, d, u, aa, y = ay[g], d[g], u[g], aa[g], y[g]
+    for k in range(3):  # u = max(u, ay_k − d_k), as Python's max keeps the first of equals
+        v = ay[:, k] - d[:, k]
+        u = np.where(v > u, v, u)
+    active = np.arange(len(g))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for _ in range(iters):
+            if len(active) == 0:
+                break
+            uu = u[active]
+            du0, du1, du2 = d[active, 0] + uu, d[active, 1] + uu, d[active, 2] + uu
+            r0, r1, r2 = ay[active, 0] / du0, ay[active, 1] / du1, ay[active, 2] / du2
+            s = r0 * r0 + r1 * r1 + r2 * r2
+            slope = r0 * r0 / du0 + r1 * r1 / du1 + r2 * r2 / du2
+            u_next = uu + s * (np.sqrt(s) - 1.0) / slope
+            moves = ~(s <= 1.0) & ~(u_next <= uu)  # (the scalar loop breaks on either)
+            u[active[moves]] = u_next[moves]
+            active = active[moves]
+    x = np.stack([aa[:, k] * y[:, k] / (d[:, k] + u) for k in range(3)], axis=1)
+    out[g] = np.where(pts[g] < 0.0, -x, x)
+    return out
+
+
+def surface_frames(ells: list[Ellipsoid], p_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`surface_frame` of N points (rows of p_m), each on its own ellipsoid: (signed distances (N,),
+    closest points (N, 3), outward normals (N, 3)), row i the bits of `surface_frame(ells[i], p_m[i])`
+    (the rotations each row's own matrix product, as there; the rest over arrays)."""
+    pts = np.asarray(p_m, dtype=float).reshape(-1, 3)
+    if len(ells) != len(pts):
+        raise ValueError(f"{len(ells)} ellipsoids for {len(pts)} points")
+    local = np.array([e.rotation.T @ (q - e.centre_m) for e, q in zip(ells, pts)]).reshape(-1, 3)
+    axes = np.array([e.semi_axes_m for e in ells], dtype=float).reshape(-1, 3)
+    x = closest_points_principal(local, axes)
+    n = x / axes ** 2
+    n = n / np.sqrt(dot_rows(n, n))[:, None]
+    gap = local - x
+    dist = np.sqrt(dot_rows(gap, gap))
+    scaled = local / axes
+    inside = dot_rows(scaled, scaled) < 1.0
+    x_s = np.array([e.centre_m + e.rotation @ xi for e, xi in zip(ells, x)]).reshape(-1, 3)
+    normals = np.array([e.rotation @ ni for e, ni in zip(ells, n)]).reshape(-1, 3)
+    return np.where(inside, -dist, dist), x_s, normals
+
+
 def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
     """Euclidean distance to the surface, negative inside."""
     return surface_frame(ell, p_m)[0]

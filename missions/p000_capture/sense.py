@@ -40,6 +40,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import add_measurement
 from swarmhil.missions.p000_capture import contract as c
 from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.sensing.builtin import RelBatch
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 
 KIND = c.SENSING_KIND
@@ -75,13 +76,27 @@ def inertial_to_cw(q_body_to_inertial: np.ndarray, n_radps: float, t_s: float) -
     return quat_mul(np.array([np.cos(h), 0.0, 0.0, np.sin(h)]), q_body_to_inertial)
 
 
-def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray,
-                     p: P000Params) -> tuple[np.ndarray, np.ndarray]:
-    """Returns (CW frame, relative to the sensor) and landmark ids (-1: outlier) of one sensor."""
+def visible_landmarks(rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray, p: P000Params) -> np.ndarray:
+    """Which landmarks a sensor sees: facing it, within R_l, inside the cone about `bore`. One
+    sensor: rel_m (K, 3), bore (3,) -> (K,); N sensors: (N, K, 3), (N, 3) -> (N, K), row j the
+    same bits as sensor j's alone (the norm over the last axis, einsum's and matmul's per-row sums:
+    checked equal row by row, tests/test_batch_missions.py)."""
     half = np.radians(p.fov_full_deg / 2)
-    dist = np.linalg.norm(rel_m, axis=1)
-    vis = ((np.einsum("ij,ij->i", normals, -rel_m) > 0) & (dist <= p.range_m)
-           & (rel_m @ bore >= np.cos(half) * dist))
+    dist = np.linalg.norm(rel_m, axis=-1)
+    if rel_m.ndim == 2:
+        facing, along = np.einsum("ij,ij->i", normals, -rel_m), rel_m @ bore
+    else:
+        facing, along = np.einsum("ij,nij->ni", normals, -rel_m), np.matmul(rel_m, bore[:, :, None])[:, :, 0]
+    return (facing > 0) & (dist <= p.range_m) & (along >= np.cos(half) * dist)
+
+
+def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.ndarray, bore: np.ndarray,
+                     p: P000Params, vis: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Returns (CW frame, relative to the sensor) and landmark ids (-1: outlier) of one sensor
+    (`vis`: its `visible_landmarks`, when computed with other sensors')."""
+    half = np.radians(p.fov_full_deg / 2)
+    if vis is None:
+        vis = visible_landmarks(rel_m, normals, bore, p)
     ids = np.flatnonzero(vis)
     ret = rel_m[vis] + rng.normal(0.0, p.noise_m, (len(ids), 3))
     n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
@@ -132,8 +147,27 @@ class P000LandmarkKind:
                 "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
                 "near": [np.flatnonzero(row) for row in near]}
 
-    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
+    def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int, rel_m: np.ndarray | None = None,
+                 vis: np.ndarray | None = None,
+                 surface: tuple[float, np.ndarray] | None = None) -> list[tuple[str, np.ndarray]]:
+        """Spacecraft j's named measurements, in the message's order (one noise generator per
+        (seed, step, j): the same draws whoever asks and in whatever order); `rel_m`, `vis`,
+        `surface`: its landmarks relative to it, their visibility and its (signed distance, closest
+        point) on the true surface, when computed with the other observers'."""
         p = self.p
+        r = ctx.position_m[j]
+        q_cw, rot = tr["q_cw"][j], tr["rot"][j]
+        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
+        ret, ids = landmark_returns(rng, tr["lm"] - r if rel_m is None else rel_m, tr["nrm"], rot[:, 0], p, vis)
+        out = [(c.Q_BODY_TO_LVLH, q_cw), (c.OMEGA_BODY_RADPS, tr["w"][j]), (c.POSITION_M, r - self.origin),
+               (c.VELOCITY_MPS, ctx.velocity_mps[j]), (c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3)),
+               (c.LANDMARK_IDS, ids.astype(float))]
+        sd, x_s = c.surface_frame(tr["ell"], r)[:2] if surface is None else surface
+        if sd <= p.proximity_range_m:
+            out.append((c.SURFACE_REL_M, x_s - r))
+        return out
+
+    def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
         tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
         msg = pb.Measurements(header=hdr, u_rad=ctx.u_rad)
         pos, vel = ctx.position_m, ctx.velocity_mps
@@ -145,16 +179,28 @@ class P000LandmarkKind:
                 nb = msg.neighbours.add(id=ids[k])
                 nb.position_m.x, nb.position_m.y, nb.position_m.z = dp
                 nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = dv
-        q_cw, rot = tr["q_cw"][j], tr["rot"][j]
-        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
-        ret, ids = landmark_returns(rng, tr["lm"] - r, tr["nrm"], rot[:, 0], p)
-        add_measurement(msg, c.Q_BODY_TO_LVLH, q_cw)
-        add_measurement(msg, c.OMEGA_BODY_RADPS, tr["w"][j])
-        add_measurement(msg, c.POSITION_M, r - self.origin)
-        add_measurement(msg, c.VELOCITY_MPS, vel[j])
-        add_measurement(msg, c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3))
-        add_measurement(msg, c.LANDMARK_IDS, ids.astype(float))
-        sd, x_s, _ = c.surface_frame(tr["ell"], r)
-        if sd <= p.proximity_range_m:
-            add_measurement(msg, c.SURFACE_REL_M, x_s - r)
+        for name, values in self._measure(ctx, tr, j):
+            add_measurement(msg, name, values)
         return msg
+
+    def batch(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
+        """What `stimulus` gives each of `observers` (distinct, increasing indices), as arrays (the
+        batch mode, issue 29): the same neighbours in the same order with the same float64 relative
+        states, and each observer's named measurements in `extra` as the agent reads them from the
+        message (`measurements_to_dict`: a float64 array of each one's shape)."""
+        tr = ctx.cached("p000.truth", lambda: self._step_truth(ctx))
+        pos, vel = ctx.position_m, ctx.velocity_mps
+        obs = np.asarray(observers, dtype=np.int64).tolist()
+        near = [tr["near"][j] for j in obs]
+        counts = np.array([len(n) for n in near], dtype=np.int64)
+        offsets = np.zeros(len(obs) + 1, dtype=np.int64)
+        np.add.accumulate(counts, out=offsets[1:])
+        nb = np.concatenate(near).astype(np.int64) if len(obs) else np.zeros(0, dtype=np.int64)
+        owner = np.repeat(np.arange(len(obs)), counts)
+        j_of = np.asarray(obs, dtype=np.int64)[owner]
+        rel = tr["lm"][None, :, :] - pos[obs][:, None, :]  # (R, K, 3): each row tr["lm"] - r, as _measure's
+        vis = visible_landmarks(rel, tr["nrm"], tr["rot"][obs][:, :, 0], self.p)
+        sd, x_s, _ = c.surface_frames([tr["ell"]] * len(obs), pos[obs])
+        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j, rel[r], vis[r], (sd[r], x_s[r]))}
+                 for r, j in enumerate(obs)]
+        return RelBatch(offsets, nb, pos[nb] - pos[j_of], vel[nb] - vel[j_of], owner, extra)

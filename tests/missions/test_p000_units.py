@@ -290,3 +290,110 @@ def test_warm_fit_reports_a_lost_track() -> None:
     pts, c, _ = _noisy_ellipsoid(0, np.array([2.6, 1.9, 1.4]), 0.1)
     with pytest.raises(ValueError, match="track lost"):
         warm_fit(pts, Ellipsoid(c + 5.0, np.eye(3), np.full(3, 1.0)))
+
+
+def test_the_pointing_law_over_arrays_gives_each_rows_bits() -> None:
+    """The batch path's pointing law (issue 29): `desired_attitudes` and `pointing_torques` over N
+    rows equal `desired_attitude` and `pointing_torque` row by row, bit for bit: random attitudes,
+    rates (saturated and not, zero), lines of sight (one exactly behind body +x: shortest_arc's
+    opposite branch), the error quaternion's sign flip on both sides."""
+    from swarmhil.missions.p000_capture.fsw.attitude import desired_attitudes, pointing_torques
+
+    rng = np.random.default_rng(29)
+    n = 400
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w = rng.normal(0.0, 0.05, (n, 3)) * rng.choice([0.0, 0.1, 1.0, 5.0], (n, 1))
+    los = rng.normal(0.0, 5.0, (n, 3))
+    los[0] = [-3.0, 0.0, 0.0]  # opposite the boresight
+    los[1] = [2.0, 0.0, 0.0]   # along it
+    p = CaptureParams()
+    q_d = desired_attitudes(los)
+    near = q_d[:100] + rng.normal(0.0, 1e-3, (100, 4))  # close to the pointing: below the limit
+    q[:100] = near / np.linalg.norm(near, axis=1, keepdims=True) * rng.choice([-1.0, 1.0], (100, 1))
+    w[:100] *= 1e-3
+    tau = pointing_torques(q, w, q_d, p.inertia_kgm2, p.k_q, p.k_w, p.torque_max_nm)
+    saturated = 0
+    for i in range(n):
+        qd_i = desired_attitude(np.zeros(3), los[i])
+        assert q_d[i].tobytes() == qd_i.tobytes(), i
+        ref = pointing_torque(q[i], w[i], qd_i, p.inertia, p.k_q * np.eye(3), p.k_w * np.eye(3), p.torque_max_nm)
+        assert tau[i].tobytes() == ref.tobytes(), i
+        saturated += bool(np.isclose(np.linalg.norm(ref), p.torque_max_nm))
+    assert 0 < saturated < n
+
+
+def test_the_apf_of_many_agents_gives_each_ones_bits() -> None:
+    """The batch path's APF (issue 29): `apf_forces` over CSR neighbour rows equals `apf_force` of
+    each agent's rows bit for bit: agents without neighbours (+0), with neighbours none of them
+    within R_h or at d = 0 (numpy's -0 of an empty sum, negated), with up to 19 near ones."""
+    from swarmhil.missions.p000_capture.fsw.apf import apf_forces
+
+    rng = np.random.default_rng(16)
+    counts = rng.integers(0, 20, 300)
+    counts[:3] = 0
+    rel = rng.normal(0.0, 4.0, (int(counts.sum()), 3))
+    offsets = np.concatenate(([0], np.cumsum(counts)))
+    rel[offsets[3]:offsets[4]] = 50.0  # agent 3: every neighbour beyond R_h
+    rel[offsets[4]] = 0.0              # agent 4's first neighbour at d = 0 (left out)
+    got = apf_forces(rel, offsets, 8.0, 5.5)
+    for i in range(len(counts)):
+        ref = apf_force(rel[offsets[i]:offsets[i + 1]], 8.0, 5.5)
+        assert got[i].tobytes() == ref.tobytes(), i
+
+
+def test_the_event_trigger_of_many_agents_gives_each_ones_answer() -> None:
+    """The batch path's trigger (issue 29): `fires_rows` equals `fires(..., cw_disturbance_bound)`
+    agent by agent, and its sample error and threshold are the scalar code's bits (rows set right
+    at the threshold: any other summation order would flip some)."""
+    from swarmhil.missions.p000_capture.fsw.limits import dot_rows
+    from swarmhil.missions.p000_capture.fsw.trigger import cw_disturbance_bound, fires_rows, sample_error
+
+    rng = np.random.default_rng(27)
+    s, n_radps = TriggerSettings(), 0.0011
+    r, v = rng.uniform(-10.0, 10.0, (500, 3)), rng.normal(0.0, 0.05, (500, 3))
+    r_k, v_k = r + rng.normal(0.0, 0.05, (500, 3)), v + rng.normal(0.0, 0.01, (500, 3))
+    t = 12.35
+    for i in range(0, 500, 5):  # exactly at the threshold: the scalar error equals it
+        d_max = cw_disturbance_bound(r[i], v[i], n_radps)
+        err = sample_error(r_k[i], v_k[i], r[i], v[i])
+        r_k[i] = r[i] + (r_k[i] - r[i]) * (threshold(t, d_max, s) / err)
+    got = fires_rows(t, r_k, v_k, r, v, n_radps, s)
+    p, ve = r_k - r, v_k - v
+    for i in range(500):
+        d_max = cw_disturbance_bound(r[i], v[i], n_radps)
+        assert got[i] == fires(t, r_k[i], v_k[i], r[i], v[i], d_max, s), i
+        assert np.sqrt(dot_rows(p, p) + dot_rows(ve, ve))[i] == sample_error(r_k[i], v_k[i], r[i], v[i])
+    assert 0 < got.sum() < 500
+
+
+def test_surface_frames_over_arrays_give_each_rows_bits() -> None:
+    """The batch path's closest surface point (issue 29): `surface_frames` of N points, each on its
+    own posed ellipsoid, equals `surface_frame` row by row bit for bit: points outside, inside, near
+    the surface, on a principal plane (a zero local coordinate: the scalar branch) and at the centre."""
+    from scipy.spatial.transform import Rotation
+
+    from swarmhil.missions.p000_capture.contract import surface_frame, surface_frames
+
+    rng = np.random.default_rng(14)
+    ells, pts = [], []
+    for i in range(600):
+        axes = rng.uniform(0.5, 5.0, 3)
+        if i % 7 == 0:
+            axes = np.array([4.0, 1.3, 1.0])
+        rot = np.eye(3) if i % 5 == 0 else Rotation.random(random_state=i).as_matrix()
+        e = Ellipsoid(rng.uniform(-3.0, 3.0, 3), rot, axes)
+        local = rng.normal(size=3) * axes * rng.choice([0.3, 0.9, 0.999, 1.001, 1.5, 4.0])
+        if i % 11 == 0:
+            local[rng.integers(0, 3)] = 0.0  # on a principal plane
+        if i % 97 == 0:
+            local[:] = 0.0  # the centre
+        ells.append(e)
+        pts.append(e.centre_m + rot @ local if i % 5 else e.centre_m + local)
+    sd, x_s, nrm = surface_frames(ells, np.array(pts))
+    inside = 0
+    for i, (e, q) in enumerate(zip(ells, pts)):
+        ref = surface_frame(e, q)
+        assert sd[i] == ref[0] and x_s[i].tobytes() == ref[1].tobytes() and nrm[i].tobytes() == ref[2].tobytes(), i
+        inside += ref[0] < 0
+    assert 0 < inside < len(ells)

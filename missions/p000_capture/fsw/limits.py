@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 
+from swarmhil.missions.p000_capture.contract import dot_rows  # noqa: F401  (the flight software's row dot: attitude, trigger)
+
 
 def norm3(vec: np.ndarray) -> float:
     """‖v‖ of one vector: √(v·v), the same bits as np.linalg.norm (which computes sqrt(v.dot(v)) for
@@ -19,3 +21,4 @@ def saturate_norm(vec: np.ndarray, limit: float) -> np.ndarray:
     v = np.asarray(vec, dtype=float)
     n = norm3(v)
     return v * (limit / n) if n > limit else v
+

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .limits import norm3
+from .limits import dot_rows, norm3
 
 
 @dataclass(frozen=True)
@@ -38,3 +38,13 @@ def fires(t_s: float, r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.nda
           d_max: float, s: TriggerSettings) -> bool:
     """f_i > 0 (eq. 27, 29)."""
     return sample_error(r_k, v_k, r, v) > threshold(t_s, d_max, s)
+
+
+def fires_rows(t_s: float, r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.ndarray, n_radps: float,
+               s: TriggerSettings) -> np.ndarray:
+    """`fires(t, r_k, v_k, r, v, cw_disturbance_bound(r, v, n), s)` of N agents' rows at once, row i
+    the same answer from the same bits: eq. 27-29 written out over arrays in the scalar code's
+    order (the norms' dots as numpy's, Python's n² and e^(−βt) once)."""
+    d_max = 3.0 * n_radps ** 2 * np.sqrt(dot_rows(r, r)) + 2.0 * n_radps * np.sqrt(dot_rows(v, v))
+    p, v_err = r_k - r, v_k - v
+    return np.sqrt(dot_rows(p, p) + dot_rows(v_err, v_err)) > s.c0 + s.c1 * math.exp(-s.beta_per_s * t_s) + s.c_d * d_max
