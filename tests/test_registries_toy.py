@@ -296,3 +296,20 @@ def test_a_room_that_is_not_there_is_a_clear_error(tmp_path: Path) -> None:
                         "--no-progress"], capture_output=True, text=True, cwd=tmp_path, timeout=120)
     assert r.returncode != 0 and "[run].rooms" in r.stderr and "no_such_room" in r.stderr, r.stderr
     assert r.stderr.strip().count("\n") == 0, r.stderr  # one line, no traceback
+
+
+def test_a_report_without_the_room_says_so_and_writes_the_rest(toy_runs: tuple[Path, Path], tmp_path: Path) -> None:
+    """`swarmhil report` where the recording's outside room does not import (not on PYTHONPATH):
+    one line on stderr names the room and that its section is left out; the page is written."""
+    import shutil
+
+    run = tmp_path / "copy"
+    shutil.copytree(toy_runs[1], run)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run)], capture_output=True,
+                       text=True, cwd=tmp_path, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr + r.stdout
+    lines = [ln for ln in r.stderr.splitlines() if "toy_room" in ln]
+    assert len(lines) == 1 and "left out" in lines[0], r.stderr
+    html = (run / "report" / "index.html").read_text()
+    assert "Toy rock chase" not in html and "<html" in html.lower()

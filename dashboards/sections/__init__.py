@@ -101,6 +101,10 @@ def _load() -> None:
     import_role("report")
 
 
+_MISSING_ROOMS: set[str] = set()
+"""Rooms a recording names that do not import here (said once)."""
+
+
 def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:
     """The sections that apply to a run, by its recorded configuration: the tree's and those of the
     rooms the run named from outside the tree ([run].rooms), when they import here; a room that
@@ -109,6 +113,8 @@ def sections_for(config: dict[str, Any]) -> list[tuple[str, Section]]:
         try:
             add_rooms([room])
         except RoomError as exc:
-            print(f"swarmhil report: {exc}: its report section is left out", file=sys.stderr)
+            if room not in _MISSING_ROOMS:  # said once per process
+                _MISSING_ROOMS.add(room)
+                print(f"swarmhil report: {exc}: its report section is left out", file=sys.stderr)
     _load()
     return [(name, fn) for name, (applies, fn) in sorted(_SECTIONS.items()) if applies(config)]
