@@ -64,10 +64,6 @@ def add_rooms(names: list[str] | tuple[str, ...]) -> None:
             _OUTSIDE.append(name)
 
 
-def outside_rooms() -> tuple[str, ...]:
-    return tuple(_OUTSIDE)
-
-
 def import_role(role: str, package: str = ROOMS) -> list[str]:
     """Import one part of every mission room: `{package}.<room>.{role}` (`fsw` in an agent,
     `sense` in the plant, `report` in the reporter), for the rooms that have it, in name order, then
