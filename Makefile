@@ -41,10 +41,11 @@ lint: setup
 
 # The tests most sensitive to the floating-point kernels, again under another kernel set than this
 # CPU's own (docs/determinism.md): OpenBLAS's Sandybridge kernels and numpy without its X86_V3
-# (AVX2/FMA3) loops, which differ from both an AVX2 and an AVX-512 machine's defaults. CI runs it.
+# (AVX2/FMA3) loops, which differ from both an AVX2 and an AVX-512 machine's defaults; with them the
+# batch twins' tests (batch = per-agent bit for bit under any kernel set). CI runs it.
 KERNELS ?= OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3
 KERNEL_SENSITIVE := tests/test_truth_checksums.py tests/missions/test_p000_stack.py tests/missions/test_p003_units.py \
-	tests/missions/test_p003_stack.py
+	tests/missions/test_p003_stack.py tests/missions/test_p000_units.py tests/test_batch_missions.py
 test-kernels: setup
 	env $(KERNELS) $(PY) -m pytest -q $(KERNEL_SENSITIVE) --durations=5
 

@@ -145,19 +145,60 @@ def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, n
     local = ell.rotation.T @ (p - ell.centre_m)
     x = closest_point_principal(local, ell.semi_axes_m)
     n = x / ell.semi_axes_m ** 2
-    n = n / math.sqrt(float(n @ n))
+    n = n / math.sqrt(dot3(n, n))
     gap = local - x
-    d = math.sqrt(float(gap @ gap))
+    d = math.sqrt(dot3(gap, gap))
     scaled = local / ell.semi_axes_m
-    inside = float(scaled @ scaled) < 1.0
+    inside = dot3(scaled, scaled) < 1.0
     return (-d if inside else d), ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 
+def dot3(a: np.ndarray, b: np.ndarray) -> float:
+    """a · b of two 3-vectors as (a₀b₀ + a₁b₁) + a₂b₂ in IEEE doubles, each product and sum rounded
+    (no fused multiply-add): the same bits on every CPU and as `dot_rows`' rows. numpy's `a @ b`
+    calls the BLAS ddot, whose kernel, and so whose last bit, depends on the CPU (OpenBLAS's
+    Haswell kernel sums as here; its SkylakeX kernel differs in about a quarter of random triples),
+    so the per-spacecraft code and its array twins would part on an AVX-512 machine."""
+    a0, a1, a2 = np.asarray(a, dtype=float).tolist()
+    b0, b1, b2 = np.asarray(b, dtype=float).tolist()
+    return a0 * b0 + a1 * b1 + a2 * b2
+
+
 def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a_i · b_i of (N, 3) rows, summed left to right as numpy's dot of two 3-vectors sums (the
-    same bits as `a[i] @ b[i]`, so sqrt of it is `math.sqrt(float(a[i] @ a[i]))`'s; einsum and
-    matmul order or fuse differently)."""
+    """a_i · b_i of (N, 3) rows, summed left to right: row i the bits of `dot3(a[i], b[i])` on
+    every CPU (einsum and matmul order or fuse differently)."""
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _newton_principal(ay: np.ndarray, d: np.ndarray, u: np.ndarray, iters: int) -> np.ndarray:
+    """The Newton iteration of `closest_point_principal` on φ(t) = S^-½ − 1 for n rows at once:
+    ay, d (3, n) by axis, u (n,) the starts; each row's last iterate, where the scalar loop stops
+    (S ≤ 1 or no increase). The rows still moving are kept contiguous (compacted only when one
+    stops), so an iteration is a few whole-array operations."""
+    out = u.copy()
+    rows = np.arange(len(u))
+    ay0, ay1, ay2 = ay
+    d0, d1, d2 = d
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for _ in range(iters):
+            if len(rows) == 0:
+                break
+            du0, du1, du2 = d0 + u, d1 + u, d2 + u
+            r0, r1, r2 = ay0 / du0, ay1 / du1, ay2 / du2
+            q0, q1, q2 = r0 * r0, r1 * r1, r2 * r2
+            s = q0 + q1 + q2
+            slope = q0 / du0 + q1 / du1 + q2 / du2
+            u_next = u + s * (np.sqrt(s) - 1.0) / slope
+            stops = (s <= 1.0) | (u_next <= u)  # (the scalar loop breaks on either)
+            if not stops.any():
+                u = u_next
+                continue
+            out[rows[stops]] = u[stops]
+            moves = ~stops
+            rows, u = rows[moves], u_next[moves]
+            ay0, ay1, ay2, d0, d1, d2 = ay0[moves], ay1[moves], ay2[moves], d0[moves], d1[moves], d2[moves]
+    out[rows] = u
+    return out
 
 
 def closest_points_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> np.ndarray:
@@ -188,20 +229,7 @@ def closest_points_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> 
     for k in range(3):  # u = max(u, ay_k − d_k), as Python's max keeps the first of equals
         v = ay[:, k] - d[:, k]
         u = np.where(v > u, v, u)
-    active = np.arange(len(g))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for _ in range(iters):
-            if len(active) == 0:
-                break
-            uu = u[active]
-            du0, du1, du2 = d[active, 0] + uu, d[active, 1] + uu, d[active, 2] + uu
-            r0, r1, r2 = ay[active, 0] / du0, ay[active, 1] / du1, ay[active, 2] / du2
-            s = r0 * r0 + r1 * r1 + r2 * r2
-            slope = r0 * r0 / du0 + r1 * r1 / du1 + r2 * r2 / du2
-            u_next = uu + s * (np.sqrt(s) - 1.0) / slope
-            moves = ~(s <= 1.0) & ~(u_next <= uu)  # (the scalar loop breaks on either)
-            u[active[moves]] = u_next[moves]
-            active = active[moves]
+    u = _newton_principal(ay.T.copy(), d.T.copy(), u, iters)
     x = np.stack([aa[:, k] * y[:, k] / (d[:, k] + u) for k in range(3)], axis=1)
     out[g] = np.where(pts[g] < 0.0, -x, x)
     return out

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from swarmhil.missions.p000_capture.contract import dot3
+
 
 def apf_potential(d_m: float, k_r: float, r_h_m: float) -> float:
     """U = ½ k_r (1/d − 1/R_h)² for d ≤ R_h, else 0 (eq. 11 with n = 1, NOTES-000)."""
@@ -66,7 +68,7 @@ def buffer_force(signed_distance_m: float, normal: np.ndarray, rel_velocity_mps:
     s = max(signed_distance_m, min_distance_m)
     n = np.asarray(normal, dtype=float)
     f = k_r_target * (1.0 / s - 1.0 / r_buffer_m) / s ** 2 * n
-    vn = float(np.asarray(rel_velocity_mps) @ n)
+    vn = dot3(rel_velocity_mps, n)
     if vn < 0.0:
         f = f - damping_nspm * vn * n
     return f

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from . import quaternion as quat
-from .limits import dot_rows, norm3, saturate_norm
+from .limits import dot3, dot_rows, norm3, saturate_norm
 
 BORESIGHT_BODY = np.array([1.0, 0.0, 0.0])  # sensor axis: body +x (§2.4)
 
@@ -35,7 +35,7 @@ def desired_attitudes(los_m: np.ndarray) -> np.ndarray:
     row i's: quaternion.shortest_arc from body +x written out over arrays (unit directions by the
     dot's sum and a correctly rounded sqrt, |q| by math.hypot per row, as `normalise`)."""
     los = np.asarray(los_m, dtype=float)
-    a = BORESIGHT_BODY[None, :] / math.sqrt(float(BORESIGHT_BODY @ BORESIGHT_BODY))
+    a = BORESIGHT_BODY[None, :] / math.sqrt(dot3(BORESIGHT_BODY, BORESIGHT_BODY))
     b = los / np.sqrt(dot_rows(los, los))[:, None]
     c = dot_rows(np.broadcast_to(a, b.shape), b)
     q = np.concatenate([(1.0 + c)[:, None], _cross_rows(a, b)], axis=1)
@@ -100,5 +100,5 @@ def pointing_error_rad(q: np.ndarray, position_m: np.ndarray, target_m: np.ndarr
     """Angle between body +x (in LVLH) and the line of sight to `target_m`."""
     bore = quat.rotate(q, BORESIGHT_BODY)
     los = np.asarray(target_m, dtype=float) - np.asarray(position_m, dtype=float)
-    c = float(bore @ los / np.linalg.norm(los))
+    c = dot3(bore, los) / norm3(los)
     return float(np.arccos(np.clip(c, -1.0, 1.0)))

@@ -6,9 +6,11 @@ is the closest surface point pushed out along the outward normal (paper 000 eq. 
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from swarmhil.missions.p000_capture.contract import Ellipsoid, closest_point_principal
+from swarmhil.missions.p000_capture.contract import Ellipsoid, closest_point_principal, dot3
 
 
 def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -16,7 +18,7 @@ def closest_point(ell: Ellipsoid, p_m: np.ndarray) -> tuple[np.ndarray, np.ndarr
     local = ell.rotation.T @ (np.asarray(p_m, dtype=float) - ell.centre_m)
     x = closest_point_principal(local, ell.semi_axes_m)
     n = x / ell.semi_axes_m ** 2
-    n = n / np.linalg.norm(n)
+    n = n / math.sqrt(dot3(n, n))
     return ell.centre_m + ell.rotation @ x, ell.rotation @ n
 
 

@@ -5,13 +5,13 @@ import math
 
 import numpy as np
 
-from swarmhil.missions.p000_capture.contract import dot_rows  # noqa: F401  (the flight software's row dot: attitude, trigger)
+from swarmhil.missions.p000_capture.contract import dot3, dot_rows  # noqa: F401  (the flight software's dots: attitude, trigger)
 
 
 def norm3(vec: np.ndarray) -> float:
-    """‖v‖ of one vector: √(v·v), the same bits as np.linalg.norm (which computes sqrt(v.dot(v)) for
-    a 1-D array) at a fifth of its cost."""
-    return math.sqrt(float(vec @ vec))
+    """‖v‖ of one 3-vector: √(v·v) with the dot of `dot3` (the same bits on every CPU, where
+    np.linalg.norm's BLAS dot is not) at a fraction of np.linalg.norm's cost."""
+    return math.sqrt(dot3(vec, vec))
 
 
 def saturate_norm(vec: np.ndarray, limit: float) -> np.ndarray:

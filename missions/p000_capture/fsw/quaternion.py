@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from swarmhil.missions.p000_capture.contract import dot3
+
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
 
@@ -21,7 +23,7 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product p ⊗ q."""
     p0, pv = p[0], p[1:]
     q0, qv = q[0], q[1:]
-    return np.concatenate(([p0 * q0 - pv @ qv], p0 * qv + q0 * pv + cross3(pv, qv)))
+    return np.concatenate(([p0 * q0 - dot3(pv, qv)], p0 * qv + q0 * pv + cross3(pv, qv)))
 
 
 def conjugate(q: np.ndarray) -> np.ndarray:
@@ -56,7 +58,7 @@ def rotate(q: np.ndarray, v_body: np.ndarray) -> np.ndarray:
 
 def from_axis_angle(axis: np.ndarray, angle_rad: float) -> np.ndarray:
     axis = np.asarray(axis, dtype=float)
-    axis = axis / math.sqrt(float(axis @ axis))
+    axis = axis / math.sqrt(dot3(axis, axis))
     return np.concatenate(([np.cos(angle_rad / 2)], np.sin(angle_rad / 2) * axis))
 
 
@@ -64,14 +66,14 @@ def shortest_arc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Quaternion of the smallest rotation taking unit direction a onto b (paper 000 after eq. 15)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    a = a / math.sqrt(float(a @ a))
-    b = b / math.sqrt(float(b @ b))
-    c = float(a @ b)
+    a = a / math.sqrt(dot3(a, a))
+    b = b / math.sqrt(dot3(b, b))
+    c = dot3(a, b)
     if c < -1.0 + 1e-12:  # opposite: any axis perpendicular to a
         perp = np.cross(a, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perp) < 1e-6:
+        if math.sqrt(dot3(perp, perp)) < 1e-6:
             perp = np.cross(a, [0.0, 1.0, 0.0])
-        return np.concatenate(([0.0], perp / np.linalg.norm(perp)))
+        return np.concatenate(([0.0], perp / math.sqrt(dot3(perp, perp))))
     return normalise(np.concatenate(([1.0 + c], cross3(a, b))))
 
 
@@ -88,7 +90,7 @@ def omega_matrix(omega: np.ndarray) -> np.ndarray:
 
 def propagate(q: np.ndarray, omega_body: np.ndarray, dt_s: float) -> np.ndarray:
     """Exact attitude update for a body rate held constant over dt: q ⊗ exp(½ ω dt)."""
-    w = math.sqrt(float(omega_body @ omega_body))
+    w = math.sqrt(dot3(omega_body, omega_body))
     if w * dt_s < 1e-12:
         return q
     return normalise(multiply(q, from_axis_angle(omega_body, w * dt_s)))

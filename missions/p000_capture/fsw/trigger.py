@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .limits import dot_rows, norm3
+from .limits import dot3, dot_rows, norm3
 
 
 @dataclass(frozen=True)
@@ -31,7 +31,7 @@ def threshold(t_s: float, d_max: float, s: TriggerSettings) -> float:
 def sample_error(r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.ndarray) -> float:
     """‖[P; V]‖ with P = r(t_k) − r(t), V = v(t_k) − v(t) (eq. 27–28)."""
     p, v_err = r_k - r, v_k - v
-    return math.sqrt(float(p @ p + v_err @ v_err))
+    return math.sqrt(dot3(p, p) + dot3(v_err, v_err))
 
 
 def fires(t_s: float, r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: np.ndarray,
@@ -44,7 +44,7 @@ def fires_rows(t_s: float, r_k: np.ndarray, v_k: np.ndarray, r: np.ndarray, v: n
                s: TriggerSettings) -> np.ndarray:
     """`fires(t, r_k, v_k, r, v, cw_disturbance_bound(r, v, n), s)` of N agents' rows at once, row i
     the same answer from the same bits: eq. 27-29 written out over arrays in the scalar code's
-    order (the norms' dots as numpy's, Python's n² and e^(−βt) once)."""
+    order (the norms' dots as `dot3`'s, Python's n² and e^(−βt) once)."""
     d_max = 3.0 * n_radps ** 2 * np.sqrt(dot_rows(r, r)) + 2.0 * n_radps * np.sqrt(dot_rows(v, v))
     p, v_err = r_k - r, v_k - v
     return np.sqrt(dot_rows(p, p) + dot_rows(v_err, v_err)) > s.c0 + s.c1 * math.exp(-s.beta_per_s * t_s) + s.c_d * d_max
