@@ -8,7 +8,9 @@ Three steps, each usable alone (`swarmhil image ...`, or from a test):
   (PIP_BREAK_SYSTEM_PACKAGES: the image is the environment). Any image with Python 3.11 and pip
   serves as well (`--base`; the Dockerfile's default is python:3.11.7-slim-bookworm).
 - `wheelhouse`: on a host that can reach an index, `pip wheel` of the project and all its
-  dependencies at the versions of constraints.txt into a folder (the project's own wheel included).
+  dependencies at the versions of constraints.txt into a folder (the project's own wheel included,
+  built from the checkout's sdist: a `build/` folder left in the checkout can hold modules since
+  moved or deleted, which a wheel built in the tree would carry).
 - `build`: `docker build -f deploy/Dockerfile` in a context staged from the checkout (only what the
   Dockerfile copies, and the wheelhouse), with `--build-arg WHEELHOUSE=wheelhouse` the install
   reads the wheelhouse alone (`pip install --no-index`) and `--network none` gives the build no
@@ -20,6 +22,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tarfile
 import tempfile
 from pathlib import Path
 
@@ -80,13 +83,30 @@ def import_base(docker: list[str], tar: Path, tag: str = BASE_TAG) -> str:
     return tag
 
 
+def sdist_tree(dest: Path) -> Path:
+    """This checkout's sdist (setuptools' PEP 517 `build_sdist`, as `python -m build` makes it first)
+    unpacked under `dest`: the source tree a wheel is built from, with only what the sdist lists."""
+    dest.mkdir(parents=True, exist_ok=True)
+    code = "import sys; from setuptools import build_meta as b; print(b.build_sdist(sys.argv[1]))"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    r = subprocess.run([sys.executable, "-c", code, str(dest)], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=300)
+    if r.returncode != 0:
+        raise RuntimeError(f"building the sdist of {ROOT} failed:\n{r.stdout[-2000:]}{r.stderr[-3000:]}")
+    with tarfile.open(dest / r.stdout.split()[-1]) as tf:
+        tf.extractall(dest / "src", filter="data")
+    return next((dest / "src").iterdir())
+
+
 def wheelhouse(out: Path, extras: str = "") -> Path:
-    """Every wheel the image installs (the project's and its dependencies' at constraints.txt) into `out`."""
+    """Every wheel the image installs (the project's, built from the sdist, and its dependencies' at
+    constraints.txt) into `out`."""
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("swarmhil-*.whl"):  # the project's own wheel is rebuilt from this checkout
         old.unlink()
-    _run([sys.executable, "-m", "pip", "wheel", "-q", "--wheel-dir", str(out), "--find-links", str(out),
-          f"{ROOT}{extras}", "-c", str(ROOT / "constraints.txt")])
+    with tempfile.TemporaryDirectory() as d:
+        _run([sys.executable, "-m", "pip", "wheel", "-q", "--wheel-dir", str(out), "--find-links", str(out),
+              f"{sdist_tree(Path(d))}{extras}", "-c", str(ROOT / "constraints.txt")])
     return out
 
 

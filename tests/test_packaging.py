@@ -9,30 +9,27 @@ import configparser
 import os
 import subprocess
 import sys
-import tarfile
 import zipfile
 from pathlib import Path
 
 from conftest import ROOT
 
+from swarmhil.deploy.image import sdist_tree
+
 GENERIC = {"agent", "bus", "link", "plant", "deploy", "dashboards", "missions", "claims"}
 
 
 def build_wheel(dist: Path) -> Path:
-    """The wheel built from the sdist (as `python -m build` does): a checkout's `build/` folder may
-    hold modules since moved or deleted, which a wheel built in the tree would carry."""
+    """The wheel built from the sdist (as `python -m build` and `swarmhil image wheelhouse` do): a
+    checkout's `build/` folder may hold modules since moved or deleted, which a wheel built in the
+    tree would carry."""
+    src = sdist_tree(dist)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)}
-
-    def backend(hook: str, cwd: Path) -> str:
-        code = "import sys; from setuptools import build_meta as b; print(getattr(b, sys.argv[1])(sys.argv[2]))"
-        r = subprocess.run([sys.executable, "-c", code, hook, str(dist)], cwd=cwd, env=env, capture_output=True,
-                           text=True, timeout=300)
-        assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
-        return r.stdout.split()[-1]
-
-    with tarfile.open(dist / backend("build_sdist", ROOT)) as tf:
-        tf.extractall(dist / "src", filter="data")
-    return dist / backend("build_wheel", next((dist / "src").iterdir()))
+    code = "import sys; from setuptools import build_meta as b; print(b.build_wheel(sys.argv[1]))"
+    r = subprocess.run([sys.executable, "-c", code, str(dist)], cwd=src, env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-3000:]
+    return dist / r.stdout.split()[-1]
 
 
 def test_the_wheel_installs_only_the_swarmhil_name(tmp_path: Path) -> None:
