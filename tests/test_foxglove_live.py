@@ -62,7 +62,11 @@ async def watch(url: str, deadline: float, proc: subprocess.Popen, need: int = 5
         assert ws.subprotocol in SUBPROTOCOLS
         while any(len(v) < need for v in got.values()):
             assert time.monotonic() < deadline, f"messages so far: { {t: len(v) for t, v in got.items()} }"
-            frame = await asyncio.wait_for(ws.recv(), timeout=max(1.0, deadline - time.monotonic()))
+            try:
+                frame = await asyncio.wait_for(ws.recv(), timeout=max(1.0, deadline - time.monotonic()))
+            except websockets.ConnectionClosed as e:  # the run ended (the server does not keep history)
+                raise AssertionError(f"the server closed ({e}) with messages so far "
+                                     f"{ {t: len(v) for t, v in got.items()} }, subscribed {sorted(t for t, _ in subs.values())}")
             if isinstance(frame, str):
                 msg = json.loads(frame)
                 if msg["op"] == "advertise":
@@ -92,14 +96,17 @@ def test_live_run_serves_scene_transforms_and_truth(tmp_path: Path) -> None:
 
     port = free_loopback_port()
     cmd = [sys.executable, "-m", "swarmhil.deploy.cli", "run", str(ROOT / "deploy" / "scenarios" / "demo.toml"), "--viz", "foxglove",
-           "--viz-port", str(port), "--mode", "realtime", "--speed", "40", "--duration", "400", "--out", str(tmp_path / "run"),
+           "--viz-port", str(port), "--mode", "realtime", "--speed", "40", "--duration", "800", "--out", str(tmp_path / "run"),
            "--no-progress"]
     log_path = tmp_path / "cli.log"   # a file, not a pipe nobody reads while the client watches
     with open(log_path, "wb") as log:
         proc = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 preexec_fn=sigint_default)
         try:
-            got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 240, proc))
+            try:
+                got = asyncio.run(watch(f"ws://127.0.0.1:{port}", time.monotonic() + 240, proc))
+            except AssertionError as e:  # with what the run said (start-up, misses, the viewer's counts)
+                raise AssertionError(f"{e}\n--- the run's output:\n{log_path.read_text(errors='replace')[-4000:]}") from None
             proc.wait(240)
         finally:
             if proc.poll() is None:
