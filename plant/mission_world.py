@@ -103,6 +103,7 @@ class MissionWorld:
         self.actuation_faults: Callable[[np.ndarray, int], np.ndarray] | None = None
         # issue 27: {body id: body_manoeuvre / body_spin faults} (plant/faults.py body_faults)
         self.body_faults: dict[str, list[BodyFault]] = {}
+        self._kinematic_at: tuple[tuple[float, int], list[BodyTruth]] | None = None  # ((t_s, faults), their truth)
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
         # the spacecraft of each limit mode, limited in one call (row by row the same arithmetic)
@@ -237,18 +238,27 @@ class MissionWorld:
         n = len(self.ids)
         for k, b in enumerate(self.prop_bodies):
             out.append(BodyTruth(b, p[n + k], v[n + k], np.array([1.0, 0, 0, 0]), np.zeros(3)))
-        for b in self.kin_bodies:
-            m = b.motion
-            if b.id in self.body_faults:
-                out.append(BodyTruth(b, *kinematic_pose(m, self.body_faults[b.id], self.t_s)))
-                continue
+        key = (self.t_s, id(self.body_faults))
+        if self._kinematic_at is None or self._kinematic_at[0] != key:
+            self._kinematic_at = (key, [self._kinematic_truth(b) for b in self.kin_bodies])
+        return out + self._kinematic_at[1]
+
+    def _kinematic_truth(self, b: BodySpec) -> BodyTruth:
+        """A kinematic body's pose at t_s (a function of time alone, so computed once per step for
+        every caller: the truth, contacts and sensing kinds; its arrays are read-only)."""
+        m = b.motion
+        if b.id in self.body_faults:
+            bt = BodyTruth(b, *kinematic_pose(m, self.body_faults[b.id], self.t_s))
+        else:
             pos = np.asarray(m.position_m) + np.asarray(m.velocity_mps) * self.t_s
             axis = np.asarray(m.spin_axis)
             q_spin = quat_from_axis_angle(axis, m.spin_rate_radps * self.t_s)  # scalar-last
             q = xyzw_to_wxyz(quat_multiply(q_spin, wxyz_to_xyzw(m.attitude_q)))
             w_body = _rotate_to_body(q, axis * m.spin_rate_radps)
-            out.append(BodyTruth(b, pos, np.asarray(m.velocity_mps, float), q, w_body))
-        return out
+            bt = BodyTruth(b, pos, np.array(m.velocity_mps, float), q, w_body)
+        for a in (bt.position_m, bt.velocity_mps, bt.attitude_q, bt.angular_velocity_radps):
+            a.setflags(write=False)
+        return bt
 
     # --- actuators and propagation ----------------------------------------------------------------
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
