@@ -1,5 +1,6 @@
 """Papers 001, 003 and 004 in-process: the per-agent path against the batch path, side by side in one
-invocation, as ratios per-agent / batch of CPU time (issue 29). Not a test: figures go to
+invocation, as ratios per-agent / batch of CPU time (issue 29); with `--floors`, papers 000, 001, 003
+and 004: the batch run against the mission's vectorised floor. Not a test: figures go to
 docs/performance.md.
 
 Both paths run `deploy.launcher.run_in_process(record="truth")` on the same scenario and duration:
@@ -48,6 +49,8 @@ sys.path.insert(0, str(ROOT / "bench"))
 
 # scenario -> simulated seconds of the default measurement (600 steps each)
 MISSIONS = {"servicing-6": 60.0, "surround-6": 60.0, "tersoff-6": 3000.0}
+# --floors: these and paper 000's two cases (1200 steps each: capture-10 searches for its first 22 s)
+FLOOR_MISSIONS = {**MISSIONS, "capture-10": 60.0, "capture-20": 60.0}
 
 
 def _run(sc, out: Path, batch: bool) -> tuple[float, float, dict]:
@@ -150,7 +153,7 @@ def measure_floors(missions: list[str], repeats: int, duration_scale: float = 1.
     with tempfile.TemporaryDirectory(prefix="bench-floors-") as tmp:
         for name in missions:
             sc = load_scenario(ROOT / "deploy" / "scenarios" / f"{name}.toml")
-            sc = sc.with_overrides(duration_s=MISSIONS[name] * duration_scale)
+            sc = sc.with_overrides(duration_s=FLOOR_MISSIONS[name] * duration_scale)
             r = out["missions"][name] = floor_pairs(name, sc, repeats, Path(tmp))
             print(f"  {name} ({r['steps']} steps): floor loop {r['floor_loop_median_s']:.3f} s, batch loop "
                   f"{r['batch_loop_median_s']:.3f} s (whole run {r['batch_run_median_s']:.3f} s): batch ÷ floor "
@@ -163,15 +166,17 @@ def measure_floors(missions: list[str], repeats: int, duration_scale: float = 1.
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--missions", nargs="*", default=list(MISSIONS))
+    ap.add_argument("--missions", nargs="*", default=None,
+                    help="scenarios (names, or one comma-separated list); default: every mission of the mode")
     ap.add_argument("--duration-scale", type=float, default=1.0, help="times each mission's default duration")
     ap.add_argument("--before", default=None, help="also run each mission on this commit's tree (record truth)")
     ap.add_argument("--floors", action="store_true", help="batch run against the vectorised floor (bench/mission_floors.py)")
     ap.add_argument("--repeats", type=int, default=5, help="--floors: alternations of floor and batch run")
     a = ap.parse_args()
+    missions = [m for arg in a.missions for m in arg.split(",") if m] if a.missions is not None else None
     if a.floors:
-        print(f"batch run ÷ vectorised floor, papers 001, 003, 004 (load average {os.getloadavg()[0]:.2f})", flush=True)
-        res = measure_floors(a.missions, a.repeats, a.duration_scale)
+        print(f"batch run ÷ vectorised floor, papers 000, 001, 003, 004 (load average {os.getloadavg()[0]:.2f})", flush=True)
+        res = measure_floors(missions or list(FLOOR_MISSIONS), a.repeats, a.duration_scale)
         print(json.dumps({k: v for k, v in res.items()}))
         return
     from swarmhil.deploy.scenario import load_scenario
@@ -184,7 +189,7 @@ def main() -> None:
             tree.mkdir()
             archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.before], capture_output=True, check=True).stdout
             subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
-        for name in a.missions:
+        for name in missions or list(MISSIONS):
             sc = load_scenario(ROOT / "deploy" / "scenarios" / f"{name}.toml")
             warm = sc.with_overrides(duration_s=sc.step_s)
             _run(warm, Path(tmp) / f"{name}-warm-a", False)

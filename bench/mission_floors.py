@@ -1,28 +1,37 @@
-"""The compute floors of papers 001, 003 and 004: each mission in one plain numpy loop (issue 29).
+"""The compute floors of papers 000, 001, 003 and 004: each mission in one plain numpy loop (issue 29).
 
     python bench/mission_floors.py deploy/scenarios/servicing-6.toml [--duration 60] [--repeats 3]
 
-What bench/vectorised_floor.py is for paper 002, for the three mission worlds (`[plant] fidelity =
+What bench/vectorised_floor.py is for paper 002, for the four mission worlds (`[plant] fidelity =
 "cw"` or `"inertial"`): the same scenario (initial states, step, duration, per-craft actuator
 limits, controller parameters), the same control law and the same dynamics, written as one loop
 over arrays of all spacecraft, without nodes, bus, messages, recorder, link model, contact events
 or validation. What it shares with the project is the mathematics only: the plant's propagators'
-pure functions (the closed-form HCW matrices of plant/dynamics/cw.py; the DOP853 tableau and step
-of plant/dynamics/rk_tableau.py, with the right-hand side written here: two-body, J2 and drag as in
-plant/dynamics/absolute_j2.py), and the flight software's pure functions over arrays (the
+pure functions (the closed-form HCW matrices of plant/dynamics/cw.py; the attitude's RK4 step of
+plant/dynamics/attitude.py; the DOP853 tableau and step of plant/dynamics/rk_tableau.py, with the
+right-hand side written here: two-body, J2 and drag as in plant/dynamics/absolute_j2.py), and the
+flight software's pure functions (paper 000's landmark visibility and returns, GNC-TLS and warm
+ellipsoid fits, closest surface points, APF, event trigger and pointing law over arrays; the
 Tersoff-Brenner forces of paper 001; the funnel law, Nash CT gradient kernel and relative dynamics
 of paper 003; the Lb-DNN forward pass and internal-state RK4 of paper 004). The initial conditions
 and the per-craft constants are read, before the loop, from the plant's world and the controllers
 as the scenario builds them. Everything a step does between those functions (sensing, the link's
-one-step delay and float32 payloads, the layer latch, the saturations, the actuator limit, the
-frames, the dV) is written here over arrays.
+one-step delay and quantised payloads, paper 000's landmark pools, consensus and modes, the layer
+latch, the saturations, the actuator limit, the frames, the dV) is written here over arrays; what
+is inherently one per spacecraft (paper 000's fits, its spacecraft's random generators) stays so.
 
 `floor(sc)` dispatches on the scenario's controller; each floor returns the loop's wall time, the
 total dV and the final positions in the scenario frame, which must agree with the batch run's truth
 (tests/test_mission_floors.py; bench/bench_batch_missions.py --floors reports the difference).
-Assumed of the scenario, and checked: no sensing noise for papers 001 and 003 (paper 004's noise is
-drawn as its sensing kind draws it), and, where there is a link, every packet delivered at the next
-step (no loss, latency or range drop: the scenarios' own links).
+Assumed of the scenario, and checked: no sensing noise for papers 001 and 003 (papers 000 and 004
+draw theirs as their sensing kinds draw it, from a generator per seed, step and spacecraft), and,
+where there is a link, every packet delivered at the next step: no loss, latency or bitrate (so no
+queue), no link faults, no Earth occultation (papers 001, 003, 004: no range drop either, the
+scenarios' own links). Paper 000's link (capture-10, capture-20: R_c = 9.5 m, latency 0) drops
+by range: a packet sent at step k reaches, at step k + 1, every other spacecraft within `range_m`
+of its sender at step k (the positions of the truth of step k, as `BatchLink` feeds the link
+model), in the order of the senders, each sender's landmarks before its state; the floor checks
+that the spacecraft stay far enough from the Earth for no line between them to be occulted.
 """
 from __future__ import annotations
 
@@ -381,7 +390,362 @@ def floor_servicing(sc: Any, steps: int | None = None) -> dict:
     return _result(wall0, steps, n, dv, _lvlh_rows(y[o, :3], y[o, 3:], y[off:off + n, :3]))
 
 
-FLOORS: dict[str, Callable[..., dict]] = {"p001-lattice": floor_lattice, "p003-servicer": floor_surround,
+# ---------------------------------------------------------------------------------------- paper 000
+
+
+def _quantised_landmarks(t_s: float, share_m: np.ndarray) -> tuple[float, np.ndarray]:
+    """A `landmarks` packet as its receivers read it (fsw/payload.py): t as float32, the points rounded
+    to millimetres, those beyond the int16 range left out, at most 255."""
+    mm = np.round(np.asarray(share_m, dtype=float).reshape(-1, 3) * 1000.0)
+    mm = mm[np.all(np.abs(mm) <= 32767, axis=1)][:255].astype("<i2")
+    return float(np.float32(t_s)), mm.astype(float) / 1000.0
+
+
+def _quantised_shapes(m: np.ndarray) -> np.ndarray:
+    """The shape matrices (N, 3, 3) of `state` packets as their receivers read them: the upper
+    triangle in float32, mirrored (fsw/payload.py `decode_state`: m + triu(m, 1)ᵀ)."""
+    up = np.triu(m).astype(np.float32).astype(float)
+    return up + np.swapaxes(np.triu(up, 1), -1, -2)
+
+
+class _CaptureFits:
+    """Each spacecraft's landmark pool and GNC-TLS / warm fit (paper 000 §3.2.2; the flight
+    software's `_fit`, missions/p000_capture/fsw/controller.py), per spacecraft: the fits are
+    inherently one per agent. Holds the own estimates (arrays) and the settle history."""
+
+    def __init__(self, n: int, p: Any, gnc: Any, rngs: list[np.random.Generator]) -> None:
+        self.p, self.gnc, self.rngs = p, gnc, rngs
+        self.pool: list[list[tuple[float, np.ndarray]]] = [[] for _ in range(n)]
+        self.has_own = np.zeros(n, dtype=bool)
+        self.own_t = np.zeros(n)
+        self.own_c, self.own_v, self.own_m = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
+        self.history: list[list[np.ndarray]] = [[] for _ in range(n)]
+        self.settled = np.zeros(n, dtype=bool)
+        self.fits = 0
+
+    def fit(self, i: int, t: float, r: np.ndarray, est: tuple[float, np.ndarray, np.ndarray] | None) -> None:
+        """Spacecraft i's fit at t from its pool (`est`: its estimate before this step's consensus)."""
+        from swarmhil.missions.p000_capture.contract import Ellipsoid, signed_distance
+        from swarmhil.missions.p000_capture.fsw.estimate import TargetEstimate, alpha_beta
+        from swarmhil.missions.p000_capture.fsw.gnc_tls import gnc_tls_fit, warm_fit
+        from swarmhil.missions.p000_capture.fsw.limits import norm3
+
+        p, gnc = self.p, self.gnc
+        pool = self.pool[i] = [(tp, pts) for tp, pts in self.pool[i] if t - tp <= p.perception_period_s]
+        vel = est[2] if est is not None else np.zeros(3)
+        pts = np.concatenate([q + vel * (t - tp) for tp, q in pool]) if pool else np.zeros((0, 3))
+        if len(pts) < p.fit_min_points:
+            return
+        if len(pts) > p.fit_max_points:
+            pts = pts[self.rngs[i].permutation(len(pts))[: p.fit_max_points]]
+        fit = None
+        if self.has_own[i]:  # warm fit from the own estimate while it explains most points
+            try:
+                prev = Ellipsoid.from_shape_matrix(self.own_c[i] + self.own_v[i] * (t - self.own_t[i]), self.own_m[i])
+                fit = warm_fit(pts, prev, gnc)
+                if fit.inliers.mean() < p.track_min_inlier_fraction:
+                    fit = None
+            except ValueError:
+                fit = None
+        try:
+            fit = fit or gnc_tls_fit(pts, gnc)
+        except ValueError:
+            return
+        ell = fit.ellipsoid
+        self.fits += 1
+        if not (np.all(ell.semi_axes_m > 0.2) and np.all(ell.semi_axes_m < 10.0)
+                and fit.inliers.sum() >= p.fit_min_points // 2 and signed_distance(ell, r) > 0.0):
+            return
+        if est is not None and self.has_own[i]:  # innovation gate on the centre
+            if norm3(ell.centre_m - (est[1] + est[2] * (t - est[0]))) > 1.0:
+                return
+        prev_own = TargetEstimate(self.own_t[i], self.own_c[i], self.own_v[i], self.own_m[i], True) if self.has_own[i] else None
+        c, v = alpha_beta(prev_own, t, ell.centre_m)
+        self.has_own[i], self.own_t[i], self.own_c[i], self.own_v[i], self.own_m[i] = True, t, c, v, ell.shape_matrix
+        h = self.history[i] = (self.history[i] + [np.sort(ell.semi_axes_m)])[-p.dock_settle_fits:]
+        if len(h) >= p.dock_settle_fits:
+            a = np.array(h)
+            self.settled[i] = bool(np.all((a.max(axis=0) - a.min(axis=0)) <= p.dock_axes_tol * a.mean(axis=0)))
+        else:
+            self.settled[i] = False
+
+
+def floor_capture(sc: Any, steps: int | None = None) -> dict:
+    """Paper 000 (capture-10, capture-20): the `p000-landmarks` sensing (visibility of the target's
+    landmarks, the noise drawn as the kind draws it, per (seed, step, spacecraft), only where a fit
+    uses it), each spacecraft's landmark pool and GNC-TLS / warm fit (per spacecraft), the packets of
+    the broadcast ISL (landmarks in millimetres, estimates in float32, read one step later by every
+    spacecraft within the link's range at the sending step), the consensus of eq. 30, the modes,
+    the search forces (bounce, random walk, the sensed surface's buffer), the APF, the chase PD
+    toward the buffer slot under the event trigger (eq. 26-29), the pointing and search torques,
+    the saturations, and the plant: the exact HCW step, the actuator and torque limits, and the
+    attitude's RK4 (missions/p000_capture/, plant/dynamics/cw.py and attitude.py)."""
+    from swarmhil.deploy.scenario import plant_config
+    from swarmhil.link.model import parse_link_config
+    from swarmhil.link.node import enabled as channel_enabled
+    from swarmhil.missions.p000_capture import contract as cc
+    from swarmhil.missions.p000_capture.contract import Ellipsoid, dot_rows, surface_frames
+    from swarmhil.missions.p000_capture.fsw import quaternion as quat
+    from swarmhil.missions.p000_capture.fsw.apf import apf_forces
+    from swarmhil.missions.p000_capture.fsw.attitude import _cross_rows, desired_attitudes, pointing_torques
+    from swarmhil.missions.p000_capture.fsw.modes import random_force
+    from swarmhil.missions.p000_capture.fsw.trigger import fires_rows
+    from swarmhil.missions.p000_capture.sense import (NOISE_TAG, P000Params, inertial_to_cw, landmark_returns,
+                                                      visible_landmarks)
+    from swarmhil.plant.dynamics.attitude import quat_from_axis_angle, quat_multiply, rk4_attitude_step
+    from swarmhil.plant.dynamics.cw import transition_matrix, zoh_input_matrix
+    from swarmhil.plant.dynamics.limits import limit_norm
+
+    w, ctrls = _world(sc), _controllers(sc)
+    p, c0 = ctrls[0].p, ctrls[0]
+    if any(c.p != p or c.trigger != c0.trigger or c.gnc != c0.gnc for c in ctrls) or p.broadcast != "event":
+        raise ValueError("the paper-000 floor flies spacecraft that share one CaptureParams, broadcasting on the event trigger")
+    if sc.decision_period_steps != 1 or getattr(sc, "faults", None):
+        raise ValueError("the paper-000 floor decides every step, without faults")
+    if not channel_enabled(sc, {}):
+        raise ValueError("the paper-000 floor flies with its [link]")
+    link = parse_link_config(sc.sections["link"], sc.source, sc.seed)
+    if link.latency_s or link.loss_probability or link.bitrate_bps:
+        raise ValueError("the paper-000 floor's link delivers every packet at the next step (no latency, loss or bitrate)")
+    if w.attitude is None or len(w.att_index) != len(sc.ids) or any(m != "norm" for m in w.limit_mode) or w.prop_bodies:
+        raise ValueError("the paper-000 floor flies attitude for every spacecraft, limited by norm, and no propagated body")
+    sp = P000Params.model_validate(sc.sensing.get("params", {}))
+    pc = plant_config(sc)
+    body = next(b for b in pc.bodies if b.id == sp.target_id)
+    m = body.motion
+    if w.body_faults or m.kind != "kinematic":
+        raise ValueError("the paper-000 floor's target drifts and spins freely")
+    semi_axes = np.asarray(body.shape.semi_axes_m, float)
+    lm_body, nrm_body = cc.surface_landmarks(semi_axes, sp.landmarks)
+    t_p0, t_v0 = np.asarray(m.position_m, float), np.asarray(m.velocity_mps, float)
+    spin_axis, spin_rate, t_q0 = np.asarray(m.spin_axis), m.spin_rate_radps, np.concatenate([m.attitude_q[1:], m.attitude_q[:1]])
+    origin = t_p0
+    prox_margin = 1e-6 + float(semi_axes.max())
+    seed = int(sc.seed)
+    steps = sc.steps if steps is None else steps
+    dt, n = sc.step_s, len(sc.ids)
+    n_world, n_ctrl = float(w.n_radps), c0.n
+    # the Earth's centre is at (-a, 0, 0) of the frame: no line between spacecraft within this box is occulted
+    clear_box_m = (w.a_m - link.earth_radius_m - link.grazing_altitude_m) / 3.0 ** 0.5 if link.occultation else np.inf
+    phi_t, gam_t = transition_matrix(w.n_radps, dt).T, zoh_input_matrix(w.n_radps, dt).T
+    state = np.hstack(w.propagator.state())
+    att = w.attitude
+    qa, wa = att.state()
+    inertia, inertia_inv, tmax = att.inertia_kgm2, att._inertia_inv, att.max_torque_nm
+    umax = w.max_accel_mps2
+    e_max = p.approach_speed_mps * p.k_v / p.k_p if p.chase_law == "governed" else None
+    scan = np.array([0.0, 0.0, np.radians(p.scan_rate_dps)]) if p.search_attitude == "scan" else np.zeros(3)
+    fitter = _CaptureFits(n, p, c0.gnc, [c.rng for c in ctrls])
+    rngs = fitter.rngs
+    mode = np.zeros(n, dtype=np.int64)  # 0 search, 1 chase, 2 dock
+    last_fit_t = np.full(n, -np.inf)
+    has_est = np.zeros(n, dtype=bool)
+    est_t, est_c, est_v, est_m = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
+    # the principal axes of each estimate's shape matrix, recomputed where the matrix's bits change
+    key_m = np.full((n, 3, 3), np.nan)
+    ell_ok, ell_rot, ell_axes = np.zeros(n, dtype=bool), np.zeros((n, 3, 3)), np.ones((n, 3))
+    # the neighbours' estimates as received (receiver, source), and the order each receiver first heard them
+    nb_has, nb_rank = np.zeros((n, n), dtype=bool), np.zeros((n, n), dtype=np.int64)
+    nb_t, nb_c, nb_v, nb_m = np.zeros((n, n)), np.zeros((n, n, 3)), np.zeros((n, n, 3)), np.zeros((n, n, 3, 3))
+    rnd_force, rnd_t = np.zeros((n, 3)), np.full(n, -np.inf)
+    has_rk, r_k, v_k = np.zeros(n, dtype=bool), np.zeros((n, 3)), np.zeros((n, 3))
+    held = np.zeros((n, 3))
+    # the last step's packets: who sent a state / landmarks, what, and who was within range
+    reach = np.zeros((n, n), dtype=bool)
+    sent_state = np.zeros(n, dtype=bool)
+    sent = (np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3)))
+    sent_lm: list[tuple[float, np.ndarray] | None] = [None] * n
+    eye = np.eye(n, dtype=bool)
+    rows = np.arange(n)
+    big = np.iinfo(np.int64).max
+    f_thr, m_kg = p.f_thr_n, p.mass_kg
+    own_weight = 0.8  # the own direct fit's weight in the consensus (CaptureController._perceive)
+    dv = np.zeros(n)
+    wall0 = time.perf_counter()
+    for k in range(steps):
+        t = k * dt
+        pos, vel = state[:, :3], state[:, 3:]
+        # --- the sensing kind's truth: the target's pose and landmarks, the craft's CW attitudes, neighbours
+        q_t = quat_multiply(quat_from_axis_angle(spin_axis, spin_rate * t), t_q0)
+        rot_t = cc.dcm(np.concatenate([q_t[3:], q_t[:3]]))
+        p_t = t_p0 + t_v0 * t
+        lm_t, nrm_t = p_t + lm_body @ rot_t.T, nrm_body @ rot_t.T
+        q_cw = inertial_to_cw(np.concatenate([qa[:, 3:], qa[:, :3]], axis=1), n_world, t)
+        rot_cw = cc.dcm(q_cw)
+        diff = pos[None, :, :] - pos[:, None, :]
+        near = (np.linalg.norm(diff, axis=2) <= sp.neighbour_range_m) & ~eye
+        true_ell = cc.Ellipsoid(p_t, rot_t, semi_axes)
+        rel_lm = lm_t[None, :, :] - pos[:, None, :]
+        vis = visible_landmarks(rel_lm, nrm_t, rot_cw[:, :, 0], sp)
+        detected = vis.sum(axis=1) >= p.detect_min_returns
+        r, v = pos - origin, vel
+        # --- packets of the last step, in the order of their senders
+        got = reach & sent_state[:, None]  # (source, receiver)
+        received = got.any(axis=0)
+        if received.any():
+            new = got.T  # (receiver, source)
+            nb_rank = np.where(new & ~nb_has, k * n + rows[None, :], nb_rank)
+            nb_has |= new
+            nb_t = np.where(new, sent[0][None, :], nb_t)
+            nb_c = np.where(new[:, :, None], sent[1][None], nb_c)
+            nb_v = np.where(new[:, :, None], sent[2][None], nb_v)
+            nb_m = np.where(new[:, :, None, None], sent[3][None], nb_m)
+        for j in [j for j in range(n) if sent_lm[j] is not None]:
+            for i in np.flatnonzero(reach[j]).tolist():
+                fitter.pool[i].append(sent_lm[j])  # type: ignore[arg-type]
+        sent_lm = [None] * n
+        # --- perception at 1 Hz: the own returns (noise drawn here only), pooled, shared and fitted
+        for i in np.flatnonzero(detected & (t - last_fit_t >= p.perception_period_s - 1e-9)).tolist():
+            ret, _ = landmark_returns(np.random.default_rng([seed, NOISE_TAG, k, i]), rel_lm[i], nrm_t, rot_cw[i][:, 0],
+                                      sp, vis[i])
+            lm = r[i] + (ret @ rot_cw[i]).reshape(-1, 3) @ quat.to_dcm(q_cw[i]).T
+            fitter.pool[i].append((t, lm))
+            sent_lm[i] = _quantised_landmarks(t, lm[rngs[i].permutation(len(lm))[: p.landmarks_per_packet]])
+            fitter.fit(i, t, r[i], (est_t[i], est_c[i], est_v[i]) if has_est[i] else None)
+            last_fit_t[i] = t
+        # --- consensus (eq. 30): the own fresh fit first (0.8 when others), then the fresh neighbours as first heard
+        own_ok = fitter.has_own & (t - fitter.own_t <= p.estimate_max_age_s)
+        fresh = nb_has & (t - nb_t <= p.estimate_max_age_s)
+        count = fresh.sum(axis=1)
+        total = count + own_ok
+        if total.any():
+            order = np.argsort(np.hstack([np.where(own_ok, -1, big)[:, None], np.where(fresh, nb_rank, big)]), axis=1,
+                               kind="stable")
+            ts = np.take_along_axis(np.hstack([fitter.own_t[:, None], nb_t]), order, axis=1)
+            cs = np.take_along_axis(np.concatenate([fitter.own_c[:, None], nb_c], axis=1), order[:, :, None], axis=1)
+            vs = np.take_along_axis(np.concatenate([fitter.own_v[:, None], nb_v], axis=1), order[:, :, None], axis=1)
+            ms = np.take_along_axis(np.concatenate([fitter.own_m[:, None], nb_m], axis=1), order[:, :, None, None], axis=1)
+            with np.errstate(divide="ignore"):
+                w_nb = np.where(own_ok & (count > 0), (1.0 - own_weight) / count, 1.0 / total)
+            w_first = np.where(own_ok & (count > 0), own_weight, w_nb)
+            c_sum, v_sum, m_sum = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
+            for s in range(int(total.max())):
+                on = s < total
+                ws = np.where(on, w_first if s == 0 else w_nb, 0.0)
+                c_sum = c_sum + np.where(on[:, None], ws[:, None] * (cs[:, s] + vs[:, s] * (t - ts[:, s])[:, None]), 0.0)
+                v_sum = v_sum + np.where(on[:, None], ws[:, None] * vs[:, s], 0.0)
+                m_sum = m_sum + np.where(on[:, None, None], ws[:, None, None] * ms[:, s], 0.0)
+            upd = total > 0
+            had_est = has_est.copy()
+            est_t = np.where(upd, t, est_t)
+            est_c, est_v = np.where(upd[:, None], c_sum, est_c), np.where(upd[:, None], v_sum, est_v)
+            est_m = np.where(upd[:, None, None], m_sum, est_m)
+            has_est |= upd
+        else:
+            had_est = has_est.copy()
+        changed = has_est & (est_m.view(np.int64) != key_m.view(np.int64)).reshape(n, 9).any(axis=1)
+        if changed.any():
+            ch = np.flatnonzero(changed)
+            sym = 0.5 * (est_m[ch] + np.swapaxes(est_m[ch], 1, 2))
+            for kk, i in enumerate(ch.tolist()):
+                eig, vec = np.linalg.eigh(sym[kk])
+                ell_ok[i] = eig[0] > 0.0
+                if ell_ok[i]:
+                    ell_rot[i], ell_axes[i] = vec, eig ** -0.5
+            key_m[ch] = est_m[ch]
+        flies = has_est & ell_ok
+        ell_c = est_c + est_v * (t - est_t)[:, None]
+        sd, x_s, nrm = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
+        fl = np.flatnonzero(flies)
+        if len(fl):
+            sd[fl], x_s[fl], nrm[fl] = surface_frames([Ellipsoid(ell_c[i], ell_rot[i], ell_axes[i]) for i in fl.tolist()], r[fl])
+        # --- modes (Events 1-3)
+        slot = x_s + p.r_buffer_m * nrm
+        gap = r - slot
+        at_slot = flies & (np.sqrt(dot_rows(gap, gap)) < p.dock_slot_tol_m)
+        old = mode
+        mode = np.where((old == 0) & (detected | received), 1, np.where((old == 1) & fitter.settled & at_slot, 2, old))
+        mode = np.where((mode != 0) & ~flies & (old == 0), 0, mode)
+        entered = (old == 0) & (mode != 0)
+        # --- forces: APF, then search (bounce, random walk, the sensed surface's buffer) or chase (held PD + buffer)
+        offsets = np.zeros(n + 1, dtype=np.int64)
+        np.add.accumulate(near.sum(axis=1), out=offsets[1:])
+        ii, jj = np.nonzero(near)
+        f_col = apf_forces(pos[jj] - pos[ii], offsets, p.k_r, p.r_h_m)
+        force = np.zeros((n, 3))
+        searching = (mode == 0) | ~flies
+        if searching.any():
+            for i in np.flatnonzero(searching & (t - rnd_t >= p.random_redraw_s)).tolist():
+                rnd_force[i], rnd_t[i] = random_force(rngs[i], p.random_alpha, f_thr), t
+            srch = np.flatnonzero(searching)
+            rs = r[srch]
+            fs = np.where(rs > p.search_box_m, -f_thr, np.where(rs < -p.search_box_m, f_thr, 0.0)) + rnd_force[srch] + f_col[srch]
+            # the proximity return of the true surface, within R_h of it (only rows whose centre distance
+            # allows it: the surface is at most the largest semi-axis from the centre)
+            off_c = pos[srch] - p_t
+            cand = np.flatnonzero(np.sqrt(dot_rows(off_c, off_c)) <= sp.proximity_range_m + prox_margin)
+            if len(cand):
+                t_sd, t_xs, _ = surface_frames([true_ell] * len(cand), pos[srch[cand]])
+                prox = cand[t_sd <= sp.proximity_range_m]
+                surf = t_xs[t_sd <= sp.proximity_range_m] - pos[srch[prox]]
+                d = np.sqrt(dot_rows(surf, surf))
+                fs[prox] = fs[prox] + _buffer_rows(d, -surf / np.maximum(d, 1e-9)[:, None], v[srch[prox]], p)
+            force[srch] = fs
+        chasing = ~searching
+        if chasing.any():
+            ch = np.flatnonzero(chasing)
+            fired = np.zeros(n, dtype=bool)
+            rk_rows = np.flatnonzero(has_rk)
+            if len(rk_rows):
+                fired[rk_rows] = fires_rows(t, r_k[rk_rows], v_k[rk_rows], r[rk_rows], v[rk_rows], n_ctrl, c0.trigger)
+            due = ch[(entered | ~had_est | ~has_rk | fired)[ch]]
+            if len(due):
+                e = r[due] - slot[due]
+                if e_max is not None:
+                    en = np.sqrt(dot_rows(e, e))
+                    over = en > e_max
+                    e[over] = e[over] * (e_max / en[over])[:, None]
+                held[due] = -p.k_p * e - p.k_v * (v[due] - est_v[due])
+                has_rk[due], r_k[due], v_k[due] = True, r[due], v[due]
+                sent_state[:] = False
+                sent_state[due] = True
+                sent = (np.float32(est_t).astype(float), est_c.astype(np.float32).astype(float),
+                        est_v.astype(np.float32).astype(float), _quantised_shapes(est_m))
+            else:
+                sent_state[:] = False
+            force[ch] = held[ch] + f_col[ch] + _buffer_rows(sd[ch], nrm[ch], v[ch] - est_v[ch], p)
+        else:
+            sent_state[:] = False
+        fn = np.sqrt(dot_rows(force, force))
+        over = fn > p.force_max_n
+        force[over] = force[over] * (p.force_max_n / fn[over])[:, None]
+        acc = force / m_kg
+        # --- torques: pointing at the estimated centre (eq. 15-18) or the search's rate control
+        torque = _cross_rows(wa, p.inertia_kgm2 * wa) - p.k_w * (wa - scan)
+        tn = np.sqrt(dot_rows(torque, torque))
+        over = tn > p.torque_max_nm
+        torque[over] = torque[over] * (p.torque_max_nm / tn[over])[:, None]
+        if chasing.any():
+            ch = np.flatnonzero(chasing)
+            torque[ch] = pointing_torques(q_cw[ch], wa[ch], desired_attitudes(ell_c[ch] - r[ch]), p.inertia_kgm2, p.k_q,
+                                          p.k_w, p.torque_max_nm)
+        # --- the link: this step's packets reach, at the next, every craft within range now
+        if not np.abs(pos).max() < clear_box_m:
+            raise ValueError("the paper-000 floor's spacecraft stay where no Earth occultation cuts the link")
+        reach = (np.sqrt(np.add.reduce(diff * diff, axis=2)) <= link.range_m) & ~eye
+        # --- plant: limits, dV, exact HCW step, attitude RK4
+        a = limit_norm(acc, umax)
+        dv += np.linalg.norm(a, axis=1) * dt
+        state = state @ phi_t + a @ gam_t
+        tau = limit_norm(torque, tmax) if tmax is not None else torque
+        qa, wa = rk4_attitude_step(qa, wa, inertia, inertia_inv, tau, dt)
+    out = _result(wall0, steps, n, dv, state[:, :3])
+    out["fits"] = fitter.fits
+    return out
+
+
+def _buffer_rows(sd: np.ndarray, normal: np.ndarray, rel_v: np.ndarray, p: Any, min_distance_m: float = 0.05) -> np.ndarray:
+    """fsw/apf.py `buffer_force` of N rows (signed distances (N,), normals and relative velocities
+    (N, 3)): eq. 11's form off the surface within R_buffer, plus the damping of inward motion."""
+    s = np.maximum(sd, min_distance_m)
+    inside = sd < p.r_buffer_m
+    f = np.where(inside, p.k_r_target * (1.0 / s - 1.0 / p.r_buffer_m) / (s * s), 0.0)[:, None] * normal
+    vn = rel_v[:, 0] * normal[:, 0] + rel_v[:, 1] * normal[:, 1] + rel_v[:, 2] * normal[:, 2]
+    damp = inside & (vn < 0.0)
+    return np.where(damp[:, None], f - (p.buffer_damping_nspm * vn)[:, None] * normal, np.where(inside[:, None], f, 0.0))
+
+
+FLOORS: dict[str, Callable[..., dict]] = {"p000-capture": floor_capture, "p001-lattice": floor_lattice, "p003-servicer": floor_surround,
                                           "p004-lbdnn": floor_servicing}
 
 
