@@ -93,6 +93,10 @@ def _lvlh_plan(rows: int, n_radps: float) -> tuple[np.ndarray, ...]:
     return out
 
 
+_ROE_COL_A = np.array([0, 1, 0, 0, 2, 2])  # lvlh_to_roe: the first column of each ROE row (x, y, x, x, z, z)
+_ROE_COL_B = np.array([4, 3, 3, 3, 5, 5])  # and the second (vy/n, vx/n, vx/n, vx/n, vz/n, vz/n)
+
+
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
     """Exact inverse of `roe_to_lvlh`: the matrix M of NOTES-002 (paper 002 sec. 5, signs restored).
 
@@ -102,6 +106,14 @@ def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: f
     pos = _as_rows(pos_m, 3, "pos_m")
     vel = _as_rows(vel_mps, 3, "vel_mps")
     c, s = np.cos(u_rad), np.sin(u_rad)
+    if np.ndim(c) == 0 and pos.shape == vel.shape:
+        # the same products and sums in fewer numpy calls (a truth of every step): each row is
+        # k_a * column_a + k_b * column_b (+ k_c * vy/n for the rows of dex, dey), in the order written below
+        cols = np.concatenate((pos, vel / n_radps), axis=-1)  # x, y, z, vx/n, vy/n, vz/n
+        out = np.array([4.0, 1.0, 3.0 * c, 3.0 * s, s, -c]) * cols[..., _ROE_COL_A]
+        out += np.array([2.0, -2.0, s, -c, c, s]) * cols[..., _ROE_COL_B]
+        out[..., 2:4] += np.array([2.0 * c, 2.0 * s]) * cols[..., 4:5]
+        return out
     x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
     vx, vy, vz = (vel[..., k] / n_radps for k in range(3))
     return np.stack(
