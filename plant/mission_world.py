@@ -106,16 +106,7 @@ class MissionWorld:
         self._kinematic_at: tuple[tuple[float, int], list[BodyTruth]] | None = None  # ((t_s, faults), their truth)
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
-        # the spacecraft of each limit mode, limited in one call (row by row the same arithmetic)
-        self._limit_groups = [(limit_norm if mode == "norm" else limit_per_axis, rows, self.max_accel_mps2[rows])
-                              for mode in sorted(set(self.limit_mode))
-                              for rows in [np.array([i for i, m in enumerate(self.limit_mode) if m == mode])]]
-        # one mode for every spacecraft (the usual case): one call on the whole array, without the
-        # gather and scatter, and one float for the limit when every spacecraft has the same one
-        self._limit_all: tuple[Callable[..., np.ndarray], float | np.ndarray] | None = None
-        if len(self._limit_groups) == 1:
-            f, _rows, max_mps2 = self._limit_groups[0]
-            self._limit_all = (f, float(max_mps2[0]) if (max_mps2 == max_mps2[0]).all() else max_mps2)
+        self._plan_limits()
         self._rows_at = -1  # the step whose rows in the scenario frame (and u) are kept in _rows / _u
         self._rows: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros((0, 3)))
         self._u_at = -1
@@ -267,6 +258,18 @@ class MissionWorld:
         return bt
 
     # --- actuators and propagation ----------------------------------------------------------------
+    def _plan_limits(self) -> None:
+        """How `limit` limits (from limit_mode and max_accel_mps2): the spacecraft of each limit mode
+        in one call (row by row the same arithmetic); when one mode covers them all, one call on the
+        whole array without the gather and scatter, with one float for the limit when they share it."""
+        self._limit_groups = [(limit_norm if mode == "norm" else limit_per_axis, rows, self.max_accel_mps2[rows])
+                              for mode in sorted(set(self.limit_mode))
+                              for rows in [np.array([i for i, m in enumerate(self.limit_mode) if m == mode])]]
+        self._limit_all: tuple[Callable[..., np.ndarray], float | np.ndarray] | None = None
+        if len(self._limit_groups) == 1:
+            f, _rows, max_mps2 = self._limit_groups[0]
+            self._limit_all = (f, float(max_mps2[0]) if (max_mps2 == max_mps2[0]).all() else max_mps2)
+
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
         if self._limit_all is not None:
             f, max_all = self._limit_all

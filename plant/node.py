@@ -368,6 +368,12 @@ class PlantNode:
                 self.world.step(cmd, self.step_s, all_alive=True)  # (the values of held[:, :3], contiguous)
                 self._after_step(k)
                 return
+            if self._local_all:  # (a mission world) everyone alive: the same assignments without the masks
+                self.held[:, :cmd.shape[1]] = cmd
+                if cmd.shape[1] == 3:
+                    self.held[:, 3:] = 0.0
+                self._advance(k, all_alive=True)
+                return
             alive = self.world.alive
             if cmd.shape[1] == 6:  # accelerations and torques (spacecraft that fly attitude)
                 self.held[alive] = cmd[alive]

@@ -158,10 +158,13 @@ class RelativeKind:
         vis = (d <= self.p.range_m) & np.asarray(ctx.alive, dtype=bool)[None, :]
         vis[np.arange(len(obs)), obs] = False
         jj, kk = vis.nonzero()
-        j = obs[jj]
-        rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
         offsets = np.zeros(len(obs) + 1, dtype=np.int64)
-        np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        if len(jj):
+            j = obs[jj]
+            rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
+            np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        else:  # nobody within range of anyone (the same empty (0, 3) arrays and zero offsets)
+            rp, rv = np.empty((0, 3)), np.empty((0, 3))
         extra = ([{"own_position_m": p, "own_velocity_mps": v} for p, v in zip(pos[obs] + 0.0, vel[obs] + 0.0)]
                  if self.p.own_state else None)  # (rows of one array each: pos[i] + 0.0, vel[i] + 0.0)
         return RelBatch(offsets, kk, rp, rv, jj, extra)

@@ -94,10 +94,10 @@ class LatticeController:
             phi_rr, phi_rv = cw_position_blocks(p.mean_motion_radps, p.t_desire_s - t)
             rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather and scatter)
             pos_far, vel_far = pos[rows], vel[rows]
-            rhs = np.array([phi_rr @ pr for pr in pos_far])
+            rhs = np.matmul(phi_rr, pos_far[:, :, None])  # (k, 3, 1): phi_rr @ r of each, the same gemv as `step`'s
             systems = np.empty((len(far), 3, 3))
             systems[:] = phi_rv
-            v_d = -np.linalg.solve(systems, rhs[:, :, None])[:, :, 0]
+            v_d = -np.linalg.solve(systems, rhs)[:, :, 0]
             g_far = p.far_gain_ps * (v_d - vel_far)
             if p.far_damping:
                 g_far = g_far + damping(vel_far, p.damping_ps)
