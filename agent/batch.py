@@ -82,8 +82,8 @@ class BatchAgents:
             modes = list(cb.modes)
             # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed).
             # As AgentNode: a non-finite acceleration or torque commands zero (no torque) instead
-            bad = None if math.isfinite(np.add.reduce(acc, axis=None) + np.add.reduce(tq, axis=None)) else \
-                ~(np.isfinite(acc).all(axis=1) & np.isfinite(tq).all(axis=1))
+            total = np.add.reduce(acc, axis=None) + (0.0 if cb.torque_nm is None else np.add.reduce(tq, axis=None))
+            bad = None if math.isfinite(total) else ~(np.isfinite(acc).all(axis=1) & np.isfinite(tq).all(axis=1))
             if bad is not None and bad.any():
                 acc, tq = acc.copy(), tq.copy()
                 for r in np.flatnonzero(bad).tolist():

@@ -8,7 +8,7 @@ implicit presence (a double is written when its bits are not all zero, so -0.0 a
 is not; `false`, 0 and "" are not), a Vector3 that was assigned is present even when empty, and
 `roe_m` packed (every element). Only what the plant of the ROE scenarios writes for a spacecraft is
 covered: id, position, velocity, delta_v, alive, accel_cmd, kind, roe_m (no attitude, angular
-velocity or torque: the mission world's truth is still built as a message).
+velocity or torque: the truth of a mission world with attitude or bodies is still built as a message).
 
 Wire format (protocol buffers encoding): a field is a tag byte (number << 3 | wire type) then, for
 wire type 1 (fixed64) 8 little-endian bytes, for wire type 2 a varint length then the bytes, for

@@ -40,7 +40,7 @@ from swarmhil.plant.dynamics import roe_linear
 from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci
 from swarmhil.plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, quat_multiply
 from swarmhil.plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh_vector_to_eci
-from swarmhil.plant.dynamics.limits import limit_norm, limit_per_axis
+from swarmhil.plant.dynamics.limits import limit_norm, limit_per_axis, row_norm
 from swarmhil.plant.dynamics.propagator import make_propagator
 from swarmhil.plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
 from swarmhil.plant.worlds import register_world
@@ -106,10 +106,7 @@ class MissionWorld:
         self._kinematic_at: tuple[tuple[float, int], list[BodyTruth]] | None = None  # ((t_s, faults), their truth)
         self.max_accel_mps2 = np.array([self._max_accel(s, sc) for s in self.specs])
         self.limit_mode = [s.limit or sc.actuator_limit for s in self.specs]
-        # the spacecraft of each limit mode, limited in one call (row by row the same arithmetic)
-        self._limit_groups = [(limit_norm if mode == "norm" else limit_per_axis, rows, self.max_accel_mps2[rows])
-                              for mode in sorted(set(self.limit_mode))
-                              for rows in [np.array([i for i, m in enumerate(self.limit_mode) if m == mode])]]
+        self._plan_limits()
         self._rows_at = -1  # the step whose rows in the scenario frame (and u) are kept in _rows / _u
         self._rows: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros((0, 3)))
         self._u_at = -1
@@ -261,10 +258,26 @@ class MissionWorld:
         return bt
 
     # --- actuators and propagation ----------------------------------------------------------------
+    def _plan_limits(self) -> None:
+        """How `limit` limits (from limit_mode and max_accel_mps2): the spacecraft of each limit mode
+        in one call (row by row the same arithmetic); when one mode covers them all, one call on the
+        whole array without the gather and scatter, with one float for the limit when they share it."""
+        self._limit_groups = [(limit_norm if mode == "norm" else limit_per_axis, rows, self.max_accel_mps2[rows])
+                              for mode in sorted(set(self.limit_mode))
+                              for rows in [np.array([i for i, m in enumerate(self.limit_mode) if m == mode])]]
+        self._limit_all: tuple[Callable[..., np.ndarray], float | np.ndarray] | None = None
+        if len(self._limit_groups) == 1:
+            f, _rows, max_mps2 = self._limit_groups[0]
+            self._limit_all = (f, float(max_mps2[0]) if (max_mps2 == max_mps2[0]).all() else max_mps2)
+
     def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
-        a = np.asarray(accel_mps2, float).copy()
-        for f, rows, max_mps2 in self._limit_groups:
-            a[rows] = f(a[rows], max_mps2)
+        if self._limit_all is not None:
+            f, max_all = self._limit_all
+            a = f(np.asarray(accel_mps2, float), max_all)  # (a new array)
+        else:
+            a = np.asarray(accel_mps2, float).copy()
+            for f, rows, max_mps2 in self._limit_groups:
+                a[rows] = f(a[rows], max_mps2)
         a[~self.alive] = 0.0
         return a
 
@@ -275,10 +288,12 @@ class MissionWorld:
         if self.actuation_faults is not None:
             a = self.actuation_faults(a, self.steps_done)
         self.last_accel_mps2 = a
-        self.delta_v_mps += np.linalg.norm(a, axis=1) * dt_s
-        rows = [a] + [(manoeuvre_accel(b.motion.manoeuvres, self.t_s) + self._fault_accel(b.id))[None]
-                      for b in self.prop_bodies]
-        acc = np.vstack(rows)
+        self.delta_v_mps += row_norm(a) * dt_s
+        if self.prop_bodies or not a.flags.c_contiguous:
+            acc = np.vstack([a] + [(manoeuvre_accel(b.motion.manoeuvres, self.t_s) + self._fault_accel(b.id))[None]
+                                   for b in self.prop_bodies])
+        else:
+            acc = a  # (the spacecraft alone: np.vstack([a]) would be a copy of it)
         if self.fidelity == "inertial":
             r, v = self.propagator.state()
             o = self._origin_row

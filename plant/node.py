@@ -104,10 +104,12 @@ class PlantNode:
         # of every truth the ROE plants publish, for a caller in this process that keeps them as
         # arrays (deploy/batch.TruthLog: a campaign's metrics without reading the recording back)
         self.on_truth = on_truth
-        # the truth of the ROE plants written without building the message (bus/truth_wire.py: the
-        # same bytes); on an in-process bus, samples stamped with their simulation time, and the
-        # tick built only when someone receives it (bus/memory.py)
-        self._truth_wire = TruthEncoder(self.world.ids) if isinstance(self.world, World) else None
+        # the truth of the ROE plants, and of a mission world without attitude or bodies (the same
+        # fields), written without building the message (bus/truth_wire.py: the same bytes); on an
+        # in-process bus, samples stamped with their simulation time, and the tick built only when
+        # someone receives it (bus/memory.py)
+        plain = isinstance(self.world, World) or (self.world.attitude is None and not self.world.bodies)
+        self._truth_wire = TruthEncoder(self.world.ids) if plain else None
         self._truth_header = HeaderEncoder(run, "plant")
         self._stamps = bool(getattr(bus, "stamps", False))
         self._wants = getattr(bus, "wants", None)
@@ -286,7 +288,7 @@ class PlantNode:
             self.bus.publish(self._k_truth, data, sim_time_ns(t_s))
         else:
             self.bus.publish(self._k_truth, data)
-        bodies = self.world.body_truth() if isinstance(self.world, MissionWorld) else []
+        bodies = self.world.body_truth() if isinstance(self.world, MissionWorld) and self.world.bodies else []
         for kind, pair, detail in self.contact.check(k, t_s, pos, bodies):
             self._event(kind, pair, detail)
         if final:
@@ -365,6 +367,12 @@ class PlantNode:
                 self.held[:, 3:] = 0.0
                 self.world.step(cmd, self.step_s, all_alive=True)  # (the values of held[:, :3], contiguous)
                 self._after_step(k)
+                return
+            if self._local_all:  # (a mission world) everyone alive: the same assignments without the masks
+                self.held[:, :cmd.shape[1]] = cmd
+                if cmd.shape[1] == 3:
+                    self.held[:, 3:] = 0.0
+                self._advance(k, all_alive=True)
                 return
             alive = self.world.alive
             if cmd.shape[1] == 6:  # accelerations and torques (spacecraft that fly attitude)

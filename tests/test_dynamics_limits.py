@@ -115,18 +115,22 @@ def test_world_step_accounts_delta_v_of_the_limited_command() -> None:
     assert w.delta_v_mps.tolist() == want
 
 
-def test_world_limit_of_mixed_modes_equals_the_per_craft_loop_bit_for_bit() -> None:
-    """MissionWorld.limit limits each limit mode's spacecraft in one call (issue 29): the bits of the
-    per-craft loop it replaced, `f(a[i:i+1], max_i)` (NaN, -0.0, +-inf, subnormals; norm and per axis)."""
+@pytest.mark.parametrize("modes,same_max", [(["norm", "per_axis"] * 6, False), (["norm"] * 12, False),
+                                            (["norm"] * 12, True), (["per_axis"] * 12, True)],
+                         ids=["mixed", "norm", "norm-one-max", "per-axis-one-max"])
+def test_world_limit_equals_the_per_craft_loop_bit_for_bit(modes: list[str], same_max: bool) -> None:
+    """MissionWorld.limit limits each limit mode's spacecraft in one call, and all of them in one call
+    on the whole array when they share one mode (issue 29): the bits of the per-craft loop it replaced,
+    `f(a[i:i+1], max_i)` (NaN, -0.0, +-inf, subnormals; norm and per axis)."""
     from swarmhil.plant.mission_world import MissionWorld
 
     rng = np.random.default_rng(29)
-    n = 12
-    modes = ["norm", "per_axis"] * (n // 2)
+    n = len(modes)
     world = MissionWorld.__new__(MissionWorld)
-    world.limit_mode, world.max_accel_mps2, world.alive = modes, rng.random(n) * 1e-2, np.ones(n, dtype=bool)
-    world._limit_groups = [(limit_norm if m == "norm" else limit_per_axis, rows, world.max_accel_mps2[rows])
-                           for m in ("norm", "per_axis") for rows in [np.flatnonzero(np.array(modes) == m)]]
+    world.limit_mode, world.alive = modes, np.ones(n, dtype=bool)
+    world.max_accel_mps2 = np.full(n, 3e-3) if same_max else rng.random(n) * 1e-2
+    world._plan_limits()
+    assert (world._limit_all is None) == (len(set(modes)) > 1)
     for _ in range(200):
         a = rng.normal(0, 2e-2, (n, 3)) * 10.0 ** rng.integers(-310, 2, (n, 3))
         a[rng.random((n, 3)) < 0.1] = rng.choice([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324], size=1)
@@ -135,3 +139,18 @@ def test_world_limit_of_mixed_modes_equals_the_per_craft_loop_bit_for_bit() -> N
             f = limit_norm if m == "norm" else limit_per_axis
             want[i] = f(a[i:i + 1], float(world.max_accel_mps2[i]))[0]
         assert world.limit(a).tobytes() == want.tobytes()
+        assert world.limit(np.hstack((a, a))[:, :3]).tobytes() == want.tobytes()  # (a strided view: the plant's held[:, :3])
+
+
+@pytest.mark.filterwarnings("ignore:overflow:RuntimeWarning")  # squares beyond 1e308 on purpose
+def test_row_norm_is_numpys_norm_bit_for_bit() -> None:
+    """limits.row_norm is np.linalg.norm(u, axis=-1), bit for bit (NaN, -0.0, +-inf, subnormals, strided views)."""
+    from swarmhil.plant.dynamics.limits import row_norm
+
+    rng = np.random.default_rng(29)
+    for shape in ((12, 3), (3,), (4, 5, 3), (0, 3)):
+        for _ in range(100):
+            u = rng.normal(size=shape) * 10.0 ** rng.integers(-310, 300)
+            u[rng.random(shape) < 0.1] = rng.choice([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324], size=1)
+            for v in (u, np.concatenate((u, u), axis=-1)[..., 1:4]):
+                assert row_norm(v).tobytes() == np.linalg.norm(v, axis=-1).tobytes()

@@ -160,14 +160,44 @@ def _roe_to_lvlh_as_written(roe: np.ndarray, u: float, n: float) -> tuple[np.nda
     return pos, vel
 
 
+def _with_specials(rng: np.random.Generator, shape: tuple[int, ...], low: int, high: int) -> np.ndarray:
+    """Normal entries times 10^k (k in [low, high)), about 5 % of them one special value (0, -0, NaN, inf, subnormal)."""
+    a = rng.normal(size=shape) * 10.0 ** rng.integers(low, high)
+    a[rng.random(shape) < 0.05] = rng.choice([0.0, -0.0, np.nan, np.inf, 1e-310], size=1)
+    return a
+
+
+def _some_u(rng: np.random.Generator, high: float) -> float:
+    """An argument of latitude in [-10, high), one time in ten 0, pi/2 or -0."""
+    return float(rng.uniform(-10, high)) if rng.random() < 0.9 else float(rng.choice([0.0, np.pi / 2, -0.0]))
+
+
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf - inf on purpose
 def test_roe_to_lvlh_is_bit_identical_to_the_formula_as_written() -> None:
     rng = np.random.default_rng(16)
     for shape in ((20, 6), (6,), (3, 5, 6), (0, 6)):
         for _ in range(200):
-            roe = rng.normal(size=shape) * 10.0 ** rng.integers(-3, 5)
-            roe[rng.random(shape) < 0.05] = rng.choice([0.0, -0.0, np.nan, np.inf, 1e-310], size=1)
-            u = float(rng.uniform(-10, 1000)) if rng.random() < 0.9 else float(rng.choice([0.0, np.pi / 2, -0.0]))
+            roe = _with_specials(rng, shape, -3, 5)
+            u = _some_u(rng, 1000)
             got, want = roe_to_lvlh(roe, u, N_RADPS), _roe_to_lvlh_as_written(roe, u, N_RADPS)
             assert got[0].shape == want[0].shape and got[1].shape == want[1].shape
             assert got[0].tobytes() == want[0].tobytes() and got[1].tobytes() == want[1].tobytes()
+
+
+def _lvlh_to_roe_as_written(pos: np.ndarray, vel: np.ndarray, u: float, n: float) -> np.ndarray:
+    """The inverse map as it was written before issue 29 made it cheaper: the reference for bit equality."""
+    c, s = np.cos(u), np.sin(u)
+    x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
+    vx, vy, vz = (vel[..., k] / n for k in range(3))
+    return np.stack((4.0 * x + 2.0 * vy, y - 2.0 * vx, 3.0 * c * x + s * vx + 2.0 * c * vy,
+                     3.0 * s * x - c * vx + 2.0 * s * vy, s * z + c * vz, -c * z + s * vz), axis=-1)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # inf - inf on purpose
+def test_lvlh_to_roe_is_bit_identical_to_the_formula_as_written() -> None:
+    rng = np.random.default_rng(29)
+    for shape in ((20, 3), (3,), (3, 5, 3), (0, 3)):
+        for _ in range(200):
+            pos, vel, u = _with_specials(rng, shape, -3, 7), _with_specials(rng, shape, -5, 3), _some_u(rng, 1e5)
+            got, want = lvlh_to_roe(pos, vel, u, N_RADPS), _lvlh_to_roe_as_written(pos, vel, u, N_RADPS)
+            assert got.shape == want.shape and got.tobytes() == want.tobytes()

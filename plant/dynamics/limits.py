@@ -44,11 +44,17 @@ def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray
     m = np.asarray(_check_max(max_value))
     if m.ndim > 1:
         raise ValueError(f"a norm limit is one value per craft, got shape {m.shape}")
-    norm = np.linalg.norm(u, axis=-1)
+    norm = row_norm(u)
     over = norm > m
     scale = np.ones_like(norm)
-    np.divide(np.broadcast_to(m, norm.shape), norm, out=scale, where=over)
+    np.divide(m, norm, out=scale, where=over)
     return u * scale[..., None]
+
+
+def row_norm(u: np.ndarray) -> np.ndarray:
+    """|u| of each row (..., 3) of a float64 array: what `np.linalg.norm(u, axis=-1)` computes,
+    sqrt of the sum of the squares along the last axis, the same float64, without its wrapper."""
+    return np.sqrt(np.add.reduce(u * u, axis=-1))
 
 
 def limit_command(command: np.ndarray, max_value: float | np.ndarray, mode: str) -> np.ndarray:

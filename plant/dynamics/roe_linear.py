@@ -93,6 +93,10 @@ def _lvlh_plan(rows: int, n_radps: float) -> tuple[np.ndarray, ...]:
     return out
 
 
+_ROE_POS_COL = np.array([0, 1, 0, 0, 2, 2])  # lvlh_to_roe: the position column of each ROE row (x, y, x, x, z, z)
+_ROE_VEL_COL = np.array([1, 0, 0, 0, 2, 2])  # and its velocity column (vy, vx, vx, vx, vz, vz) / n
+
+
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
     """Exact inverse of `roe_to_lvlh`: the matrix M of NOTES-002 (paper 002 sec. 5, signs restored).
 
@@ -102,6 +106,15 @@ def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: f
     pos = _as_rows(pos_m, 3, "pos_m")
     vel = _as_rows(vel_mps, 3, "vel_mps")
     c, s = np.cos(u_rad), np.sin(u_rad)
+    if np.ndim(c) == 0 and pos.shape == vel.shape:
+        # the same products and sums in fewer numpy calls (a truth of every step): each row is
+        # k_a * a position column + k_b * a velocity column / n (+ k_c * vy/n for the rows of dex, dey),
+        # in the order written below
+        vel_n = vel / n_radps
+        out = np.array([4.0, 1.0, 3.0 * c, 3.0 * s, s, -c]) * pos.take(_ROE_POS_COL, axis=-1)
+        out += np.array([2.0, -2.0, s, -c, c, s]) * vel_n.take(_ROE_VEL_COL, axis=-1)
+        out[..., 2:4] += np.array([2.0 * c, 2.0 * s]) * vel_n[..., 1:2]
+        return out
     x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
     vx, vy, vz = (vel[..., k] / n_radps for k in range(3))
     return np.stack(

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import add_measurement
 from swarmhil.plant.config import PlantConfig
+from swarmhil.plant.dynamics.limits import row_norm
 from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
@@ -153,16 +154,19 @@ class RelativeKind:
         own state as the named arrays `own_position_m`, `own_velocity_mps` in `extra`)."""
         pos, vel = ctx.position_m, ctx.velocity_mps
         obs = np.asarray(observers, dtype=np.int64)
-        d = np.linalg.norm(pos[None, :, :] - pos[obs][:, None, :], axis=2)  # (R, N), as stimulus's per row
+        d = row_norm(pos[None, :, :] - pos[obs][:, None, :])  # (R, N): np.linalg.norm(..., axis=2), as stimulus's per row
         vis = (d <= self.p.range_m) & np.asarray(ctx.alive, dtype=bool)[None, :]
         vis[np.arange(len(obs)), obs] = False
         jj, kk = vis.nonzero()
-        j = obs[jj]
-        rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
         offsets = np.zeros(len(obs) + 1, dtype=np.int64)
-        np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
-        extra = ([{"own_position_m": pos[i] + 0.0, "own_velocity_mps": vel[i] + 0.0} for i in obs.tolist()]
-                 if self.p.own_state else None)
+        if len(jj):
+            j = obs[jj]
+            rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
+            np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
+        else:  # nobody within range of anyone (the same empty (0, 3) arrays and zero offsets)
+            rp, rv = np.empty((0, 3)), np.empty((0, 3))
+        extra = ([{"own_position_m": p, "own_velocity_mps": v} for p, v in zip(pos[obs] + 0.0, vel[obs] + 0.0)]
+                 if self.p.own_state else None)  # (rows of one array each: pos[i] + 0.0, vel[i] + 0.0)
         return RelBatch(offsets, kk, rp, rv, jj, extra)
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:

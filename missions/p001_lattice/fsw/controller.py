@@ -28,6 +28,9 @@ def tb_accel(rel_position_m: np.ndarray, side_m: float, tb, accel_unit_mps2: flo
     return TB_GAIN * accel_unit_mps2 * forces(cluster, tb)[0]
 
 
+_MODE = {layer: layer.name.lower() for layer in Layer}  # the Command's mode of each layer
+
+
 class LatticeController:
     """One spacecraft's flight software for paper 001 (far / near / shaping layers, latched)."""
 
@@ -70,17 +73,18 @@ class LatticeController:
         row; the near and shaping wells and the Tersoff-Brenner term per spacecraft through the same
         functions. Controllers with different parameters step one by one."""
         p = controllers[0].p
-        if any(c.p != p for c in controllers):
+        if any(c.p is not p and c.p != p for c in controllers):
             return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
         n, t = len(controllers), float(batch.t_s)
         extra = batch.extra if batch.extra is not None else [{}] * n
         pos, vel = np.empty((n, 3)), np.empty((n, 3))
         for r, e in enumerate(extra):  # OwnState.from_extra's values (a missing or bad one raises: each `step` then)
             pos[r], vel[r] = e[OWN_POSITION_KEY], e[OWN_VELOCITY_KEY]
-        if not (np.isfinite(pos).all() and np.isfinite(vel).all()):
+        # a finite sum: every entry is finite (a sum that overflows only sends the batch to each `step`)
+        if not math.isfinite(np.add.reduce(pos, axis=None) + np.add.reduce(vel, axis=None)):
             raise ValueError("non-finite own state in the batch")
-        for r, c in enumerate(controllers):
-            c.layer = next_layer(c.layer, math.sqrt(float(pos[r].dot(pos[r]))), t, p.r_middle_m, p.r_inner_m,
+        for c, pr in zip(controllers, pos):  # (pr: a view of the row)
+            c.layer = next_layer(c.layer, math.sqrt(float(pr.dot(pr))), t, p.r_middle_m, p.r_inner_m,
                                  p.t_natural_s)  # float(np.linalg.norm(r)) = sqrt(r . r)
         g = np.empty((n, 3))
         far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
@@ -88,25 +92,32 @@ class LatticeController:
             if not p.t_desire_s - t > 0.0:
                 raise ValueError(f"time to go {p.t_desire_s - t} s: the ballistic field is only defined before t_desire")
             phi_rr, phi_rv = cw_position_blocks(p.mean_motion_radps, p.t_desire_s - t)
-            rhs = np.array([phi_rr @ pos[r] for r in far])
-            v_d = -np.linalg.solve(np.broadcast_to(phi_rv, (len(far), 3, 3)), rhs[:, :, None])[:, :, 0]
-            g[far] = p.far_gain_ps * (v_d - vel[far])
+            rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather and scatter)
+            pos_far, vel_far = pos[rows], vel[rows]
+            rhs = np.matmul(phi_rr, pos_far[:, :, None])  # (k, 3, 1): phi_rr @ r of each, the same gemv as `step`'s
+            systems = np.empty((len(far), 3, 3))
+            systems[:] = phi_rv
+            v_d = -np.linalg.solve(systems, rhs)[:, :, 0]
+            g_far = p.far_gain_ps * (v_d - vel_far)
             if p.far_damping:
-                g[far] = g[far] + damping(vel[far], p.damping_ps)
-        for r, c in enumerate(controllers):
-            if c.layer != Layer.FAR:
-                g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
+                g_far = g_far + damping(vel_far, p.damping_ps)
+            g[rows] = g_far
+        if len(far) < n:
+            for r, c in enumerate(controllers):
+                if c.layer != Layer.FAR:
+                    g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
         tb = np.zeros((n, 3))
-        off = batch.offsets
-        for r, c in enumerate(controllers):
-            if off[r + 1] > off[r]:
-                tb[r] = tb_accel(batch.rel_position_m[off[r]:off[r + 1]], p.side_m, c.tb, p.tb_accel_unit_mps2)
+        off = batch.offsets.tolist()
+        if off[n] > 0:  # someone sees a neighbour
+            for r, c in enumerate(controllers):
+                if off[r + 1] > off[r]:
+                    tb[r] = tb_accel(batch.rel_position_m[off[r]:off[r + 1]], p.side_m, c.tb, p.tb_accel_unit_mps2)
         u = g + tb
-        for r in range(n):  # wells.saturate, row by row
-            norm = math.sqrt(float(u[r].dot(u[r])))
+        for r, ur in enumerate(u):  # wells.saturate, row by row (ur: a view of row r)
+            norm = math.sqrt(float(ur.dot(ur)))
             if not norm <= p.max_accel_mps2:
-                u[r] = u[r] * (p.max_accel_mps2 / norm)
-        return CommandBatch(accel_mps2=u, modes=[c.layer.name.lower() for c in controllers])
+                u[r] = ur * (p.max_accel_mps2 / norm)
+        return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers])
 
 
 def _check(params: dict[str, Any]) -> None:
@@ -117,4 +128,11 @@ def _check(params: dict[str, Any]) -> None:
 @register(CONTROLLER, validate=_check)
 def _p001_lattice(sc_id: str, orbit: OrbitInfo, params: dict[str, Any]) -> LatticeController:
     merged = {"mean_motion_radps": orbit.mean_motion_radps, **params}
-    return LatticeController(LatticeParams.from_dict(merged))
+    lp = LatticeParams.from_dict(merged)
+    if len(_SHARED_PARAMS) > 1024:
+        _SHARED_PARAMS.clear()
+    return LatticeController(_SHARED_PARAMS.setdefault(lp, lp))
+
+
+# equal parameters as one object: `step_batch` tells a batch of one set of parameters by identity
+_SHARED_PARAMS: dict[LatticeParams, LatticeParams] = {}
