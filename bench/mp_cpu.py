@@ -8,7 +8,8 @@ samples every process's CPU time when the plant's clock passes step 1 and again 
 (the launcher's progress hook), so start-up and shutdown are left out. Prints one row per process
 kind (plant, agent: mean / max over the agents, recorder, router, link channel, launcher) with
 CPU ms per step and the share of the total, the loop wall per step, and the load average. The
-last line is the result as JSON.
+last line is the result as JSON. `run_with_cpu` is the measurement alone (bench/bench_backbone.py
+prints it for each multi-process run of `make bench`).
 """
 from __future__ import annotations
 
