@@ -7,6 +7,7 @@ spacecraft's stimulus) is rejected and counted; the previous command stays in fo
 from __future__ import annotations
 
 import logging
+import math
 import time
 from typing import Any
 
@@ -24,14 +25,25 @@ log = logging.getLogger("swarmhil.agent")
 
 def observation_from_rel(stim: pb.RelStimulus | pb.Measurements) -> Observation:
     """RelStimulus, or Measurements (neighbours plus named arrays in `extra`), as an Observation."""
-    nbs = stim.neighbours
-    ids = [nb.id for nb in nbs]
+    ids: list[str] = []
+    rows_p: list[tuple[float, float, float]] = []
+    rows_v: list[tuple[float, float, float]] = []
+    for nb in stim.neighbours:  # one pass over the neighbours
+        ids.append(nb.id)
+        p, v = nb.position_m, nb.velocity_mps
+        rows_p.append((p.x, p.y, p.z))
+        rows_v.append((v.x, v.y, v.z))
     # one array from plain tuples (not one small array per neighbour): the same float64 values
-    pos = np.array([(p.x, p.y, p.z) for p in (nb.position_m for nb in nbs)], dtype=float).reshape(-1, 3)
-    vel = np.array([(v.x, v.y, v.z) for v in (nb.velocity_mps for nb in nbs)], dtype=float).reshape(-1, 3)
+    pos = np.array(rows_p, dtype=float).reshape(-1, 3)
+    vel = np.array(rows_v, dtype=float).reshape(-1, 3)
     extra = measurements_to_dict(stim) if isinstance(stim, pb.Measurements) else {}
     return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad,
                        neighbour_ids=ids, rel_position_m=pos, rel_velocity_mps=vel, extra=extra)
+
+
+def _finite(v: np.ndarray) -> bool:
+    """np.all(np.isfinite(v)) of a small float array, on its Python floats (the same verdict)."""
+    return all(map(math.isfinite, v.tolist()))
 
 
 class AgentNode:
@@ -131,7 +143,7 @@ class AgentNode:
                 cmd = Command(accel_mps2=np.zeros(3), mode="fault")
             a = np.asarray(cmd.accel_mps2, dtype=float)
             tq = None if cmd.torque_nm is None else np.asarray(cmd.torque_nm, dtype=float)
-            if a.shape != (3,) or not np.all(np.isfinite(a)) or (tq is not None and (tq.shape != (3,) or not np.all(np.isfinite(tq)))):
+            if a.shape != (3,) or not _finite(a) or (tq is not None and (tq.shape != (3,) or not _finite(tq))):
                 log.error("%s: controller %s returned accel %r, torque %r; commanding zero", self.id,
                           self.controller.name, a, tq)
                 cmd = Command(accel_mps2=np.zeros(3), mode="fault")
@@ -144,14 +156,15 @@ class AgentNode:
             txs += self.beacon.emit(step, t, self.command)
         for tx in txs:
             self._transmit(step, t, tx)
-        act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=vec(self.command.accel_mps2),
-                                 controller=self.controller.name, isl_tx_count=len(txs))
+        accel = vec(self.command.accel_mps2)
+        name = self.controller.name
+        act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=accel, controller=name,
+                                 isl_tx_count=len(txs))
         if self.command.torque_nm is not None:
             act.torque_nm.CopyFrom(vec(self.command.torque_nm))
         self.bus.publish(self._act_key, act.SerializeToString())
-        tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode,
-                          controller=self.controller.name, accel_mps2=vec(self.command.accel_mps2),
-                          compute_s=compute_s, rejected_packets=self.rejections.total)
+        tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode, controller=name,
+                          accel_mps2=accel, compute_s=compute_s, rejected_packets=self.rejections.total)
         for name, values in self.command.extra.items():
             add_measurement(tm, name, values)
         if self.perception is not None:
@@ -161,8 +174,8 @@ class AgentNode:
                 self._publish_image(png, t)
         add_decision = tm.decisions.add  # built in place (append would copy each message)
         for d in self.command.decisions:
-            dm = add_decision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
-                              roe_rel_m=np.asarray(d.roe_rel_m, dtype=float).tolist())
-            dm.accel_mps2.x, dm.accel_mps2.y, dm.accel_mps2.z = np.asarray(d.accel_mps2, dtype=float).tolist()[:3]
+            q = add_decision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
+                             roe_rel_m=np.asarray(d.roe_rel_m, dtype=float).tolist()).accel_mps2
+            q.x, q.y, q.z = np.asarray(d.accel_mps2, dtype=float).tolist()[:3]
         self.bus.publish(self._tm_key, tm.SerializeToString())
         self.steps += 1

@@ -8,8 +8,12 @@ For drift-20 and sabatini-20 (ideal sensing) and sabatini-20-camera-filter (rend
   bus floor of the same number of processes and steps (bench/bus_floor.py: empty tick and reply);
   for the ideal scenarios also the *contract floor* (`bus_floor.py --contract`: the run's own
   messages per step, a clock, the truth, 20 stimuli, 20 commands, 20 telemetry, one listener, with
-  no decoding and no work), and for the camera scenario the *compute floor* (the CPU of its
+  no decoding and no work, with the message sizes the run itself recorded: `--sizes-from`) and the
+  run's loop ÷ that floor, and for the camera scenario the *compute floor* (the CPU of its
   in-process run spread over every core: no multi-process run can beat it on this machine);
+- the CPU per step of each process kind of the multi-process run over its loop (bench/mp_cpu.py),
+  beside the contract floor's (`bus_floor.py --cpu`: workers for the agents, the listener for the
+  recorder, the coordinator with the router for the plant);
 - in-process batch mode (`run_in_process(record="truth")`, deploy/batch.py), against the
   vectorised floor (bench/vectorised_floor.py: the same plant and control law in one numpy loop,
   written independently of the node code) for the ideal-sensing scenarios, alternated `--repeats`
@@ -46,22 +50,34 @@ def load() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
 
+def floor(n: int, steps: int, contract: bool = False, sizes_from: Path | None = None, cpu: bool = False) -> dict:
+    """bench/bus_floor.py's result (`--json`: wall_s, sizes, cpu_ms_per_step): `contract`, the bus
+    contract's own messages per step, with the message sizes of the recording `sizes_from`."""
+    args = [*(["--contract"] if contract else []), *(["--sizes-from", str(sizes_from)] if sizes_from else []),
+            *(["--cpu"] if cpu else [])]
+    fl = subprocess.run([sys.executable, str(ROOT / "bench/bus_floor.py"), "--workers", str(n), "--steps", str(steps),
+                         "--json", *args], capture_output=True, text=True, check=True)
+    return json.loads(fl.stdout.splitlines()[-1])
+
+
 def bus_floor(n: int, steps: int, contract: bool = False) -> float:
     """Wall seconds of bench/bus_floor.py (`contract`: the bus contract's own messages per step)."""
-    fl = subprocess.run([sys.executable, str(ROOT / "bench/bus_floor.py"), "--workers", str(n), "--steps", str(steps),
-                         *(["--contract"] if contract else [])], capture_output=True, text=True, check=True)
-    return float(fl.stdout.split(",")[2].split()[0])
+    return float(floor(n, steps, contract)["wall_s"])
 
 
 def multi_process(path: str, sc, out: Path, duration: float) -> dict:
-    from swarmhil.deploy.launcher import MultiProcessRun
+    """The launcher's run with every process's CPU over the loop (bench/mp_cpu.py): launcher wall,
+    loop wall, total dV and CPU ms per step summed per process kind."""
+    from mp_cpu import kinds, run_with_cpu
 
     t0 = time.perf_counter()
-    res = MultiProcessRun(path, sc, out, f"bench-mp-{sc.name}", progress=False, overrides={"duration": duration}).execute()
-    if res.exit_code:
-        raise RuntimeError(f"multi-process {sc.name} failed: {res.reason}")
-    return {"launcher_s": time.perf_counter() - t0, "loop_s": res.summary["loop_wall_s"],
-            "dv": res.summary["delta_v_total_mps"]}
+    try:
+        m = run_with_cpu(path, sc, out, f"bench-mp-{sc.name}", duration)
+    except RuntimeError as exc:
+        raise RuntimeError(f"multi-process {sc.name}: {exc}") from exc
+    by_kind = {k: {"n": len(v), "sum": sum(v)} for k, v in kinds(m["cpu_ms_per_step"]).items()}
+    return {"launcher_s": time.perf_counter() - t0, "loop_s": m["summary"]["loop_wall_s"],
+            "dv": m["summary"]["delta_v_total_mps"], "cpu_ms_per_step": by_kind}
 
 
 def in_process(sc, out: Path, record: str) -> dict:
@@ -106,9 +122,13 @@ def main() -> None:
                 r["bus_floor_s"] = bus_floor(n, steps)
                 r["multi_process_over_bus_floor"] = r["multi_process"]["loop_s"] / r["bus_floor_s"]
                 r["multi_process_launcher_over_bus_floor"] = r["multi_process"]["launcher_s"] / r["bus_floor_s"]
-                if name in IDEAL:  # what the contract's traffic alone costs (no decoding, no work, no recording)
-                    r["contract_floor_s"] = bus_floor(n, steps, contract=True)
+                if name in IDEAL:  # what the contract's traffic alone costs (no decoding, no work, no recording),
+                    # with this run's own message sizes
+                    cf = floor(n, steps, contract=True, sizes_from=out / f"mp-{name}" / "run.mcap", cpu=True)
+                    r["contract_floor_s"], r["contract_floor_cpu_ms_per_step"] = cf["wall_s"], cf["cpu_ms_per_step"]
+                    r["contract_floor_sizes"] = cf["sizes"]
                     r["contract_floor_over_bus_floor"] = r["contract_floor_s"] / r["bus_floor_s"]
+                    r["multi_process_over_contract_floor"] = r["multi_process"]["loop_s"] / r["contract_floor_s"]
         if a.no_in_process:
             pass
         elif name in IDEAL:
@@ -159,6 +179,9 @@ def print_scenario(name: str, r: dict) -> None:
         if "contract_floor_s" in r:
             row("contract floor (the run's messages per step, no work) (÷ bus floor)", r["contract_floor_s"],
                 f"{r['contract_floor_over_bus_floor']:.2f}")
+            row("multi-process lockstep, plant loop ÷ contract floor", r["multi_process"]["loop_s"],
+                f"{r['multi_process_over_contract_floor']:.2f}")
+        print_cpu(r)
         if "compute_floor_s" in r:
             row(f"compute floor: in-process CPU (with start-up) ÷ {CORES} cores (÷ bus floor)", r["compute_floor_s"],
                 f"{r['compute_floor_over_bus_floor']:.2f}")
@@ -176,6 +199,26 @@ def print_scenario(name: str, r: dict) -> None:
         row(f"in-process, record truth (batch mode used: {b['batch']})", b["loop_s"])
     if "in_process_messages" in r:
         row("in-process, every message recorded (one agent node per spacecraft)", r["in_process_messages"]["loop_s"])
+
+
+# the contract floor's process that stands for each process kind of the run (bench/bus_floor.py --cpu)
+FLOOR_KIND = {"agent": "workers", "recorder": "listener", "plant": "coordinator + router"}
+
+
+def print_cpu(r: dict) -> None:
+    """CPU ms per step of each process kind of the multi-process run (over its loop), beside the
+    contract floor's process that does that kind's messaging (the floor's coordinator is the plant and
+    the router in one process)."""
+    run = r["multi_process"].get("cpu_ms_per_step")
+    if not run:
+        return
+    fl = r.get("contract_floor_cpu_ms_per_step") or {}
+    print(f"{'CPU ms per step (loop only), process kind':44s} {'n':>3s} {'run':>8s}   contract floor")
+    for k, v in sorted(run.items(), key=lambda kv: -kv[1]["sum"]):
+        f = FLOOR_KIND.get(k)
+        print(f"{k:44s} {v['n']:3d} {v['sum']:8.3f}   " + (f"{fl[f]:8.3f} ({f})" if f in fl else ""))
+    floor_total = sum(v for k, v in fl.items() if k != "worker")  # ("worker": one of "workers")
+    print(f"{'total':44s} {'':3s} {sum(v['sum'] for v in run.values()):8.3f}   " + (f"{floor_total:8.3f}" if fl else ""))
 
 
 if __name__ == "__main__":

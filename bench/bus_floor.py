@@ -1,7 +1,7 @@
 """The bus floor: N worker processes exchanging empty ticks and replies with a coordinator over a
 Python Zenoh router, in lockstep, for a given number of steps (no physics, no flight software).
 
-    python bench/bus_floor.py --workers 20 --steps 8640 [--cpu] [--contract]
+    python bench/bus_floor.py --workers 20 --steps 8640 [--cpu] [--contract] [--sizes-from RUN/run.mcap] [--json]
 
 `--contract` (issue 16): the *message floor of the bus contract* instead: per step the coordinator
 publishes what the plant does (a clock tick, a truth, one stimulus per worker on the worker's own
@@ -94,7 +94,9 @@ def contract_listener(router: str) -> None:
 
 
 def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = False,
-                sizes: dict[str, int] | None = None) -> float:
+                sizes: dict[str, int] | None = None) -> tuple[float, dict[str, float]]:
+    """(wall seconds of `steps` lockstep steps, CPU ms per step of each process kind when `cpu`:
+    "worker" (each, mean), "workers" (sum), "listener" (`contract`), "coordinator + router")."""
     sizes = sizes or SIZES
     router_ep = endpoint(free_loopback_port())
     router = open_router(router_ep)
@@ -165,17 +167,22 @@ def coordinator(workers: int, steps: int, cpu: bool = False, contract: bool = Fa
     wall = time.perf_counter() - t0
     if lost:
         print(f"warning: bus floor: {lost} steps waited 10 s for a lost reply", file=sys.stderr)
+    cpu_ms: dict[str, float] = {}
     if cpu:  # CPU ms per step: each worker, and the coordinator with the router (one process)
         w = [(cpu_s(p.pid) - c) / steps * 1e3 for p, c in zip(procs, c0[0])]
-        listener = f", listener {w.pop():.3f}" if contract else ""
-        print(f"bus floor CPU: workers {sum(w):.3f} ms/step (each {sum(w) / len(w):.3f}){listener}, coordinator + router "
-              f"{(time.process_time() - c0[1]) / steps * 1e3:.3f} ms/step", file=sys.stderr)
+        if contract:
+            cpu_ms["listener"] = w.pop()
+        cpu_ms.update({"workers": sum(w), "worker": sum(w) / len(w),
+                       "coordinator + router": (time.process_time() - c0[1]) / steps * 1e3})
+        listener = f", listener {cpu_ms['listener']:.3f}" if contract else ""
+        print(f"bus floor CPU: workers {cpu_ms['workers']:.3f} ms/step (each {cpu_ms['worker']:.3f}){listener}, coordinator + router "
+              f"{cpu_ms['coordinator + router']:.3f} ms/step", file=sys.stderr)
     for p in procs:
         p.kill()  # our own children, by PID
         p.wait()
     s.close()
     router.close()
-    return wall
+    return wall, cpu_ms
 
 
 def main() -> None:
@@ -187,6 +194,7 @@ def main() -> None:
     ap.add_argument("--cpu", action="store_true", help="also print CPU ms per step (stderr)")
     ap.add_argument("--contract", action="store_true", help="the bus contract's messages per step (module docstring)")
     ap.add_argument("--sizes-from", metavar="MCAP", help="--contract with this recording's mean message sizes")
+    ap.add_argument("--json", action="store_true", help="also a last line: the result as JSON (wall_s, sizes, cpu_ms_per_step)")
     ap.add_argument("--sizes", help=argparse.SUPPRESS)  # a worker's sizes, as JSON, from its coordinator
     a = ap.parse_args()
     if a.worker is not None:
@@ -196,10 +204,13 @@ def main() -> None:
             worker(a.router, a.worker)
         return
     sizes = sizes_from_recording(a.sizes_from) if a.sizes_from else SIZES
-    wall = coordinator(a.workers, a.steps, a.cpu, a.contract or bool(a.sizes_from), sizes)
+    wall, cpu_ms = coordinator(a.workers, a.steps, a.cpu, a.contract or bool(a.sizes_from), sizes)
     kind = "contract" if a.contract or a.sizes_from else "bus"
     print(f"{kind} floor: {a.workers} workers, {a.steps} steps, {wall:.2f} s, {wall / a.steps * 1e3:.3f} ms/step"
           + (f" (sizes {sizes})" if kind == "contract" else ""))
+    if a.json:
+        print(json.dumps({"floor": kind, "workers": a.workers, "steps": a.steps, "wall_s": wall,
+                          "sizes": sizes if kind == "contract" else None, "cpu_ms_per_step": cpu_ms}))
 
 
 if __name__ == "__main__":

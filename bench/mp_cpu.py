@@ -8,7 +8,8 @@ samples every process's CPU time when the plant's clock passes step 1 and again 
 (the launcher's progress hook), so start-up and shutdown are left out. Prints one row per process
 kind (plant, agent: mean / max over the agents, recorder, router, link channel, launcher) with
 CPU ms per step and the share of the total, the loop wall per step, and the load average. The
-last line is the result as JSON.
+last line is the result as JSON. `run_with_cpu` is the measurement alone (bench/bench_backbone.py
+prints it for each multi-process run of `make bench`).
 """
 from __future__ import annotations
 
@@ -46,19 +47,24 @@ def kind(name: str) -> str:
     return "agent" if name.startswith("agent-") else name
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("scenario")
-    ap.add_argument("--duration", type=float, default=3600.0)
-    ap.add_argument("--out")
-    ap.add_argument("--insecure", action="store_true", help="no authentication / ACL on the router")
-    ap.add_argument("--every", type=int, default=0, help="also a row per window of this many steps (where CPU grows)")
-    a = ap.parse_args()
-    import swarmhil.deploy.launcher as L
-    from swarmhil.deploy.scenario import load_scenario
+def kinds(per: dict[str, float]) -> dict[str, list[float]]:
+    """CPU per step of each process, grouped by process kind (`kind`)."""
+    rows: dict[str, list[float]] = {}
+    for n, v in per.items():
+        rows.setdefault(kind(n), []).append(v)
+    return rows
 
-    sc = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
-    out = Path(a.out or tempfile.mkdtemp(prefix="swarmhil-mpcpu-"))
+
+def run_with_cpu(scenario: str, sc, out: Path, run: str, duration: float, opts: dict | None = None,
+                 every: int = 0) -> dict:
+    """Run `sc` (the launcher, multi-process) and measure every process's CPU over the plant's loop.
+
+    Returns {"steps", "wall_ms_per_step" (loop wall from step 1 to the last step), "cpu_ms_per_step"
+    (per process name), "windows" (with `every`: (step, monotonic s, CPU snapshot) every so many
+    steps), "loop_wall_s", "summary"}; raises RuntimeError when the run fails. Hooks the launcher's
+    progress update (its dispatcher thread sees every clock step) for the run's duration only."""
+    import swarmhil.deploy.launcher as L
+
     marks: dict[str, tuple[int, float, dict[str, float]]] = {}
     windows: list[tuple[int, float, dict[str, float]]] = []
     lock = threading.Lock()
@@ -77,25 +83,49 @@ def main() -> None:
                 marks["start"] = (step, time.monotonic(), snapshot(pids()))
             elif step >= sc.steps - 1 and "end" not in marks:
                 marks["end"] = (step, time.monotonic(), snapshot(pids()))
-            if a.every and step >= 1 and (not windows or step >= windows[-1][0] + a.every):
+            if every and step >= 1 and (not windows or step >= windows[-1][0] + every):
                 windows.append((step, time.monotonic(), snapshot(pids())))
         update(self, step, _wall)
 
-    L._Progress.update = hooked
-    load0 = " ".join(Path("/proc/loadavg").read_text().split()[:3])
-    res = L.MultiProcessRun(a.scenario, sc, out, f"mpcpu-{sc.name}", progress=False, overrides={"duration": a.duration},
-                            opts={"secure": not a.insecure}).execute()
+    L._Progress.update = hooked  # type: ignore[method-assign]
+    try:
+        res = L.MultiProcessRun(scenario, sc, out, run, progress=False, overrides={"duration": duration},
+                                opts=opts).execute()
+    finally:
+        L._Progress.update = update  # type: ignore[method-assign]
     if res.exit_code:
-        sys.exit(f"error: the run failed: {res.reason}")
+        raise RuntimeError(f"the run failed: {res.reason}")
     (k0, t0, c0), (k1, t1, c1) = marks["start"], marks["end"]
     steps = k1 - k0
-    per = {n: (c1[n] - c0[n]) / steps for n in c1 if n in c0}
-    rows: dict[str, list[float]] = {}
-    for n, v in per.items():
-        rows.setdefault(kind(n), []).append(v)
+    return {"steps": steps, "wall_ms_per_step": (t1 - t0) / steps * 1e3,
+            "cpu_ms_per_step": {n: (c1[n] - c0[n]) / steps * 1e3 for n in c1 if n in c0},
+            "windows": windows, "loop_wall_s": res.summary.get("loop_wall_s"), "summary": res.summary}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("scenario")
+    ap.add_argument("--duration", type=float, default=3600.0)
+    ap.add_argument("--out")
+    ap.add_argument("--insecure", action="store_true", help="no authentication / ACL on the router")
+    ap.add_argument("--every", type=int, default=0, help="also a row per window of this many steps (where CPU grows)")
+    a = ap.parse_args()
+    from swarmhil.deploy.scenario import load_scenario
+
+    sc = load_scenario(a.scenario).with_overrides(duration_s=a.duration)
+    out = Path(a.out or tempfile.mkdtemp(prefix="swarmhil-mpcpu-"))
+    load0 = " ".join(Path("/proc/loadavg").read_text().split()[:3])
+    try:
+        m = run_with_cpu(a.scenario, sc, out, f"mpcpu-{sc.name}", a.duration, opts={"secure": not a.insecure},
+                         every=a.every)
+    except RuntimeError as exc:
+        sys.exit(f"error: {exc}")
+    per = {n: v / 1e3 for n, v in m["cpu_ms_per_step"].items()}
+    rows = kinds(per)
     total = sum(per.values())
-    wall = (t1 - t0) / steps
-    print(f"{sc.name}: {len(sc.ids)} agents, steps {k0}..{k1} ({steps}), loop wall {wall * 1e3:.2f} ms/step, "
+    wall = m["wall_ms_per_step"] / 1e3
+    steps, windows = m["steps"], m["windows"]
+    print(f"{sc.name}: {len(sc.ids)} agents, {steps} steps, loop wall {wall * 1e3:.2f} ms/step, "
           f"load {load0} -> {' '.join(Path('/proc/loadavg').read_text().split()[:3])}")
     print(f"{'process kind':14s} {'n':>3s} {'CPU ms/step (sum)':>18s} {'per process':>12s} {'max':>8s} {'share':>7s}")
     for k, vs in sorted(rows.items(), key=lambda kv: -sum(kv[1])):
@@ -112,8 +142,8 @@ def main() -> None:
             print(f"{ka:6d}..{kb:<8d} {(tb - ta) / (kb - ka) * 1e3:12.2f} "
                   + " ".join(f"{per_kind.get(k, 0.0) * 1e3:9.2f}" for k in sorted(rows)))
     print(json.dumps({"scenario": sc.name, "steps": steps, "wall_ms_per_step": wall * 1e3,
-                      "cpu_ms_per_step": {n: v * 1e3 for n, v in per.items()}, "load_start": load0,
-                      "loop_wall_s": res.summary.get("loop_wall_s"), "out": str(out)}))
+                      "cpu_ms_per_step": m["cpu_ms_per_step"], "load_start": load0,
+                      "loop_wall_s": m["loop_wall_s"], "out": str(out)}))
 
 
 if __name__ == "__main__":

@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 from foxglove_schemas_protobuf.Color_pb2 import Color
-from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.Log_pb2 import Log
@@ -157,6 +156,7 @@ class FoxgloveScene:
         self._modes: dict[str, str] = {}
         self._faulty: dict[str, int] = {}  # spacecraft id -> [[fault]]s active on it (the `faults` topic)
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
+        self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
         """The entity of a body without its timestamp (built once per body, state and mode)."""
@@ -179,6 +179,14 @@ class FoxgloveScene:
             ent.metadata.add(key="kind", value=kind or "spacecraft")
             self._templates[key] = ent
         return ent
+
+    def _serialized_template(self, body_id: str, kind: str, alive: bool) -> bytes:
+        """`_template`'s entity serialised (the entity of the current mode and faults, kept with its bytes)."""
+        ent = self._template(body_id, kind, alive)
+        data = self._template_bytes.get(id(ent))
+        if data is None:
+            data = self._template_bytes[id(ent)] = ent.SerializeToString()
+        return data
 
     def saw_fault(self, event: Any) -> None:
         """A [[fault]]'s start or end (plant/faults.py): its target spacecraft are drawn red meanwhile."""
@@ -221,17 +229,23 @@ class FoxgloveScene:
         stamp = _timestamp(t_ns)
         n_radps, t_s = truth.mean_motion_radps, truth.header.t
         tf = FrameTransforms()
-        scene = SceneUpdate()
+        add_transform = tf.transforms.add
+        # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
+        # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
+        # body and state is reused; tests/test_foxglove_scene.py checks the bytes against the entities
+        # built field by field
+        stamped = SceneEntity()
+        stamped.timestamp.CopyFrom(stamp)
+        head = stamped.SerializeToString()
+        entities: list[bytes] = []
         pos: dict[str, Vector3] = {}
         for b in truth.bodies:
-            p = Vector3(x=b.position_m.x, y=b.position_m.y, z=b.position_m.z)
-            pos[b.id] = p
-            tf.transforms.append(FrameTransform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id,
-                                                translation=p, rotation=_rotation(b, n_radps, t_s)))
-            ent = scene.entities.add()
-            ent.CopyFrom(self._template(b.id, b.kind, b.alive))
-            ent.timestamp.CopyFrom(stamp)
-        links = scene.entities.add(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+            q = b.position_m
+            p = pos[b.id] = Vector3(x=q.x, y=q.y, z=q.z)
+            add_transform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id, translation=p,
+                          rotation=_rotation(b, n_radps, t_s))
+            entities.append(_entity_field(head + self._serialized_template(b.id, b.kind, b.alive)))
+        links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
             line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
                                  scale_invariant=True, color=_GREEN)
@@ -242,7 +256,18 @@ class FoxgloveScene:
             if line.points:
                 links.lines.append(line)
             self._links.clear()
-        return tf.SerializeToString(), scene.SerializeToString()
+        entities.append(_entity_field(links.SerializeToString()))
+        return tf.SerializeToString(), b"".join(entities)
+
+
+def _entity_field(entity: bytes) -> bytes:
+    """One serialised SceneEntity as SceneUpdate's field 2 (`entities`): tag, varint length, bytes."""
+    n, out = len(entity), bytearray(b"\x12")
+    while n > 0x7F:
+        out.append(0x80 | (n & 0x7F))
+        n >>= 7
+    out.append(n)
+    return bytes(out) + entity
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

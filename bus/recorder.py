@@ -61,6 +61,12 @@ def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     return message_type_of_topic(key)
 
 
+def has_timed_header(cls: type[Message]) -> bool:
+    """Whether messages of `cls` carry a `header` with a `t` (parse_sample's time), asked of the class."""
+    hdr = getattr(cls(), "header", None)
+    return hdr is not None and hasattr(hdr, "t")
+
+
 def parse_sample(cls: type[Message] | None, payload: bytes) -> tuple[Message | None, int | None, str]:
     """(message, its simulation time in ns or None, why it does not parse: "" when it does).
 
@@ -89,7 +95,9 @@ class McapRecorder:
         self.run = run
         self.epoch_ns = epoch_ns(epoch_utc)
         self._scene = FoxgloveScene(config) if foxglove else None
-        self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
+        # per key: [class, topic, class has a timed header, the scene derives from the class, channel
+        # id, messages, bytes] (a run has few distinct keys: each is looked at once)
+        self._key_info: dict[str, list[Any]] = {}
         self._f: BinaryIO = open(self.path, "wb")
         # zstd chunks (bus/mcap_writer.py), compressed on a worker thread when `background`
         self._w = RecorderWriter(self._f, chunk_size=chunk_size, background=background)
@@ -99,8 +107,7 @@ class McapRecorder:
         self._topic_channel: dict[str, tuple[type[Message], int]] = {}  # topic -> (type, channel) of its last sample
         self.count = 0
         self.undecodable = 0
-        self.by_topic: dict[str, int] = {}
-        self.bytes_by_topic: dict[str, int] = {}
+        self._by_topic: dict[str, list[int]] = {}  # topic -> [messages, bytes]
         self._last_t_ns = 0
         self._closed = False
         self._flush_period_s = flush_period_s
@@ -129,8 +136,33 @@ class McapRecorder:
             cid = self._topic_channel[topic] = (cls, self._channel_id(topic, cls))
         self._w.add_message(cid[1], self.epoch_ns + max(t_ns, 0), payload, wall_ns, self.count)
         self.count += 1
-        self.by_topic[topic] = self.by_topic.get(topic, 0) + 1
-        self.bytes_by_topic[topic] = self.bytes_by_topic.get(topic, 0) + len(payload)
+        tally = self._by_topic.get(topic)
+        if tally is None:
+            tally = self._by_topic[topic] = [0, 0]
+        tally[0] += 1
+        tally[1] += len(payload)
+
+    @property
+    def by_topic(self) -> dict[str, int]:
+        """Messages written per topic."""
+        return {topic: n for topic, (n, _b) in self._by_topic.items()}
+
+    @property
+    def bytes_by_topic(self) -> dict[str, int]:
+        """Payload bytes written per topic."""
+        return {topic: b for topic, (_n, b) in self._by_topic.items()}
+
+    def _key(self, key: str) -> list[Any]:
+        """The per-key entry of `write`: class, topic, timed header, derived from, channel (None until
+        its first sample that parses), tally."""
+        cls = message_type_for_key(self.keys, key)
+        topic = self.keys.topic(key)
+        tally = self._by_topic.get(topic)
+        if tally is None:
+            tally = self._by_topic[topic] = [0, 0]
+        info = self._key_info[key] = [cls, topic, cls is not None and has_timed_header(cls),
+                                      self._scene is not None and cls in self._scene.DERIVES_FROM, None, tally]
+        return info
 
     def write(self, key: str, payload: bytes, wall_time_ns: int | None = None, t_ns: int | None = None) -> None:
         """One sample: log_time = epoch + its simulation time, publish_time = reception wall time.
@@ -142,13 +174,50 @@ class McapRecorder:
         if self._closed:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
-        known = self._key_info.get(key)
-        if known is None:  # a run has few distinct keys: parse each once
-            known = self._key_info[key] = (message_type_for_key(self.keys, key), self.keys.topic(key))
-        cls, topic = known
+        info = self._key_info.get(key)
+        if info is None:
+            info = self._key(key)
+        cls, topic, timed, derives, cid, tally = info
+        if cls is not None and (t_ns is None or derives):  # parse_sample's verdict and time, inlined
+            try:
+                msg = cls.FromString(payload)
+            except (DecodeError, RuntimeWarning, ValueError):
+                msg = None
+            if msg is not None:
+                if timed and msg.HasField("header"):
+                    t = msg.header.t  # sim_time_ns, inlined
+                    at_ns = int(round(t * 1e9)) if t == t and abs(t) < 1e12 else self._last_t_ns
+                else:
+                    at_ns = self._last_t_ns
+                if at_ns > self._last_t_ns:
+                    self._last_t_ns = at_ns
+                if cid is None:  # the key's channel, registered with its first sample that parses (as _add)
+                    cid = info[4] = self._channel_id(topic, cls)
+                self._w.add_message(cid, self.epoch_ns + max(at_ns, 0), payload, wall_ns, self.count)
+                self.count += 1
+                tally[0] += 1
+                tally[1] += len(payload)
+                self._after(cls, msg, topic, at_ns, wall_ns)
+                return
+        self._write_slow(cls, topic, key, payload, wall_ns, t_ns)
+
+    def _after(self, cls: type[Message], msg: Message | None, topic: str, at_ns: int, wall_ns: int) -> None:
+        """A written sample's follow-ups: the periodic flush at a clock tick, and the Foxglove messages
+        derived from it."""
+        if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
+            self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
+            self._last_flush = time.monotonic()
+        if self._scene is not None and msg is not None:
+            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
+                self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
+
+    def _write_slow(self, cls: type[Message] | None, topic: str, key: str, payload: bytes, wall_ns: int,
+                    t_ns: int | None) -> None:
+        """`write` of a sample stamped by its publisher (not decoded), one that does not parse, or one
+        of a key outside the contract."""
         t: int | None
         msg: Message | None
-        if t_ns is not None and cls is not None and (self._scene is None or cls not in self._scene.DERIVES_FROM):
+        if t_ns is not None and cls is not None:
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)
@@ -162,12 +231,7 @@ class McapRecorder:
             self._last_t_ns = max(self._last_t_ns, at_ns)
         assert cls is not None  # a sample of an unknown key is parse_sample's reason, wrapped above
         self._add(topic, cls, payload, at_ns, wall_ns)
-        if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
-            self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
-            self._last_flush = time.monotonic()
-        if self._scene is not None:
-            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
-                self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
+        self._after(cls, msg, topic, at_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

@@ -16,7 +16,7 @@ import numpy as np
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
-from swarmhil.bus.codec import RejectedPacket, Rejections, arr, check_complete_command, decode, header, sim_time_ns
+from swarmhil.bus.codec import RejectedPacket, Rejections, check_complete_command, decode, header, sim_time_ns
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder
 from swarmhil.plant.config import PlantConfig
@@ -74,6 +74,7 @@ class PlantNode:
         self._step = 0
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, config.sensing["kind"]) for sid in config.ids]
+        self._act_ids = {self.keys.act(sid): sid for sid in config.ids}  # a command's key -> its spacecraft
         self.sensor = make_sensing(config.sensing["kind"], config)
         # [[fault]] (issue 27, plant/faults.py): actuator faults act in the world's actuator model,
         # sensing faults on the stimuli; each fault's start and end is an Event on `faults`
@@ -139,9 +140,11 @@ class PlantNode:
 
     def _on_command(self, key: str, payload: bytes) -> None:
         try:
-            _kind, sc, _ = self.keys.parse(key)
-            if sc not in self.world.index:
-                raise RejectedPacket(f"unknown spacecraft id {sc!r}")
+            sc = self._act_ids.get(key)
+            if sc is None:
+                _kind, sc, _ = self.keys.parse(key)
+                if sc not in self.world.index:
+                    raise RejectedPacket(f"unknown spacecraft id {sc!r}")
             cmd = decode(pb.ActuatorCommand, payload, run=self.run_id)
             check_complete_command(cmd)
             if cmd.header.source != sc:
@@ -149,7 +152,8 @@ class PlantNode:
         except (RejectedPacket, ValueError) as exc:
             self.rejections.add(key, str(exc))
             return
-        if not self.box.put(int(cmd.header.step), sc, np.concatenate([arr(cmd.accel_mps2), arr(cmd.torque_nm)])):
+        a, tq = cmd.accel_mps2, cmd.torque_nm  # (np.concatenate of the two `arr`: the same six float64)
+        if not self.box.put(int(cmd.header.step), sc, np.array([a.x, a.y, a.z, tq.x, tq.y, tq.z])):
             self.stats.late_commands += 1
 
     def _on_barrier(self, key: str, payload: bytes) -> None:
@@ -302,6 +306,13 @@ class PlantNode:
                 self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))
             else:  # a kind without a batch form: its messages, as they would have been published
                 self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self._stimulus_messages(ctx, rows))
+            return
+        stimuli = getattr(self.sensor, "stimuli", None)
+        if stimuli is not None and self._sensing_faults is None:  # a kind that builds all its messages at once
+            live = [j for j, a in enumerate(alive) if a]
+            keys = [self._sense_keys[j] for j in live]
+            for key, stim in zip(keys, stimuli(ctx, live, [self._hdr(key) for key in keys])):
+                self.bus.publish(key, stim.SerializeToString())
             return
         for j, sid in enumerate(ids):
             if not alive[j]:

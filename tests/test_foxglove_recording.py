@@ -212,3 +212,39 @@ def test_spacecraft_spheres_take_their_agents_mode_colour(tmp_path: Path) -> Non
     colours = [next(e for e in d.entities if e.id == "a").spheres[0].color for t, _s, _l, _p, d in msgs if t == "foxglove/scene"]
     rgb = [(round(c.r * 255), round(c.g * 255), round(c.b * 255)) for c in colours]
     assert rgb[1] == MODE_COLOURS["chase"] and rgb[0] != rgb[1] and rgb[2] not in (rgb[0], rgb[1])
+
+
+def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Path) -> None:
+    """FoxgloveScene.from_truth writes SceneUpdate's entities as bytes (a serialised template after
+    the timestamp): the bytes are exactly those protobuf gives the message built field by field (each
+    body's template, then its timestamp; the `links` entity last), at time 0 (an empty timestamp) and
+    later, with ISL links and agent modes."""
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+    from mcap.reader import make_reader
+
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.foxglove_scene import FoxgloveScene, _timestamp
+
+    with open(surround, "rb") as f:
+        reader = make_reader(f)
+        cfg = next(json.loads(m.metadata["json"]) for m in reader.iter_metadata() if m.name == "swarmhil.config")
+    with open(surround, "rb") as f:
+        truths = [pb.Truth.FromString(m.data) for _s, _c, m in make_reader(f).iter_messages(topics=["truth"])]
+    scene = FoxgloveScene(cfg)
+    ids = [b.id for b in truths[0].bodies]
+    assert len(truths) > 3 and len(ids) > 2
+    for k, truth in enumerate(truths):
+        t_ns = k * 1_500_000_000
+        if k % 2:
+            scene.saw_delivery(ids[0], ids[1])
+        scene._modes[ids[k % len(ids)]] = ("chase", "dock", "")[k % 3]
+        data = scene.from_truth(truth, t_ns)[1]
+        built = SceneUpdate()
+        for b in truth.bodies:
+            ent = built.entities.add()
+            ent.CopyFrom(scene._template(b.id, b.kind, b.alive))
+            ent.timestamp.CopyFrom(_timestamp(t_ns))
+        parsed = SceneUpdate.FromString(data)
+        assert parsed.entities[-1].id == "links" and bool(parsed.entities[-1].lines) == bool(k % 2)
+        built.entities.append(parsed.entities[-1])
+        assert data == built.SerializeToString() == parsed.SerializeToString()

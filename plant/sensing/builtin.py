@@ -65,6 +65,28 @@ class RelKind:
             nb.velocity_mps.x, nb.velocity_mps.y, nb.velocity_mps.z = rv.tolist()
         return stim
 
+    def stimuli(self, ctx: SensingContext, observers: list[int], headers: list[pb.Header]) -> list[pb.RelStimulus]:
+        """`stimulus` of each of `observers` (distinct indices in increasing order, with their headers),
+        built from one `batch`: the same pairs in the same order and the same values (each difference
+        is the same elementwise subtraction). With noise, `stimulus` pair by pair (its draws' order)."""
+        if self.noise is not None:
+            return [self.stimulus(ctx, j, h) for j, h in zip(observers, headers)]
+        b = self.batch(ctx, np.asarray(observers, dtype=np.int64))
+        ids, u = ctx.ids, ctx.u_rad
+        off, nbs = b.offsets.tolist(), b.neighbour.tolist()
+        rel_p, rel_v = b.rel_position_m.tolist(), b.rel_velocity_mps.tolist()
+        out = []
+        for r, hdr in enumerate(headers):
+            stim = pb.RelStimulus(header=hdr, u_rad=u)
+            add = stim.neighbours.add
+            for p in range(off[r], off[r + 1]):
+                nb = add(id=ids[nbs[p]])
+                q = nb.position_m
+                q.x, q.y, q.z = rel_p[p]
+                q = nb.velocity_mps
+                q.x, q.y, q.z = rel_v[p]
+            out.append(stim)
+        return out
 
     def batch(self, ctx: SensingContext, observers: np.ndarray) -> "RelBatch":
         """What `stimulus` gives each of `observers` (distinct indices into ctx.ids, in increasing
