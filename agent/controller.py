@@ -42,6 +42,19 @@ class Observation:
     isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step
 
 
+def decode_once(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Callable[[bytes], Any]) -> Any:
+    """decode(pkt.payload), looked up in `cache` first (None: no cache) and kept there: a batch
+    path's flight software decodes each broadcast once a step for all its receivers (issue 29),
+    into values nobody modifies, so each receiver reads what its own decode would give."""
+    if cache is None:
+        return decode(pkt.payload)
+    key = (pkt.type, pkt.payload)
+    got = cache.get(key)
+    if got is None:
+        got = cache[key] = decode(pkt.payload)
+    return got
+
+
 @dataclass
 class Decision:
     """One neighbour's behaviour decision, for telemetry."""

@@ -29,7 +29,7 @@ class RelativeState:
     def __post_init__(self) -> None:
         for name in ("position_m", "velocity_mps"):
             arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+            if arr.shape != (3,) or not np.isfinite(arr).all():
                 raise ValueError(f"{name} must be 3 finite floats, got {getattr(self, name)!r}")
             object.__setattr__(self, name, arr)
 

@@ -29,7 +29,7 @@ def neighbour_positions(extra: dict[str, Any]) -> dict[str, np.ndarray]:
     for key, value in extra.items():
         if key.startswith(KEY_D + "/"):
             d = np.asarray(value, dtype=float).reshape(-1)
-            if d.shape != (3,) or not np.all(np.isfinite(d)):
+            if d.shape != (3,) or not np.isfinite(d).all():
                 raise ValueError(f"{key} must be 3 finite numbers, got {value!r}")
             out[key[len(KEY_D) + 1:]] = d
     return out
@@ -61,7 +61,7 @@ class DefunctMeasurement:
         y = np.atleast_1d(np.asarray(extra[key], dtype=float))
         if y.shape != (m_rows,):
             raise ValueError(f"{key} has shape {y.shape}, expected ({m_rows},) rows of C_i")
-        if not np.all(np.isfinite(y)):
+        if not np.isfinite(y).all():
             raise ValueError(f"{key} is not finite: {y}")
         return cls(y_m=y, valid=True)
 
