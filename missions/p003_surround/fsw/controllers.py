@@ -74,6 +74,9 @@ class LeaderController:
                        transmissions=[Transmission(packets.TT_TYPE, packets.encode_tt(pkt))])
 
 
+_KINDS: dict[tuple[Any, ...], int] = {}  # ServicerController._kind -> its number
+
+
 @dataclass
 class ServicerTelemetry:
     u_sync_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -103,6 +106,7 @@ class ServicerController:
         self.tt_sent_t = 0.0
         self.t_prev: float | None = None
         self.telemetry = ServicerTelemetry()
+        self._kind_number: int | None = None
 
     def _receive(self, isl_rx: list[Any], decoded: dict[tuple[str, bytes], Any] | None = None) -> None:
         """The leader's last TT packet and the other servicers' x~_j, ξ_j from the packets received;
@@ -132,6 +136,13 @@ class ServicerController:
         """What servicers must share to be stepped in one call (vectorised.py)."""
         return (self.g, self.slots_m.tobytes(), self.r_g_m.tobytes(), self.xi.shape)
 
+    def _kind_id(self) -> int:
+        """A number for `_kind` (equal kinds, equal numbers), made at the first step (the game, slots,
+        spheres and ξ's shape are set at construction): grouping without hashing the game each step."""
+        if self._kind_number is None:
+            self._kind_number = _KINDS.setdefault(self._kind(), len(_KINDS))
+        return self._kind_number
+
     @classmethod
     def step_batch(cls, controllers: list["ServicerController"], batch: ObservationBatch) -> CommandBatch:
         """The step of S servicers: packets and measurements per servicer, the Nash CT gradient and
@@ -146,9 +157,9 @@ class ServicerController:
             c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
             mes.append(me)
             centres.append(c._sphere_centres(t_s))
-        groups: dict[tuple[Any, ...], list[int]] = {}
+        groups: dict[int, list[int]] = {}
         for r, c in enumerate(controllers):
-            groups.setdefault(c._kind(), []).append(r)
+            groups.setdefault(c._kind_id(), []).append(r)
         cmds: list[Command] = [None] * len(controllers)  # type: ignore[list-item]
         for rows in groups.values():
             cs = [controllers[r] for r in rows]
