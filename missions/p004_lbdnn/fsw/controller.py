@@ -192,13 +192,17 @@ class LbdnnServicer:
             r = rows if len(rows) < len(controllers) else slice(None)
             rho[r] = rho_filter.rho(eta_tilde[r], nu[r], g)
             law_u[r] = control(phi[r], eta[r], zeta_hat[r], eta_tilde[r], rho[r], g)
+        # the thrust-limited variant: the applied (clipped per axis) u is what the observers must see;
+        # np.clip's ufunc with each row's bounds
+        limits = [c.cfg.max_accel_mps2 for c in controllers]
+        limited = [i for i, lim in enumerate(limits) if lim is not None]
+        if limited:
+            bound = np.array([limits[i] for i in limited], dtype=float)[:, None]
+            law_u[limited] = np.clip(law_u[limited], -bound, bound)
         cmds = []
+        t = float(batch.t_s)
         for i, c in enumerate(controllers):
             rho_i, u = rho[i], law_u[i]
-            if c.cfg.max_accel_mps2 is not None:
-                # the thrust-limited variant: the applied (clipped) u is what the observers must see
-                u = np.clip(u, -c.cfg.max_accel_mps2, c.cfg.max_accel_mps2)
-            t = float(batch.t_s)
             c._t_prev, c._eta_prev, c._u_prev = t, eta[i], u
             c.state = InternalState(t, eta[i], c.eta_hat.copy(), c.zeta_hat.copy(), rho_i, c.theta.copy(), phi[i], u)
             payload = packet.encode(packet.StatePacket(batch.step, t, u, c.theta), c.weight_bytes)

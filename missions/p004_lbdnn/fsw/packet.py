@@ -51,7 +51,7 @@ def encode(pkt: StatePacket, weight_bytes: int = 4) -> bytes:
         raise ValueError("refusing to encode a non-finite u or theta")
     dtype = "<f4" if weight_bytes == 4 else "<f8"
     head = _HEADER.pack(MAGIC, VERSION, weight_bytes, theta.size, int(pkt.step), float(pkt.t_s))
-    return head + _U.pack(*u) + theta.astype(dtype).tobytes()
+    return head + _U.pack(*u.tolist()) + theta.astype(dtype).tobytes()  # tolist: the same doubles, packed without numpy scalars
 
 
 def decode(payload: bytes) -> StatePacket:
