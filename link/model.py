@@ -167,6 +167,17 @@ def line_of_sight_clear(p1_m: np.ndarray, p2_m: np.ndarray, ref_radius_m: float,
     return bool(clear) if np.ndim(clear) == 0 else clear
 
 
+def _above_the_limb(positions_m: np.ndarray, ref_radius_m: float, blocking_radius_m: float) -> bool:
+    """True when no segment between two of the (finite) positions can come near the Earth, so that
+    `line_of_sight_clear` is True for every pair: every point of such a segment lies in the ball of
+    radius R = max |p| about the LVLH origin (a ball is convex), at least a - R from the Earth's
+    centre (-a, 0, 0) (triangle inequality); a - R beyond the blocking radius by a metre and a
+    millionth of a (far more than the rounding of the test's arithmetic) leaves every verdict clear.
+    NaN rows are left out (out of range, never tested); a NaN-only truth is not above the limb."""
+    r2 = np.fmax.reduce(np.add.reduce(positions_m * positions_m, axis=1)) if len(positions_m) else np.nan
+    return bool(ref_radius_m - math.sqrt(r2) > blocking_radius_m + 1.0 + 1e-6 * ref_radius_m) if r2 == r2 else False
+
+
 # --- seeded loss ----------------------------------------------------------------------------------
 _MASK64 = (1 << 64) - 1
 
@@ -413,7 +424,7 @@ class LinkModel:
         rel = pos[None, :, :] - pos[:, None, :]            # rel[i, j] = pos[j] - pos[i]
         dist = np.sqrt(np.add.reduce(rel * rel, axis=2))  # np.linalg.norm's arithmetic
         reach = dist <= cfg.range_m  # NaN (body missing from the truth) counts as out of range
-        if cfg.occultation and reach.any():
+        if cfg.occultation and reach.any() and not _above_the_limb(pos, ref_radius_m, cfg.earth_radius_m + cfg.grazing_altitude_m):
             clear = np.asarray(line_of_sight_clear(np.broadcast_to(pos[:, None, :], rel.shape),
                                                    np.broadcast_to(pos[None, :, :], rel.shape), ref_radius_m,
                                                    cfg.earth_radius_m + cfg.grazing_altitude_m))

@@ -313,9 +313,12 @@ def test_the_step_geometry_is_each_packets_own_test() -> None:
     """LinkModel evaluates the range gate and the line of sight of every (source, receiver) pair once
     a step (`_geometry`, issue 29): each verdict is the one the per-packet test gives, pos[j] - pos[i]
     and its norm, then `line_of_sight_clear` from pos[i] to the receivers in range (random swarms
-    about the Earth's limb, ranges set to a pair's distance exactly, coincident bodies, NaN rows)."""
+    about the Earth's limb, ranges set to a pair's distance exactly, coincident bodies, NaN rows; swarms
+    far above the limb, whose pairs `_above_the_limb` finds all clear without the test, and others)."""
+    from swarmhil.link.model import _above_the_limb
+
     rng = np.random.default_rng(34)
-    checked = 0
+    checked, above = 0, 0
     for _ in range(300):
         n = int(rng.integers(1, 10))
         pos = rng.normal(0, 1, (n, 3)) * 10.0 ** rng.uniform(0, 7)
@@ -329,6 +332,7 @@ def test_the_step_geometry_is_each_packets_own_test() -> None:
         model = LinkModel(cfg, ids, step_s=1.0)
         model.set_truth(0, pos, A_M)
         reach, clear = model._geometry(0)
+        above += _above_the_limb(pos, A_M, cfg.earth_radius_m)  # every pair clear without the test
         for i in range(n):
             js = np.array([j for j in range(n) if j != i], dtype=int)
             if not len(js):
@@ -341,4 +345,4 @@ def test_the_step_geometry_is_each_packets_own_test() -> None:
             assert [reach[i][j] for j in js.tolist()] == ok.tolist()
             assert [clear[i][j] for j, o in zip(js.tolist(), ok.tolist()) if o] == los[ok].tolist()
             checked += int(ok.sum())
-    assert checked > 1000
+    assert checked > 1000 and 30 < above < 270
