@@ -151,12 +151,17 @@ class ServicerController:
         mes, centres = [], []
         decoded: dict[tuple[str, bytes], Any] = {}  # each broadcast decoded once for every receiver
         extra, isl_rx = batch.extra, batch.isl_rx
+        shared: dict[tuple[int, float, bytes], np.ndarray] = {}  # the centres of one TT packet (read-only here)
         for r, c in enumerate(controllers):
             c._receive(isl_rx[r] if isl_rx is not None else [], decoded)
             me = sensing.read(extra[r] if extra is not None else {}, LEADER_REL_KEY)
             c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
             mes.append(me)
-            centres.append(c._sphere_centres(t_s))
+            key = (id(c.tt), c.tt_sent_t, c.d_cg_m.tobytes())
+            got = shared.get(key)
+            if got is None:
+                got = shared[key] = c._sphere_centres(t_s)
+            centres.append(got)
         groups: dict[int, list[int]] = {}
         for r, c in enumerate(controllers):
             groups.setdefault(c._kind_id(), []).append(r)
