@@ -39,7 +39,7 @@ class Observation:
     rel_position_m: np.ndarray
     rel_velocity_mps: np.ndarray
     extra: dict[str, Any] = field(default_factory=dict)
-    isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step
+    isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step (batch mode: deploy/batch.py RxPacket, their fields)
 
 
 def decode_once(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Callable[[bytes], Any]) -> Any:
