@@ -39,7 +39,20 @@ class Observation:
     rel_position_m: np.ndarray
     rel_velocity_mps: np.ndarray
     extra: dict[str, Any] = field(default_factory=dict)
-    isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step
+    isl_rx: list[Any] = field(default_factory=list)  # IslPacket messages received since the last step (batch mode: deploy/batch.py RxPacket, their fields)
+
+
+def decode_once(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Callable[[bytes], Any]) -> Any:
+    """decode(pkt.payload), looked up in `cache` first (None: no cache) and kept there: a batch
+    path's flight software decodes each broadcast once a step for all its receivers (issue 29),
+    into values nobody modifies, so each receiver reads what its own decode would give."""
+    if cache is None:
+        return decode(pkt.payload)
+    key = (pkt.type, pkt.payload)
+    got = cache.get(key)
+    if got is None:
+        got = cache[key] = decode(pkt.payload)
+    return got
 
 
 @dataclass
@@ -132,6 +145,21 @@ class ObservationBatch:
                            extra=self.extra[i] if self.extra is not None else {},
                            isl_rx=self.isl_rx[i] if self.isl_rx is not None else [])
 
+    def subset(self, rows: Sequence[int]) -> "ObservationBatch":
+        """The batch of the observers `rows` alone: what `of` makes of their observations (the same
+        values: their neighbour rows gathered in order, their extra and packets), from the arrays."""
+        off = self.offsets
+        sel = [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+        idx = np.array(sel, dtype=np.int64)
+        counts = [int(off[i + 1]) - int(off[i]) for i in rows]
+        return ObservationBatch(step=self.step, t_s=self.t_s, u_rad=self.u_rad, observers=[self.observers[i] for i in rows],
+                                offsets=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+                                neighbour_ids=[self.neighbour_ids[k] for k in sel],
+                                rel_position_m=np.asarray(self.rel_position_m, float).reshape(-1, 3)[idx],
+                                rel_velocity_mps=np.asarray(self.rel_velocity_mps, float).reshape(-1, 3)[idx],
+                                extra=[self.extra[i] if self.extra is not None else {} for i in rows],
+                                isl_rx=[self.isl_rx[i] if self.isl_rx is not None else [] for i in rows])
+
     @classmethod
     def of(cls, observers: Sequence[str], observations: Sequence[Observation]) -> "ObservationBatch":
         """The batch of per-spacecraft observations of one step (same step, t and u)."""
@@ -202,7 +230,7 @@ def step_batch(controllers: Sequence[Controller], batch: ObservationBatch) -> Co
             for i in rows:
                 cmds[i] = controllers[i].step(batch.observation(i))
             continue
-        sub = ObservationBatch.of([batch.observers[i] for i in rows], [batch.observation(i) for i in rows])
+        sub = batch.subset(rows)
         cb = fn([controllers[i] for i in rows], sub)
         for k, i in enumerate(rows):
             cmds[i] = cb.command(k)

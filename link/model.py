@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import asdict, dataclass, field
+from operator import attrgetter
 from typing import Any, Iterable, Sequence
 
 import numpy as np
@@ -166,6 +167,17 @@ def line_of_sight_clear(p1_m: np.ndarray, p2_m: np.ndarray, ref_radius_m: float,
     return bool(clear) if np.ndim(clear) == 0 else clear
 
 
+def _above_the_limb(positions_m: np.ndarray, ref_radius_m: float, blocking_radius_m: float) -> bool:
+    """True when no segment between two of the (finite) positions can come near the Earth, so that
+    `line_of_sight_clear` is True for every pair: every point of such a segment lies in the ball of
+    radius R = max |p| about the LVLH origin (a ball is convex), at least a - R from the Earth's
+    centre (-a, 0, 0) (triangle inequality); a - R beyond the blocking radius by a metre and a
+    millionth of a (far more than the rounding of the test's arithmetic) leaves every verdict clear.
+    NaN rows are left out (out of range, never tested); a NaN-only truth is not above the limb."""
+    r2 = np.fmax.reduce(np.add.reduce(positions_m * positions_m, axis=1)) if len(positions_m) else np.nan
+    return bool(ref_radius_m - math.sqrt(r2) > blocking_radius_m + 1.0 + 1e-6 * ref_radius_m) if r2 == r2 else False
+
+
 # --- seeded loss ----------------------------------------------------------------------------------
 _MASK64 = (1 << 64) - 1
 
@@ -274,26 +286,27 @@ class Counters:
     def __init__(self) -> None:
         self.rows: dict[tuple[str, str, str], list[int]] = {}
 
-    def _row(self, src: str, dst: str, typ: str) -> list[int]:
+    def row(self, src: str, dst: str, typ: str) -> list[int]:
+        """The counters of (src, dst, typ), in the order of COUNTER_FIELDS (made at the first use)."""
         r = self.rows.get((src, dst, typ))
         if r is None:
             r = self.rows[(src, dst, typ)] = [0] * len(COUNTER_FIELDS)
         return r
 
     def add_tx(self, src: str, typ: str, payload_bytes: int, wire_bytes: int) -> None:
-        r = self._row(src, TX_ROW, typ)
+        r = self.row(src, TX_ROW, typ)
         r[_MSG] += 1
         r[_PAY] += payload_bytes
         r[_WIRE] += wire_bytes
 
     def add_rx(self, src: str, dst: str, typ: str, payload_bytes: int, wire_bytes: int) -> None:
-        r = self._row(src, dst, typ)
+        r = self.row(src, dst, typ)
         r[_MSG] += 1
         r[_PAY] += payload_bytes
         r[_WIRE] += wire_bytes
 
     def add_drop(self, src: str, dst: str, typ: str, cause: str) -> None:
-        self._row(src, dst, typ)[_RANGE + DROP_CAUSES.index(cause)] += 1
+        self.row(src, dst, typ)[_RANGE + DROP_CAUSES.index(cause)] += 1
 
     def totals(self) -> dict[str, int]:
         tx = np.zeros(len(COUNTER_FIELDS), dtype=np.int64)
@@ -333,6 +346,9 @@ class Delivery:
     wire_bytes: int = field(compare=False, default=0)
 
 
+_sort_key = attrgetter("sort_key")
+
+
 class LinkModel:
     """State of the link for one run: radios, packets in flight, truth by step, counters.
 
@@ -355,6 +371,8 @@ class LinkModel:
         self._on_air: list[TxPacket] = []           # started, receivers not evaluated yet (truth missing)
         self._scheduled: list[Delivery] = []        # evaluated, waiting for their receiver step
         self._truth: dict[int, tuple[np.ndarray, float]] = {}
+        self._geom: dict[int, tuple[list[list[bool]], list[list[bool]]]] = {}  # step -> `_geometry`
+        self._receivers_of: dict[tuple[str, str], list[tuple[str, int]]] = {}
         self.max_truth_lag_steps = 0
         self.truth_keep_steps = 64  # truth kept behind the newest step, for packets that arrive late
 
@@ -370,6 +388,7 @@ class LinkModel:
     def set_truth(self, step: int, positions_m: np.ndarray, ref_radius_m: float) -> None:
         """Positions (N,3) in the order of `ids` at step `step` (NaN rows: body not in the truth)."""
         self._truth[int(step)] = (np.asarray(positions_m, dtype=float), float(ref_radius_m))
+        self._geom.pop(int(step), None)
 
     # processing
     def _time(self, step: int) -> float:
@@ -392,41 +411,65 @@ class LinkModel:
                 self.counters.add_drop(d.src, TX_ROW, d.type, "queue")
         return started
 
+    def _geometry(self, step: int) -> tuple[list[list[bool]], list[list[bool]]]:
+        """Range gate and line of sight of every (source, receiver) pair at `step`, made once a
+        step for all the packets sent at it: rows by source, columns by receiver. Each pair's
+        numbers are the per-packet test's (pos[j] - pos[i], its norm as the sum of squares along the
+        last axis, `line_of_sight_clear` from pos[i] to pos[j]): elementwise, so the same bits."""
+        got = self._geom.get(step)
+        if got is not None:
+            return got
+        cfg = self.cfg
+        pos, ref_radius_m = self._truth[step]
+        rel = pos[None, :, :] - pos[:, None, :]            # rel[i, j] = pos[j] - pos[i]
+        dist = np.sqrt(np.add.reduce(rel * rel, axis=2))  # np.linalg.norm's arithmetic
+        reach = dist <= cfg.range_m  # NaN (body missing from the truth) counts as out of range
+        if cfg.occultation and reach.any() and not _above_the_limb(pos, ref_radius_m, cfg.earth_radius_m + cfg.grazing_altitude_m):
+            clear = np.asarray(line_of_sight_clear(np.broadcast_to(pos[:, None, :], rel.shape),
+                                                   np.broadcast_to(pos[None, :, :], rel.shape), ref_radius_m,
+                                                   cfg.earth_radius_m + cfg.grazing_altitude_m))
+        else:
+            clear = np.ones(reach.shape, dtype=bool)
+        got = self._geom[step] = (reach.tolist(), clear.tolist())
+        return got
+
+    def _receivers(self, src: str, dst: str) -> list[tuple[str, int]]:
+        """The addressed receivers (id, index) of a packet from `src` to `dst` ("" broadcast: every other id)."""
+        key = (src, dst)
+        got = self._receivers_of.get(key)
+        if got is None:
+            got = self._receivers_of[key] = [(r, self.index[r]) for r in ([dst] if dst else [s for s in self.ids if s != src])]
+        return got
+
     def _evaluate(self, p: TxPacket) -> None:
         """Range, occultation and loss for every addressed receiver, from the truth at the send step."""
-        pos, ref_radius_m = self._truth[p.send_step]
+        reach_all, clear_all = self._geometry(p.send_step)
         i = self.index[p.src]
-        receivers = [p.dst] if p.dst else [s for s in self.ids if s != p.src]
+        receivers = self._receivers(p.src, p.dst)
+        reach, clear = reach_all[i], clear_all[i]
         arrive_t = p.t_done + self.cfg.latency_s
         due = max(p.send_step + 1, math.ceil(arrive_t / self.step_s - 1e-9))
         cfg = self.cfg
-        js = np.array([self.index[r] for r in receivers], dtype=int)
-        rel = pos[js] - pos[i]
-        dist = np.sqrt(np.add.reduce(rel * rel, axis=1))  # np.linalg.norm's arithmetic
-        reach = dist <= cfg.range_m  # NaN (body missing from the truth) counts as out of range
-        clear = np.ones(len(js), dtype=bool)
-        if cfg.occultation and reach.any():
-            clear[reach] = line_of_sight_clear(np.broadcast_to(pos[i], (int(reach.sum()), 3)), pos[js[reach]],
-                                               ref_radius_m, cfg.earth_radius_m + cfg.grazing_altitude_m)
-        fault = None if self.faults is None else self.faults.at(p.send_step, i, js)
-        for n, (r, j, ok, los) in enumerate(zip(receivers, js.tolist(), reach.tolist(), clear.tolist())):
+        fault = None if self.faults is None else self.faults.at(p.send_step, i, np.array([j for _r, j in receivers], dtype=int))
+        row = self.counters.row
+        for n, (r, j) in enumerate(receivers):
             at, due_j = arrive_t, due
-            if not ok:
-                self.counters.add_drop(p.src, r, p.type, "range")
+            if not reach[j]:
+                row(p.src, r, p.type)[_RANGE] += 1
                 continue
-            elif not los:
-                self.counters.add_drop(p.src, r, p.type, "occulted")
+            elif not clear[j]:
+                row(p.src, r, p.type)[_OCC] += 1
                 continue
             if fault is not None:
                 if fault.blocked[n] or (fault.loss_probability[n] > 0 and loss_draw(
                         cfg.seed ^ FAULT_LOSS_SALT, i, p.tx_index, j) < fault.loss_probability[n]):
-                    self.counters.add_drop(p.src, r, p.type, "fault")
+                    row(p.src, r, p.type)[_FAULT] += 1
                     continue
                 if fault.extra_latency_s[n] > 0:
                     at = arrive_t + float(fault.extra_latency_s[n])
                     due_j = max(p.send_step + 1, math.ceil(at / self.step_s - 1e-9))
             if cfg.loss_probability > 0 and loss_draw(cfg.seed, i, p.tx_index, j) < cfg.loss_probability:
-                self.counters.add_drop(p.src, r, p.type, "lost")
+                row(p.src, r, p.type)[_LOST] += 1
             else:
                 self._scheduled.append(Delivery((p.send_step, i, p.tx_index, j), p.src, r, p.dst, p.type, p.payload,
                                                 p.send_step, p.send_t, at, due_j, wire_bytes=p.wire_bytes))
@@ -448,11 +491,15 @@ class LinkModel:
 
     def _take(self, rx_step: int) -> list[Delivery]:
         out = [d for d in self._scheduled if d.due_step <= rx_step]
-        self._scheduled = [d for d in self._scheduled if d.due_step > rx_step]
-        out.sort()
+        self._scheduled = [d for d in self._scheduled if d.due_step > rx_step] if len(out) < len(self._scheduled) else []
+        out.sort(key=_sort_key)  # Delivery's order (its sort_key alone), without its Python __lt__
+        row = self.counters.row
         for d in out:
             d.rx_step = rx_step
-            self.counters.add_rx(d.src, d.dst, d.type, len(d.payload), d.wire_bytes)
+            r = row(d.src, d.dst, d.type)
+            r[_MSG] += 1
+            r[_PAY] += len(d.payload)
+            r[_WIRE] += d.wire_bytes
         return out
 
     def window(self, step: int) -> list[Delivery]:
@@ -471,6 +518,7 @@ class LinkModel:
                         + [max(self._truth, default=0) - self.truth_keep_steps])
         for k in [k for k in self._truth if k < keep_from]:
             del self._truth[k]
+            self._geom.pop(k, None)
 
     def pending(self) -> dict[str, int]:
         """Packets not delivered (yet): waiting in a radio queue, on air without truth, scheduled."""

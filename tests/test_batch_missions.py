@@ -254,3 +254,25 @@ def test_p000_batch_path_handles_a_raising_spacecraft_as_the_agent_node(tmp_path
     assert _truths(tmp_path / "all" / "run.mcap") == _truths(tmp_path / "truth" / "run.mcap")
     assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {"a3": {"controller": 3}}
     assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0
+
+
+def test_a_batchs_subset_is_the_batch_of_its_observations() -> None:
+    """agent/controller.py `ObservationBatch.subset` (a class's rows of a mixed batch, issue 29: paper
+    003's servicers beside the leader) equals `ObservationBatch.of` of those observers' observations."""
+    from swarmhil.agent.controller import Observation, ObservationBatch
+
+    rng = np.random.default_rng(34)
+    for _ in range(200):
+        n = int(rng.integers(1, 8))
+        obs = [Observation(step=3, t_s=0.3, u_rad=0.1, neighbour_ids=[f"n{k}" for k in range(c)],
+                           rel_position_m=rng.normal(size=(c, 3)), rel_velocity_mps=rng.normal(size=(c, 3)),
+                           extra={"k": k}, isl_rx=[k]) for k, c in enumerate(rng.integers(0, 4, n).tolist())]
+        batch = ObservationBatch.of([f"o{k}" for k in range(n)], obs)
+        rows = sorted(rng.choice(n, int(rng.integers(1, n + 1)), replace=False).tolist())
+        got = batch.subset(rows)
+        want = ObservationBatch.of([batch.observers[i] for i in rows], [batch.observation(i) for i in rows])
+        assert (got.observers, got.neighbour_ids, got.extra, got.isl_rx) == (want.observers, want.neighbour_ids,
+                                                                              want.extra, want.isl_rx)
+        for name in ("offsets", "rel_position_m", "rel_velocity_mps"):
+            a, b = getattr(got, name), getattr(want, name)
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()

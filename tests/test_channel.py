@@ -307,3 +307,42 @@ def test_line_of_sight_keeps_the_bits_of_np_sum_clip_and_norm() -> None:
     assert 0 < want.sum() < len(want)
     assert np.array_equal(line_of_sight_clear(p1, p2, a, re), want)
     assert [line_of_sight_clear(x, y, a, re) for x, y in zip(p1[:50], p2[:50])] == want[:50].tolist()
+
+
+def test_the_step_geometry_is_each_packets_own_test() -> None:
+    """LinkModel evaluates the range gate and the line of sight of every (source, receiver) pair once
+    a step (`_geometry`, issue 29): each verdict is the one the per-packet test gives, pos[j] - pos[i]
+    and its norm, then `line_of_sight_clear` from pos[i] to the receivers in range (random swarms
+    about the Earth's limb, ranges set to a pair's distance exactly, coincident bodies, NaN rows; swarms
+    far above the limb, whose pairs `_above_the_limb` finds all clear without the test, and others)."""
+    from swarmhil.link.model import _above_the_limb
+
+    rng = np.random.default_rng(34)
+    checked, above = 0, 0
+    for _ in range(300):
+        n = int(rng.integers(1, 10))
+        pos = rng.normal(0, 1, (n, 3)) * 10.0 ** rng.uniform(0, 7)
+        if n > 2:
+            pos[2] = pos[1]
+            pos[int(rng.integers(n))] = np.nan if rng.random() < 0.3 else pos[0]
+        rel0 = pos[-1] - pos[0]
+        exact = float(np.sqrt(np.add.reduce(rel0 * rel0)))
+        cfg = LinkConfig(range_m=exact if exact > 0 else 1e6, earth_radius_m=float(rng.choice([R_EARTH_M, 1e6, 10.0])))
+        ids = [f"s{k}" for k in range(n)]
+        model = LinkModel(cfg, ids, step_s=1.0)
+        model.set_truth(0, pos, A_M)
+        reach, clear = model._geometry(0)
+        above += _above_the_limb(pos, A_M, cfg.earth_radius_m)  # every pair clear without the test
+        for i in range(n):
+            js = np.array([j for j in range(n) if j != i], dtype=int)
+            if not len(js):
+                continue
+            rel = pos[js] - pos[i]
+            ok = np.sqrt(np.add.reduce(rel * rel, axis=1)) <= cfg.range_m
+            los = np.ones(len(js), dtype=bool)
+            if ok.any():
+                los[ok] = line_of_sight_clear(np.broadcast_to(pos[i], (int(ok.sum()), 3)), pos[js[ok]], A_M, cfg.earth_radius_m)
+            assert [reach[i][j] for j in js.tolist()] == ok.tolist()
+            assert [clear[i][j] for j, o in zip(js.tolist(), ok.tolist()) if o] == los[ok].tolist()
+            checked += int(ok.sum())
+    assert checked > 1000 and 30 < above < 270

@@ -384,8 +384,8 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
 def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
     """Issue 29: natural_rel_accel without np.stack / np.linalg.norm gives the bits of the formula as
     written with them, one servicer or stacked (NaN, -0.0, inf); the servicers' `saturated` test is
-    np.allclose's verdict."""
-    from swarmhil.missions.p003_surround.fsw.controllers import _allclose
+    np.allclose's verdict, row by row."""
+    from swarmhil.missions.p003_surround.fsw.controllers import _allclose_rows
 
     rng = np.random.default_rng(29)
     a_m, n = 6878137.0, 0.0011
@@ -399,6 +399,33 @@ def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
             + np.stack([n**2 * q[:, 0], n**2 * q[:, 1], np.zeros_like(q[:, 2])], -1))
     assert natural_rel_accel(q, v, a_m, n).tobytes() == want.tobytes()
     assert natural_rel_accel(q[3], v[3], a_m, n).tobytes() == want[3].tobytes()
-    for a in (q[0], q[0] * (1 + 1e-6), q[0] * (1 + 1e-4), np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0])):
-        for b in (q[0], np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0])):
-            assert _allclose(a, b) == np.allclose(a, b)
+    pairs = [(a, b) for a in (q[0], q[0] * (1 + 1e-6), q[0] * (1 + 1e-4), np.array([np.inf, 0.0, 1.0]),
+                              np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))
+             for b in (q[0], np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))]
+    with np.errstate(over="ignore"):  # the 1e308 rows' sums
+        got = _allclose_rows(np.array([a for a, _b in pairs]), np.array([b for _a, b in pairs]))
+    assert got == [bool(np.allclose(a, b)) for a, b in pairs]
+    assert _allclose_rows(q[:9], q[:9] * (1 + 1e-6)) == [bool(np.allclose(a, a * (1 + 1e-6))) for a in q[:9]]
+
+
+def test_clip_norm_rows_is_clip_norm_of_each_row() -> None:
+    """Issue 29: the servicers' saturations over rows give each row's `clip_norm` bit for bit (its
+    norm np.linalg.norm's), at, under and over the limit, with NaN, ±inf, -0.0 and subnormals."""
+    from swarmhil.missions.p003_surround.fsw.funnel import clip_norm, clip_norm_rows
+
+    rng = np.random.default_rng(34)
+    rows = rng.normal(0, 20, (400, 3)) * 10.0 ** rng.integers(-3, 4, (400, 1))
+    rows[rng.random((400, 3)) < 0.03] = -0.0
+    rows[rng.random((400, 3)) < 0.01] = np.nan
+    rows[rng.random((400, 3)) < 0.01] = -np.inf
+    rows[rng.random((400, 3)) < 0.01] = 5e-324
+    rows[0] = [20.0, 0.0, 0.0]  # on the limit
+    for limit in (20.0, 0.5, 1e-300):
+        with np.errstate(all="ignore"):  # inf * 0 and overflows: as clip_norm itself
+            want = np.array([clip_norm(r.copy(), limit) for r in rows])
+            got = clip_norm_rows(rows, limit)
+            wide = clip_norm_rows(np.hstack([rows, rows])[:, :3], limit)  # rows of a strided view
+            alone = [clip_norm(r.copy(), limit) for r in rows]
+            norms = [float(np.linalg.norm(r)) for r in rows]
+        assert got.tobytes() == want.tobytes() and wide.tobytes() == want.tobytes()
+        assert all(a.tobytes() == (r if m <= limit else r * (limit / m)).tobytes() for a, r, m in zip(alone, rows, norms))

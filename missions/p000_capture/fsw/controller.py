@@ -11,11 +11,12 @@ from __future__ import annotations
 import logging
 import zlib
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.agent.controller import (Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, decode_once,
+                                        register)
 from swarmhil.missions.p000_capture.contract import (POSITION_M, VELOCITY_MPS, Ellipsoid, signed_distance, surface_frame,
                                             surface_frames)
 
@@ -73,13 +74,13 @@ class CaptureController:
         got = False
         for pkt in obs.isl_rx:
             if pkt.type == pl.STATE_TYPE:
-                m = _decoded(decoded, pkt, pl.decode_state)
+                m = decode_once(decoded, pkt, pl.decode_state)
                 if m.centre_m is not None:
                     self.neighbours[pkt.src] = TargetEstimate(m.est_t_s, m.centre_m, m.target_velocity_mps,
                                                               m.shape, direct=False)
                     got = True
             elif pkt.type == pl.LANDMARKS_TYPE:
-                self.pool.append(_decoded(decoded, pkt, pl.decode_landmarks))
+                self.pool.append(decode_once(decoded, pkt, pl.decode_landmarks))
         return got
 
     def _fit(self, t: float, r: np.ndarray) -> None:
@@ -377,17 +378,6 @@ class CaptureController:
             los = line_of_sight(r, ell.centre_m)  # (raises where desired_attitude would)
         return _Plan(saturate_norm(force, p.force_max_n), p.mass_kg, self.mode, txs, ell,
                      sd if ell is not None else 0.0, los)
-
-
-def _decoded(cache: dict[tuple[str, bytes], Any] | None, pkt: Any, decode: Callable[[bytes], Any]) -> Any:
-    """decode(pkt.payload), looked up in `cache` first (None: no cache) and kept there."""
-    if cache is None:
-        return decode(pkt.payload)
-    key = (pkt.type, pkt.payload)
-    got = cache.get(key)
-    if got is None:
-        got = cache[key] = decode(pkt.payload)
-    return got
 
 
 @dataclass

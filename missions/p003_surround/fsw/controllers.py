@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.agent.controller import (Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, decode_once,
+                                        register)
 from swarmhil.missions.p003_surround.fsw import nash, packets, sensing, vectorised
-from swarmhil.missions.p003_surround.fsw.funnel import clip_norm, leader_accel, tt_control
+from swarmhil.missions.p003_surround.fsw.funnel import clip_norm_rows, leader_accel, tt_control
 from swarmhil.missions.p003_surround.contract import (
     LEADER_CONTROLLER,
     LEADER_REL_KEY,
@@ -73,6 +74,9 @@ class LeaderController:
                        transmissions=[Transmission(packets.TT_TYPE, packets.encode_tt(pkt))])
 
 
+_KINDS: dict[tuple[Any, ...], int] = {}  # ServicerController._kind -> its number
+
+
 @dataclass
 class ServicerTelemetry:
     u_sync_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -102,13 +106,17 @@ class ServicerController:
         self.tt_sent_t = 0.0
         self.t_prev: float | None = None
         self.telemetry = ServicerTelemetry()
+        self._kind_number: int | None = None
 
-    def _receive(self, obs: Observation) -> None:
-        for pkt in obs.isl_rx:
+    def _receive(self, isl_rx: list[Any], decoded: dict[tuple[str, bytes], Any] | None = None) -> None:
+        """The leader's last TT packet and the other servicers' x~_j, ξ_j from the packets received;
+        `decoded`: the payloads already decoded this step (agent/controller.py `decode_once`: the
+        packets are read-only here, the CT rows copied)."""
+        for pkt in isl_rx:
             if pkt.type == packets.TT_TYPE:
-                self.tt, self.tt_sent_t = packets.decode_tt(pkt.payload), float(pkt.sent_t)
+                self.tt, self.tt_sent_t = decode_once(decoded, pkt, packets.decode_tt), float(pkt.sent_t)
             elif pkt.type == packets.CT_TYPE:
-                ct = packets.decode_ct(pkt.payload)
+                ct = decode_once(decoded, pkt, packets.decode_ct)
                 if ct.index != self.index and 0 <= ct.index < len(self.xi):
                     self.x_err[ct.index], self.xi[ct.index] = ct.x_err, ct.xi
 
@@ -128,55 +136,83 @@ class ServicerController:
         """What servicers must share to be stepped in one call (vectorised.py)."""
         return (self.g, self.slots_m.tobytes(), self.r_g_m.tobytes(), self.xi.shape)
 
+    def _kind_id(self) -> int:
+        """A number for `_kind` (equal kinds, equal numbers), made at the first step (the game, slots,
+        spheres and ξ's shape are set at construction): grouping without hashing the game each step."""
+        if self._kind_number is None:
+            self._kind_number = _KINDS.setdefault(self._kind(), len(_KINDS))
+        return self._kind_number
+
     @classmethod
     def step_batch(cls, controllers: list["ServicerController"], batch: ObservationBatch) -> CommandBatch:
         """The step of S servicers: packets and measurements per servicer, the Nash CT gradient and
         the ξ rate of eq. 18-20 over arrays (vectorised.py), grouped by what they share."""
         t_s = float(batch.t_s)
         mes, centres = [], []
+        decoded: dict[tuple[str, bytes], Any] = {}  # each broadcast decoded once for every receiver
+        extra, isl_rx = batch.extra, batch.isl_rx
+        shared: dict[tuple[int, float, bytes], np.ndarray] = {}  # the centres of one TT packet (read-only here)
         for r, c in enumerate(controllers):
-            obs = batch.observation(r)
-            c._receive(obs)
-            me = sensing.read(obs.extra, LEADER_REL_KEY)
+            c._receive(isl_rx[r] if isl_rx is not None else [], decoded)
+            me = sensing.read(extra[r] if extra is not None else {}, LEADER_REL_KEY)
             c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
             mes.append(me)
-            centres.append(c._sphere_centres(t_s))
-        groups: dict[tuple[Any, ...], list[int]] = {}
+            key = (id(c.tt), c.tt_sent_t, c.d_cg_m.tobytes())
+            got = shared.get(key)
+            if got is None:
+                got = shared[key] = c._sphere_centres(t_s)
+            centres.append(got)
+        groups: dict[int, list[int]] = {}
         for r, c in enumerate(controllers):
-            groups.setdefault(c._kind(), []).append(r)
-        grads, rates = [np.zeros(6)] * len(controllers), [np.zeros(6)] * len(controllers)
+            groups.setdefault(c._kind_id(), []).append(r)
+        cmds: list[Command] = [None] * len(controllers)  # type: ignore[list-item]
         for rows in groups.values():
             cs = [controllers[r] for r in rows]
             gx, rt = vectorised.grad_and_xi_rate(np.array([c.x_err for c in cs]), np.array([c.xi for c in cs]),
                                                  cs[0].slots_m, np.array([centres[r] for r in rows]), cs[0].r_g_m,
                                                  np.array([c.index for c in cs]), cs[0].g)
-            for k, r in enumerate(rows):
-                grads[r], rates[r] = gx[k], rt[k]
-        cmds = [c._command(mes[r], grads[r], rates[r], t_s) for r, c in enumerate(controllers)]
+            for r, cmd in zip(rows, cls._commands(cs, [mes[r] for r in rows], gx, rt, t_s)):
+                cmds[r] = cmd
         return CommandBatch.of(cmds)
 
-    def _command(self, me: Any, grad: np.ndarray, rate: np.ndarray, t_s: float) -> Command:
-        """u_i = u_Li + u_ci* + u_id (eq. 6) from ∂V_i/∂x~_i, then the Euler step of ξ_i (eq. 20)."""
-        i, g, m = self.index, self.g, self.g.mass_kg
+    @staticmethod
+    def _commands(cs: list["ServicerController"], mes: list[Any], grad: np.ndarray, rate: np.ndarray,
+                  t_s: float) -> list[Command]:
+        """u_i = u_Li + u_ci* + u_id (eq. 6) of servicers that share their game, from their ∂V_i/∂x~_i
+        (grad, (S, 6)) and measured states, then the Euler step of each one's ξ_i (eq. 20) at its ξ
+        rate (rate, (S, 6)). Over rows, each row the arithmetic of one servicer alone: elementwise,
+        the natural relative acceleration's |r| a sum along the last axis, each norm of the
+        saturations its own `clip_norm` (`clip_norm_rows`)."""
+        g, m = cs[0].g, cs[0].g.mass_kg
         u_ct = m * nash.ct_accel(grad, g)
-        u_id = (-m * natural_rel_accel(me.position_m, me.velocity_mps, self.orbit.semi_major_axis_m,
-                                       self.orbit.mean_motion_radps) if g.cancel_natural else np.zeros(3))
-        u_sync = m * (self.tt.leader_accel_mps2 if self.tt is not None else np.zeros(3))
-        if g.saturate == "sum":
-            u = clip_norm(u_sync + u_ct + u_id, g.max_thrust_n)
-        else:
-            u = u_sync + clip_norm(u_ct + u_id, g.max_thrust_n)
-        saturated = not _allclose(u, u_sync + u_ct + u_id)
-        self.telemetry = ServicerTelemetry(u_sync, u_ct, u_id, u, saturated)
-        # explicit Euler step of eq. 20 for the own block ξ_i, position rate capped (guard)
-        dt = 0.0 if self.t_prev is None else t_s - self.t_prev
-        self.t_prev = t_s
-        rate = rate.copy()
-        rate[:3] = clip_norm(rate[:3], self.g.xi_rate_cap_mps)
-        self.xi[i] = self.xi[i] + dt * rate
-        pkt = packets.CTPacket(i, self.x_err[i], self.xi[i])
-        return Command(accel_mps2=u / m, mode="surround",
-                       transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))])
+        u_id = np.zeros((len(cs), 3))
+        if g.cancel_natural:
+            by_orbit: dict[OrbitInfo, list[int]] = {}
+            for k, c in enumerate(cs):
+                by_orbit.setdefault(c.orbit, []).append(k)
+            for orbit, ks in by_orbit.items():
+                u_id[ks] = -m * natural_rel_accel(np.array([mes[k].position_m for k in ks]),
+                                                  np.array([mes[k].velocity_mps for k in ks]),
+                                                  orbit.semi_major_axis_m, orbit.mean_motion_radps)
+        u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
+        total = u_sync + u_ct + u_id
+        u = clip_norm_rows(total, g.max_thrust_n) if g.saturate == "sum" else u_sync + clip_norm_rows(u_ct + u_id, g.max_thrust_n)
+        unsaturated = _allclose_rows(u, total)
+        xi_rate = rate.copy()
+        xi_rate[:, :3] = clip_norm_rows(rate[:, :3], g.xi_rate_cap_mps)  # the position rate capped (guard)
+        accel = u / m
+        out = []
+        for k, c in enumerate(cs):
+            i = c.index
+            c.telemetry = ServicerTelemetry(u_sync[k], u_ct[k], u_id[k], u[k], not unsaturated[k])
+            # explicit Euler step of eq. 20 for the own block ξ_i
+            dt = 0.0 if c.t_prev is None else t_s - c.t_prev
+            c.t_prev = t_s
+            c.xi[i] = c.xi[i] + dt * xi_rate[k]
+            pkt = packets.CTPacket(i, c.x_err[i], c.xi[i])
+            out.append(Command(accel_mps2=accel[k], mode="surround",
+                               transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))]))
+        return out
 
 
 def _allclose(a: np.ndarray, b: np.ndarray) -> bool:
@@ -186,6 +222,14 @@ def _allclose(a: np.ndarray, b: np.ndarray) -> bool:
     if math.isfinite(np.add.reduce(a) + np.add.reduce(b)):  # finite sums: every entry finite
         return bool((np.abs(a - b) <= 1e-8 + 1e-5 * np.abs(b)).all())
     return bool(np.allclose(a, b))
+
+
+def _allclose_rows(a: np.ndarray, b: np.ndarray) -> list[bool]:
+    """`_allclose` of each row pair of (S, 3) a and b: the finite test over all rows at once when every
+    row is finite, else row by row."""
+    if np.isfinite(np.add.reduce(a, axis=1) + np.add.reduce(b, axis=1)).all():
+        return (np.abs(a - b) <= 1e-8 + 1e-5 * np.abs(b)).all(axis=1).tolist()  # type: ignore[no-any-return]
+    return [_allclose(x, y) for x, y in zip(a, b)]
 
 
 @register(LEADER_CONTROLLER)

@@ -79,8 +79,21 @@ def tt_control(q_tl_m: np.ndarray, v_tl_mps: np.ndarray, t_s: float,
 
 def clip_norm(vec: np.ndarray, limit: float) -> np.ndarray:
     """vec scaled down to Euclidean norm `limit` if it is longer."""
-    norm = float(np.linalg.norm(vec))
+    v = vec.ravel(order="K") if isinstance(vec, np.ndarray) and vec.dtype == np.float64 else None
+    # np.linalg.norm of a float64 array is sqrt(v . v) (its ravel, dot and sqrt) without its Python (issue 29)
+    norm = math.sqrt(v.dot(v)) if v is not None else float(np.linalg.norm(vec))
     return vec if norm <= limit else vec * (limit / norm)
+
+
+def clip_norm_rows(vecs: np.ndarray, limit: float) -> np.ndarray:
+    """Each row of `vecs` (S, 3) as `clip_norm` gives it, as a new array: the same norm per row
+    (sqrt of the row's dot with itself, what np.linalg.norm computes) and the same scaling."""
+    out = np.array(vecs, dtype=float)
+    for k, v in enumerate(out):
+        norm = math.sqrt(v.dot(v))
+        if not norm <= limit:
+            out[k] = v * (limit / norm)
+    return out
 
 
 def leader_accel(u_l_n: np.ndarray, p: FunnelParams) -> np.ndarray:

@@ -37,8 +37,9 @@ class CTPacket:
 
 
 def encode_tt(p: TTPacket) -> bytes:
-    return _TT.pack(VERSION, p.step, *np.asarray(p.leader_accel_mps2, float), *np.asarray(p.q_tl_m, float),
-                    *np.asarray(p.v_tl_mps, float))
+    # tolist(): the same doubles as Python floats, which struct packs as it packs numpy's (issue 29)
+    return _TT.pack(VERSION, p.step, *np.asarray(p.leader_accel_mps2, float).tolist(), *np.asarray(p.q_tl_m, float).tolist(),
+                    *np.asarray(p.v_tl_mps, float).tolist())
 
 
 def decode_tt(payload: bytes) -> TTPacket:
@@ -52,7 +53,7 @@ def decode_tt(payload: bytes) -> TTPacket:
 
 
 def encode_ct(p: CTPacket) -> bytes:
-    return _CT.pack(VERSION, p.index, *np.asarray(p.x_err, float), *np.asarray(p.xi, float))
+    return _CT.pack(VERSION, p.index, *np.asarray(p.x_err, float).tolist(), *np.asarray(p.xi, float).tolist())
 
 
 def decode_ct(payload: bytes) -> CTPacket:

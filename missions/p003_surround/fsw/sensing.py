@@ -13,6 +13,7 @@ one dict {"position_m": [3 floats], "velocity_mps": [3 floats]} (or the dataclas
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +30,8 @@ class RelativeState:
     def __post_init__(self) -> None:
         for name in ("position_m", "velocity_mps"):
             arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+            # all(isfinite) over the three Python floats: np.isfinite(arr).all() without numpy's calls (issue 29)
+            if arr.shape != (3,) or not all(map(math.isfinite, arr.tolist())):
                 raise ValueError(f"{name} must be 3 finite floats, got {getattr(self, name)!r}")
             object.__setattr__(self, name, arr)
 
@@ -51,13 +53,19 @@ def _named(extra: dict[str, Any], name: str) -> Any:
     return extra[hits[0]] if hits else None
 
 
+_NAMES: dict[str, tuple[str, str]] = {}  # key -> the names of its two arrays
+
+
 def read(extra: dict[str, Any], key: str) -> RelativeState:
     """The relative state under `key` in obs.extra (one dict or dataclass, or the two named arrays
     `key.position_m[/subject]`, `key.velocity_mps[/subject]`); KeyError naming the key if missing."""
     if key in extra:
         value = extra[key]
         return value if isinstance(value, RelativeState) else RelativeState.from_dict(value)
-    pos, vel = _named(extra, f"{key}.position_m"), _named(extra, f"{key}.velocity_mps")
+    names = _NAMES.get(key)
+    if names is None:
+        names = _NAMES[key] = (f"{key}.position_m", f"{key}.velocity_mps")
+    pos, vel = _named(extra, names[0]), _named(extra, names[1])
     if pos is None or vel is None:
         raise KeyError(f"obs.extra has no {key!r} (keys: {sorted(extra)})")
     return RelativeState(np.asarray(pos, dtype=float), np.asarray(vel, dtype=float))

@@ -22,11 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, register
+from swarmhil.agent.controller import (Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, Transmission, decode_once,
+                                        register)
 from swarmhil.missions.p004_lbdnn.fsw import lbdnn, observer, packet, rho_filter, vectorised
 from swarmhil.missions.p004_lbdnn.fsw.control_law import control
 from swarmhil.missions.p004_lbdnn.fsw.sensing import DefunctMeasurement, neighbour_positions
-from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, ServicerConfig, mission_from_params
+from swarmhil.missions.p004_lbdnn.contract import CONTROLLER, Gains, ServicerConfig, mission_from_params
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class LbdnnServicer:
         self.stale_measurements = 0  # neighbour / y_i measurements held from an earlier step
         self.rejected_packets = 0
         self.state: InternalState | None = None
+        self._law: tuple[ServicerConfig, vectorised.Law] | None = None  # (the config it is of, law())
 
     # -- measurements and link -------------------------------------------------------------
     def _measured_eta(self, obs: Observation) -> np.ndarray:
@@ -94,12 +96,14 @@ class LbdnnServicer:
         d = np.array([self._d_last[j] for j in self.cfg.neighbours]).reshape(-1, 3)
         return observer.relative_position_error(d, y, self.cfg.c_matrix, self.cfg.b)
 
-    def _read_link(self, obs: Observation) -> None:
+    def _read_link(self, obs: Observation, decoded: dict[tuple[str, bytes], Any] | None = None) -> None:
+        """The graph neighbours' u_j and theta_j from the packets received; `decoded`: the payloads
+        already decoded this step (agent/controller.py `decode_once`: the packets are read-only)."""
         for msg in obs.isl_rx:
             if msg.type != packet.PACKET_TYPE or msg.src not in self._u_nb:
                 continue
             try:
-                pkt = packet.decode(bytes(msg.payload))
+                pkt = decode_once(decoded, msg, _decode)
             except ValueError:
                 self.rejected_packets += 1
                 continue
@@ -116,13 +120,17 @@ class LbdnnServicer:
         return self.step_batch([self], ObservationBatch.of([self.cfg.sc_id], [obs])).command(0)
 
     def law(self) -> vectorised.Law:
-        return vectorised.Law(self.g, self.cfg.use_network, self.cfg.theta_bar, self.cfg.proj_epsilon,
-                              self.cfg.rk4_substeps)
+        """What this servicer's internal-state RK4 shares with others stepped in one call (from its
+        frozen config: made once)."""
+        if self._law is None or self._law[0] is not self.cfg:
+            self._law = (self.cfg, vectorised.Law(self.g, self.cfg.use_network, self.cfg.theta_bar, self.cfg.proj_epsilon,
+                                                  self.cfg.rk4_substeps))
+        return self._law[1]
 
-    def _begin(self, obs: Observation) -> tuple[np.ndarray, float | None]:
+    def _begin(self, obs: Observation, decoded: dict[tuple[str, bytes], Any] | None = None) -> tuple[np.ndarray, float | None]:
         """Measure eta_k (eq. 12) and read the link; the hold interval since the last step (None: the first)."""
         eta = self._measured_eta(obs)
-        self._read_link(obs)
+        self._read_link(obs, decoded)
         if self._t_prev is None:
             self.nu = rho_filter.nu_initial(eta - self.eta_hat, self.g)
             return eta, None
@@ -156,7 +164,8 @@ class LbdnnServicer:
     def step_batch(cls, controllers: list["LbdnnServicer"], batch: ObservationBatch) -> CommandBatch:
         """The step of N servicers (eqs. 25-28): measurements and link per servicer, the RK4 of the
         internal states and the network over arrays (vectorised.py), grouped by law and hold interval."""
-        begun = [c._begin(batch.observation(i)) for i, c in enumerate(controllers)]
+        decoded: dict[tuple[str, bytes], Any] = {}  # each broadcast decoded once for every receiver
+        begun = [c._begin(batch.observation(i), decoded) for i, c in enumerate(controllers)]
         groups: dict[tuple[vectorised.Law, float], list[LbdnnServicer]] = {}
         for c, (_eta, dt) in zip(controllers, begun):
             if dt is not None:
@@ -171,22 +180,39 @@ class LbdnnServicer:
             rows = np.flatnonzero(net)
             phi[rows] = vectorised.forward(np.concatenate([eta[rows], zeta_hat[rows]], axis=1),
                                            np.array([controllers[r].theta for r in rows.tolist()]), jacobian=False)[0]
-        cmds = []
+        # eq. 25 and 27 over the rows of the servicers that share their gains (elementwise: each row
+        # the values of its own call)
+        eta_tilde = eta - np.array([c.eta_hat for c in controllers])
+        nu = np.array([c.nu for c in controllers])
+        rho, law_u = np.empty_like(eta), np.empty_like(eta)
+        by_gains: dict[Gains, list[int]] = {}
         for i, c in enumerate(controllers):
-            g = c.g
-            eta_tilde = eta[i] - c.eta_hat
-            rho_i = rho_filter.rho(eta_tilde, c.nu, g)
-            u = control(phi[i], eta[i], c.zeta_hat, eta_tilde, rho_i, g)
-            if c.cfg.max_accel_mps2 is not None:
-                # the thrust-limited variant: the applied (clipped) u is what the observers must see
-                u = np.clip(u, -c.cfg.max_accel_mps2, c.cfg.max_accel_mps2)
-            t = float(batch.t_s)
+            by_gains.setdefault(c.g, []).append(i)
+        for g, rows in by_gains.items():
+            r = rows if len(rows) < len(controllers) else slice(None)
+            rho[r] = rho_filter.rho(eta_tilde[r], nu[r], g)
+            law_u[r] = control(phi[r], eta[r], zeta_hat[r], eta_tilde[r], rho[r], g)
+        # the thrust-limited variant: the applied (clipped per axis) u is what the observers must see;
+        # np.clip's ufunc with each row's bounds
+        limits = [c.cfg.max_accel_mps2 for c in controllers]
+        limited = [i for i, lim in enumerate(limits) if lim is not None]
+        if limited:
+            bound = np.array([limits[i] for i in limited], dtype=float)[:, None]
+            law_u[limited] = np.clip(law_u[limited], -bound, bound)
+        cmds = []
+        t = float(batch.t_s)
+        for i, c in enumerate(controllers):
+            rho_i, u = rho[i], law_u[i]
             c._t_prev, c._eta_prev, c._u_prev = t, eta[i], u
             c.state = InternalState(t, eta[i], c.eta_hat.copy(), c.zeta_hat.copy(), rho_i, c.theta.copy(), phi[i], u)
             payload = packet.encode(packet.StatePacket(batch.step, t, u, c.theta), c.weight_bytes)
             cmds.append(Command(accel_mps2=u, mode="lbdnn",
                                 transmissions=[Transmission(type=packet.PACKET_TYPE, payload=payload)]))
         return CommandBatch.of(cmds)
+
+
+def _decode(payload: bytes) -> packet.StatePacket:
+    return packet.decode(bytes(payload))
 
 
 @register(CONTROLLER)

@@ -47,11 +47,11 @@ def encode(pkt: StatePacket, weight_bytes: int = 4) -> bytes:
     u = np.asarray(pkt.accel_mps2, dtype=float).ravel()
     if u.shape != (3,):
         raise ValueError(f"accel_mps2 has shape {u.shape}, expected (3,)")
-    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(u))):
+    if not (np.isfinite(theta).all() and np.isfinite(u).all()):
         raise ValueError("refusing to encode a non-finite u or theta")
     dtype = "<f4" if weight_bytes == 4 else "<f8"
     head = _HEADER.pack(MAGIC, VERSION, weight_bytes, theta.size, int(pkt.step), float(pkt.t_s))
-    return head + _U.pack(*u) + theta.astype(dtype).tobytes()
+    return head + _U.pack(*u.tolist()) + theta.astype(dtype).tobytes()  # tolist: the same doubles, packed without numpy scalars
 
 
 def decode(payload: bytes) -> StatePacket:
@@ -69,6 +69,6 @@ def decode(payload: bytes) -> StatePacket:
     u = np.array(_U.unpack_from(payload, _HEADER.size))
     theta = np.frombuffer(payload, dtype="<f4" if wbytes == 4 else "<f8",
                           offset=_HEADER.size + _U.size, count=n).astype(float)
-    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(theta))):
+    if not (np.isfinite(u).all() and np.isfinite(theta).all()):
         raise ValueError("p004 packet carries a non-finite value")
     return StatePacket(step=int(step), t_s=float(t_s), accel_mps2=u, theta=theta)
