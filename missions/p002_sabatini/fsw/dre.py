@@ -14,8 +14,9 @@ the dimensionless ROE, R in SI (m/s^2)^-2, i.e. the paper's 1e4, 1e6, 1e5 in (km
 
 The table is computed once per (orbit, weights, grid) and cached for the life of the process, and
 on disk (issue 16): `$SWARMHIL_CACHE_DIR` (default `$XDG_CACHE_HOME/swarmhil` or `~/.cache/swarmhil`),
-one .npz per table, keyed by the inputs, this module's and agent/roe.py's source and the numpy
-and scipy versions, so a cached table is the table this code would compute, bit for bit. A process
+one .npz per table, keyed by the inputs, this module's and agent/roe.py's source, the numpy
+and scipy versions and the kernel set (`kernel_set`: the processor and the environment's
+overrides of its kernels), so a cached table is the table this code would compute here, bit for bit. A process
 that finds its tables there never imports scipy.integrate (about 60 MB of an agent process's
 memory and 1-2 s of its start). `SWARMHIL_CACHE_DIR=off` disables the disk cache.
 """
@@ -160,7 +161,9 @@ def cache_dir() -> Path | None:
 
 @lru_cache(maxsize=1)
 def _code_fingerprint() -> str:
-    """What the table depends on besides its inputs: this code and the numerical libraries."""
+    """What the table depends on besides its inputs: this code, the numerical libraries and the
+    floating-point kernels they run here (`kernel_set`): the table's last bits differ between
+    kernel sets, and a run's truth carries them (docs/determinism.md)."""
     import importlib.metadata as md
 
     h = hashlib.sha256()
@@ -171,7 +174,23 @@ def _code_fingerprint() -> str:
             h.update(f"{dist}={md.version(dist)}".encode())
         except md.PackageNotFoundError:
             h.update(dist.encode())
+    h.update(kernel_set().encode())
     return h.hexdigest()[:16]
+
+
+def kernel_set() -> str:
+    """The floating-point kernels of this process: the processor (model and feature flags, from
+    which numpy picks its SIMD loops and the OpenBLAS that numpy and scipy bundle its kernels) and
+    the environment that overrides either choice. Two processes with the same string compute the
+    same table bits with the same code and libraries."""
+    try:
+        info = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        info = []
+    cpu = [next((ln.split(":", 1)[1].strip() for ln in info if ln.startswith(k)), "") for k in ("model name", "flags")]
+    env = [f"{k}={os.environ.get(k, '')}" for k in ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES",
+                                                    "NPY_ENABLE_CPU_FEATURES")]
+    return ";".join([*cpu, *env])
 
 
 def _cache_file(a_m: float, n_radps: float, q_diag: tuple[float, ...], r_diag: tuple[float, ...],
