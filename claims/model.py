@@ -98,6 +98,7 @@ class Claim:
     value: Value | None = None  # filled from claims/recorded.json by the registry
     alt: Value | None = None
     nudged: tuple[float, ...] = ()  # the values of the source's one-ulp nudged runs (recorded.json)
+    machines: tuple[float, ...] = ()  # the default kernels' values on other processors (recorded.json)
 
     def render(self, v: Value | None = None, spec: str | None = None) -> str:
         """The value as the doc prints it."""
@@ -143,17 +144,17 @@ NUDGE_MARGIN = 1.5  # times the range of {value, alt, nudged runs}: a sample of 
 
 
 def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, margin: float = 3.0,
-                nudged: Sequence[float] = ()) -> Tol:
+                nudged: Sequence[float] = (), machines: Sequence[float] = ()) -> Tol:
     """An `auto` tolerance made concrete: the largest of margin x the measured cross-kernel spread,
-    NUDGE_MARGIN x the range of the value, alt and the one-ulp nudged runs' values (when recorded),
-    and half a unit of the doc's last printed digit; so the measured last-bit spread passes and any
-    change the doc would show beyond it fails."""
+    NUDGE_MARGIN x the range of the value, alt, the one-ulp nudged runs' values and the values
+    other processors gave (`machines`, when recorded), and half a unit of the doc's last printed
+    digit; so the measured last-bit spread passes and any change the doc would show beyond it fails."""
     if not tol.auto or not isinstance(value, (int, float)):
         return tol
     spread = abs(float(value) - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
     sample = [float(value)] + [float(v) for v in ([alt] if isinstance(alt, (int, float)) else []) + list(nudged)
-                               if math.isfinite(float(v))]
-    ensemble = (max(sample) - min(sample)) if nudged else 0.0
+                               + list(machines) if math.isfinite(float(v))]
+    ensemble = (max(sample) - min(sample)) if nudged or machines else 0.0
     return Tol(abs=max(tol.abs, margin * spread, NUDGE_MARGIN * ensemble, half_digit(float(value), spec)), rel=tol.rel)
 
 

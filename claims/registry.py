@@ -1,9 +1,11 @@
 """The one claims registry: every module's sources, claims and tables, with the recorded values.
 
 Recorded values live in claims/recorded.json, `{claim id: {"value": ..., "alt": ..., "kernel_alt":
-..., "nudged": [...]}}`, written by `swarmhil claims --all --record` (value, default kernels), by the
-same under the other kernel set (alt) and, for sources with one-ulp nudged runs, by `--record
---nudges N` (nudged). Tolerances are in the modules, chosen from these spreads (docs/claims.md).
+..., "nudged": [...], "machines": {...}}}`, written by `swarmhil claims --all --record` (value,
+default kernels), by the same under the other kernel set (alt) and, for sources with one-ulp nudged
+runs, by `--record --nudges N` (nudged); `machines` keeps, by processor, the default kernels' value
+another processor gave where it left the tolerance (docs/claims.md). Tolerances are in the
+modules, chosen from these spreads.
 """
 from __future__ import annotations
 
@@ -68,8 +70,10 @@ def registry() -> Registry:
             r = rec.get(c.id, {})
             value, alt = _value(r.get("value")), _value(r.get("alt"))
             nudged = tuple(float(v) for v in r.get("nudged", ()))
-            claims[c.id] = dataclasses.replace(c, value=value, alt=alt, nudged=nudged,
-                                               tol=resolve_tol(c.tol, value, alt, c.fmt, nudged=nudged))
+            machines = tuple(float(v) for v in r.get("machines", {}).values())
+            claims[c.id] = dataclasses.replace(c, value=value, alt=alt, nudged=nudged, machines=machines,
+                                               tol=resolve_tol(c.tol, value, alt, c.fmt, nudged=nudged,
+                                                               machines=machines))
         for t in m.TABLES:
             if t.id in tables:
                 raise ValueError(f"table {t.id} twice")
