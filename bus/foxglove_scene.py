@@ -47,6 +47,7 @@ from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.truth_wire import varint
 
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
@@ -232,7 +233,7 @@ class FoxgloveScene:
         add_transform = tf.transforms.add
         # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
         # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
-        # body and state is reused; tests/test_foxglove_scene.py checks the bytes against the entities
+        # body and state is reused; tests/test_foxglove_recording.py checks the bytes against the entities
         # built field by field
         stamped = SceneEntity()
         stamped.timestamp.CopyFrom(stamp)
@@ -262,12 +263,7 @@ class FoxgloveScene:
 
 def _entity_field(entity: bytes) -> bytes:
     """One serialised SceneEntity as SceneUpdate's field 2 (`entities`): tag, varint length, bytes."""
-    n, out = len(entity), bytearray(b"\x12")
-    while n > 0x7F:
-        out.append(0x80 | (n & 0x7F))
-        n >>= 7
-    out.append(n)
-    return bytes(out) + entity
+    return b"\x12" + varint(len(entity)) + entity
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

@@ -61,12 +61,6 @@ def message_type_for_key(keys: Keys, key: str) -> type[Message] | None:
     return message_type_of_topic(key)
 
 
-def has_timed_header(cls: type[Message]) -> bool:
-    """Whether messages of `cls` carry a `header` with a `t` (parse_sample's time), asked of the class."""
-    hdr = getattr(cls(), "header", None)
-    return hdr is not None and hasattr(hdr, "t")
-
-
 def parse_sample(cls: type[Message] | None, payload: bytes) -> tuple[Message | None, int | None, str]:
     """(message, its simulation time in ns or None, why it does not parse: "" when it does).
 
@@ -95,9 +89,8 @@ class McapRecorder:
         self.run = run
         self.epoch_ns = epoch_ns(epoch_utc)
         self._scene = FoxgloveScene(config) if foxglove else None
-        # per key: [class, topic, class has a timed header, the scene derives from the class, channel
-        # id, messages, bytes] (a run has few distinct keys: each is looked at once)
-        self._key_info: dict[str, list[Any]] = {}
+        # per key: (class, topic, the scene derives from the class): a run has few distinct keys, each looked at once
+        self._key_info: dict[str, tuple[type[Message] | None, str, bool]] = {}
         self._f: BinaryIO = open(self.path, "wb")
         # zstd chunks (bus/mcap_writer.py), compressed on a worker thread when `background`
         self._w = RecorderWriter(self._f, chunk_size=chunk_size, background=background)
@@ -152,16 +145,10 @@ class McapRecorder:
         """Payload bytes written per topic."""
         return {topic: b for topic, (_n, b) in self._by_topic.items()}
 
-    def _key(self, key: str) -> list[Any]:
-        """The per-key entry of `write`: class, topic, timed header, derived from, channel (None until
-        its first sample that parses), tally."""
+    def _key(self, key: str) -> tuple[type[Message] | None, str, bool]:
+        """The per-key entry of `write`: class, topic, whether the Foxglove scene derives from it."""
         cls = message_type_for_key(self.keys, key)
-        topic = self.keys.topic(key)
-        tally = self._by_topic.get(topic)
-        if tally is None:
-            tally = self._by_topic[topic] = [0, 0]
-        info = self._key_info[key] = [cls, topic, cls is not None and has_timed_header(cls),
-                                      self._scene is not None and cls in self._scene.DERIVES_FROM, None, tally]
+        info = self._key_info[key] = (cls, self.keys.topic(key), self._scene is not None and cls in self._scene.DERIVES_FROM)
         return info
 
     def write(self, key: str, payload: bytes, wall_time_ns: int | None = None, t_ns: int | None = None) -> None:
@@ -170,54 +157,16 @@ class McapRecorder:
         `t_ns`: the simulation time the publisher stamped the sample with (bus/memory.py, a
         publisher in this process that serialised a message of the key's type): the payload is
         then not decoded again unless the Foxglove scene derives from its class (stimuli and
-        commands, the bulk of a paper 000 run's bytes, are not)."""
+        commands, the bulk of a paper 000 run's bytes, are not). A sample that does not parse, or
+        of a key outside the contract, is written as an UndecodableSample and counted."""
         if self._closed:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
         info = self._key_info.get(key)
-        if info is None:
-            info = self._key(key)
-        cls, topic, timed, derives, cid, tally = info
-        if cls is not None and (t_ns is None or derives):  # parse_sample's verdict and time, inlined
-            try:
-                msg = cls.FromString(payload)
-            except (DecodeError, RuntimeWarning, ValueError):
-                msg = None
-            if msg is not None:
-                if timed and msg.HasField("header"):
-                    t = msg.header.t  # sim_time_ns, inlined
-                    at_ns = int(round(t * 1e9)) if t == t and abs(t) < 1e12 else self._last_t_ns
-                else:
-                    at_ns = self._last_t_ns
-                if at_ns > self._last_t_ns:
-                    self._last_t_ns = at_ns
-                if cid is None:  # the key's channel, registered with its first sample that parses (as _add)
-                    cid = info[4] = self._channel_id(topic, cls)
-                self._w.add_message(cid, self.epoch_ns + max(at_ns, 0), payload, wall_ns, self.count)
-                self.count += 1
-                tally[0] += 1
-                tally[1] += len(payload)
-                self._after(cls, msg, topic, at_ns, wall_ns)
-                return
-        self._write_slow(cls, topic, key, payload, wall_ns, t_ns)
-
-    def _after(self, cls: type[Message], msg: Message | None, topic: str, at_ns: int, wall_ns: int) -> None:
-        """A written sample's follow-ups: the periodic flush at a clock tick, and the Foxglove messages
-        derived from it."""
-        if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
-            self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
-            self._last_flush = time.monotonic()
-        if self._scene is not None and msg is not None:
-            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
-                self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
-
-    def _write_slow(self, cls: type[Message] | None, topic: str, key: str, payload: bytes, wall_ns: int,
-                    t_ns: int | None) -> None:
-        """`write` of a sample stamped by its publisher (not decoded), one that does not parse, or one
-        of a key outside the contract."""
+        cls, topic, derives = self._key(key) if info is None else info
         t: int | None
         msg: Message | None
-        if t_ns is not None and cls is not None:
+        if t_ns is not None and cls is not None and not derives:
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)
@@ -227,11 +176,16 @@ class McapRecorder:
             wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
                                            header=pb.Header(run=self.run, source="recorder", t=self._last_t_ns / 1e9))
             cls, payload, msg = pb.UndecodableSample, wrapped.SerializeToString(), None
-        else:
-            self._last_t_ns = max(self._last_t_ns, at_ns)
+        elif at_ns > self._last_t_ns:
+            self._last_t_ns = at_ns
         assert cls is not None  # a sample of an unknown key is parse_sample's reason, wrapped above
         self._add(topic, cls, payload, at_ns, wall_ns)
-        self._after(cls, msg, topic, at_ns, wall_ns)
+        if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
+            self._w.flush()  # what a SIGKILL would lose: at most the chunk since the last flush
+            self._last_flush = time.monotonic()
+        if self._scene is not None and msg is not None:
+            for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
+                self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

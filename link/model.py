@@ -286,7 +286,7 @@ class Counters:
     def __init__(self) -> None:
         self.rows: dict[tuple[str, str, str], list[int]] = {}
 
-    def row(self, src: str, dst: str, typ: str) -> list[int]:
+    def _row(self, src: str, dst: str, typ: str) -> list[int]:
         """The counters of (src, dst, typ), in the order of COUNTER_FIELDS (made at the first use)."""
         r = self.rows.get((src, dst, typ))
         if r is None:
@@ -294,19 +294,19 @@ class Counters:
         return r
 
     def add_tx(self, src: str, typ: str, payload_bytes: int, wire_bytes: int) -> None:
-        r = self.row(src, TX_ROW, typ)
+        r = self._row(src, TX_ROW, typ)
         r[_MSG] += 1
         r[_PAY] += payload_bytes
         r[_WIRE] += wire_bytes
 
     def add_rx(self, src: str, dst: str, typ: str, payload_bytes: int, wire_bytes: int) -> None:
-        r = self.row(src, dst, typ)
+        r = self._row(src, dst, typ)
         r[_MSG] += 1
         r[_PAY] += payload_bytes
         r[_WIRE] += wire_bytes
 
     def add_drop(self, src: str, dst: str, typ: str, cause: str) -> None:
-        self.row(src, dst, typ)[_RANGE + DROP_CAUSES.index(cause)] += 1
+        self._row(src, dst, typ)[_RANGE + DROP_CAUSES.index(cause)] += 1
 
     def totals(self) -> dict[str, int]:
         tx = np.zeros(len(COUNTER_FIELDS), dtype=np.int64)
@@ -451,25 +451,24 @@ class LinkModel:
         due = max(p.send_step + 1, math.ceil(arrive_t / self.step_s - 1e-9))
         cfg = self.cfg
         fault = None if self.faults is None else self.faults.at(p.send_step, i, np.array([j for _r, j in receivers], dtype=int))
-        row = self.counters.row
         for n, (r, j) in enumerate(receivers):
             at, due_j = arrive_t, due
             if not reach[j]:
-                row(p.src, r, p.type)[_RANGE] += 1
+                self.counters.add_drop(p.src, r, p.type, "range")
                 continue
             elif not clear[j]:
-                row(p.src, r, p.type)[_OCC] += 1
+                self.counters.add_drop(p.src, r, p.type, "occulted")
                 continue
             if fault is not None:
                 if fault.blocked[n] or (fault.loss_probability[n] > 0 and loss_draw(
                         cfg.seed ^ FAULT_LOSS_SALT, i, p.tx_index, j) < fault.loss_probability[n]):
-                    row(p.src, r, p.type)[_FAULT] += 1
+                    self.counters.add_drop(p.src, r, p.type, "fault")
                     continue
                 if fault.extra_latency_s[n] > 0:
                     at = arrive_t + float(fault.extra_latency_s[n])
                     due_j = max(p.send_step + 1, math.ceil(at / self.step_s - 1e-9))
             if cfg.loss_probability > 0 and loss_draw(cfg.seed, i, p.tx_index, j) < cfg.loss_probability:
-                row(p.src, r, p.type)[_LOST] += 1
+                self.counters.add_drop(p.src, r, p.type, "lost")
             else:
                 self._scheduled.append(Delivery((p.send_step, i, p.tx_index, j), p.src, r, p.dst, p.type, p.payload,
                                                 p.send_step, p.send_t, at, due_j, wire_bytes=p.wire_bytes))
@@ -493,13 +492,9 @@ class LinkModel:
         out = [d for d in self._scheduled if d.due_step <= rx_step]
         self._scheduled = [d for d in self._scheduled if d.due_step > rx_step] if len(out) < len(self._scheduled) else []
         out.sort(key=_sort_key)  # Delivery's order (its sort_key alone), without its Python __lt__
-        row = self.counters.row
         for d in out:
             d.rx_step = rx_step
-            r = row(d.src, d.dst, d.type)
-            r[_MSG] += 1
-            r[_PAY] += len(d.payload)
-            r[_WIRE] += d.wire_bytes
+            self.counters.add_rx(d.src, d.dst, d.type, len(d.payload), d.wire_bytes)
         return out
 
     def window(self, step: int) -> list[Delivery]:
