@@ -109,7 +109,8 @@ class PlantNode:
         # fields), written without building the message (bus/truth_wire.py: the same bytes); on an
         # in-process bus, samples stamped with their simulation time, and the tick built only when
         # someone receives it (bus/memory.py)
-        plain = isinstance(self.world, World) or (self.world.attitude is None and not self.world.bodies)
+        plain = isinstance(self.world, World) or (isinstance(self.world, MissionWorld) and self.world.attitude is None
+                                                  and not self.world.bodies)
         self._truth_wire = TruthEncoder(self.world.ids) if plain else None
         self._truth_header = HeaderEncoder(run, "plant")
         self._stamps = bool(getattr(bus, "stamps", False))

@@ -88,12 +88,7 @@ def clip_norm(vec: np.ndarray, limit: float) -> np.ndarray:
 def clip_norm_rows(vecs: np.ndarray, limit: float) -> np.ndarray:
     """Each row of `vecs` (S, 3) as `clip_norm` gives it, as a new array: the same norm per row
     (sqrt of the row's dot with itself, what np.linalg.norm computes) and the same scaling."""
-    out = np.array(vecs, dtype=float)
-    for k, v in enumerate(out):
-        norm = math.sqrt(v.dot(v))
-        if not norm <= limit:
-            out[k] = v * (limit / norm)
-    return out
+    return np.array([clip_norm(v, limit) for v in np.asarray(vecs, dtype=float)]).reshape(-1, 3)
 
 
 def leader_accel(u_l_n: np.ndarray, p: FunnelParams) -> np.ndarray:

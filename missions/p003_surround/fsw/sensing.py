@@ -53,19 +53,13 @@ def _named(extra: dict[str, Any], name: str) -> Any:
     return extra[hits[0]] if hits else None
 
 
-_NAMES: dict[str, tuple[str, str]] = {}  # key -> the names of its two arrays
-
-
 def read(extra: dict[str, Any], key: str) -> RelativeState:
     """The relative state under `key` in obs.extra (one dict or dataclass, or the two named arrays
     `key.position_m[/subject]`, `key.velocity_mps[/subject]`); KeyError naming the key if missing."""
     if key in extra:
         value = extra[key]
         return value if isinstance(value, RelativeState) else RelativeState.from_dict(value)
-    names = _NAMES.get(key)
-    if names is None:
-        names = _NAMES[key] = (f"{key}.position_m", f"{key}.velocity_mps")
-    pos, vel = _named(extra, names[0]), _named(extra, names[1])
+    pos, vel = _named(extra, f"{key}.position_m"), _named(extra, f"{key}.velocity_mps")
     if pos is None or vel is None:
         raise KeyError(f"obs.extra has no {key!r} (keys: {sorted(extra)})")
     return RelativeState(np.asarray(pos, dtype=float), np.asarray(vel, dtype=float))
