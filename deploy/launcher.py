@@ -225,6 +225,8 @@ def _on_sigterm_raise() -> Any:
 
 
 class MultiProcessRun:
+    poll_s = 0.05  # the supervision loop's period: how often it looks at the processes and the plant's events
+
     def __init__(self, scenario_path: str, sc: Scenario, out: Path, run: str | None = None, progress: bool = True,
                  overrides: dict[str, Any] | None = None, opts: dict[str, Any] | None = None) -> None:
         self.scenario_path = str(Path(scenario_path).resolve())
@@ -541,6 +543,10 @@ class MultiProcessRun:
                     joins.check(router_ep)  # JoinTimeout: one line naming the spacecraft and endpoint
                 rc = self.procs["plant"].poll()
                 if rc is not None:
+                    # a process fault the plant announced just before it ended is still acted on: the
+                    # plant already counted that agent crashed (tests/test_faults.py, a fast lockstep run)
+                    while process_faults:
+                        self._act_on_fault(*process_faults.pop(0))
                     if rc != 0:
                         reason, code = f"plant exited with code {rc}:\n{self._tail('plant')}", 1
                     break
@@ -567,7 +573,7 @@ class MultiProcessRun:
                     if name in self.procs and self.procs[name].poll() is None:
                         log.warning("%s stalled the lockstep; SIGKILL (pid %d) to restart it", name, self.procs[name].pid)
                         self._signal(name, signal.SIGKILL)
-                time.sleep(0.05)
+                time.sleep(self.poll_s)
         except KeyboardInterrupt:
             interrupted, reason, code = True, "interrupted (Ctrl-C)", 130
         except _Terminated:

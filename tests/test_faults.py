@@ -507,6 +507,27 @@ def test_contacts_and_near_misses_are_recorded_and_flagged_in_the_overview(tmp_p
 
 
 # --- process faults ------------------------------------------------------------------------------
+def test_a_crash_announced_just_before_the_plant_ends_is_still_acted_on(tmp_path, monkeypatch) -> None:
+    """The launcher looks at the plant's events every poll_s; with a loop slower than the whole run
+    (1 s against about 0.5 s for 20 steps of six agents), the plant has ended before the loop sees
+    sc03's process_crash: the launcher still kills it (exit code -9), as the plant counted it dead."""
+    import tomllib
+
+    from conftest import SCENARIOS
+    from swarmhil.deploy.launcher import MultiProcessRun
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
+    d["run"]["duration_s"] = 200.0
+    d["dispersion"]["count"] = 6
+    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0}]
+    sc = parse_scenario(d, "six.toml")
+    monkeypatch.setattr(MultiProcessRun, "poll_s", 1.0)
+    res = MultiProcessRun(str(SCENARIOS / "sabatini-20.toml"), sc, tmp_path / "mp", sc.name, progress=False).execute()
+    assert res.exit_code == 0, res.reason
+    assert res.summary["exit_codes"]["agent-sc03"] == -9, res.summary["exit_codes"]
+    assert all(c == 0 for n, c in res.summary["exit_codes"].items() if n != "agent-sc03"), res.summary["exit_codes"]
+
+
 def test_process_crash_and_pause_act_at_their_steps_and_rerun_bit_identical(tmp_path) -> None:
     """Six spacecraft of sabatini-20 as processes: sc03's flight software crashes at 50 s (step 5;
     restart never): the dead event at that step, no command after, the truth coasts, the launcher's
