@@ -123,7 +123,7 @@ class ObservationBatch:
     neighbour_ids: list[str]
     rel_position_m: np.ndarray
     rel_velocity_mps: np.ndarray
-    extra: list[dict[str, Any]] | None = None  # per observer (None: all empty)
+    extra: Sequence[dict[str, Any]] | None = None  # per observer (None: all empty; bus.codec.NamedRows: as arrays)
     isl_rx: list[list[Any]] | None = None  # per observer (None: nothing received)
     owner: np.ndarray | None = None  # (P,) the observer (row) of each neighbour row, when the maker has it
 

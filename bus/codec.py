@@ -80,6 +80,29 @@ def measurements_to_dict(msg: "pb.Measurements | pb.Telemetry") -> dict[str, np.
     return out
 
 
+class NamedRows(Sequence[dict[str, np.ndarray]]):
+    """The named arrays of R observers kept as one (R, ...) array per name: observer r's are
+    `{name: rows[name][r]}` (views, in the order of `rows`), made when asked for. What a batch
+    sensing form gives instead of R dicts (issue 29: a reader of the arrays, such as paper 001's
+    batch step, takes `rows` as they are; any other reader sees the dicts)."""
+
+    __slots__ = ("rows", "_n")
+
+    def __init__(self, rows: dict[str, np.ndarray], n: int) -> None:
+        self.rows = rows
+        self._n = n
+
+    def __len__(self) -> int:
+        return self._n
+
+    def __getitem__(self, r: int) -> dict[str, np.ndarray]:  # type: ignore[override]
+        if isinstance(r, slice):
+            return [self[i] for i in range(*r.indices(self._n))]  # type: ignore[return-value]
+        if not -self._n <= r < self._n:
+            raise IndexError(r)
+        return {name: a[r] for name, a in self.rows.items()}
+
+
 def add_measurement(msg: "pb.Measurements | pb.Telemetry", name: str, values: Sequence[float] | np.ndarray,
                     subject: str = "") -> None:
     """Append one named array (any shape) to a Measurements or Telemetry message."""

@@ -84,7 +84,7 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
         assert np.array_equal(rel.rel_velocity_mps[a:b], o.rel_velocity_mps.reshape(-1, 3))
         assert rel.extra is not None and rel.extra[r].keys() == o.extra.keys()
         for key, value in o.extra.items():
-            assert rel.extra[r][key].tobytes() == value.tobytes(), key
+            assert rel.extra[r][key].tobytes() == value.tobytes() and rel.extra[r][key].shape == value.shape, key
         pairs += b - a
     assert 0 < pairs < len(rows) * (len(rows) - 1)  # some neighbours in range, some out
 
@@ -276,3 +276,20 @@ def test_a_batchs_subset_is_the_batch_of_its_observations() -> None:
         for name in ("offsets", "rel_position_m", "rel_velocity_mps"):
             a, b = getattr(got, name), getattr(want, name)
             assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+def test_named_rows_are_the_list_of_dicts_they_stand_for() -> None:
+    """bus/codec.py NamedRows (the `relative` kind's own states as arrays, issue 29) reads as the
+    list of per-observer dicts: length, indexing (negative too), slices, iteration and key order."""
+    from swarmhil.bus.codec import NamedRows
+
+    a, b = np.arange(12.0).reshape(4, 3), -np.arange(12.0).reshape(4, 3)
+    rows = NamedRows({"p": a, "v": b}, 4)
+    want = [{"p": a[r], "v": b[r]} for r in range(4)]
+    assert len(rows) == 4 and rows.rows == {"p": a, "v": b}
+    for got, w in zip(list(rows), want, strict=True):
+        assert list(got) == ["p", "v"] and all(got[k].tobytes() == w[k].tobytes() for k in w)
+    assert rows[-1]["v"].tobytes() == b[3].tobytes() and [d["p"][0] for d in rows[1:3]] == [3.0, 6.0]
+    assert any("v" in d for d in rows) and not any("x" in d for d in rows)
+    with pytest.raises(IndexError):
+        rows[4]

@@ -9,13 +9,14 @@
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.codec import add_measurement
+from swarmhil.bus.codec import NamedRows, add_measurement
 from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.dynamics.limits import row_norm
 from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
@@ -121,7 +122,7 @@ class RelBatch:
     rel_position_m: np.ndarray  # (P, 3) r_k - r_j, LVLH
     rel_velocity_mps: np.ndarray  # (P, 3)
     owner: np.ndarray | None = None  # (P,) the observer row r of each pair
-    extra: list[dict[str, np.ndarray]] | None = None  # per observer: its named arrays (None: none)
+    extra: Sequence[dict[str, np.ndarray]] | None = None  # per observer: its named arrays (None: none; or NamedRows)
 
     @classmethod
     def named(cls, extra: list[dict[str, np.ndarray]]) -> "RelBatch":
@@ -187,8 +188,9 @@ class RelativeKind:
             np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
         else:  # nobody within range of anyone (the same empty (0, 3) arrays and zero offsets)
             rp, rv = np.empty((0, 3)), np.empty((0, 3))
-        extra = ([{"own_position_m": p, "own_velocity_mps": v} for p, v in zip(pos[obs] + 0.0, vel[obs] + 0.0)]
-                 if self.p.own_state else None)  # (rows of one array each: pos[i] + 0.0, vel[i] + 0.0)
+        # the own states as two arrays, observer r's the rows r (pos[i] + 0.0, vel[i] + 0.0), its dict on demand
+        extra = (NamedRows({"own_position_m": pos[obs] + 0.0, "own_velocity_mps": vel[obs] + 0.0}, len(obs))
+                 if self.p.own_state else None)
         return RelBatch(offsets, kk, rp, rv, jj, extra)
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:

@@ -216,13 +216,14 @@ def test_step_batch_is_each_step_bit_for_bit(params: dict) -> None:
     import copy
 
     from swarmhil.agent.controller import Observation, ObservationBatch, OrbitInfo
+    from swarmhil.bus.codec import NamedRows
     from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY
 
     orbit = OrbitInfo(42164230.752852604, 7.2921e-5)
     rng = np.random.default_rng(29)
     ids = [f"sc{i}" for i in range(6)]
     one = [make_controller("p001-lattice", s, orbit, params) for s in ids]
-    many = copy.deepcopy(one)
+    many, arrays = copy.deepcopy(one), copy.deepcopy(one)
     layers = set()
     for k in range(300):
         scale = rng.choice([8.0, 40.0, 300.0])
@@ -239,8 +240,79 @@ def test_step_batch_is_each_step_bit_for_bit(params: dict) -> None:
         got = type(many[0]).step_batch(many, ObservationBatch.of(ids, obs))
         assert got.accel_mps2.tobytes() == np.array([w.accel_mps2 for w in want]).tobytes()
         assert got.modes == [w.mode for w in want] and [c.layer for c in many] == [c.layer for c in one]
+        # the own states as the batch sensing gives them: two arrays (bus/codec.py NamedRows)
+        rows = ObservationBatch.of(ids, obs)
+        rows.extra = NamedRows({OWN_POSITION_KEY: pos + 0.0, OWN_VELOCITY_KEY: vel + 0.0}, 6)
+        got = type(arrays[0]).step_batch(arrays, rows)
+        assert got.accel_mps2.tobytes() == np.array([w.accel_mps2 for w in want]).tobytes()
+        assert got.modes == [w.mode for w in want] and [c.layer for c in arrays] == [c.layer for c in one]
         layers |= set(got.modes)
         if k % 50 == 49:  # start over: the layers latch inwards
             one = [make_controller("p001-lattice", s, orbit, params) for s in ids]
-            many = copy.deepcopy(one)
+            many, arrays = copy.deepcopy(one), copy.deepcopy(one)
     assert layers == {"far", "near", "shaping"}
+
+
+def _awkward(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """Random float64 with -0.0, subnormals, tiny and huge magnitudes mixed in."""
+    a = rng.normal(0, 1, shape) * 10.0 ** rng.integers(-12, 12, shape)
+    flat = a.reshape(-1)
+    pick = rng.integers(0, flat.size, max(1, flat.size // 5))
+    flat[pick] = rng.choice(np.array([-0.0, 0.0, 5e-324, -2.2e-308, 1e300]), len(pick))
+    return a
+
+
+def test_cw_position_blocks_are_the_array_built_ones_byte_for_byte() -> None:
+    """cw.cw_position_blocks (entries as Python floats, issue 29) equals the nested-array form it
+    replaced, byte for byte, over times to go of every sign and size."""
+    from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks
+
+    def before(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarray]:
+        tau = n_radps * t_s
+        s, c = np.sin(tau), np.cos(tau)
+        phi_rr = np.array([[4.0 - 3.0 * c, 0.0, 0.0], [6.0 * (s - tau), 1.0, 0.0], [0.0, 0.0, c]])
+        phi_rv = np.array([[s, 2.0 * (1.0 - c), 0.0], [-2.0 * (1.0 - c), 4.0 * s - 3.0 * tau, 0.0],
+                           [0.0, 0.0, s]]) / n_radps
+        return phi_rr, phi_rv
+
+    rng = np.random.default_rng(291)
+    times = np.concatenate([rng.uniform(-1e5, 1e5, 300), 10.0 ** rng.uniform(-9, 9, 300), [0.0, -0.0, 5e-324, 1e-300]])
+    for n in (N_GEO, 1.1e-3, float(rng.uniform(1e-6, 1e-2))):
+        for t in times.tolist():
+            for a, b in zip(cw_position_blocks(n, t), before(n, t)):
+                assert a.shape == b.shape == (3, 3) and a.dtype == b.dtype and a.tobytes() == b.tobytes(), (n, t)
+        for a, b in zip(cw_position_blocks(np.float64(n), np.float64(1234.5)), before(np.float64(n), np.float64(1234.5))):
+            assert a.tobytes() == b.tobytes()
+
+
+def test_solve_each_and_row_dots_are_numpys_own_calls_byte_for_byte() -> None:
+    """cw.solve_each equals np.linalg.solve of each system by itself (the per-agent `step`'s call,
+    a 1-D right-hand side) and controller.row_dots equals each row's `dot` (np.linalg.norm's
+    square), byte for byte, NaN, ±inf, -0.0 and subnormals included in the rows."""
+    from swarmhil.missions.p001_lattice.fsw.controller import row_dots
+    from swarmhil.missions.p001_lattice.fsw.cw import solve_each
+
+    rng = np.random.default_rng(292)
+    with np.errstate(over="ignore", invalid="ignore"):  # (the huge rows' squares overflow, in both)
+        _solve_and_dot_cases(rng, row_dots, solve_each)
+
+
+def _solve_and_dot_cases(rng: np.random.Generator, row_dots, solve_each) -> None:  # noqa: ANN001
+    from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks
+
+    for _ in range(200):
+        k = int(rng.integers(1, 9))
+        _rr, phi_rv = cw_position_blocks(N_GEO, float(rng.uniform(10.0, 40000.0)))
+        rhs = rng.normal(0, 1e3, (k, 3, 1))
+        got = solve_each(phi_rv, rhs)
+        assert got.shape == (k, 3, 1)
+        for i in range(k):
+            assert got[i, :, 0].tobytes() == np.linalg.solve(phi_rv, rhs[i, :, 0]).tobytes()
+        a = _awkward(rng, (k, 3))
+        a[rng.integers(0, k)] = rng.choice(np.array([np.nan, np.inf, -np.inf, 1.0]), 3)
+        d = row_dots(a)
+        assert d.shape == (k,)
+        for i in range(k):
+            assert d[i].tobytes() == np.float64(a[i].dot(a[i])).tobytes()
+            if np.isfinite(a[i]).all():
+                assert np.sqrt(d[i]).tobytes() == np.float64(np.linalg.norm(a[i])).tobytes()

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
-from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel
+from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel, solve_each
 from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
 from swarmhil.missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
 from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY, OwnState
@@ -68,26 +68,26 @@ class LatticeController:
     @classmethod
     def step_batch(cls, controllers: list["LatticeController"], batch: ObservationBatch) -> CommandBatch:
         """The step of N spacecraft (issue 29), each command bit for bit its own `step`'s: the far
-        layer's ballistic systems solved in one stacked `np.linalg.solve` (LAPACK on each system
-        alone, as the single call), every other norm, product and sum as `step` computes it on each
-        row; the near and shaping wells and the Tersoff-Brenner term per spacecraft through the same
-        functions. Controllers with different parameters step one by one."""
+        layer's ballistic systems solved in one stacked LAPACK call (`cw.solve_each`: `dgesv` on
+        each system alone, as the single call), each norm the BLAS `ddot` of its row (`row_dots`:
+        what `np.linalg.norm` of the row computes) and every other product and sum as `step`
+        computes it on each row; the near and shaping wells and the Tersoff-Brenner term per
+        spacecraft through the same functions. Controllers with different parameters step one by one."""
         p = controllers[0].p
         if any(c.p is not p and c.p != p for c in controllers):
             return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
         n, t = len(controllers), float(batch.t_s)
-        extra = batch.extra if batch.extra is not None else [{}] * n
-        pos, vel = np.empty((n, 3)), np.empty((n, 3))
-        for r, e in enumerate(extra):  # OwnState.from_extra's values (a missing or bad one raises: each `step` then)
-            pos[r], vel[r] = e[OWN_POSITION_KEY], e[OWN_VELOCITY_KEY]
+        pos, vel = own_state_rows(batch.extra, n)
         # a finite sum: every entry is finite (a sum that overflows only sends the batch to each `step`)
         if not math.isfinite(np.add.reduce(pos, axis=None) + np.add.reduce(vel, axis=None)):
             raise ValueError("non-finite own state in the batch")
-        for c, pr in zip(controllers, pos):  # (pr: a view of the row)
-            c.layer = next_layer(c.layer, math.sqrt(float(pr.dot(pr))), t, p.r_middle_m, p.r_inner_m,
-                                 p.t_natural_s)  # float(np.linalg.norm(r)) = sqrt(r . r)
-        g = np.empty((n, 3))
+        radius = np.sqrt(row_dots(pos))  # float(np.linalg.norm(r)) of each row
+        lowest = float(radius.min())
+        if not (lowest >= p.r_middle_m and lowest >= p.r_inner_m and t <= p.t_natural_s):  # else nobody moves in
+            for c, r in zip(controllers, radius.tolist()):
+                c.layer = next_layer(c.layer, r, t, p.r_middle_m, p.r_inner_m, p.t_natural_s)
         far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
+        g = np.empty((n, 3))
         if far:  # eq. 1-2 (cw.far_accel) for every far spacecraft at once
             if not p.t_desire_s - t > 0.0:
                 raise ValueError(f"time to go {p.t_desire_s - t} s: the ballistic field is only defined before t_desire")
@@ -95,9 +95,7 @@ class LatticeController:
             rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather and scatter)
             pos_far, vel_far = pos[rows], vel[rows]
             rhs = np.matmul(phi_rr, pos_far[:, :, None])  # (k, 3, 1): phi_rr @ r of each, the same gemv as `step`'s
-            systems = np.empty((len(far), 3, 3))
-            systems[:] = phi_rv
-            v_d = -np.linalg.solve(systems, rhs)[:, :, 0]
+            v_d = -solve_each(phi_rv, rhs)[:, :, 0]
             g_far = p.far_gain_ps * (v_d - vel_far)
             if p.far_damping:
                 g_far = g_far + damping(vel_far, p.damping_ps)
@@ -106,18 +104,47 @@ class LatticeController:
             for r, c in enumerate(controllers):
                 if c.layer != Layer.FAR:
                     g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
-        tb = np.zeros((n, 3))
         off = batch.offsets.tolist()
         if off[n] > 0:  # someone sees a neighbour
+            tb = np.zeros((n, 3))
             for r, c in enumerate(controllers):
                 if off[r + 1] > off[r]:
                     tb[r] = tb_accel(batch.rel_position_m[off[r]:off[r + 1]], p.side_m, c.tb, p.tb_accel_unit_mps2)
-        u = g + tb
-        for r, ur in enumerate(u):  # wells.saturate, row by row (ur: a view of row r)
-            norm = math.sqrt(float(ur.dot(ur)))
-            if not norm <= p.max_accel_mps2:
-                u[r] = ur * (p.max_accel_mps2 / norm)
+            u = g + tb
+        else:
+            u = g + 0.0  # (g + a row of zeros, as `step` adds tb_accel's zeros: -0.0 -> 0.0)
+        norm = np.sqrt(row_dots(u))  # wells.saturate of each row: float(np.linalg.norm(u))
+        if not math.isfinite(np.add.reduce(norm)):  # (a singular far system, or an overflow): each `step`
+            raise ValueError("non-finite command in the batch")
+        over = norm > p.max_accel_mps2
+        if over.any():
+            u[over] *= (p.max_accel_mps2 / norm[over])[:, None]  # u * (u_max / |u|), row by row
         return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers])
+
+
+def row_dots(a: np.ndarray) -> np.ndarray:
+    """(N,) a_r . a_r of each row of a C-contiguous (N, 3) float64 array, each by the BLAS `ddot`
+    that `a[r].dot(a[r])` (and so `np.linalg.norm(a[r])`, its square root) calls: `np.matmul` of
+    a (1, 3) row by a (3, 1) column calls numpy's `DOUBLE_dot` with the row's stride, as the 1-D
+    dot does (tests/missions/test_p001_lattice.py, byte for byte)."""
+    return np.matmul(a[:, None, :], a[:, :, None]).reshape(len(a))
+
+
+def own_state_rows(extra: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The (n, 3) own positions and velocities of a batch's `extra`: the sensing's arrays as they
+    are (`NamedRows` of float64 (n, 3) arrays), else read from each observer's dict as
+    `OwnState.from_extra` reads it (a missing or malformed entry raises: each `step` then)."""
+    arrays = getattr(extra, "rows", None)  # (bus/codec.py NamedRows: the batch sensing's arrays)
+    if isinstance(arrays, dict):
+        pos, vel = arrays.get(OWN_POSITION_KEY), arrays.get(OWN_VELOCITY_KEY)
+        if (isinstance(pos, np.ndarray) and isinstance(vel, np.ndarray) and pos.shape == vel.shape == (n, 3)
+                and pos.dtype == vel.dtype == np.float64 and pos.flags.c_contiguous and vel.flags.c_contiguous):
+            return pos, vel
+    rows = extra if extra is not None else [{}] * n
+    pos, vel = np.empty((n, 3)), np.empty((n, 3))
+    for r, e in enumerate(rows):
+        pos[r], vel[r] = e[OWN_POSITION_KEY], e[OWN_VELOCITY_KEY]
+    return pos, vel
 
 
 def _check(params: dict[str, Any]) -> None:

@@ -10,21 +10,31 @@ v_d = -Phi_rv(T)^-1 Phi_rr(T) r with T = t_desire - t, tracked by g_far = k_g (v
 from __future__ import annotations
 
 import numpy as np
+from numpy.linalg import _umath_linalg  # np.linalg.solve's gufunc (solve_each)
 
 
 def cw_position_blocks(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phi_rr(t) and Phi_rv(t) of the CW state-transition matrix (r(t) = Phi_rr r0 + Phi_rv v0)."""
+    """Phi_rr(t) and Phi_rv(t) of the CW state-transition matrix (r(t) = Phi_rr r0 + Phi_rv v0).
+
+    Each entry is the float64 of the products and sums below (sin and cos by numpy; the entries'
+    arithmetic on Python floats, the same IEEE operations as on numpy scalars; Phi_rv divided by
+    n as one array)."""
     tau = n_radps * t_s
-    s, c = np.sin(tau), np.cos(tau)
-    phi_rr = np.array([[4.0 - 3.0 * c, 0.0, 0.0], [6.0 * (s - tau), 1.0, 0.0], [0.0, 0.0, c]])
-    phi_rv = np.array(
-        [
-            [s, 2.0 * (1.0 - c), 0.0],
-            [-2.0 * (1.0 - c), 4.0 * s - 3.0 * tau, 0.0],
-            [0.0, 0.0, s],
-        ]
-    ) / n_radps
+    s, c = float(np.sin(tau)), float(np.cos(tau))
+    tau = float(tau)
+    phi_rr = np.array((4.0 - 3.0 * c, 0.0, 0.0, 6.0 * (s - tau), 1.0, 0.0, 0.0, 0.0, c)).reshape(3, 3)
+    one_c = 1.0 - c
+    phi_rv = np.array((s, 2.0 * one_c, 0.0, -2.0 * one_c, 4.0 * s - 3.0 * tau, 0.0, 0.0, 0.0, s)).reshape(3, 3) / n_radps
     return phi_rr, phi_rv
+
+
+def solve_each(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """`np.linalg.solve(a, b)` of one (3, 3) float64 system `a` against each of the stacked (k, 3, 1)
+    float64 right-hand sides `b`: numpy's own gufunc (LAPACK `dgesv` on each system alone, as
+    `np.linalg.solve` of the system by itself) without the wrapper's checks and error state. A
+    singular `a` gives NaN rows (and numpy's invalid-value warning) instead of raising: the
+    caller tests the result."""
+    return _umath_linalg.solve(a, b)
 
 
 def ballistic_velocity(position_m: np.ndarray, n_radps: float, time_to_go_s: float) -> np.ndarray:
