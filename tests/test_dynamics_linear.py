@@ -201,3 +201,8 @@ def test_lvlh_to_roe_is_bit_identical_to_the_formula_as_written() -> None:
             pos, vel, u = _with_specials(rng, shape, -3, 7), _with_specials(rng, shape, -5, 3), _some_u(rng, 1e5)
             got, want = lvlh_to_roe(pos, vel, u, N_RADPS), _lvlh_to_roe_as_written(pos, vel, u, N_RADPS)
             assert got.shape == want.shape and got.tobytes() == want.tobytes()
+    for _ in range(200):  # strided rows (views of wider arrays), a numpy u and n
+        both = _with_specials(rng, (6, 7), -3, 7)
+        pos, vel, u = both[:, :3], both[:, 4:], np.float64(_some_u(rng, 1e5))
+        got, want = lvlh_to_roe(pos, vel, u, np.float64(N_RADPS)), _lvlh_to_roe_as_written(pos, vel, u, N_RADPS)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes()

@@ -93,8 +93,23 @@ def _lvlh_plan(rows: int, n_radps: float) -> tuple[np.ndarray, ...]:
     return out
 
 
-_ROE_POS_COL = np.array([0, 1, 0, 0, 2, 2])  # lvlh_to_roe: the position column of each ROE row (x, y, x, x, z, z)
-_ROE_VEL_COL = np.array([1, 0, 0, 0, 2, 2])  # and its velocity column (vy, vx, vx, vx, vz, vz) / n
+# lvlh_to_roe for one u: each ROE row is A + B (+ C) of the state (x, y, z, vx/n, vy/n, vz/n), each
+# term a coefficient times one state column (a C of -0.0 where the row has two terms: x + -0.0 is x
+# for every x, -0.0 and NaN included)
+_ROE_A = (0, 1, 0, 0, 2, 2)  # x, y, x, x, z, z
+_ROE_B = (4, 3, 3, 3, 5, 5)  # vy, vx, vx, vx, vz, vz (/ n)
+_ROE_C = (-1, -1, 4, 4, -1, -1)  # vy / n for the rows of dex, dey; -1: the -0.0 after the state
+
+
+@functools.lru_cache(maxsize=16)
+def _roe_plan(rows: int) -> np.ndarray:
+    """`lvlh_to_roe`'s gather indices (3, rows, 6) into the flat state of `rows` rows followed by -0.0."""
+    base = np.arange(rows)[:, None] * 6
+    take = np.empty((3, rows, 6), dtype=np.intp)
+    take[0], take[1] = base + np.array(_ROE_A), base + np.array(_ROE_B)
+    take[2] = np.where(np.array(_ROE_C) < 0, rows * 6, base + np.array(_ROE_C))
+    take.setflags(write=False)
+    return take
 
 
 def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: float) -> np.ndarray:
@@ -105,16 +120,25 @@ def lvlh_to_roe(pos_m: np.ndarray, vel_mps: np.ndarray, u_rad: float, n_radps: f
     """
     pos = _as_rows(pos_m, 3, "pos_m")
     vel = _as_rows(vel_mps, 3, "vel_mps")
+    if (pos.shape == vel.shape and (isinstance(u_rad, float) or np.ndim(u_rad) == 0)
+            and (isinstance(n_radps, float) or np.ndim(n_radps) == 0)):
+        # one u (a truth of every step): the products and sums of the rows below in one gather,
+        # one product and two sums, in the same order: (k_a x_a + k_b v_b / n) + k_c vy / n
+        c, s = float(np.cos(u_rad)), float(np.sin(u_rad))
+        lead = pos.shape[:-1]
+        rows = pos.size // 3
+        state = np.empty(rows * 6 + 1)
+        cols = state[:-1].reshape(rows, 6)
+        cols[:, :3] = pos.reshape(rows, 3)
+        np.divide(vel.reshape(rows, 3), n_radps, out=cols[:, 3:])
+        state[-1] = -0.0
+        g = state.take(_roe_plan(rows))
+        g *= np.array((4.0, 1.0, 3.0 * c, 3.0 * s, s, -c, 2.0, -2.0, s, -c, c, s,
+                       1.0, 1.0, 2.0 * c, 2.0 * s, 1.0, 1.0)).reshape(3, 1, 6)
+        out = g[0] + g[1]
+        out += g[2]
+        return out.reshape(lead + (6,))
     c, s = np.cos(u_rad), np.sin(u_rad)
-    if np.ndim(c) == 0 and pos.shape == vel.shape:
-        # the same products and sums in fewer numpy calls (a truth of every step): each row is
-        # k_a * a position column + k_b * a velocity column / n (+ k_c * vy/n for the rows of dex, dey),
-        # in the order written below
-        vel_n = vel / n_radps
-        out = np.array([4.0, 1.0, 3.0 * c, 3.0 * s, s, -c]) * pos.take(_ROE_POS_COL, axis=-1)
-        out += np.array([2.0, -2.0, s, -c, c, s]) * vel_n.take(_ROE_VEL_COL, axis=-1)
-        out[..., 2:4] += np.array([2.0 * c, 2.0 * s]) * vel_n[..., 1:2]
-        return out
     x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
     vx, vy, vz = (vel[..., k] / n_radps for k in range(3))
     return np.stack(
