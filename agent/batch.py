@@ -78,13 +78,16 @@ class BatchAgents:
             for r in cb.raised:  # counted as AgentNode counts a step that raised
                 self._fault(int(rows[r]), batch.step, logged=True)
             acc = np.asarray(cb.accel_mps2, dtype=float)
-            tq = np.zeros_like(acc) if cb.torque_nm is None else np.asarray(cb.torque_nm, dtype=float)
+            tq = None if cb.torque_nm is None else np.asarray(cb.torque_nm, dtype=float)  # None: zeros
             modes = list(cb.modes)
             # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed).
             # As AgentNode: a non-finite acceleration or torque commands zero (no torque) instead
-            total = np.add.reduce(acc, axis=None) + (0.0 if cb.torque_nm is None else np.add.reduce(tq, axis=None))
-            bad = None if math.isfinite(total) else ~(np.isfinite(acc).all(axis=1) & np.isfinite(tq).all(axis=1))
-            if bad is not None and bad.any():
+            total = np.add.reduce(acc, axis=None) + (0.0 if tq is None else np.add.reduce(tq, axis=None))
+            bad = None
+            if not math.isfinite(total):
+                tq = np.zeros_like(acc) if tq is None else tq
+                bad = ~(np.isfinite(acc).all(axis=1) & np.isfinite(tq).all(axis=1))
+            if bad is not None and bad.any() and tq is not None:
                 acc, tq = acc.copy(), tq.copy()
                 for r in np.flatnonzero(bad).tolist():
                     i = int(rows[r])
@@ -94,11 +97,11 @@ class BatchAgents:
                     modes[r] = "fault"
             if len(rows) == len(self.ids):
                 self.accel_mps2[:] = acc
-                self.torque_nm[:] = tq
+                self.torque_nm[:] = 0.0 if tq is None else tq
                 self.modes = modes
             else:
                 self.accel_mps2[rows] = acc
-                self.torque_nm[rows] = tq
+                self.torque_nm[rows] = 0.0 if tq is None else tq
                 for r, i in enumerate(rows.tolist()):
                     self.modes[i] = modes[r]
             self.last = cb

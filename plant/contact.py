@@ -38,9 +38,21 @@ class ContactConfig(BaseModel):
     point_masses: bool = False                                # no hulls: no contact is looked for
 
 
+SMALL_SWARM = 12
+"""Up to this many centres, `centre_d2` takes the (N, N, 3) differences (the fewest numpy calls);
+above, one axis at a time (less memory traffic)."""
+
+
 def centre_d2(pos_m: np.ndarray) -> np.ndarray:
-    """(N, N) squared distances between centres (per axis: faster than an (N, N, 3) array at N <= 100)."""
-    x, y, z = np.ascontiguousarray(pos_m.T)  # (contiguous columns: strided ones are several times slower)
+    """(N, N) squared distances between centres: (x_i - x_j)^2 + (y_i - y_j)^2, then + (z_i - z_j)^2,
+    the same float64 by either route (`SMALL_SWARM`)."""
+    if len(pos_m) <= SMALL_SWARM:
+        d = pos_m[:, None, :] - pos_m
+        d *= d
+        out = d[..., 0] + d[..., 1]
+        out += d[..., 2]
+        return out
+    x, y, z = pos_m[:, 0], pos_m[:, 1], pos_m[:, 2]
     dx, dy, dz = x[:, None] - x, y[:, None] - y, z[:, None] - z
     dx *= dx
     dy *= dy
@@ -114,8 +126,11 @@ class ContactMonitor:
         self._reach2_near = reach2(self.radius_m, self.cfg.keep_out_m)
 
     def _pairs(self, pos_m: np.ndarray, d2: np.ndarray, body_truth: list[Any], near: bool) -> set[tuple[str, str]]:
-        i, j = np.nonzero(d2 < (self._reach2_near if near else self._reach2_contact))
-        out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
+        hit = d2 < (self._reach2_near if near else self._reach2_contact)
+        out: set[tuple[str, str]] = set()
+        if hit.any():
+            i, j = np.nonzero(hit)
+            out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
         margin = self.cfg.keep_out_m if near else 0.0
         for bt in body_truth:
             shape = None if self.cfg.point_masses else bt.spec.shape

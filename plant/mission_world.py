@@ -270,7 +270,9 @@ class MissionWorld:
             f, _rows, max_mps2 = self._limit_groups[0]
             self._limit_all = (f, float(max_mps2[0]) if (max_mps2 == max_mps2[0]).all() else max_mps2)
 
-    def limit(self, accel_mps2: np.ndarray) -> np.ndarray:
+    def limit(self, accel_mps2: np.ndarray, all_alive: bool = False) -> np.ndarray:
+        """The commands the actuators give: each limit mode's limit, zero for the dead (`all_alive`:
+        the caller knows that nobody is)."""
         if self._limit_all is not None:
             f, max_all = self._limit_all
             a = f(np.asarray(accel_mps2, float), max_all)  # (a new array)
@@ -278,13 +280,16 @@ class MissionWorld:
             a = np.asarray(accel_mps2, float).copy()
             for f, rows, max_mps2 in self._limit_groups:
                 a[rows] = f(a[rows], max_mps2)
-        a[~self.alive] = 0.0
+        if not all_alive:
+            a[~self.alive] = 0.0
         return a
 
-    def step(self, accel_mps2: np.ndarray, dt_s: float, torque_nm: np.ndarray | None = None) -> None:
-        """Advance by dt with commands (scenario frame; torque in each body frame) held over the step."""
+    def step(self, accel_mps2: np.ndarray, dt_s: float, torque_nm: np.ndarray | None = None,
+             all_alive: bool = False) -> None:
+        """Advance by dt with commands (scenario frame; torque in each body frame) held over the step
+        (`all_alive`: the caller knows that every spacecraft is alive)."""
         c0 = time.perf_counter()
-        a = self.limit(accel_mps2)
+        a = self.limit(accel_mps2, all_alive)
         if self.actuation_faults is not None:
             a = self.actuation_faults(a, self.steps_done)
         self.last_accel_mps2 = a

@@ -422,7 +422,7 @@ class PlantNode:
         if not all_alive:
             self.held[~self.world.alive] = 0.0
         if isinstance(self.world, MissionWorld):
-            self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:])
+            self.world.step(self.held[:, :3], self.step_s, self.held[:, 3:], all_alive=all_alive)
         else:
             self.world.step(self.held[:, :3], self.step_s, all_alive=all_alive)
         self._after_step(k)

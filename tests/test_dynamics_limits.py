@@ -154,3 +154,28 @@ def test_row_norm_is_numpys_norm_bit_for_bit() -> None:
             u[rng.random(shape) < 0.1] = rng.choice([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324], size=1)
             for v in (u, np.concatenate((u, u), axis=-1)[..., 1:4]):
                 assert row_norm(v).tobytes() == np.linalg.norm(v, axis=-1).tobytes()
+
+
+def test_limit_norm_is_the_scaled_product_byte_for_byte() -> None:
+    """limit_norm (issue 29: `u * 1.0` when no row is over its limit) equals the scaled product it
+    always computed, u * scale with scale = max/|u| over the limit and 1 elsewhere, byte for byte:
+    rows under and over, NaN, ±inf, -0.0 and subnormals, a scalar and a per-craft limit."""
+    from swarmhil.plant.dynamics.limits import row_norm
+
+    def before(u: np.ndarray, m: float | np.ndarray) -> np.ndarray:
+        norm = row_norm(u)
+        over = norm > m
+        scale = np.ones_like(norm)
+        np.divide(m, norm, out=scale, where=over)
+        return u * scale[..., None]
+
+    rng = np.random.default_rng(29)
+    specials = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, -1e-310])
+    with np.errstate(over="ignore", invalid="ignore"):
+        for _ in range(500):
+            n = int(rng.integers(0, 8))
+            u = rng.normal(0, 1, (n, 3)) * 10.0 ** rng.integers(-6, 2, (n, 1))
+            u[rng.random((n, 3)) < 0.1] = rng.choice(specials)
+            for m in (5e-3, 1e3, float(rng.uniform(0, 2)), rng.uniform(0, 2, n)):
+                got, want = limit_norm(u, m), before(u, m)
+                assert got.shape == want.shape and got.tobytes() == want.tobytes()

@@ -558,3 +558,31 @@ def test_process_crash_and_pause_act_at_their_steps_and_rerun_bit_identical(tmp_
     assert all(not alive[k]["sc03"] for k in range(5, 21)) and alive[4]["sc03"]
     applied = truth_accel(msgs, "sc03")
     assert all(not applied[k].any() for k in range(6, 21))
+
+
+def test_centre_d2_is_the_per_axis_form_byte_for_byte() -> None:
+    """plant/contact.py centre_d2 by either route (an (N, N, 3) array for a small swarm, columns
+    otherwise) equals the per-axis form it replaced (contiguous columns), byte for byte: NaN, ±inf,
+    -0.0, subnormals and huge values included, swarms on both sides of SMALL_SWARM, strided rows."""
+    from swarmhil.plant.contact import SMALL_SWARM, centre_d2
+
+    def before(pos_m: np.ndarray) -> np.ndarray:
+        x, y, z = np.ascontiguousarray(pos_m.T)
+        dx, dy, dz = x[:, None] - x, y[:, None] - y, z[:, None] - z
+        dx *= dx
+        dy *= dy
+        dz *= dz
+        dx += dy
+        dx += dz
+        return dx
+
+    rng = np.random.default_rng(27)
+    specials = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, -1e-310, 1e200, -1e155])
+    with np.errstate(over="ignore", invalid="ignore"):
+        for n in (0, 1, 2, 6, SMALL_SWARM, SMALL_SWARM + 1, 20, 57):
+            for _ in range(30):
+                wide = rng.normal(0, 1, (n, 5)) * 10.0 ** rng.integers(-8, 8, (n, 5))
+                wide[rng.random((n, 5)) < 0.1] = rng.choice(specials)
+                for pos in (np.ascontiguousarray(wide[:, :3]), wide[:, 1:4]):
+                    got, want = centre_d2(pos), before(pos)
+                    assert got.shape == want.shape == (n, n) and got.tobytes() == want.tobytes(), n
