@@ -174,6 +174,7 @@ class TruthEncoder:
         self._buf = np.zeros(self._nv, dtype=np.uint8)
         self._vals = self._buf.view(np.float64).reshape(n, 16)
         self._plans: dict[bytes, np.ndarray] = {}
+        self._row_plans: dict[tuple[int, bytes], np.ndarray] = {}  # (body, its present fields) -> its part of a plan
         self._tail_u: tuple[float, float, bytes] | None = None  # (a, n, their bytes)
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
@@ -196,22 +197,38 @@ class TruthEncoder:
         if take is None:  # a new pattern of present fields (a 24 h sabatini-20 run has about 120)
             if len(self._plans) >= MAX_PLANS:
                 self._plans.clear()
+                self._row_plans.clear()
                 self._grow(self._buf[:self._nv])
             present = np.empty((n, 11), dtype=bool)
             present[:, :10] = pr[:, :10]
             present[:, 10] = alive
-            take = self._plans[key] = self._plan(present)
+            take = self._plans[key] = self._plan_of_rows(present)
         return head + self._buf[take].tobytes() + tail
+
+    def _plan_of_rows(self, present: np.ndarray) -> np.ndarray:
+        """`_plan` of a pattern (n, 11) from each body's own part when every body has shown its
+        pattern before (a body's bytes depend on its own present fields only: a new pattern is often
+        old rows in a new combination, such as commanded components that are exactly zero now
+        and then); else `_plan`, whose parts are kept per body."""
+        rows = self._row_plans
+        keys = [(i, row.tobytes()) for i, row in enumerate(present)]
+        parts = [rows.get(k) for k in keys]
+        if all(p is not None for p in parts):
+            return np.concatenate(parts)  # type: ignore[arg-type]
+        take, ends = self._plan(present)
+        for k, part in zip(keys, np.split(take, ends[:-1])):
+            rows[k] = part
+        return take
 
     def _grow(self, buf: np.ndarray) -> None:
         """Replace the buffer (the values' bytes kept at its start) and the values' view of it."""
         self._buf = buf
         self._vals = buf[:self._nv].view(np.float64).reshape(self._vals.shape)
 
-    def _plan(self, pr: np.ndarray) -> np.ndarray:
+    def _plan(self, pr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """For one pattern of present fields (n, 11): the indices into `_buf` of the truth's body
         bytes (the values' bytes where a present double goes, else the pattern's own fixed bytes,
-        appended to `_buf` here)."""
+        appended to `_buf` here), and where each body's bytes end among them (n,)."""
         buf = self._tmpl.copy()
         keep = self._keep.copy()
         flat = pr.ravel()
@@ -230,4 +247,4 @@ class TruthEncoder:
         take = len(self._buf) + np.arange(len(fixed), dtype=np.intp)  # the fixed bytes, appended below
         take[at[self._dbl][kept]] = np.flatnonzero(kept)  # the values' bytes: _dbl is (row, double, byte) order
         self._grow(np.concatenate((self._buf, fixed)))
-        return take
+        return take, np.cumsum(keep.reshape(len(pr), -1).sum(axis=1))

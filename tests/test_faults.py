@@ -566,15 +566,9 @@ def test_centre_d2_is_the_per_axis_form_byte_for_byte() -> None:
     -0.0, subnormals and huge values included, swarms on both sides of SMALL_SWARM, strided rows."""
     from swarmhil.plant.contact import SMALL_SWARM, centre_d2
 
-    def before(pos_m: np.ndarray) -> np.ndarray:
-        x, y, z = np.ascontiguousarray(pos_m.T)
-        dx, dy, dz = x[:, None] - x, y[:, None] - y, z[:, None] - z
-        dx *= dx
-        dy *= dy
-        dz *= dz
-        dx += dy
-        dx += dz
-        return dx
+    def before(pos_m: np.ndarray) -> np.ndarray:  # the per-axis form on contiguous columns
+        sq = [(c[:, None] - c) ** 2 for c in np.ascontiguousarray(pos_m.T)]  # (** 2: numpy's c * c)
+        return (sq[0] + sq[1]) + sq[2] if len(sq) else np.zeros((0, 0))
 
     rng = np.random.default_rng(27)
     specials = np.array([0.0, -0.0, np.nan, np.inf, -np.inf, 5e-324, -1e-310, 1e200, -1e155])

@@ -125,3 +125,36 @@ def test_recorded_truths_equal_protobuf(tmp_path, scenario) -> None:
         assert _protobuf(h.run, h.source, h.step, h.t, h.seq, *args, ids, kinds, pos, vel, dv, alive, acc, roe) == data
         assert TruthEncoder(ids, kinds).encode(encode_header(h.run, h.source, h.step, h.t, h.seq), *args, pos, vel,
                                                dv, alive, acc, roe) == data
+
+
+@pytest.mark.parametrize("max_plans", [256, 5])
+def test_new_combinations_of_seen_rows_equal_protobuf(monkeypatch, max_plans: int) -> None:
+    """A new pattern made of bodies that each showed their pattern before (commanded components
+    exactly zero now and then, body by body, as in tersoff-6) is written from the bodies' kept parts
+    (issue 29): the same bytes as protobuf, with far fewer full plans than patterns."""
+    import swarmhil.bus.truth_wire as tw
+
+    monkeypatch.setattr(tw, "MAX_PLANS", max_plans)
+    rng = np.random.default_rng(29)
+    ids = [f"sc{i}" for i in range(6)]
+    enc = TruthEncoder(ids)
+    plans = 0
+    full = enc._plan
+
+    def counted(pr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        nonlocal plans
+        plans += 1
+        return full(pr)
+
+    monkeypatch.setattr(enc, "_plan", counted)
+    for step in range(300):
+        pos, vel, acc = (_values(rng, (6, 3), 0.0) for _ in range(3))
+        acc[rng.random((6, 3)) < 0.3] = rng.choice([0.0, -0.0])
+        dv, roe, alive = _values(rng, (6,), 0.0), _values(rng, (6, 6), 0.0), rng.random(6) < 0.9
+        want = _protobuf("r", "plant", step, 1.0, step, 0.5, 7e6, 1e-3, ids, ["spacecraft"] * 6, pos, vel, dv, alive,
+                         acc, roe)
+        assert enc.encode(encode_header("r", "plant", step, 1.0, step), 0.5, 7e6, 1e-3, pos, vel, dv, alive, acc,
+                          roe) == want, step
+        assert len(enc._plans) <= max_plans
+    if max_plans > 100:
+        assert plans < 100 < len(enc._plans), (plans, len(enc._plans))
