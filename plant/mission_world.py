@@ -206,8 +206,9 @@ class MissionWorld:
         n = len(self.ids)
         return p[:n], v[:n]
 
-    def roe_m(self) -> np.ndarray:
-        pos, vel = self.lvlh()
+    def roe_m(self, lvlh: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """(N, 6) ROE in metres of the scenario-frame states (`lvlh`: this step's `lvlh()`, when the caller has it)."""
+        pos, vel = self.lvlh() if lvlh is None else lvlh
         return roe_linear.lvlh_to_roe(pos, vel, self.u_rad, self.n_radps)
 
     def eci(self) -> tuple[list[str], np.ndarray, np.ndarray]:

@@ -281,7 +281,7 @@ class PlantNode:
         t_s = self.world.t_s
         if self._truth_wire is not None:
             w = self.world
-            roe = w.roe_m()
+            roe = w.roe_m((pos, vel))
             data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self._k_truth)),
                                            u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
                                            w.last_accel_mps2, roe)

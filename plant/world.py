@@ -66,13 +66,13 @@ class World:
         """(N,3) positions and velocities in the reference LVLH frame."""
         return self.propagator.state()
 
-    def roe_m(self) -> np.ndarray:
+    def roe_m(self, lvlh: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(N,6) ROE in metres (for models without ROE state: the linear map of the LVLH state,
-        an osculating approximation for j2)."""
+        an osculating approximation for j2; `lvlh`: this step's `lvlh()`, when the caller has it)."""
         own = getattr(self.propagator, "roe_m", None)
         if own is not None:
             return own()
-        pos, vel = self.propagator.state()
+        pos, vel = self.propagator.state() if lvlh is None else lvlh
         return roe_linear.lvlh_to_roe(pos, vel, self.u_rad, self.n_radps)
 
     def limit(self, accel_mps2: np.ndarray, all_alive: bool = False) -> np.ndarray:

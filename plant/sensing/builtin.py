@@ -177,9 +177,15 @@ class RelativeKind:
         own state as the named arrays `own_position_m`, `own_velocity_mps` in `extra`)."""
         pos, vel = ctx.position_m, ctx.velocity_mps
         obs = np.asarray(observers, dtype=np.int64)
-        d = row_norm(pos[None, :, :] - pos[obs][:, None, :])  # (R, N): np.linalg.norm(..., axis=2), as stimulus's per row
-        vis = (d <= self.p.range_m) & np.asarray(ctx.alive, dtype=bool)[None, :]
-        vis[np.arange(len(obs)), obs] = False
+        every = len(obs) == len(pos)  # (distinct and increasing: every row, in order)
+        own_p, own_v = (pos, vel) if every else (pos[obs], vel[obs])
+        d = row_norm(pos[None, :, :] - own_p[:, None, :])  # (R, N): np.linalg.norm(..., axis=2), as stimulus's per row
+        vis = d <= self.p.range_m
+        vis &= np.asarray(ctx.alive, dtype=bool)
+        if every:
+            vis.ravel()[::len(obs) + 1] = False  # (the diagonal: nobody is its own neighbour)
+        else:
+            vis[np.arange(len(obs)), obs] = False
         jj, kk = vis.nonzero()
         offsets = np.zeros(len(obs) + 1, dtype=np.int64)
         if len(jj):
@@ -189,7 +195,7 @@ class RelativeKind:
         else:  # nobody within range of anyone (the same empty (0, 3) arrays and zero offsets)
             rp, rv = np.empty((0, 3)), np.empty((0, 3))
         # the own states as two arrays, observer r's the rows r (pos[i] + 0.0, vel[i] + 0.0), its dict on demand
-        extra = (NamedRows({"own_position_m": pos[obs] + 0.0, "own_velocity_mps": vel[obs] + 0.0}, len(obs))
+        extra = (NamedRows({"own_position_m": own_p + 0.0, "own_velocity_mps": own_v + 0.0}, len(obs))
                  if self.p.own_state else None)
         return RelBatch(offsets, kk, rp, rv, jj, extra)
 
