@@ -205,7 +205,8 @@ class BatchHook(LocalFlightSoftware):
             if isinstance(rel, StimulusMessages):  # as the agent reads its stimulus message
                 return ObservationBatch.of(observers, [observation_from_rel(m) for m in rel.messages])
             return ObservationBatch(step=ctx.step, t_s=ctx.t_s, u_rad=ctx.u_rad, observers=observers,
-                                     offsets=rel.offsets, neighbour_ids=self._ids[rel.neighbour].tolist(),
+                                     offsets=rel.offsets,
+                                     neighbour_ids=self._ids[rel.neighbour].tolist() if len(rel.neighbour) else [],
                                      rel_position_m=rel.rel_position_m, rel_velocity_mps=rel.rel_velocity_mps,
                                      owner=rel.owner, extra=getattr(rel, "extra", None))
         offsets, none = self._empty.get(len(rows), (None, None))

@@ -40,7 +40,7 @@ from swarmhil.plant.dynamics import roe_linear
 from swarmhil.plant.dynamics.absolute_j2 import kepler_to_eci
 from swarmhil.plant.dynamics.attitude import AttitudePropagator, quat_from_axis_angle, quat_multiply
 from swarmhil.plant.dynamics.frames import cross, lvlh_angular_velocity, lvlh_basis, lvlh_vector_to_eci
-from swarmhil.plant.dynamics.limits import limit_norm, limit_per_axis, row_norm
+from swarmhil.plant.dynamics.limits import limit_norm, limit_norm_rows, limit_per_axis, row_norm
 from swarmhil.plant.dynamics.propagator import make_propagator
 from swarmhil.plant.faults import BodyFault, BodyManoeuvre, manoeuvre_displacement, spin_segments
 from swarmhil.plant.worlds import register_world
@@ -274,8 +274,15 @@ class MissionWorld:
     def limit(self, accel_mps2: np.ndarray, all_alive: bool = False) -> np.ndarray:
         """The commands the actuators give: each limit mode's limit, zero for the dead (`all_alive`:
         the caller knows that nobody is)."""
+        return self._limited(accel_mps2, all_alive)[0]
+
+    def _limited(self, accel_mps2: np.ndarray, all_alive: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """`limit`'s commands and, when one norm limit covers every spacecraft, all alive and none
+        over it, their norms (limits.limit_norm_rows), else None."""
         if self._limit_all is not None:
             f, max_all = self._limit_all
+            if f is limit_norm and all_alive:
+                return limit_norm_rows(np.asarray(accel_mps2, float), max_all)
             a = f(np.asarray(accel_mps2, float), max_all)  # (a new array)
         else:
             a = np.asarray(accel_mps2, float).copy()
@@ -283,18 +290,18 @@ class MissionWorld:
                 a[rows] = f(a[rows], max_mps2)
         if not all_alive:
             a[~self.alive] = 0.0
-        return a
+        return a, None
 
     def step(self, accel_mps2: np.ndarray, dt_s: float, torque_nm: np.ndarray | None = None,
              all_alive: bool = False) -> None:
         """Advance by dt with commands (scenario frame; torque in each body frame) held over the step
         (`all_alive`: the caller knows that every spacecraft is alive)."""
         c0 = time.perf_counter()
-        a = self.limit(accel_mps2, all_alive)
+        a, norm = self._limited(accel_mps2, all_alive)
         if self.actuation_faults is not None:
-            a = self.actuation_faults(a, self.steps_done)
+            a, norm = self.actuation_faults(a, self.steps_done), None
         self.last_accel_mps2 = a
-        self.delta_v_mps += row_norm(a) * dt_s
+        self.delta_v_mps += (row_norm(a) if norm is None else norm) * dt_s
         if self.prop_bodies or not a.flags.c_contiguous:
             acc = np.vstack([a] + [(manoeuvre_accel(b.motion.manoeuvres, self.t_s) + self._fault_accel(b.id))[None]
                                    for b in self.prop_bodies])

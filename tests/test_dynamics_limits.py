@@ -160,7 +160,7 @@ def test_limit_norm_is_the_scaled_product_byte_for_byte() -> None:
     """limit_norm (issue 29: `u * 1.0` when no row is over its limit) equals the scaled product it
     always computed, u * scale with scale = max/|u| over the limit and 1 elsewhere, byte for byte:
     rows under and over, NaN, ±inf, -0.0 and subnormals, a scalar and a per-craft limit."""
-    from swarmhil.plant.dynamics.limits import row_norm
+    from swarmhil.plant.dynamics.limits import limit_norm_rows, row_norm
 
     def before(u: np.ndarray, m: float | np.ndarray) -> np.ndarray:
         norm = row_norm(u)
@@ -179,3 +179,7 @@ def test_limit_norm_is_the_scaled_product_byte_for_byte() -> None:
             for m in (5e-3, 1e3, float(rng.uniform(0, 2)), rng.uniform(0, 2, n)):
                 got, want = limit_norm(u, m), before(u, m)
                 assert got.shape == want.shape and got.tobytes() == want.tobytes()
+                again, norms = limit_norm_rows(u, m)  # the norms of the limited rows, when none was over
+                assert again.tobytes() == want.tobytes()
+                assert norms is None or norms.tobytes() == row_norm(want).tobytes()
+                assert norms is not None or (row_norm(u) > m).any()

@@ -40,6 +40,12 @@ def limit_per_axis(command: np.ndarray, max_value: float | np.ndarray) -> np.nda
 
 def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray:
     """Scale each row into the ball |u| <= max, direction kept; max scalar or (N,). Returns a new array."""
+    return limit_norm_rows(command, max_value)[0]
+
+
+def limit_norm_rows(command: np.ndarray, max_value: float | np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """`limit_norm` and, when no row is over its limit, the (..., ) norms of the rows it returns
+    (`row_norm` of u * 1.0 is `row_norm` of u: the same squares), else None."""
     u = np.asarray(command, dtype=float)
     m = np.asarray(_check_max(max_value))
     if m.ndim > 1:
@@ -47,10 +53,10 @@ def limit_norm(command: np.ndarray, max_value: float | np.ndarray) -> np.ndarray
     norm = row_norm(u)
     over = norm > m
     if not over.any():  # nobody over the limit: every scale 1.0 (u * 1.0, the same product)
-        return u * 1.0
+        return u * 1.0, norm
     scale = np.ones_like(norm)
     np.divide(m, norm, out=scale, where=over)
-    return u * scale[..., None]
+    return u * scale[..., None], None
 
 
 def row_norm(u: np.ndarray) -> np.ndarray:

@@ -87,20 +87,24 @@ class LatticeController:
             for c, r in zip(controllers, radius.tolist()):
                 c.layer = next_layer(c.layer, r, t, p.r_middle_m, p.r_inner_m, p.t_natural_s)
         far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
-        g = np.empty((n, 3))
+        g_far = None
         if far:  # eq. 1-2 (cw.far_accel) for every far spacecraft at once
             if not p.t_desire_s - t > 0.0:
                 raise ValueError(f"time to go {p.t_desire_s - t} s: the ballistic field is only defined before t_desire")
             phi_rr, phi_rv = cw_position_blocks(p.mean_motion_radps, p.t_desire_s - t)
-            rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather and scatter)
+            rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather)
             pos_far, vel_far = pos[rows], vel[rows]
             rhs = np.matmul(phi_rr, pos_far[:, :, None])  # (k, 3, 1): phi_rr @ r of each, the same gemv as `step`'s
             v_d = -solve_each(phi_rv, rhs)[:, :, 0]
             g_far = p.far_gain_ps * (v_d - vel_far)
             if p.far_damping:
                 g_far = g_far + damping(vel_far, p.damping_ps)
-            g[rows] = g_far
-        if len(far) < n:
+        if g_far is not None and len(far) == n:
+            g = g_far  # (all far: no scatter)
+        else:
+            g = np.empty((n, 3))
+            if g_far is not None:
+                g[far] = g_far
             for r, c in enumerate(controllers):
                 if c.layer != Layer.FAR:
                     g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
