@@ -128,7 +128,7 @@ class ContactMonitor:
     def _pairs(self, pos_m: np.ndarray, d2: np.ndarray, body_truth: list[Any], near: bool) -> set[tuple[str, str]]:
         hit = d2 < (self._reach2_near if near else self._reach2_contact)
         out: set[tuple[str, str]] = set()
-        if hit.any():
+        if np.count_nonzero(hit):
             i, j = np.nonzero(hit)
             out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
         margin = self.cfg.keep_out_m if near else 0.0

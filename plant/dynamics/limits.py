@@ -52,7 +52,7 @@ def limit_norm_rows(command: np.ndarray, max_value: float | np.ndarray) -> tuple
         raise ValueError(f"a norm limit is one value per craft, got shape {m.shape}")
     norm = row_norm(u)
     over = norm > m
-    if not over.any():  # nobody over the limit: every scale 1.0 (u * 1.0, the same product)
+    if not np.count_nonzero(over):  # nobody over the limit: every scale 1.0 (u * 1.0, the same product)
         return u * 1.0, norm
     scale = np.ones_like(norm)
     np.divide(m, norm, out=scale, where=over)

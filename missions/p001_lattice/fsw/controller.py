@@ -81,10 +81,10 @@ class LatticeController:
         # a finite sum: every entry is finite (a sum that overflows only sends the batch to each `step`)
         if not math.isfinite(np.add.reduce(pos, axis=None) + np.add.reduce(vel, axis=None)):
             raise ValueError("non-finite own state in the batch")
-        radius = np.sqrt(row_dots(pos))  # float(np.linalg.norm(r)) of each row
-        lowest = float(radius.min())
+        radius = np.sqrt(row_dots(pos)).tolist()  # float(np.linalg.norm(r)) of each row (finite)
+        lowest = min(radius)
         if not (lowest >= p.r_middle_m and lowest >= p.r_inner_m and t <= p.t_natural_s):  # else nobody moves in
-            for c, r in zip(controllers, radius.tolist()):
+            for c, r in zip(controllers, radius):
                 c.layer = next_layer(c.layer, r, t, p.r_middle_m, p.r_inner_m, p.t_natural_s)
         far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
         g_far = None
@@ -121,7 +121,7 @@ class LatticeController:
         if not math.isfinite(np.add.reduce(norm)):  # (a singular far system, or an overflow): each `step`
             raise ValueError("non-finite command in the batch")
         over = norm > p.max_accel_mps2
-        if over.any():
+        if np.count_nonzero(over):
             u[over] *= (p.max_accel_mps2 / norm[over])[:, None]  # u * (u_max / |u|), row by row
         return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers])
 
