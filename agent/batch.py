@@ -31,6 +31,7 @@ class BatchAgents:
         self.decision_period_steps = max(1, int(decision_period_steps))
         self.accel_mps2 = np.zeros((len(self.ids), 3))  # the command in force, per spacecraft
         self.torque_nm = np.zeros((len(self.ids), 3))   # its body-frame torque (0 for a controller without one)
+        self._torques = False  # may a row of torque_nm be other than 0 (else a decision without torques keeps it)
         self.modes = ["idle"] * len(self.ids)
         self.faults: dict[str, dict[str, int]] = {}
         self.steps = 0
@@ -97,11 +98,14 @@ class BatchAgents:
                     modes[r] = "fault"
             if len(rows) == len(self.ids):
                 self.accel_mps2[:] = acc
-                self.torque_nm[:] = 0.0 if tq is None else tq
+                if tq is not None or self._torques:
+                    self.torque_nm[:] = 0.0 if tq is None else tq
+                    self._torques = tq is not None
                 self.modes = modes
             else:
                 self.accel_mps2[rows] = acc
                 self.torque_nm[rows] = 0.0 if tq is None else tq
+                self._torques = True
                 for r, i in enumerate(rows.tolist()):
                     self.modes[i] = modes[r]
             self.last = cb

@@ -183,13 +183,11 @@ class TruthEncoder:
         """The serialised Truth (module docstring); arrays (N, 3), (N, 3), (N,), (N,) bool, (N, 3), (N, 6)."""
         v, pr = self._vals, self._present
         n = v.shape[0]
-        head = b"\x0a" + varint(len(header)) + header
         fixed = self._tail_u
         if fixed is None or fixed[0] != a_m or fixed[1] != n_radps:  # (the same every step of a run)
             fixed = self._tail_u = (a_m, n_radps, _double(0x21, float(a_m)) + _double(0x29, float(n_radps)))
-        tail = _double(0x19, float(u_rad)) + fixed[2]
         if n == 0:
-            return head + tail
+            return b"".join((b"\x0a", varint(len(header)), header, _double(0x19, float(u_rad)), fixed[2]))
         np.concatenate((position_m, velocity_mps, delta_v_mps[:, None], accel_mps2, roe_m), axis=1, out=v)
         np.not_equal(v.view(np.uint64), 0, out=pr)  # implicit presence: any bit set (-0.0, NaN); roe_m is packed
         key = pr.tobytes() + np.asarray(alive, dtype=bool).tobytes()
@@ -203,7 +201,8 @@ class TruthEncoder:
             present[:, :10] = pr[:, :10]
             present[:, 10] = alive
             take = self._plans[key] = self._plan_of_rows(present)
-        return head + self._buf[take].tobytes() + tail
+        return b"".join((b"\x0a", varint(len(header)), header, self._buf[take].tobytes(), _double(0x19, float(u_rad)),
+                         fixed[2]))
 
     def _plan_of_rows(self, present: np.ndarray) -> np.ndarray:
         """`_plan` of a pattern (n, 11) from each body's own part when every body has shown its

@@ -22,10 +22,10 @@ def cw_position_blocks(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarr
     tau = n_radps * t_s
     s, c = float(np.sin(tau)), float(np.cos(tau))
     tau = float(tau)
-    phi_rr = np.array((4.0 - 3.0 * c, 0.0, 0.0, 6.0 * (s - tau), 1.0, 0.0, 0.0, 0.0, c)).reshape(3, 3)
     one_c = 1.0 - c
-    phi_rv = np.array((s, 2.0 * one_c, 0.0, -2.0 * one_c, 4.0 * s - 3.0 * tau, 0.0, 0.0, 0.0, s)).reshape(3, 3) / n_radps
-    return phi_rr, phi_rv
+    blocks = np.array((4.0 - 3.0 * c, 0.0, 0.0, 6.0 * (s - tau), 1.0, 0.0, 0.0, 0.0, c,
+                       s, 2.0 * one_c, 0.0, -2.0 * one_c, 4.0 * s - 3.0 * tau, 0.0, 0.0, 0.0, s)).reshape(2, 3, 3)
+    return blocks[0], blocks[1] / n_radps
 
 
 def solve_each(a: np.ndarray, b: np.ndarray) -> np.ndarray:
