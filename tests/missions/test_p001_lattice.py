@@ -316,3 +316,43 @@ def _solve_and_dot_cases(rng: np.random.Generator, row_dots, solve_each) -> None
             assert d[i].tobytes() == np.float64(a[i].dot(a[i])).tobytes()
             if np.isfinite(a[i]).all():
                 assert np.sqrt(d[i]).tobytes() == np.float64(np.linalg.norm(a[i])).tobytes()
+
+
+def test_a_non_finite_own_state_leaves_the_batch_as_each_step_would() -> None:
+    """A NaN or ±inf in one spacecraft's own position or velocity (any layer, before and after
+    t_natural): the batch agents (agent/batch.py, the sensing's arrays) command what each `step`
+    commands (zero where it raises, the fault counted) and every layer stays as each `step` leaves it."""
+    import copy
+
+    from swarmhil.agent.batch import BatchAgents
+    from swarmhil.agent.controller import Observation, ObservationBatch, OrbitInfo
+    from swarmhil.bus.codec import NamedRows
+    from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY
+
+    orbit = OrbitInfo(42164230.752852604, 7.2921e-5)
+    rng = np.random.default_rng(30)
+    ids = [f"sc{i}" for i in range(6)]
+    for case in range(120):
+        agents = BatchAgents(ids, [("p001-lattice", {})] * 6, orbit)
+        for c, layer in zip(agents.controllers, rng.choice([Layer.FAR, Layer.NEAR, Layer.SHAPING], 6)):
+            c.layer = Layer(int(layer)) if case % 3 else Layer.FAR
+        one = copy.deepcopy(agents.controllers)
+        pos, vel = rng.normal(0, float(rng.choice([8.0, 300.0])), (6, 3)), rng.normal(0, 0.05, (6, 3))
+        (pos if case % 2 else vel)[int(rng.integers(0, 6)), int(rng.integers(0, 3))] = rng.choice([np.nan, np.inf, -np.inf])
+        t = float(rng.choice([50.0, 19100.0]))  # (t_natural 19012.5 s)
+        want, faults = [], set()
+        for i, c in enumerate(one):
+            try:
+                want.append(c.step(Observation(step=1, t_s=t, u_rad=0.0, neighbour_ids=[], rel_position_m=np.zeros((0, 3)),
+                                               rel_velocity_mps=np.zeros((0, 3)),
+                                               extra={OWN_POSITION_KEY: pos[i] + 0.0, OWN_VELOCITY_KEY: vel[i] + 0.0})).accel_mps2)
+            except (ValueError, np.linalg.LinAlgError):
+                want.append(np.zeros(3))
+                faults.add(ids[i])
+        batch = ObservationBatch(step=1, t_s=t, u_rad=0.0, observers=ids, offsets=np.zeros(7, dtype=np.int64),
+                                 neighbour_ids=[], rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)),
+                                 extra=NamedRows({OWN_POSITION_KEY: pos + 0.0, OWN_VELOCITY_KEY: vel + 0.0}, 6))
+        got = agents.step(np.arange(6), batch)
+        assert got.tobytes() == np.array(want).tobytes(), case
+        assert [c.layer for c in agents.controllers] == [c.layer for c in one], case
+        assert set(agents.faults) == faults, case

@@ -78,12 +78,16 @@ class LatticeController:
             return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
         n, t = len(controllers), float(batch.t_s)
         pos, vel = own_state_rows(batch.extra, n)
-        # a finite sum: every entry is finite (a sum that overflows only sends the batch to each `step`)
-        if not math.isfinite(np.add.reduce(pos, axis=None) + np.add.reduce(vel, axis=None)):
-            raise ValueError("non-finite own state in the batch")
-        radius = np.sqrt(row_dots(pos)).tolist()  # float(np.linalg.norm(r)) of each row (finite)
+        radius = np.sqrt(row_dots(pos)).tolist()  # float(np.linalg.norm(r)) of each row
         lowest = min(radius)
         if not (lowest >= p.r_middle_m and lowest >= p.r_inner_m and t <= p.t_natural_s):  # else nobody moves in
+            # a layer may move: only for a finite own state (`step` raises before its layer test; a
+            # finite sum means every entry is finite, one that overflows only sends the batch to each
+            # `step`). Without the test a non-finite own state makes that spacecraft's command
+            # non-finite in every layer (the far field, the wells and the damping read r and v):
+            # the test of the commands below sends the batch to each `step`, no layer moved
+            if not math.isfinite(np.add.reduce(pos, axis=None) + np.add.reduce(vel, axis=None)):
+                raise ValueError("non-finite own state in the batch")
             for c, r in zip(controllers, radius):
                 c.layer = next_layer(c.layer, r, t, p.r_middle_m, p.r_inner_m, p.t_natural_s)
         far = [r for r, c in enumerate(controllers) if c.layer == Layer.FAR]
@@ -118,8 +122,8 @@ class LatticeController:
         else:
             u = g + 0.0  # (g + a row of zeros, as `step` adds tb_accel's zeros: -0.0 -> 0.0)
         norm = np.sqrt(row_dots(u))  # wells.saturate of each row: float(np.linalg.norm(u))
-        if not math.isfinite(np.add.reduce(norm)):  # (a singular far system, or an overflow): each `step`
-            raise ValueError("non-finite command in the batch")
+        if not math.isfinite(np.add.reduce(norm)):  # (a non-finite own state, a singular far system, an overflow)
+            raise ValueError("non-finite command in the batch")  # each `step` then
         over = norm > p.max_accel_mps2
         if np.count_nonzero(over):
             u[over] *= (p.max_accel_mps2 / norm[over])[:, None]  # u * (u_max / |u|), row by row
