@@ -170,6 +170,15 @@ class RelativeKind:
         p = self.p
         if not (p.position_noise_m or p.velocity_noise_mps or p.own_position_noise_m or p.own_velocity_noise_mps):
             self.batch = self.batch_noise_free  # the batch mode's arrays (issue 29); noisy: the messages
+        self._no_pairs: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+    def _none_in_range(self, observers: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(offsets, pair indices, pair rows) of `observers` observers without a neighbour, read-only."""
+        out = (np.zeros(observers + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
+        for a in out:
+            a.setflags(write=False)
+        self._no_pairs[observers] = out
+        return out
 
     def batch_noise_free(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
         """What `stimulus` gives each of `observers` (distinct, increasing indices) without noise, as
@@ -186,14 +195,15 @@ class RelativeKind:
             vis.ravel()[::len(obs) + 1] = False  # (the diagonal: nobody is its own neighbour)
         else:
             vis[np.arange(len(obs)), obs] = False
-        jj, kk = vis.nonzero()
-        offsets = np.zeros(len(obs) + 1, dtype=np.int64)
-        if len(jj):
+        if np.count_nonzero(vis):
+            jj, kk = vis.nonzero()
+            offsets = np.zeros(len(obs) + 1, dtype=np.int64)
             j = obs[jj]
             rp, rv = pos[kk] - pos[j] + 0.0, vel[kk] - vel[j] + 0.0  # (+ 0.0: the message path's, -0.0 -> 0.0)
             np.add.accumulate(np.bincount(jj, minlength=len(obs)), out=offsets[1:])
-        else:  # nobody within range of anyone (the same empty (0, 3) arrays and zero offsets)
-            rp, rv = np.empty((0, 3)), np.empty((0, 3))
+        else:  # nobody within range of anyone: zero offsets, no pairs (read-only arrays, made once per R)
+            offsets, jj, rp = self._no_pairs.get(len(obs)) or self._none_in_range(len(obs))
+            kk, rv = jj, rp
         # the own states as two arrays, observer r's the rows r (pos[i] + 0.0, vel[i] + 0.0), its dict on demand
         extra = (NamedRows({"own_position_m": own_p + 0.0, "own_velocity_mps": own_v + 0.0}, len(obs))
                  if self.p.own_state else None)

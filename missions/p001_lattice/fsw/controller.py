@@ -74,7 +74,8 @@ class LatticeController:
         computes it on each row; the near and shaping wells and the Tersoff-Brenner term per
         spacecraft through the same functions. Controllers with different parameters step one by one."""
         p = controllers[0].p
-        if any(c.p is not p and c.p != p for c in controllers):
+        params = [c.p for c in controllers]
+        if params.count(p) != len(params):  # (list.count: identity first, then ==)
             return CommandBatch.of([c.step(batch.observation(i)) for i, c in enumerate(controllers)])
         n, t = len(controllers), float(batch.t_s)
         pos, vel = own_state_rows(batch.extra, n)
