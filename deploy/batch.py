@@ -183,7 +183,8 @@ class BatchHook(LocalFlightSoftware):
         observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
         link = self.link
         if link is None:
-            return self._with_torques(self.agents.step(rows, self._observe(ctx, rows, observers, sense)))
+            acc = self.agents.step(rows, self._observe(ctx, rows, observers, sense))
+            return self._with_torques(acc) if self.attitude else acc
         link.truth(ctx)
         decide = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
         batch = self._observe(ctx, rows, observers, sense)

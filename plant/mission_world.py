@@ -204,7 +204,7 @@ class MissionWorld:
         """(N,3) spacecraft positions and velocities in the scenario frame."""
         p, v = self._rows_lvlh()
         n = len(self.ids)
-        return p[:n], v[:n]
+        return (p, v) if len(p) == n else (p[:n], v[:n])
 
     def roe_m(self, lvlh: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(N, 6) ROE in metres of the scenario-frame states (`lvlh`: this step's `lvlh()`, when the caller has it)."""

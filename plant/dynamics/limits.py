@@ -47,8 +47,8 @@ def limit_norm_rows(command: np.ndarray, max_value: float | np.ndarray) -> tuple
     """`limit_norm` and, when no row is over its limit, the (..., ) norms of the rows it returns
     (`row_norm` of u * 1.0 is `row_norm` of u: the same squares), else None."""
     u = np.asarray(command, dtype=float)
-    m = np.asarray(_check_max(max_value))
-    if m.ndim > 1:
+    m = _check_max(max_value)  # (a float, or an array of floats)
+    if not isinstance(m, float) and m.ndim > 1:
         raise ValueError(f"a norm limit is one value per craft, got shape {m.shape}")
     norm = row_norm(u)
     over = norm > m

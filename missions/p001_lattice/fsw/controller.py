@@ -113,8 +113,8 @@ class LatticeController:
             for r, c in enumerate(controllers):
                 if c.layer != Layer.FAR:
                     g[r] = c.gathering(OwnState(pos[r], vel[r]), t)
-        off = batch.offsets.tolist()
-        if off[n] > 0:  # someone sees a neighbour
+        if len(batch.rel_position_m):  # someone sees a neighbour (offsets[n] rows)
+            off = batch.offsets.tolist()
             tb = np.zeros((n, 3))
             for r, c in enumerate(controllers):
                 if off[r + 1] > off[r]:
