@@ -83,7 +83,7 @@ class BatchAgents:
             modes = list(cb.modes)
             # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed).
             # As AgentNode: a non-finite acceleration or torque commands zero (no torque) instead
-            total = np.add.reduce(acc, axis=None) + (0.0 if tq is None else np.add.reduce(tq, axis=None))
+            total = 0.0 if cb.finite else np.add.reduce(acc, axis=None) + (0.0 if tq is None else np.add.reduce(tq, axis=None))
             bad = None
             if not math.isfinite(total):
                 tq = np.zeros_like(acc) if tq is None else tq

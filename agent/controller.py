@@ -184,6 +184,7 @@ class CommandBatch:
     build: Callable[[int], Command] | None = None  # observer i -> its full Command
     torque_nm: np.ndarray | None = None  # (N, 3) body-frame torques (a row of 0 for a command without one); None: none at all
     raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
+    finite: bool = False  # every acceleration (and torque) is finite: the batch path that made them checked it
 
     def command(self, i: int) -> Command:
         if self.build is not None:

@@ -245,6 +245,7 @@ def test_step_batch_is_each_step_bit_for_bit(params: dict) -> None:
         rows.extra = NamedRows({OWN_POSITION_KEY: pos + 0.0, OWN_VELOCITY_KEY: vel + 0.0}, 6)
         got = type(arrays[0]).step_batch(arrays, rows)
         assert got.accel_mps2.tobytes() == np.array([w.accel_mps2 for w in want]).tobytes()
+        assert got.finite and np.isfinite(got.accel_mps2).all()  # (BatchAgents then skips its own finite test)
         assert got.modes == [w.mode for w in want] and [c.layer for c in arrays] == [c.layer for c in one]
         layers |= set(got.modes)
         if k % 50 == 49:  # start over: the layers latch inwards

@@ -128,7 +128,8 @@ class LatticeController:
         over = norm > p.max_accel_mps2
         if np.count_nonzero(over):
             u[over] *= (p.max_accel_mps2 / norm[over])[:, None]  # u * (u_max / |u|), row by row
-        return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers])
+        # finite: each norm is, so each entry is (and u_max / |u| of a finite |u| > u_max)
+        return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers], finite=True)
 
 
 def row_dots(a: np.ndarray) -> np.ndarray:
