@@ -46,11 +46,11 @@ def _string(tag: int, s: str) -> bytes:
 
 def _double(tag: int, x: float) -> bytes:
     # implicit presence: written unless +0.0 (math.copysign tells -0.0; NaN != 0.0 is written)
-    return bytes((tag,)) + _D.pack(x) if (x != 0.0 or math.copysign(1.0, x) < 0.0) else b""
+    return _SMALL[tag] + _D.pack(x) if (x != 0.0 or math.copysign(1.0, x) < 0.0) else b""  # (tags < 0x80)
 
 
 def _uint(tag: int, n: int) -> bytes:
-    return bytes((tag,)) + varint(n) if n else b""
+    return _SMALL[tag] + varint(n) if n else b""
 
 
 def encode_header(run: str, source: str, step: int, t: float, seq: int) -> bytes:

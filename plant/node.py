@@ -298,10 +298,11 @@ class PlantNode:
             self._event(kind, pair, detail)
         if final:
             return
+        everyone = all(alive)
         ctx = SensingContext(step=k, t_s=self.world.t_s, u_rad=u, ids=ids, position_m=pos, velocity_mps=vel,
-                             alive=self.world.alive, world=self.world)
+                             alive=self.world.alive, world=self.world, all_alive=everyone)
         if self.local_agents is not None:
-            self._local_all = all(alive)
+            self._local_all = everyone
             rows = self._all_rows if self._local_all else np.flatnonzero(self.world.alive)
             if hasattr(self.sensor, "batch"):
                 self._local_cmd = self.local_agents.commands(ctx, rows, lambda: self.sensor.batch(ctx, rows))

@@ -5,6 +5,7 @@ dV) equal, with equal log times, and the link carried the same packets (deploy/b
 `BatchLink` against the channel companion, link/node.py)."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +76,10 @@ def test_relative_kind_batch_equals_its_messages(dead: tuple[int, ...]) -> None:
                          alive=alive, world=None)
     rows = np.flatnonzero(alive)
     rel = kind.batch(ctx, rows)
+    if not dead:  # the plant's word that all are alive: the same arrays without the mask
+        told = kind.batch(dataclasses.replace(ctx, all_alive=True), rows)
+        for a, b in ((told.offsets, rel.offsets), (told.neighbour, rel.neighbour), (told.rel_position_m, rel.rel_position_m)):
+            assert a.tobytes() == b.tobytes()
     pairs = 0
     for r, j in enumerate(rows.tolist()):
         o = observation_from_rel(kind.stimulus(ctx, j, header("run", "plant", 3, 15.0, 0)))

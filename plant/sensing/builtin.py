@@ -190,7 +190,8 @@ class RelativeKind:
         own_p, own_v = (pos, vel) if every else (pos[obs], vel[obs])
         d = row_norm(pos[None, :, :] - own_p[:, None, :])  # (R, N): np.linalg.norm(..., axis=2), as stimulus's per row
         vis = d <= self.p.range_m
-        vis &= np.asarray(ctx.alive, dtype=bool)
+        if not ctx.all_alive:
+            vis &= np.asarray(ctx.alive, dtype=bool)
         if every:
             vis.ravel()[::len(obs) + 1] = False  # (the diagonal: nobody is its own neighbour)
         else:

@@ -27,6 +27,7 @@ class SensingContext:
     alive: np.ndarray            # (N,) bool
     world: Any                   # World or MissionWorld (bodies, attitude where flown)
     cache: dict[str, Any] = field(default_factory=dict)
+    all_alive: bool = False      # True: the maker knows every `alive` is (False: look at `alive`)
 
     def cached(self, name: str, make: Callable[[], Any]) -> Any:
         if name not in self.cache:
