@@ -299,20 +299,24 @@ def test_solve_each_and_row_dots_are_numpys_own_calls_byte_for_byte() -> None:
 
 
 def _solve_and_dot_cases(rng: np.random.Generator, row_dots, solve_each) -> None:  # noqa: ANN001
-    from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks
+    from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, matvec_rows
 
     for _ in range(200):
         k = int(rng.integers(1, 9))
         _rr, phi_rv = cw_position_blocks(N_GEO, float(rng.uniform(10.0, 40000.0)))
-        rhs = rng.normal(0, 1e3, (k, 3, 1))
+        rhs = rng.normal(0, 1e3, (k, 3))
         got = solve_each(phi_rv, rhs)
-        assert got.shape == (k, 3, 1)
+        assert got.shape == (k, 3)
+        prod = matvec_rows(phi_rv, rhs)
+        assert prod.tobytes() == np.matmul(phi_rv, rhs[:, :, None])[:, :, 0].tobytes()  # (the numpy 1 route)
         for i in range(k):
-            assert got[i, :, 0].tobytes() == np.linalg.solve(phi_rv, rhs[i, :, 0]).tobytes()
+            assert got[i].tobytes() == np.linalg.solve(phi_rv, rhs[i]).tobytes()
+            assert prod[i].tobytes() == (phi_rv @ rhs[i]).tobytes()
         a = _awkward(rng, (k, 3))
         a[rng.integers(0, k)] = rng.choice(np.array([np.nan, np.inf, -np.inf, 1.0]), 3)
         d = row_dots(a)
         assert d.shape == (k,)
+        assert d.tobytes() == np.matmul(a[:, None, :], a[:, :, None]).reshape(k).tobytes()  # (the numpy 1 route)
         for i in range(k):
             assert d[i].tobytes() == np.float64(a[i].dot(a[i])).tobytes()
             if np.isfinite(a[i]).all():

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
-from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel, solve_each
+from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel, matvec_rows, solve_each
 from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
 from swarmhil.missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
 from swarmhil.missions.p001_lattice.fsw.sensing import OWN_POSITION_KEY, OWN_VELOCITY_KEY, OwnState
@@ -99,8 +99,8 @@ class LatticeController:
             phi_rr, phi_rv = cw_position_blocks(p.mean_motion_radps, p.t_desire_s - t)
             rows: slice | list[int] = slice(None) if len(far) == n else far  # (all far: no gather)
             pos_far, vel_far = pos[rows], vel[rows]
-            rhs = np.matmul(phi_rr, pos_far[:, :, None])  # (k, 3, 1): phi_rr @ r of each, the same gemv as `step`'s
-            v_d = -solve_each(phi_rv, rhs)[:, :, 0]
+            rhs = matvec_rows(phi_rr, pos_far)  # phi_rr @ r of each, the same gemv as `step`'s
+            v_d = -solve_each(phi_rv, rhs)
             g_far = p.far_gain_ps * (v_d - vel_far)
             if p.far_damping:
                 g_far = g_far + damping(vel_far, p.damping_ps)
@@ -134,10 +134,16 @@ class LatticeController:
 
 def row_dots(a: np.ndarray) -> np.ndarray:
     """(N,) a_r . a_r of each row of a C-contiguous (N, 3) float64 array, each by the BLAS `ddot`
-    that `a[r].dot(a[r])` (and so `np.linalg.norm(a[r])`, its square root) calls: `np.matmul` of
-    a (1, 3) row by a (3, 1) column calls numpy's `DOUBLE_dot` with the row's stride, as the 1-D
-    dot does (tests/missions/test_p001_lattice.py, byte for byte)."""
+    that `a[r].dot(a[r])` (and so `np.linalg.norm(a[r])`, its square root) calls: numpy's
+    `np.vecdot` (numpy >= 2) and `np.matmul` of a (1, 3) row by a (3, 1) column both call numpy's
+    `DOUBLE_dot` with the row's stride, as the 1-D dot does (tests/missions/test_p001_lattice.py,
+    byte for byte)."""
+    if _VECDOT is not None:
+        return _VECDOT(a, a)
     return np.matmul(a[:, None, :], a[:, :, None]).reshape(len(a))
+
+
+_VECDOT = getattr(np, "vecdot", None)  # (numpy >= 2: the same per-row DOUBLE_dot, fewer numpy calls)
 
 
 def own_state_rows(extra: Any, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -29,12 +29,23 @@ def cw_position_blocks(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarr
 
 
 def solve_each(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """`np.linalg.solve(a, b)` of one (3, 3) float64 system `a` against each of the stacked (k, 3, 1)
-    float64 right-hand sides `b`: numpy's own gufunc (LAPACK `dgesv` on each system alone, as
-    `np.linalg.solve` of the system by itself) without the wrapper's checks and error state. A
-    singular `a` gives NaN rows (and numpy's invalid-value warning) instead of raising: the
-    caller tests the result."""
-    return _umath_linalg.solve(a, b)
+    """`np.linalg.solve(a, b[i])` of one (3, 3) float64 system `a` against each (3,) float64 row of
+    `b` (k, 3): the gufunc `np.linalg.solve` calls for a 1-D right-hand side (LAPACK `dgesv` on each
+    system alone), without the wrapper's checks and error state. A singular `a` gives NaN rows (and
+    numpy's invalid-value warning) instead of raising: the caller tests the result."""
+    return _umath_linalg.solve1(a, b)
+
+
+def matvec_rows(m: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """(k, 3) `m @ rows[i]` of each row of a C-contiguous (k, 3) float64 array, each the BLAS `gemv`
+    that the 1-D product calls (`np.matvec`, numpy >= 2.2, and `np.matmul` against (k, 3, 1) columns
+    both call numpy's `DOUBLE_gemv` with the same strides)."""
+    if _MATVEC is not None:
+        return _MATVEC(m, rows)
+    return np.matmul(m, rows[:, :, None])[:, :, 0]
+
+
+_MATVEC = getattr(np, "matvec", None)
 
 
 def ballistic_velocity(position_m: np.ndarray, n_radps: float, time_to_go_s: float) -> np.ndarray:
