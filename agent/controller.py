@@ -149,7 +149,8 @@ class ObservationBatch:
         """The batch of the observers `rows` alone: what `of` makes of their observations (the same
         values: their neighbour rows gathered in order, their extra and packets), from the arrays."""
         off = self.offsets
-        sel = [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+        # (no neighbour rows at all, as paper 003's and 004's kinds: nothing to select, row by row)
+        sel = [] if not np.any(off) else [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
         idx = np.array(sel, dtype=np.int64)
         counts = [int(off[i + 1]) - int(off[i]) for i in rows]
         return ObservationBatch(step=self.step, t_s=self.t_s, u_rad=self.u_rad, observers=[self.observers[i] for i in rows],

@@ -384,8 +384,8 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
 def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
     """Issue 29: natural_rel_accel without np.stack / np.linalg.norm gives the bits of the formula as
     written with them, one servicer or stacked (NaN, -0.0, inf); the servicers' `saturated` test is
-    np.allclose's verdict, row by row."""
-    from swarmhil.missions.p003_surround.fsw.controllers import _allclose_rows
+    np.allclose's verdict."""
+    from swarmhil.missions.p003_surround.fsw.controllers import _allclose
 
     rng = np.random.default_rng(29)
     a_m, n = 6878137.0, 0.0011
@@ -403,9 +403,9 @@ def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
                               np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))
              for b in (q[0], np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))]
     with np.errstate(over="ignore"):  # the 1e308 rows' sums
-        got = _allclose_rows(np.array([a for a, _b in pairs]), np.array([b for _a, b in pairs]))
+        got = [_allclose(a, b) for a, b in pairs]
     assert got == [bool(np.allclose(a, b)) for a, b in pairs]
-    assert _allclose_rows(q[:9], q[:9] * (1 + 1e-6)) == [bool(np.allclose(a, a * (1 + 1e-6))) for a in q[:9]]
+    assert [_allclose(a, a * (1 + 1e-6)) for a in q[:9]] == [bool(np.allclose(a, a * (1 + 1e-6))) for a in q[:9]]
 
 
 def test_clip_norm_rows_is_clip_norm_of_each_row() -> None:
