@@ -165,22 +165,26 @@ class ServicerController:
             views.measure(pos, vel)
             ready.append((rows, cs, views, pos, vel, views.centres(t_s, shared)))
         cmds: list[Command] = [None] * len(controllers)  # type: ignore[list-item]
+        accel = np.empty((len(controllers), 3))
         for rows, cs, views, pos, vel, centres in ready:
             gx, rt = vectorised.grad_and_xi_rate(views.x_err, views.xi, cs[0].slots_m, centres, cs[0].r_g_m, views.own, cs[0].g)
-            for r, cmd in zip(rows, cls._commands(cs, views, pos, vel, gx, rt, t_s)):
+            accel[rows], group = cls._commands(cs, views, pos, vel, gx, rt, t_s)
+            for r, cmd in zip(rows, group):
                 cmds[r] = cmd
-        return CommandBatch.of(cmds)
+        # (CommandBatch.of(cmds): every acceleration a 3-vector, no torque)
+        return CommandBatch(accel_mps2=accel, modes=[c.mode for c in cmds], build=cmds.__getitem__)
 
     @staticmethod
     def _commands(cs: list["ServicerController"], views: "_Views", pos: np.ndarray, vel: np.ndarray,
-                  grad: np.ndarray, rate: np.ndarray, t_s: float) -> list[Command]:
+                  grad: np.ndarray, rate: np.ndarray, t_s: float) -> tuple[np.ndarray, list[Command]]:
         """u_i = u_Li + u_ci* + u_id (eq. 6) of servicers that share their game, from their ∂V_i/∂x~_i
         (grad, (S, 6)) and measured states (pos, vel, (S, 3)), then the Euler step of each one's ξ_i
         (eq. 20) at its ξ rate (rate, (S, 6)). Over rows, each row the arithmetic of one servicer
         alone: elementwise, the natural relative acceleration's |r| a sum along the last axis, each
         norm of the saturations its own `clip_norm`'s (`clip_norm_rows`). Servicer by servicer, in
         order: its telemetry, its clock, its ξ_i, its packet (so a packet that cannot be encoded
-        leaves the servicers before it stepped, as one `step` each would)."""
+        leaves the servicers before it stepped, as one `step` each would). Returns the accelerations
+        (S, 3) and the commands."""
         g, m = cs[0].g, cs[0].g.mass_kg
         u_ct = m * nash.ct_accel(grad, g)
         u_id = np.zeros((len(cs), 3))
@@ -208,7 +212,7 @@ class ServicerController:
             c.xi[c.index] = xi_own[k]
             out.append(Command(accel_mps2=accel[k], mode="surround",
                                transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct_values(c.index, values[k]))]))
-        return out
+        return accel, out
 
 
 class _Views:

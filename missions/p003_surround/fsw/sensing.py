@@ -71,14 +71,20 @@ def read_rows(extras: list[dict[str, Any]], key: str) -> tuple[np.ndarray, np.nd
     first e it raises for."""
     pos, vel = [], []
     pos_name, vel_name = f"{key}.position_m", f"{key}.velocity_mps"
+    seen: tuple[str, str] | None = None  # the two names `_named` found in the last e
     for e in extras:
-        if key in e:
+        if seen is not None and len(e) == 2 and seen[0] in e and seen[1] in e:  # those two alone: what `_named` finds
+            p, v = e[seen[0]], e[seen[1]]
+        elif key in e:
             s = read(e, key)
             p, v = s.position_m, s.velocity_mps
         else:
             p, v = _named(e, pos_name), _named(e, vel_name)
             if p is None or v is None:
                 read(e, key)  # its KeyError
+            names = [k for k in e if k == pos_name or k.startswith(pos_name + "/")]
+            names += [k for k in e if k == vel_name or k.startswith(vel_name + "/")]
+            seen = (names[0], names[1]) if len(names) == 2 else None
         pos.append(p)
         vel.append(v)
     try:
