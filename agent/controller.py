@@ -149,12 +149,15 @@ class ObservationBatch:
         """The batch of the observers `rows` alone: what `of` makes of their observations (the same
         values: their neighbour rows gathered in order, their extra and packets), from the arrays."""
         off = self.offsets
-        # (no neighbour rows at all, as paper 003's and 004's kinds: nothing to select, row by row)
-        sel = [] if not np.any(off) else [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+        if not np.any(off):  # no neighbour rows at all (paper 003's and 004's kinds): every count 0
+            sel: list[int] = []
+            offsets = np.zeros(len(rows) + 1, dtype=np.int64)
+        else:
+            sel = [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+            offsets = np.concatenate(([0], np.cumsum([int(off[i + 1]) - int(off[i]) for i in rows]))).astype(np.int64)
         idx = np.array(sel, dtype=np.int64)
-        counts = [int(off[i + 1]) - int(off[i]) for i in rows]
         return ObservationBatch(step=self.step, t_s=self.t_s, u_rad=self.u_rad, observers=[self.observers[i] for i in rows],
-                                offsets=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+                                offsets=offsets,
                                 neighbour_ids=[self.neighbour_ids[k] for k in sel],
                                 rel_position_m=np.asarray(self.rel_position_m, float).reshape(-1, 3)[idx],
                                 rel_velocity_mps=np.asarray(self.rel_velocity_mps, float).reshape(-1, 3)[idx],

@@ -188,13 +188,19 @@ class ServicerController:
         g, m = cs[0].g, cs[0].g.mass_kg
         u_ct = m * nash.ct_accel(grad, g)
         u_id = np.zeros((len(cs), 3))
-        if g.cancel_natural:
+        o0, tt0 = cs[0].orbit, cs[0].tt
+        if g.cancel_natural and all(c.orbit is o0 for c in cs):  # (one orbit, as a scenario's servicers share)
+            u_id = -m * natural_rel_accel(pos, vel, o0.semi_major_axis_m, o0.mean_motion_radps)
+        elif g.cancel_natural:
             by_orbit: dict[OrbitInfo, list[int]] = {}
             for k, c in enumerate(cs):
                 by_orbit.setdefault(c.orbit, []).append(k)
             for orbit, ks in by_orbit.items():
                 u_id[ks] = -m * natural_rel_accel(pos[ks], vel[ks], orbit.semi_major_axis_m, orbit.mean_motion_radps)
-        u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
+        if tt0 is not None and all(c.tt is tt0 for c in cs):  # (one TT packet, as a step's broadcast)
+            u_sync = m * np.broadcast_to(tt0.leader_accel_mps2, (len(cs), 3))
+        else:
+            u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
         total = u_sync + u_ct + u_id
         u = clip_norm_rows(total, g.max_thrust_n) if g.saturate == "sum" else u_sync + clip_norm_rows(u_ct + u_id, g.max_thrust_n)
         xi_rate = rate.copy()
