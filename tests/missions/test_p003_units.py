@@ -471,6 +471,8 @@ def _reference_step(cs: list[_Reference], extras: list[dict], rxs: list[list], t
     u_ct = m * nash.ct_accel(grad, g)
     u_id = -m * np.array([natural_rel_accel(me.position_m, me.velocity_mps, c.orbit.semi_major_axis_m,
                                             c.orbit.mean_motion_radps) for c, me in zip(cs, mes)]).reshape(-1, 3)
+    if not g.cancel_natural:
+        u_id = np.zeros((len(cs), 3))
     u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
     total = u_sync + u_ct + u_id
     rows = lambda a, lim: np.array([clip_norm(v, lim) for v in a]).reshape(-1, 3)  # noqa: E731
@@ -488,21 +490,21 @@ def _reference_step(cs: list[_Reference], extras: list[dict], rxs: list[list], t
     return out
 
 
-@pytest.mark.parametrize("saturate,orbits", [("sum", 1), ("ct", 1), ("sum", 3)])
-def test_servicers_step_equals_the_code_it_replaced(saturate: str, orbits: int) -> None:
+@pytest.mark.parametrize("saturate,orbits,cancel", [("sum", 1, True), ("ct", 1, True), ("sum", 3, True), ("sum", 3, False)])
+def test_servicers_step_equals_the_code_it_replaced(saturate: str, orbits: int, cancel: bool) -> None:
     """Issue 29: `ServicerController.step_batch` over its stacked views (packets received into them,
     measurements read as one stack, saturations over rows, telemetry made when read) gives what the
     code before it gave, byte for byte, step after step: every acceleration, packet, x~, ξ and
     telemetry term, with packets in any order (several from one servicer, its own echoed back,
     indices out of range, a TT packet missing), measurements with -0.0, and one servicer stepped
     alone in between (`step`, its views made again); with one orbit object for all or three (two of
-    them equal)."""
+    them equal), and without the natural-motion cancellation."""
     from swarmhil.agent.controller import ObservationBatch
     from swarmhil.missions.p003_surround.fsw.controllers import ServicerController
 
     rng = np.random.default_rng(35)
     orbit = OrbitInfo(6878137.0, 1.1e-3)
-    params = {"game": {"saturate": saturate, "kappa": 1.0, "eta": 0.2, "k_pos_per_s2": 0.005, "k_vel_per_s": 0.1}}
+    params = {"game": {"saturate": saturate, "cancel_natural": cancel, "kappa": 1.0, "eta": 0.2, "k_pos_per_s2": 0.005, "k_vel_per_s": 0.1}}
     others = [orbit, OrbitInfo(6878137.0, 1.1e-3), OrbitInfo(6878000.0, 1.1e-3)][:orbits]
     cs = [make_controller("p003-servicer", f"ssat{i + 1}", others[i % orbits], params) for i in range(6)]
     ref = [_Reference(c) for c in cs]

@@ -187,13 +187,13 @@ class ServicerController:
         (S, 3) and the commands."""
         g, m = cs[0].g, cs[0].g.mass_kg
         u_ct = m * nash.ct_accel(grad, g)
-        u_id = np.zeros((len(cs), 3))
         o0, tt0 = cs[0].orbit, cs[0].tt
         if g.cancel_natural and all(c.orbit is o0 for c in cs):  # (one orbit, as a scenario's servicers share)
             u_id = -m * natural_rel_accel(pos, vel, o0.semi_major_axis_m, o0.mean_motion_radps)
-        elif g.cancel_natural:
+        else:
+            u_id = np.zeros((len(cs), 3))
             by_orbit: dict[OrbitInfo, list[int]] = {}
-            for k, c in enumerate(cs):
+            for k, c in enumerate(cs if g.cancel_natural else []):
                 by_orbit.setdefault(c.orbit, []).append(k)
             for orbit, ks in by_orbit.items():
                 u_id[ks] = -m * natural_rel_accel(pos[ks], vel[ks], orbit.semi_major_axis_m, orbit.mean_motion_radps)
