@@ -26,7 +26,7 @@ from .apf import apf_force, apf_forces, buffer_force
 from .attitude import (desired_attitude, desired_attitudes, line_of_sight, pointing_torque, pointing_torques,
                        rate_damping_torque)
 from .chase import chase_force
-from .estimate import TargetEstimate, alpha_beta, consensus
+from .estimate import Consensus, TargetEstimate, alpha_beta
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
@@ -35,6 +35,8 @@ from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires, fires_rows
 
 log = logging.getLogger("swarmhil.agent")
+CONSENSUS_OWN_WEIGHT = 0.8
+"""w_ii of eq. 30 for a direct own fit (`consensus`)."""
 
 
 class CaptureController:
@@ -52,6 +54,7 @@ class CaptureController:
         self.own: TargetEstimate | None = None
         self.est: TargetEstimate | None = None
         self.neighbours: dict[str, TargetEstimate] = {}
+        self._fused: Consensus | None = None  # eq. 30 of the estimates last fused (`Consensus.holds`)
         self.pool: list[tuple[float, np.ndarray]] = []
         self.last_fit_t = -np.inf
         self.axes_history: list[np.ndarray] = []
@@ -322,8 +325,11 @@ class CaptureController:
             self.last_fit_t = t
         fresh = [e for src, e in self.neighbours.items() if t - e.t_s <= p.estimate_max_age_s]
         had_estimate = self.est is not None
-        self.est = consensus(self.own if self.own is not None and t - self.own.t_s <= p.estimate_max_age_s else None,
-                             fresh, t, own_weight=0.8) or self.est
+        own = self.own if self.own is not None and t - self.own.t_s <= p.estimate_max_age_s else None
+        fused = self._fused
+        if fused is None or not fused.holds(own, fresh, CONSENSUS_OWN_WEIGHT):
+            fused = self._fused = Consensus.of(own, fresh, CONSENSUS_OWN_WEIGHT)
+        self.est = (None if fused is None else fused.at(t)) or self.est  # = consensus(own, fresh, t, 0.8)
         ell = None
         if self.est is not None:
             try:
