@@ -129,7 +129,7 @@ class BatchLink:
             if not np.isfinite(cb.accel_mps2[r]).all() or (cb.torque_nm is not None and not np.isfinite(cb.torque_nm[r]).all()):
                 continue
             src = self.ids[i]
-            for tx in cb.command(r).transmissions:
+            for tx in cb.transmissions(r):
                 seq = self._tx_seq[i]
                 self._tx_seq[i] = seq + 1
                 if check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes):

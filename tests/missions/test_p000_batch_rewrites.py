@@ -1,8 +1,9 @@
 """Paper 000's batch-path rewrites of issue 29 (capture-10's 550 s batch run ≤ 30 s) against the
 code they replaced, byte for byte: the closest surface point (`_closest_point`, row by row instead
-of Newton steps over arrays; `surface_frames`' stacked rotations), `dcm` without `np.stack`, the
-consensus of eq. 30 with its time-independent sums kept (`Consensus`), the sensor's outlier
-directions (`landmark_returns`) and its noise generators (`keyed_rng`).
+of Newton steps over arrays; `surface_frames`' stacked rotations), `dcm` and the plant's `cross`
+without `np.stack`, the consensus of eq. 30 with its time-independent sums kept (`Consensus`), the
+sensor's outlier directions (`landmark_returns`) and its noise generators (`keyed_rng`), and the
+packets the batch link sends (`CommandBatch.transmissions`, without building each Command).
 
 The references below are frozen copies of those functions at 4ef2732 (main before the change),
 docstrings dropped; each test draws inputs that reach every branch (zero coordinates, the centre,
@@ -10,6 +11,8 @@ equal axes, points on and near the surface, transposed rotations, NaN), and comp
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -19,7 +22,10 @@ from swarmhil.missions.p000_capture import contract as cc
 from swarmhil.missions.p000_capture.contract import Ellipsoid
 from swarmhil.missions.p000_capture.fsw.estimate import Consensus, TargetEstimate, consensus
 from swarmhil.missions.p000_capture.sense import P000Params, landmark_returns, visible_landmarks
+from swarmhil.plant.dynamics.frames import cross
 from swarmhil.plant.sensing.registry import keyed_rng
+
+ROOT = Path(__file__).resolve().parents[2]
 
 # --- 4ef2732's code, the references ---------------------------------------------------------------
 
@@ -189,6 +195,17 @@ def ref_landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: n
         ret[:n_out] = u * rng.uniform(1.0, p.range_m, n_out)[:, None]
         ids[:n_out] = -1
     return ret, ids
+
+
+def ref_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.stack(
+        (
+            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
+        ),
+        axis=-1,
+    )
 
 
 # --- the tests ------------------------------------------------------------------------------------
@@ -370,3 +387,35 @@ def test_keyed_rng_refuses_negative_keys_as_numpy_does() -> None:
         np.random.default_rng([1, -1])
     with pytest.raises(ValueError):
         keyed_rng(1, -1)
+
+
+def test_cross_equals_4ef2732s() -> None:
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(20, 3)) * 1e3, rng.normal(size=(20, 3))
+    a[0, 1] = np.nan
+    for x, y in ((a, b), (a[0], b), (a, b[0]), (a[0], b[0]), (a.reshape(4, 5, 3), b[:5]), (a.astype(np.float32), b),
+                 (a[:0], b[:0]), (a.astype(np.float32), b.astype(np.float32)), (np.arange(6).reshape(2, 3), b[:2])):
+        assert _same(cross(x, y), ref_cross(x, y))
+
+
+def test_the_batch_links_packets_are_each_commands(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """`CommandBatch.transmissions(i)` of paper 000's step_batch is `command(i).transmissions` (the
+    same packets, in order) at every step of 30 s of capture-10 (landmark packets from ~15 s)."""
+    from swarmhil.deploy import batch as deploy_batch
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
+
+    send = deploy_batch.BatchLink.send
+    seen = [0]
+
+    def checked(self: Any, step: int, rows: np.ndarray, cb: Any) -> None:
+        for r in range(len(rows)):
+            got, ref = cb.transmissions(r), cb.command(r).transmissions
+            assert [(t.type, t.payload, t.dst) for t in got] == [(t.type, t.payload, t.dst) for t in ref], (step, r)
+            seen[0] += len(got)
+        send(self, step, rows, cb)
+
+    monkeypatch.setattr(deploy_batch.BatchLink, "send", checked)
+    sc = load_scenario(ROOT / "deploy" / "scenarios" / "capture-10.toml").with_overrides(duration_s=30.0)
+    res = run_in_process(sc, tmp_path, "tx", record="truth")
+    assert res.summary["batch"]["used"] and seen[0] > 10

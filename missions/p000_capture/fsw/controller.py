@@ -186,10 +186,12 @@ class CaptureController:
         fired = cls._fired(controllers, batch)
         n = len(controllers)
         seen: list[_Seen | None] = [None] * n
+        obs: list[Observation | None] = [None] * n  # (each made once, for both halves)
         for i, c in enumerate(controllers):  # first halves, then every estimate's closest point at once
             try:
                 s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
-                seen[i] = c._perceive(batch.observation(i), s, decoded)
+                o = obs[i] = batch.observation(i)
+                seen[i] = c._perceive(o, s, decoded)
                 sensed.append(s)
             except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -202,7 +204,7 @@ class CaptureController:
                 continue
             try:
                 frame = frames[i] if frames[i] is not None or sn.ell is None else surface_frame(sn.ell, s_i.position_m)
-                plans.append(c._act(batch.observation(i), s_i, dt_s, sn, frame,
+                plans.append(c._act(obs[i], s_i, dt_s, sn, frame,  # type: ignore[arg-type]
                                     None if f_col is None else f_col[i], fired[i]))
             except Exception:  # noqa: BLE001 - as above
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -241,8 +243,12 @@ class CaptureController:
                 return Command(accel_mps2=acc[i].copy(), mode="fault")
             return pl_.command(torque[i].copy())
 
+        def sent(i: int) -> list[Transmission]:  # build(i).transmissions
+            pl_ = plans[i]
+            return [] if pl_ is None else pl_.transmissions
+
         return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque,
-                            raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None))
+                            raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None), sent=sent)
 
     @staticmethod
     def _frames(seen: list["_Seen | None"], sensed: list[CaptureSensing | None]
