@@ -98,7 +98,7 @@ def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.nd
     if vis is None:
         vis = visible_landmarks(rel_m, normals, bore, p)
     ids = np.flatnonzero(vis)
-    ret = rel_m[vis] + rng.normal(0.0, p.noise_m, (len(ids), 3))
+    ret = rel_m[ids] + rng.normal(0.0, p.noise_m, (len(ids), 3))  # (the rows of vis, in order)
     n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
     if n_out:
         dirs = rng.normal(size=(n_out, 3))
