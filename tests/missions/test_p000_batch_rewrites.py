@@ -3,7 +3,8 @@ code they replaced, byte for byte: the closest surface point (`_closest_point`, 
 of Newton steps over arrays; `surface_frames`' stacked rotations), `dcm` and the plant's `cross`
 without `np.stack`, the consensus of eq. 30 with its time-independent sums kept (`Consensus`), the
 sensor's outlier directions (`landmark_returns`) and its noise generators (`keyed_rng`), and the
-packets the batch link sends (`CommandBatch.transmissions`, without building each Command).
+packets the batch link sends (`CommandBatch.transmissions`, without building each Command), and
+the fits' residuals and Jacobian (`residuals_and_jacobian`: the prior's mean and block).
 
 The references below are frozen copies of those functions at 4ef2732 (main before the change),
 docstrings dropped; each test draws inputs that reach every branch (zero coordinates, the centre,
@@ -20,6 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from swarmhil.missions.p000_capture import contract as cc
 from swarmhil.missions.p000_capture.contract import Ellipsoid
+from swarmhil.missions.p000_capture.fsw import gnc_tls as gt
 from swarmhil.missions.p000_capture.fsw.estimate import Consensus, TargetEstimate, consensus
 from swarmhil.missions.p000_capture.sense import P000Params, landmark_returns, visible_landmarks
 from swarmhil.plant.dynamics.frames import cross
@@ -206,6 +208,30 @@ def ref_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         ),
         axis=-1,
     )
+
+
+def ref_residuals_and_jacobian(points_t: np.ndarray, sqrt_w: np.ndarray, model: gt.Model,
+                           prior: float) -> tuple[np.ndarray, np.ndarray]:
+    c, rot, s = model
+    d = points_t - c[:, None]
+    local = rot.T @ d
+    inv_a2 = np.exp(-2.0 * s)
+    al = local * inv_a2[:, None]
+    q = np.maximum(np.einsum("ik,ik->k", local, al), 1e-12)
+    rho = np.sqrt(np.einsum("ik,ik->k", d, d))
+    q_h = 1.0 / np.sqrt(q)
+    dr_dq2 = sqrt_w * rho * q_h / q          # 2 ∂r/∂q, weighted
+    k = points_t.shape[1]
+    res = np.empty(k + 3)
+    res[:k] = sqrt_w * rho * (1.0 - q_h)
+    res[k:] = prior * (s - s.mean())
+    jac = np.zeros((9, k + 3))
+    jac[:3, :k] = (-(sqrt_w * (1.0 - q_h)) / np.maximum(rho, 1e-12)) * d - dr_dq2 * (rot @ al)
+    # (l/a²) × l = (l_y l_z (a_y⁻² − a_z⁻²), l_z l_x (a_z⁻² − a_x⁻²), l_x l_y (a_x⁻² − a_y⁻²))
+    jac[3:6, :k] = (dr_dq2 * local[gt._NEXT] * local[gt._AFTER]) * (inv_a2[gt._NEXT] - inv_a2[gt._AFTER])[:, None]
+    jac[6:, :k] = -dr_dq2 * local * al
+    jac[6:, k:] = prior * (np.eye(3) - 1.0 / 3.0)
+    return res, jac
 
 
 # --- the tests ------------------------------------------------------------------------------------
@@ -419,3 +445,19 @@ def test_the_batch_links_packets_are_each_commands(monkeypatch: pytest.MonkeyPat
     sc = load_scenario(ROOT / "deploy" / "scenarios" / "capture-10.toml").with_overrides(duration_s=30.0)
     res = run_in_process(sc, tmp_path, "tx", record="truth")
     assert res.summary["batch"]["used"] and seen[0] > 10
+
+
+def test_residuals_and_jacobian_equal_4ef2732s() -> None:
+    """The GNC-TLS solver's weighted residuals and Jacobian: the bits of 4ef2732's for random
+    points, weights and models, and priors of either sign, zero, -0.0 and NaN (its block made once
+    per prior object)."""
+    rng = np.random.default_rng(11)
+    for trial in range(200):
+        k = int(rng.integers(1, 250))
+        pts = rng.normal(size=(3, k)) * 3.0
+        sw = np.sqrt(rng.uniform(0.0, 1.0, k))
+        rot = Rotation.random(random_state=trial).as_matrix()
+        model = gt.Model(rng.normal(size=3), rot, np.log(rng.uniform(0.3, 5.0, 3)))
+        prior = [0.02, 0.02, 1.5, -0.3, 0.0, -0.0, float("nan"), np.float64(0.02)][trial % 8]
+        got, ref = gt.residuals_and_jacobian(pts, sw, model, prior), ref_residuals_and_jacobian(pts, sw, model, prior)
+        assert _same(got[0], ref[0]) and _same(got[1], ref[1]), trial

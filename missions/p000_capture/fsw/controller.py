@@ -321,9 +321,10 @@ class CaptureController:
         p = self.p
         received = self._receive(obs, decoded)
         txs: list[Transmission] = []
-        lm = r + quat.rotate(s.q_body_to_lvlh, s.landmarks_body_m) if len(s.landmarks_body_m) else np.zeros((0, 3))
-        detected = len(lm) >= p.detect_min_returns
-        if detected and t - self.last_fit_t >= p.perception_period_s - 1e-9:
+        returns = len(s.landmarks_body_m)
+        detected = returns >= p.detect_min_returns
+        if detected and t - self.last_fit_t >= p.perception_period_s - 1e-9:  # (the returns in LVLH only here)
+            lm = r + quat.rotate(s.q_body_to_lvlh, s.landmarks_body_m) if returns else np.zeros((0, 3))
             self.pool.append((t, lm))
             share = lm[self.rng.permutation(len(lm))[: p.landmarks_per_packet]]
             txs.append(Transmission(pl.LANDMARKS_TYPE, pl.encode_landmarks(t, share)))
