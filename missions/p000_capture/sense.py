@@ -97,7 +97,7 @@ def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.nd
     half = np.radians(p.fov_full_deg / 2)
     if vis is None:
         vis = visible_landmarks(rel_m, normals, bore, p)
-    ids = np.flatnonzero(vis)
+    ids = vis.reshape(-1).nonzero()[0]  # (np.flatnonzero without its wrappers)
     ret = rel_m[ids] + rng.normal(0.0, p.noise_m, (len(ids), 3))  # (the rows of vis, in order)
     n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
     if n_out:
@@ -145,7 +145,7 @@ class P000LandmarkKind:
         np.fill_diagonal(near, False)
         return {"ell": c.Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
                 "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
-                "near": [np.flatnonzero(row) for row in near]}
+                "near": [row.nonzero()[0] for row in near]}  # (each row's np.flatnonzero)
 
     def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int, rel_m: np.ndarray | None = None,
                  vis: np.ndarray | None = None,
