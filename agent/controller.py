@@ -188,12 +188,18 @@ class CommandBatch:
     build: Callable[[int], Command] | None = None  # observer i -> its full Command
     torque_nm: np.ndarray | None = None  # (N, 3) body-frame torques (a row of 0 for a command without one); None: none at all
     raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
+    sent: Callable[[int], list[Transmission]] | None = None  # observer i -> command(i).transmissions, without the Command
 
     def command(self, i: int) -> Command:
         if self.build is not None:
             return self.build(i)
         return Command(accel_mps2=self.accel_mps2[i].copy(), mode=self.modes[i],
                        torque_nm=None if self.torque_nm is None else self.torque_nm[i].copy())
+
+    def transmissions(self, i: int) -> list[Transmission]:
+        """Observer i's packets, `command(i).transmissions` (what the link sends every decision step,
+        where a run that records no telemetry needs nothing else of the Command)."""
+        return self.sent(i) if self.sent is not None else self.command(i).transmissions
 
     @classmethod
     def of(cls, commands: Sequence[Command]) -> "CommandBatch":

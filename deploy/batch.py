@@ -132,7 +132,7 @@ class BatchLink:
             if not ok:
                 continue
             src = self.ids[i]
-            for tx in cb.command(r).transmissions:
+            for tx in cb.transmissions(r):
                 seq = self._tx_seq[i]
                 self._tx_seq[i] = seq + 1
                 if check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes):
