@@ -149,11 +149,15 @@ class ObservationBatch:
         """The batch of the observers `rows` alone: what `of` makes of their observations (the same
         values: their neighbour rows gathered in order, their extra and packets), from the arrays."""
         off = self.offsets
-        sel = [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+        if not np.any(off):  # no neighbour rows at all (paper 003's and 004's kinds): every count 0
+            sel: list[int] = []
+            offsets = np.zeros(len(rows) + 1, dtype=np.int64)
+        else:
+            sel = [k for i in rows for k in range(int(off[i]), int(off[i + 1]))]
+            offsets = np.concatenate(([0], np.cumsum([int(off[i + 1]) - int(off[i]) for i in rows]))).astype(np.int64)
         idx = np.array(sel, dtype=np.int64)
-        counts = [int(off[i + 1]) - int(off[i]) for i in rows]
         return ObservationBatch(step=self.step, t_s=self.t_s, u_rad=self.u_rad, observers=[self.observers[i] for i in rows],
-                                offsets=np.concatenate(([0], np.cumsum(counts))).astype(np.int64),
+                                offsets=offsets,
                                 neighbour_ids=[self.neighbour_ids[k] for k in sel],
                                 rel_position_m=np.asarray(self.rel_position_m, float).reshape(-1, 3)[idx],
                                 rel_velocity_mps=np.asarray(self.rel_velocity_mps, float).reshape(-1, 3)[idx],
@@ -185,12 +189,18 @@ class CommandBatch:
     torque_nm: np.ndarray | None = None  # (N, 3) body-frame torques (a row of 0 for a command without one); None: none at all
     raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
     finite: bool = False  # every acceleration (and torque) is finite: the batch path that made them checked it
+    sent: Callable[[int], list[Transmission]] | None = None  # observer i -> command(i).transmissions, without the Command
 
     def command(self, i: int) -> Command:
         if self.build is not None:
             return self.build(i)
         return Command(accel_mps2=self.accel_mps2[i].copy(), mode=self.modes[i],
                        torque_nm=None if self.torque_nm is None else self.torque_nm[i].copy())
+
+    def transmissions(self, i: int) -> list[Transmission]:
+        """Observer i's packets, `command(i).transmissions` (what the link sends every decision step,
+        where a run that records no telemetry needs nothing else of the Command)."""
+        return self.sent(i) if self.sent is not None else self.command(i).transmissions
 
     @classmethod
     def of(cls, commands: Sequence[Command]) -> "CommandBatch":

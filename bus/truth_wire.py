@@ -8,7 +8,8 @@ implicit presence (a double is written when its bits are not all zero, so -0.0 a
 is not; `false`, 0 and "" are not), a Vector3 that was assigned is present even when empty, and
 `roe_m` packed (every element). Only what the plant of the ROE scenarios writes for a spacecraft is
 covered: id, position, velocity, delta_v, alive, accel_cmd, kind, roe_m (no attitude, angular
-velocity or torque: the truth of a mission world with attitude or bodies is still built as a message).
+velocity or torque: the truth of a mission world with attitude is still built as a message; its
+other bodies, after the spacecraft, are each one serialised message, `encode(..., more_bodies)`).
 
 Wire format (protocol buffers encoding): a field is a tag byte (number << 3 | wire type) then, for
 wire type 1 (fixed64) 8 little-endian bytes, for wire type 2 a varint length then the bytes, for
@@ -66,6 +67,12 @@ class HeaderEncoder:
 
     def __call__(self, step: int, t: float, seq: int) -> bytes:
         return self._prefix + _uint(0x18, step) + _double(0x21, t) + _uint(0x28, seq)
+
+
+def body_entry(body: bytes) -> bytes:
+    """One entry of Truth.bodies (field 2) from its serialised BodyState: what the Truth's own
+    serialisation writes for it (tag, length, the body's bytes)."""
+    return b"\x12" + varint(len(body)) + body
 
 
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
@@ -179,15 +186,16 @@ class TruthEncoder:
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
                velocity_mps: np.ndarray, delta_v_mps: np.ndarray, alive: np.ndarray, accel_mps2: np.ndarray,
-               roe_m: np.ndarray) -> bytes:
-        """The serialised Truth (module docstring); arrays (N, 3), (N, 3), (N,), (N,) bool, (N, 3), (N, 6)."""
+               roe_m: np.ndarray, more_bodies: bytes = b"") -> bytes:
+        """The serialised Truth (module docstring); arrays (N, 3), (N, 3), (N,), (N,) bool, (N, 3), (N, 6).
+        `more_bodies`: entries of `bodies` after the spacecraft' (`body_entry` of each), as written."""
         v, pr = self._vals, self._present
         n = v.shape[0]
         fixed = self._tail_u
         if fixed is None or fixed[0] != a_m or fixed[1] != n_radps:  # (the same every step of a run)
             fixed = self._tail_u = (a_m, n_radps, _double(0x21, float(a_m)) + _double(0x29, float(n_radps)))
         if n == 0:
-            return b"".join((b"\x0a", varint(len(header)), header, _double(0x19, float(u_rad)), fixed[2]))
+            return b"".join((b"\x0a", varint(len(header)), header, more_bodies, _double(0x19, float(u_rad)), fixed[2]))
         np.concatenate((position_m, velocity_mps, delta_v_mps[:, None], accel_mps2, roe_m), axis=1, out=v)
         np.not_equal(v.view(np.uint64), 0, out=pr)  # implicit presence: any bit set (-0.0, NaN); roe_m is packed
         key = pr.tobytes() + np.asarray(alive, dtype=bool).tobytes()
@@ -201,8 +209,8 @@ class TruthEncoder:
             present[:, :10] = pr[:, :10]
             present[:, 10] = alive
             take = self._plans[key] = self._plan_of_rows(present)
-        return b"".join((b"\x0a", varint(len(header)), header, self._buf[take].tobytes(), _double(0x19, float(u_rad)),
-                         fixed[2]))
+        return b"".join((b"\x0a", varint(len(header)), header, self._buf[take].tobytes(), more_bodies,
+                         _double(0x19, float(u_rad)), fixed[2]))
 
     def _plan_of_rows(self, present: np.ndarray) -> np.ndarray:
         """`_plan` of a pattern (n, 11) from each body's own part when every body has shown its

@@ -125,11 +125,14 @@ class BatchLink:
         """The transmissions of the observers' commands of `step` (none from a command the agent
         replaces by zero: a non-finite acceleration or torque)."""
         t = step * self.step_s
-        for r, i in enumerate(rows.tolist()):
-            if not np.isfinite(cb.accel_mps2[r]).all() or (cb.torque_nm is not None and not np.isfinite(cb.torque_nm[r]).all()):
+        finite = np.isfinite(cb.accel_mps2).all(axis=1)  # (each row's test, for all rows at once)
+        if cb.torque_nm is not None:
+            finite &= np.isfinite(cb.torque_nm).all(axis=1)
+        for r, (i, ok) in enumerate(zip(rows.tolist(), finite.tolist())):
+            if not ok:
                 continue
             src = self.ids[i]
-            for tx in cb.command(r).transmissions:
+            for tx in cb.transmissions(r):
                 seq = self._tx_seq[i]
                 self._tx_seq[i] = seq + 1
                 if check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes):
@@ -139,12 +142,13 @@ class BatchLink:
 
     def window(self, step: int) -> None:
         index, inbox, rx_seq = self.model.index, self.inbox, self._rx_seq
-        for d in self.model.window(step):
+        out = self.model.window(step)
+        for d in out:
             j = index[d.dst]
             seq = rx_seq[j]
             rx_seq[j] = seq + 1
             inbox[j].append(RxPacket(self, d.rx_step, seq, d.src, d.packet_dst, d.type, d.payload, d.send_t))
-            self.deliveries += 1
+        self.deliveries += len(out)
 
     def summary(self) -> dict[str, Any]:
         tot = self.model.counters.totals()

@@ -72,7 +72,7 @@ def reach2(radius_m: np.ndarray, margin_m: float) -> np.ndarray:
 
 def _rotate_to_body(q_wxyz: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R(q)^T v for rows v (N, 3): frame vectors in body axes (q scalar-first, body -> frame)."""
-    w, x, y, z = q_wxyz
+    w, x, y, z = np.asarray(q_wxyz, dtype=float).tolist()  # (Python floats: numpy scalars' arithmetic, without their cost)
     r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
                   [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
                   [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])

@@ -18,7 +18,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
 from swarmhil.bus.codec import RejectedPacket, Rejections, check_complete_command, decode, header, sim_time_ns
 from swarmhil.bus.keys import Keys
-from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder
+from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, body_entry
 from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.contact import ContactMonitor
 from swarmhil.plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
@@ -111,7 +111,11 @@ class PlantNode:
         # someone receives it (bus/memory.py)
         plain = isinstance(self.world, World) or (isinstance(self.world, MissionWorld) and self.world.attitude is None
                                                   and not self.world.bodies)
-        self._truth_wire = TruthEncoder(self.world.ids) if plain else None
+        # a mission world without attitude but with bodies: its spacecraft through the encoder too, and
+        # each body's entry after them the bytes of its own message (`_body_state`)
+        self._truth_bodies = (isinstance(self.world, MissionWorld) and self.world.attitude is None
+                              and bool(self.world.bodies))
+        self._truth_wire = TruthEncoder(self.world.ids) if plain or self._truth_bodies else None
         self._truth_header = HeaderEncoder(run, "plant")
         self._stamps = bool(getattr(bus, "stamps", False))
         self._wants = getattr(bus, "wants", None)
@@ -282,10 +286,12 @@ class PlantNode:
         if self._truth_wire is not None:
             w = self.world
             roe = w.roe_m((pos, vel))
+            bodies = b"".join(body_entry(self._body_state(bt).SerializeToString())
+                              for bt in w.body_truth()) if self._truth_bodies else b""
             data = self._truth_wire.encode(self._truth_header(k, t_s, self._next_seq(self._k_truth)),
                                            u, w.a_m, w.n_radps, pos, vel, w.delta_v_mps, w.alive,
-                                           w.last_accel_mps2, roe)
-            if self.on_truth is not None:
+                                           w.last_accel_mps2, roe, bodies)
+            if self.on_truth is not None and not self._truth_bodies:
                 self.on_truth(k, t_s, u, pos, vel, w.delta_v_mps, w.alive, w.last_accel_mps2, roe)
         else:
             data = self._mission_truth(pos, vel, alive).SerializeToString()
@@ -360,12 +366,19 @@ class PlantNode:
                 b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w[i].tolist()
                 b.torque_cmd_nm.x, b.torque_cmd_nm.y, b.torque_cmd_nm.z = tau[i].tolist()
         for bt in self.world.body_truth():
-            b = truth.bodies.add(id=bt.spec.id, kind=bt.spec.kind, alive=True)
-            b.position_m.x, b.position_m.y, b.position_m.z = bt.position_m.tolist()
-            b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = bt.velocity_mps.tolist()
-            b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z = bt.attitude_q.tolist()
-            w_ = bt.angular_velocity_radps
-            b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w_.tolist()
+            self._body_state(bt, truth.bodies.add())
+
+    @staticmethod
+    def _body_state(bt: Any, b: pb.BodyState | None = None) -> pb.BodyState:
+        """A non-agent body's entry of the truth (kind, pose), filled into `b` (None: a new message)."""
+        b = pb.BodyState() if b is None else b
+        b.id, b.kind, b.alive = bt.spec.id, bt.spec.kind, True
+        b.position_m.x, b.position_m.y, b.position_m.z = bt.position_m.tolist()
+        b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = bt.velocity_mps.tolist()
+        b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z = bt.attitude_q.tolist()
+        w_ = bt.angular_velocity_radps
+        b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w_.tolist()
+        return b
 
     def collect_and_advance(self) -> None:
         """Wait for step k's commands and barriers, then propagate. Lockstep waits for every live

@@ -98,19 +98,24 @@ def test_header_and_varint_equal_protobuf() -> None:
             assert encode_header(run, source, step, t, seq) == want == HeaderEncoder(run, source)(step, t, seq)
 
 
-@pytest.mark.parametrize("scenario", ["sabatini-20", "drift-20"])
-def test_recorded_truths_equal_protobuf(tmp_path, scenario) -> None:
-    """Every truth of a run (written by the encoder) is what protobuf makes of its own values."""
+def _recorded_truths(tmp_path, scenario: str, duration_s: float) -> list[bytes]:
+    """The truth payloads of the scenario's in-process run (truth recorded: the batch mode where it can)."""
     from mcap.reader import make_reader
 
     from conftest import SCENARIOS
     from swarmhil.deploy.launcher import run_in_process
     from swarmhil.deploy.scenario import load_scenario
 
-    sc = load_scenario(SCENARIOS / f"{scenario}.toml").with_overrides(duration_s=300.0)
+    sc = load_scenario(SCENARIOS / f"{scenario}.toml").with_overrides(duration_s=duration_s)
     run_in_process(sc, tmp_path, "wire", record="truth")
     with open(tmp_path / "run.mcap", "rb") as f:
-        truths = [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
+        return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
+
+
+@pytest.mark.parametrize("scenario", ["sabatini-20", "drift-20"])
+def test_recorded_truths_equal_protobuf(tmp_path, scenario) -> None:
+    """Every truth of a run (written by the encoder) is what protobuf makes of its own values."""
+    truths = _recorded_truths(tmp_path, scenario, 300.0)
     assert len(truths) == 31
     for data in truths:
         m = pb.Truth.FromString(data)
@@ -158,3 +163,68 @@ def test_new_combinations_of_seen_rows_equal_protobuf(monkeypatch, max_plans: in
         assert len(enc._plans) <= max_plans
     if max_plans > 100:
         assert plans < 100 < len(enc._plans), (plans, len(enc._plans))
+
+
+def _with_bodies(data: bytes, bodies: list[tuple[str, str, list[float], list[float], list[float], list[float]]]) -> bytes:
+    """A serialised spacecraft Truth with non-agent bodies added after the spacecraft as plant/node.py
+    `_add_mission_truth` adds them (id, kind, alive, position, velocity, attitude, angular velocity)."""
+    truth = pb.Truth.FromString(data)
+    for bid, kind, p, v, q, w in bodies:
+        b = truth.bodies.add(id=bid, kind=kind, alive=True)
+        b.position_m.x, b.position_m.y, b.position_m.z = p
+        b.velocity_mps.x, b.velocity_mps.y, b.velocity_mps.z = v
+        b.attitude.w, b.attitude.x, b.attitude.y, b.attitude.z = q
+        b.angular_velocity_radps.x, b.angular_velocity_radps.y, b.angular_velocity_radps.z = w
+    return truth.SerializeToString()
+
+
+def test_truths_with_bodies_equal_protobuf() -> None:
+    """Issue 29: the encoder's truth with `more_bodies` (each body's `body_entry` of its own message,
+    plant/node.py `_body_state`) is the message with those bodies added after the spacecraft."""
+    from swarmhil.bus.truth_wire import body_entry
+    from swarmhil.plant.node import PlantNode
+
+    rng = np.random.default_rng(29)
+    for case in range(300):
+        n, nb = int(rng.integers(0, 8)), int(rng.integers(0, 4))
+        ids, kinds = [f"sc{i}" for i in range(n)], ["spacecraft"] * n
+        p_special = float(rng.choice([0.0, 0.05, 0.5]))
+        pos, vel, acc = (_values(rng, (n, 3), p_special) for _ in range(3))
+        dv, roe, alive = _values(rng, (n,), p_special), _values(rng, (n, 6), p_special), rng.random(n) < 0.8
+        u, a, nn = (float(x) for x in _values(rng, (3,), p_special))
+        bodies = [(str(rng.choice(["tsat", "", "ü"])), str(rng.choice(["target", ""])),
+                   *(_values(rng, (k,), p_special).tolist() for k in (3, 3, 4, 3))) for _ in range(nb)]
+        base = _protobuf("r", "plant", case, 0.1 * case, case, u, a, nn, ids, kinds, pos, vel, dv, alive, acc, roe)
+        spec = type("S", (), {})
+        more = []
+        for bid, kind, p, v, q, w in bodies:
+            bt = type("BT", (), {})()
+            bt.spec, bt.spec.id, bt.spec.kind = spec(), bid, kind
+            bt.position_m, bt.velocity_mps, bt.attitude_q, bt.angular_velocity_radps = (np.array(x) for x in (p, v, q, w))
+            more.append(body_entry(PlantNode._body_state(bt).SerializeToString()))
+        got = TruthEncoder(ids, kinds).encode(encode_header("r", "plant", case, 0.1 * case, case), u, a, nn, pos, vel, dv,
+                                              alive, acc, roe, b"".join(more))
+        assert got == _with_bodies(base, bodies), f"case {case}"
+
+
+def test_recorded_truths_with_a_target_equal_protobuf(tmp_path) -> None:
+    """Every truth of surround-6 (six servicers, a leader and the target body; written by the encoder
+    with the target's entry after them) is what the message built field by field makes of its values."""
+    truths = _recorded_truths(tmp_path, "surround-6", 20.0)
+    assert len(truths) == 201
+    for data in truths:
+        m = pb.Truth.FromString(data)
+        h, sc_bodies = m.header, [b for b in m.bodies if b.kind == "spacecraft"]
+        others = [b for b in m.bodies if b.kind != "spacecraft"]
+        assert [b.kind for b in m.bodies] == ["spacecraft"] * 7 + ["target"] and len(others) == 1
+        arr = lambda f: np.array([f(b) for b in sc_bodies], dtype=float).reshape(len(sc_bodies), -1)  # noqa: E731
+        vec = lambda name: arr(lambda b: [getattr(getattr(b, name), c) for c in "xyz"])  # noqa: E731
+        base = _protobuf(h.run, h.source, h.step, h.t, h.seq, m.u_rad, m.semi_major_axis_m, m.mean_motion_radps,
+                         [b.id for b in sc_bodies], ["spacecraft"] * 7, vec("position_m"), vec("velocity_mps"),
+                         arr(lambda b: b.delta_v_mps)[:, 0], np.array([b.alive for b in sc_bodies]), vec("accel_cmd_mps2"),
+                         arr(lambda b: list(b.roe_m)))
+        t = others[0]
+        assert _with_bodies(base, [(t.id, t.kind, [t.position_m.x, t.position_m.y, t.position_m.z],
+                                    [t.velocity_mps.x, t.velocity_mps.y, t.velocity_mps.z],
+                                    [t.attitude.w, t.attitude.x, t.attitude.y, t.attitude.z],
+                                    [t.angular_velocity_radps.x, t.angular_velocity_radps.y, t.angular_velocity_radps.z])]) == data

@@ -94,17 +94,30 @@ def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> n
     """
     pl = [float(v) for v in np.asarray(p, dtype=float).reshape(3)]
     al = [float(v) for v in np.asarray(a, dtype=float).reshape(3)]
-    y = [abs(v) for v in pl]
-    aa = [v * v for v in al]
-    tiny = 1e-12 * max(al)
-    cands: list[list[float]] = []
+    return np.array(_closest_point(pl, al, iters))
+
+
+def _closest_point(pl: list[float], al: list[float], iters: int) -> list[float]:
+    """`closest_point_principal` in Python floats: point pl, semi-axes al (3 floats each) -> the
+    closest point's 3 coordinates (the one body of the scalar and the row-by-row closest point)."""
+    p0, p1, p2 = pl
+    a0, a1, a2 = al
+    y0, y1, y2 = abs(p0), abs(p1), abs(p2)
+    aa0, aa1, aa2 = a0 * a0, a1 * a1, a2 * a2
+    tiny = 1e-12 * max(a0, a1, a2)
+    m = 0  # the first smallest a_k², as min() keeps it
+    if aa1 < aa0:
+        m = 1
+    if aa2 < (aa1 if m == 1 else aa0):
+        m = 2
+    aam = (aa0, aa1, aa2)[m]
+    x = None
 
     # t = u − a_m² with a_m the smallest axis: a_k² + t = (a_k² − a_m²) + u keeps its digits near
     # the pole u → 0 (an interior point close to the plane of the smallest axis)
-    m = aa.index(min(aa))
-    ay0, ay1, ay2 = (al[k] * y[k] for k in range(3))
-    d0, d1, d2 = (aa[k] - aa[m] for k in range(3))
-    u = 1e-15 * max(1.0, aa[m])
+    ay0, ay1, ay2 = a0 * y0, a1 * y1, a2 * y2
+    d0, d1, d2 = aa0 - aam, aa1 - aam, aa2 - aam
+    u = 1e-15 * max(1.0, aam)
     if (ay0 / (d0 + u)) ** 2 + (ay1 / (d1 + u)) ** 2 + (ay2 / (d2 + u)) ** 2 > 1.0:
         u = max(u, ay0 - d0, ay1 - d1, ay2 - d2)
         for _ in range(iters):  # python floats: a handful of steps
@@ -117,7 +130,18 @@ def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> n
             if u_next <= u:
                 break
             u = u_next
-        cands.append([aa[0] * y[0] / (d0 + u), aa[1] * y[1] / (d1 + u), aa[2] * y[2] / (d2 + u)])
+        x = [aa0 * y0 / (d0 + u), aa1 * y1 / (d1 + u), aa2 * y2 / (d2 + u)]
+        if y0 > tiny and y1 > tiny and y2 > tiny:  # no zero coordinate: the only candidate
+            return [-x[0] if p0 < 0.0 else x[0], -x[1] if p1 < 0.0 else x[1], -x[2] if p2 < 0.0 else x[2]]
+    return _off_branch(pl, al, m, tiny, x)
+
+
+def _off_branch(pl: list[float], al: list[float], m: int, tiny: float, root: list[float] | None) -> list[float]:
+    """`_closest_point` with a zero coordinate or no root to find: the candidates off the general
+    branch (and `root`, the general branch's point when found), the nearest kept."""
+    y = [abs(v) for v in pl]
+    aa = [v * v for v in al]
+    cands: list[list[float]] = [] if root is None else [root]
     for k in range(3):
         if y[k] > tiny:
             continue
@@ -136,7 +160,7 @@ def closest_point_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> n
         x[m] = al[m]
         cands.append(x)
     best = min(cands, key=lambda c: math.dist(c, y)) if len(cands) > 1 else cands[0]
-    return np.array([-v if q < 0.0 else v for v, q in zip(best, pl)])
+    return [-v if q < 0.0 else v for v, q in zip(best, pl)]
 
 
 def surface_frame(ell: Ellipsoid, p_m: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -170,79 +194,33 @@ def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
-def _newton_principal(ay: np.ndarray, d: np.ndarray, u: np.ndarray, iters: int) -> np.ndarray:
-    """The Newton iteration of `closest_point_principal` on φ(t) = S^-½ − 1 for n rows at once:
-    ay, d (3, n) by axis, u (n,) the starts; each row's last iterate, where the scalar loop stops
-    (S ≤ 1 or no increase). The rows still moving are kept contiguous (compacted only when one
-    stops), so an iteration is a few whole-array operations."""
-    out = u.copy()
-    rows = np.arange(len(u))
-    ay0, ay1, ay2 = ay
-    d0, d1, d2 = d
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for _ in range(iters):
-            if len(rows) == 0:
-                break
-            du0, du1, du2 = d0 + u, d1 + u, d2 + u
-            r0, r1, r2 = ay0 / du0, ay1 / du1, ay2 / du2
-            q0, q1, q2 = r0 * r0, r1 * r1, r2 * r2
-            s = q0 + q1 + q2
-            slope = q0 / du0 + q1 / du1 + q2 / du2
-            u_next = u + s * (np.sqrt(s) - 1.0) / slope
-            stops = (s <= 1.0) | (u_next <= u)  # (the scalar loop breaks on either)
-            if not stops.any():
-                u = u_next
-                continue
-            out[rows[stops]] = u[stops]
-            moves = ~stops
-            rows, u = rows[moves], u_next[moves]
-            ay0, ay1, ay2, d0, d1, d2 = ay0[moves], ay1[moves], ay2[moves], d0[moves], d1[moves], d2[moves]
-    out[rows] = u
-    return out
-
-
 def closest_points_principal(p: np.ndarray, a: np.ndarray, iters: int = 100) -> np.ndarray:
     """`closest_point_principal` of N points (rows of p) on N ellipsoids (rows of a), row i the
-    bits of row i's: the same Newton steps written out over arrays (a row stops where the scalar
-    loop breaks), the start test `Σ(a_k y_k/(d_k + u))² > 1` in Python floats per row (`x ** 2` is
-    libm's pow there, not x·x). Rows off the general branch (a zero coordinate, or no root to
-    find) go through the scalar function."""
+    bits of row i's: its Python-float body (`_closest_point`) row by row, without the arrays each
+    row's call builds (for the ten or twenty rows of a batch step, faster than the Newton steps
+    written out over arrays, whose dozen whole-array operations per iteration cost more than the
+    rows' own arithmetic)."""
     pts = np.asarray(p, dtype=float).reshape(-1, 3)
     al = np.asarray(a, dtype=float).reshape(-1, 3)
-    y = np.abs(pts)
-    aa = al * al
-    m = np.argmin(aa, axis=1)  # (the first smallest, as list.index(min))
-    aam = aa[np.arange(len(aa)), m]
-    ay = al * y
-    d = aa - aam[:, None]
-    u = 1e-15 * np.where(aam > 1.0, aam, 1.0)
-    start = [(a0 / (d0 + uu)) ** 2 + (a1 / (d1 + uu)) ** 2 + (a2 / (d2 + uu)) ** 2 > 1.0
-             for (a0, a1, a2), (d0, d1, d2), uu in zip(ay.tolist(), d.tolist(), u.tolist())]
-    general = np.array(start, dtype=bool) & (y > (1e-12 * al.max(axis=1))[:, None]).all(axis=1)
-    out = np.empty_like(pts)
-    for i in np.flatnonzero(~general).tolist():
-        out[i] = closest_point_principal(pts[i], al[i], iters)
-    g = np.flatnonzero(general)
-    if len(g) == 0:
-        return out
-    ay, d, u, aa, y = ay[g], d[g], u[g], aa[g], y[g]
-    for k in range(3):  # u = max(u, ay_k − d_k), as Python's max keeps the first of equals
-        v = ay[:, k] - d[:, k]
-        u = np.where(v > u, v, u)
-    u = _newton_principal(ay.T.copy(), d.T.copy(), u, iters)
-    x = np.stack([aa[:, k] * y[:, k] / (d[:, k] + u) for k in range(3)], axis=1)
-    out[g] = np.where(pts[g] < 0.0, -x, x)
-    return out
+    out = [_closest_point(pr, ar, iters) for pr, ar in zip(pts.tolist(), al.tolist())]
+    return np.array(out, dtype=float).reshape(-1, 3)
 
 
 def surface_frames(ells: list[Ellipsoid], p_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`surface_frame` of N points (rows of p_m), each on its own ellipsoid: (signed distances (N,),
-    closest points (N, 3), outward normals (N, 3)), row i the bits of `surface_frame(ells[i], p_m[i])`
-    (the rotations each row's own matrix product, as there; the rest over arrays)."""
+    closest points (N, 3), outward normals (N, 3)), row i the bits of `surface_frame(ells[i], p_m[i])`:
+    the rotations each row's own matrix product, as there (one stacked `np.matmul` of the rows'
+    (3, 3) matrices calls for each row the BLAS matrix-vector product that row's `@` calls, with
+    the same strides: `_rotate_rows`), the rest over arrays."""
     pts = np.asarray(p_m, dtype=float).reshape(-1, 3)
     if len(ells) != len(pts):
         raise ValueError(f"{len(ells)} ellipsoids for {len(pts)} points")
-    local = np.array([e.rotation.T @ (q - e.centre_m) for e, q in zip(ells, pts)]).reshape(-1, 3)
+    rot = _rotations(ells)
+    if rot is None:  # a rotation of another layout or type: each row's own product
+        local = np.array([e.rotation.T @ (q - e.centre_m) for e, q in zip(ells, pts)]).reshape(-1, 3)
+    else:
+        centres = np.array([e.centre_m for e in ells], dtype=float).reshape(-1, 3)
+        local = _rotate_rows(rot.transpose(0, 2, 1), pts - centres)
     axes = np.array([e.semi_axes_m for e in ells], dtype=float).reshape(-1, 3)
     x = closest_points_principal(local, axes)
     n = x / axes ** 2
@@ -251,9 +229,30 @@ def surface_frames(ells: list[Ellipsoid], p_m: np.ndarray) -> tuple[np.ndarray, 
     dist = np.sqrt(dot_rows(gap, gap))
     scaled = local / axes
     inside = dot_rows(scaled, scaled) < 1.0
-    x_s = np.array([e.centre_m + e.rotation @ xi for e, xi in zip(ells, x)]).reshape(-1, 3)
-    normals = np.array([e.rotation @ ni for e, ni in zip(ells, n)]).reshape(-1, 3)
+    if rot is None:
+        x_s = np.array([e.centre_m + e.rotation @ xi for e, xi in zip(ells, x)]).reshape(-1, 3)
+        normals = np.array([e.rotation @ ni for e, ni in zip(ells, n)]).reshape(-1, 3)
+    else:
+        x_s, normals = centres + _rotate_rows(rot, x), _rotate_rows(rot, n)
     return np.where(inside, -dist, dist), x_s, normals
+
+
+def _rotations(ells: list[Ellipsoid]) -> np.ndarray | None:
+    """The ellipsoids' rotations stacked (N, 3, 3) when every one is a C-ordered float64 (3, 3)
+    matrix (then `e.rotation @ v` and `e.rotation.T @ v` have the strides of the stacked rows'
+    `rot[i]`, `rot[i].T`); None otherwise (N = 0 included)."""
+    mats = [e.rotation for e in ells]
+    if not mats or not all(isinstance(m, np.ndarray) and m.dtype == np.float64 and m.shape == (3, 3)
+                           and m.flags.c_contiguous for m in mats):
+        return None
+    return np.array(mats)
+
+
+def _rotate_rows(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Row i: rot[i] @ v[i] ((N, 3, 3) matrices, possibly transposed views, and (N, 3) rows), as one
+    stacked matmul: numpy's matmul loop calls the matrix-vector BLAS product for each (3, 3) @ (3, 1)
+    as it does for the single `rot[i] @ v[i]` (tests/missions/test_p000_units.py checks the bits)."""
+    return np.matmul(rot, np.ascontiguousarray(v)[:, :, None])[:, :, 0]
 
 
 def signed_distance(ell: Ellipsoid, p_m: np.ndarray) -> float:
@@ -279,10 +278,13 @@ def dcm(q: np.ndarray) -> np.ndarray:
     """Body -> frame rotation matrix of a scalar-first unit quaternion; (4,) -> (3, 3), (N, 4) ->
     (N, 3, 3) with the same elementwise operations per row (so the same bits as row by row)."""
     w, x, y, z = np.moveaxis(np.asarray(q), -1, 0)
-    rows = [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+    entries = [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+               2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+               2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]
+    out = np.empty(np.shape(w) + (9,), dtype=np.result_type(*entries))  # (the stack of the entries)
+    for k, e in enumerate(entries):
+        out[..., k] = e
+    return out.reshape(np.shape(w) + (3, 3))
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ from swarmhil.bus.codec import add_measurement
 from swarmhil.missions.p000_capture import contract as c
 from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.sensing.builtin import RelBatch
-from swarmhil.plant.sensing.registry import SensingContext, register_sensing
+from swarmhil.plant.sensing.registry import SensingContext, keyed_rng, register_sensing
 
 KIND = c.SENSING_KIND
 NOISE_TAG = 0x0C0
@@ -97,13 +97,13 @@ def landmark_returns(rng: np.random.Generator, rel_m: np.ndarray, normals: np.nd
     half = np.radians(p.fov_full_deg / 2)
     if vis is None:
         vis = visible_landmarks(rel_m, normals, bore, p)
-    ids = np.flatnonzero(vis)
-    ret = rel_m[vis] + rng.normal(0.0, p.noise_m, (len(ids), 3))
+    ids = vis.reshape(-1).nonzero()[0]  # (np.flatnonzero without its wrappers)
+    ret = rel_m[ids] + rng.normal(0.0, p.noise_m, (len(ids), 3))  # (the rows of vis, in order)
     n_out = int(rng.binomial(len(ret), p.outlier_fraction)) if len(ret) else 0
     if n_out:
         dirs = rng.normal(size=(n_out, 3))
-        dirs -= np.outer(dirs @ bore, bore)
-        dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+        dirs -= (dirs @ bore)[:, None] * bore[None, :]  # np.outer's product
+        dirs /= np.sqrt(np.add.reduce(dirs * dirs, axis=1, keepdims=True))  # np.linalg.norm(axis=1)'s sum
         ang = rng.uniform(0.0, half, n_out)
         u = np.cos(ang)[:, None] * bore + np.sin(ang)[:, None] * dirs
         ret[:n_out] = u * rng.uniform(1.0, p.range_m, n_out)[:, None]
@@ -145,7 +145,7 @@ class P000LandmarkKind:
         np.fill_diagonal(near, False)
         return {"ell": c.Ellipsoid(bt.position_m, rot, self.semi_axes), "lm": bt.position_m + self.lm_body @ rot.T,
                 "nrm": self.nrm_body @ rot.T, "q_cw": q_cw, "rot": c.dcm(q_cw), "w": w,
-                "near": [np.flatnonzero(row) for row in near]}
+                "near": [row.nonzero()[0] for row in near]}  # (each row's np.flatnonzero)
 
     def _measure(self, ctx: SensingContext, tr: dict[str, Any], j: int, rel_m: np.ndarray | None = None,
                  vis: np.ndarray | None = None,
@@ -157,14 +157,18 @@ class P000LandmarkKind:
         p = self.p
         r = ctx.position_m[j]
         q_cw, rot = tr["q_cw"][j], tr["rot"][j]
-        rng = np.random.default_rng([self.seed, NOISE_TAG, int(ctx.step), int(j)])
+        rng = keyed_rng(self.seed, NOISE_TAG, int(ctx.step), int(j))
         ret, ids = landmark_returns(rng, tr["lm"] - r if rel_m is None else rel_m, tr["nrm"], rot[:, 0], p, vis)
-        out = [(c.Q_BODY_TO_LVLH, q_cw), (c.OMEGA_BODY_RADPS, tr["w"][j]), (c.POSITION_M, r - self.origin),
-               (c.VELOCITY_MPS, ctx.velocity_mps[j]), (c.LANDMARKS_BODY_M, (ret @ rot).reshape(-1, 3)),
+        # each a float64 array of its own (copies of the rows of shared arrays): what the agent
+        # reads from the message (`measurements_to_dict`), as the batch mode hands it over
+        out = [(c.Q_BODY_TO_LVLH, np.array(q_cw, dtype=float)), (c.OMEGA_BODY_RADPS, np.array(tr["w"][j], dtype=float)),
+               (c.POSITION_M, np.asarray(r - self.origin, dtype=float)),
+               (c.VELOCITY_MPS, np.array(ctx.velocity_mps[j], dtype=float)),
+               (c.LANDMARKS_BODY_M, np.asarray(ret @ rot, dtype=float).reshape(-1, 3)),
                (c.LANDMARK_IDS, ids.astype(float))]
         sd, x_s = c.surface_frame(tr["ell"], r)[:2] if surface is None else surface
         if sd <= p.proximity_range_m:
-            out.append((c.SURFACE_REL_M, x_s - r))
+            out.append((c.SURFACE_REL_M, np.asarray(x_s - r, dtype=float)))
         return out
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.Measurements:
@@ -201,6 +205,5 @@ class P000LandmarkKind:
         rel = tr["lm"][None, :, :] - pos[obs][:, None, :]  # (R, K, 3): each row tr["lm"] - r, as _measure's
         vis = visible_landmarks(rel, tr["nrm"], tr["rot"][obs][:, :, 0], self.p)
         sd, x_s, _ = c.surface_frames([tr["ell"]] * len(obs), pos[obs])
-        extra = [{name: np.array(v, dtype=float) for name, v in self._measure(ctx, tr, j, rel[r], vis[r], (sd[r], x_s[r]))}
-                 for r, j in enumerate(obs)]
+        extra = [dict(self._measure(ctx, tr, j, rel[r], vis[r], (sd[r], x_s[r]))) for r, j in enumerate(obs)]
         return RelBatch(offsets, nb, pos[nb] - pos[j_of], vel[nb] - vel[j_of], owner, extra)

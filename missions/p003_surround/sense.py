@@ -57,6 +57,7 @@ class P003RelativeKind:
             raise ValueError(f"p003-relative measures in the leader's LVLH: [plant].frame_origin must be "
                              f"{self.p.leader_id!r} (got {origin!r})")
         self.leader = list(scenario.ids).index(self.p.leader_id)
+        self._servicer_keys = (f"{LEADER_REL_KEY}.position_m/{self.p.leader_id}", f"{LEADER_REL_KEY}.velocity_mps/{self.p.leader_id}")
         self.rng = np.random.default_rng([int(scenario.seed), 0x003])
         if not (self.p.position_noise_m or self.p.velocity_noise_mps):
             self.batch = self.batch_noise_free  # the batch mode's arrays (issue 29); noisy: the messages, in order
@@ -92,6 +93,10 @@ class P003RelativeKind:
 
     def batch_noise_free(self, ctx: SensingContext, observers: np.ndarray) -> RelBatch:
         """What `stimulus` gives each of `observers` as arrays, without noise (the batch mode, issue 29):
-        the measurements as the named arrays `extra` holds (`name/subject`, the messages' float64 values)."""
-        return RelBatch.named([{f"{name}/{subject}": values for name, subject, values in self.measured(ctx, j)}
-                               for j in np.asarray(observers).tolist()])
+        the measurements as the named arrays `extra` holds (`name/subject`, the messages' float64 values);
+        the servicers' q_Li and q'_Li as rows of one difference of the truth arrays (elementwise: the
+        values of `measured`'s)."""
+        lead, (pos_key, vel_key) = self.leader, self._servicer_keys
+        rel_p, rel_v = ctx.position_m - ctx.position_m[lead], ctx.velocity_mps - ctx.velocity_mps[lead]
+        return RelBatch.named([{f"{name}/{subject}": values for name, subject, values in self.measured(ctx, j)} if j == lead
+                               else {pos_key: rel_p[j], vel_key: rel_v[j]} for j in np.asarray(observers).tolist()])

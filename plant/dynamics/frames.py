@@ -14,15 +14,14 @@ import numpy as np
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b over the last axis (broadcasting); faster than np.cross for small arrays."""
-    return np.stack(
-        (
-            a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
-            a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
-            a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
-        ),
-        axis=-1,
-    )
+    """a x b over the last axis (broadcasting); faster than np.cross for small arrays (and than
+    np.stack of the three components, which it equals)."""
+    c0 = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    c1 = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    c2 = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    out = np.empty(np.shape(c0) + (3,), dtype=np.result_type(c0, c1, c2))
+    out[..., 0], out[..., 1], out[..., 2] = c0, c1, c2
+    return out
 
 
 def lvlh_basis(r_m: np.ndarray, v_mps: np.ndarray) -> np.ndarray:

@@ -384,8 +384,8 @@ if __name__ == "__main__":  # docs/paper003.md "The funnel in discrete time"
 def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
     """Issue 29: natural_rel_accel without np.stack / np.linalg.norm gives the bits of the formula as
     written with them, one servicer or stacked (NaN, -0.0, inf); the servicers' `saturated` test is
-    np.allclose's verdict, row by row."""
-    from swarmhil.missions.p003_surround.fsw.controllers import _allclose_rows
+    np.allclose's verdict."""
+    from swarmhil.missions.p003_surround.fsw.controllers import _allclose
 
     rng = np.random.default_rng(29)
     a_m, n = 6878137.0, 0.0011
@@ -403,9 +403,9 @@ def test_natural_rel_accel_and_the_saturation_flag_keep_their_bits() -> None:
                               np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))
              for b in (q[0], np.array([np.inf, 0.0, 1.0]), np.array([np.nan, 0.0, 1.0]), np.array([1e308, 1e308, 1e308]))]
     with np.errstate(over="ignore"):  # the 1e308 rows' sums
-        got = _allclose_rows(np.array([a for a, _b in pairs]), np.array([b for _a, b in pairs]))
+        got = [_allclose(a, b) for a, b in pairs]
     assert got == [bool(np.allclose(a, b)) for a, b in pairs]
-    assert _allclose_rows(q[:9], q[:9] * (1 + 1e-6)) == [bool(np.allclose(a, a * (1 + 1e-6))) for a in q[:9]]
+    assert [_allclose(a, a * (1 + 1e-6)) for a in q[:9]] == [bool(np.allclose(a, a * (1 + 1e-6))) for a in q[:9]]
 
 
 def test_clip_norm_rows_is_clip_norm_of_each_row() -> None:
@@ -429,3 +429,173 @@ def test_clip_norm_rows_is_clip_norm_of_each_row() -> None:
             norms = [float(np.linalg.norm(r)) for r in rows]
         assert got.tobytes() == want.tobytes() and wide.tobytes() == want.tobytes()
         assert all(a.tobytes() == (r if m <= limit else r * (limit / m)).tobytes() for a, r, m in zip(alone, rows, norms))
+
+
+class _Reference:
+    """One servicer's state as `ServicerController` kept it before issue 29's stacked views: its own
+    x~ and ξ arrays, stepped by `_reference_step` (the step_batch, _receive and _commands it replaced)."""
+
+    def __init__(self, c: "ServicerController") -> None:  # noqa: F821
+        self.index, self.orbit, self.g, self.slots_m = c.index, c.orbit, c.g, c.slots_m
+        self.d_cg_m, self.r_g_m = c.d_cg_m, c.r_g_m
+        self.xi, self.x_err = c.xi.copy(), c.x_err.copy()
+        self.tt, self.tt_sent_t, self.t_prev, self.telemetry = None, 0.0, None, None
+
+
+def _reference_step(cs: list[_Reference], extras: list[dict], rxs: list[list], t_s: float) -> list[tuple[bytes, bytes]]:
+    """(acceleration bytes, packet) of each servicer as the code before the stacked views computed
+    them (its Python copied here, the saturation flag as np.allclose gives it)."""
+    from swarmhil.missions.p003_surround.fsw import vectorised
+    from swarmhil.missions.p003_surround.fsw.controllers import ServicerTelemetry
+    from swarmhil.missions.p003_surround.fsw.funnel import clip_norm
+
+    mes, centres = [], []
+    for c, extra, rx in zip(cs, extras, rxs):
+        for pkt in rx:
+            if pkt.type == packets.TT_TYPE:
+                c.tt, c.tt_sent_t = packets.decode_tt(pkt.payload), float(pkt.sent_t)
+            elif pkt.type == packets.CT_TYPE:
+                ct = packets.decode_ct(pkt.payload)
+                if ct.index != c.index and 0 <= ct.index < len(c.xi):
+                    c.x_err[ct.index], c.xi[ct.index] = ct.x_err, ct.xi
+        me = sensing.read(extra, LEADER_REL_KEY)
+        c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
+        mes.append(me)
+        if c.tt is None:
+            centres.append(np.full_like(c.d_cg_m, 1e12))
+        else:
+            centres.append((c.tt.q_tl_m + c.tt.v_tl_mps * (t_s - c.tt_sent_t))[None, :] + c.d_cg_m)
+    g, m = cs[0].g, cs[0].g.mass_kg
+    grad, rate = vectorised.grad_and_xi_rate(np.array([c.x_err for c in cs]), np.array([c.xi for c in cs]), cs[0].slots_m,
+                                             np.array(centres), cs[0].r_g_m, np.array([c.index for c in cs]), g)
+    u_ct = m * nash.ct_accel(grad, g)
+    u_id = -m * np.array([natural_rel_accel(me.position_m, me.velocity_mps, c.orbit.semi_major_axis_m,
+                                            c.orbit.mean_motion_radps) for c, me in zip(cs, mes)]).reshape(-1, 3)
+    if not g.cancel_natural:
+        u_id = np.zeros((len(cs), 3))
+    u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
+    total = u_sync + u_ct + u_id
+    rows = lambda a, lim: np.array([clip_norm(v, lim) for v in a]).reshape(-1, 3)  # noqa: E731
+    u = rows(total, g.max_thrust_n) if g.saturate == "sum" else u_sync + rows(u_ct + u_id, g.max_thrust_n)
+    xi_rate = rate.copy()
+    xi_rate[:, :3] = rows(rate[:, :3], g.xi_rate_cap_mps)
+    accel = u / m
+    out = []
+    for k, c in enumerate(cs):
+        c.telemetry = ServicerTelemetry(u_sync[k], u_ct[k], u_id[k], u[k], not np.allclose(u[k], total[k]))
+        dt = 0.0 if c.t_prev is None else t_s - c.t_prev
+        c.t_prev = t_s
+        c.xi[c.index] = c.xi[c.index] + dt * xi_rate[k]
+        out.append((accel[k].tobytes(), packets.encode_ct(packets.CTPacket(c.index, c.x_err[c.index], c.xi[c.index]))))
+    return out
+
+
+@pytest.mark.parametrize("saturate,orbits,cancel", [("sum", 1, True), ("ct", 1, True), ("sum", 3, True), ("sum", 3, False)])
+def test_servicers_step_equals_the_code_it_replaced(saturate: str, orbits: int, cancel: bool) -> None:
+    """Issue 29: `ServicerController.step_batch` over its stacked views (packets received into them,
+    measurements read as one stack, saturations over rows, telemetry made when read) gives what the
+    code before it gave, byte for byte, step after step: every acceleration, packet, x~, ξ and
+    telemetry term, with packets in any order (several from one servicer, its own echoed back,
+    indices out of range, a TT packet missing), measurements with -0.0, and one servicer stepped
+    alone in between (`step`, its views made again); with one orbit object for all or three (two of
+    them equal), and without the natural-motion cancellation."""
+    from swarmhil.agent.controller import ObservationBatch
+    from swarmhil.missions.p003_surround.fsw.controllers import ServicerController
+
+    rng = np.random.default_rng(35)
+    orbit = OrbitInfo(6878137.0, 1.1e-3)
+    params = {"game": {"saturate": saturate, "cancel_natural": cancel, "kappa": 1.0, "eta": 0.2, "k_pos_per_s2": 0.005, "k_vel_per_s": 0.1}}
+    others = [orbit, OrbitInfo(6878137.0, 1.1e-3), OrbitInfo(6878000.0, 1.1e-3)][:orbits]
+    cs = [make_controller("p003-servicer", f"ssat{i + 1}", others[i % orbits], params) for i in range(6)]
+    ref = [_Reference(c) for c in cs]
+    P = type("P", (), {})
+
+    def packet(typ: str, payload: bytes, sent_t: float) -> object:
+        p = P()
+        p.type, p.payload, p.sent_t = typ, payload, sent_t
+        return p
+
+    for step in range(40):
+        t_s = 0.1 * step
+        extras = []
+        for i in range(6):
+            pos, vel = rng.normal(0.0, 300.0, 3), rng.normal(0.0, 3.0, 3)
+            pos[rng.random(3) < 0.1] = -0.0
+            extras.append({f"{LEADER_REL_KEY}.position_m/lsat": pos, f"{LEADER_REL_KEY}.velocity_mps/lsat": vel})
+        tt = packets.encode_tt(packets.TTPacket(step, rng.normal(0, 0.05, 3), rng.normal(800, 50, 3), rng.normal(5, 1, 3)))
+        cts = [packets.encode_ct(packets.CTPacket(int(j), rng.normal(0, 30, 6), rng.normal(0, 5, 6)))
+               for j in rng.choice([0, 1, 2, 3, 4, 5, 9, 200], 9)]
+        rxs = []
+        for i in range(6):
+            pick = [packet(packets.CT_TYPE, cts[j], t_s - 0.1) for j in rng.permutation(9)[:int(rng.integers(0, 10))]]
+            if rng.random() < 0.8:
+                pick.insert(int(rng.integers(0, len(pick) + 1)), packet(packets.TT_TYPE, tt, t_s - 0.1))
+            if rng.random() < 0.1:
+                pick.append(packet("other", b"", 0.0))
+            rxs.append(pick)
+        if step == 17:  # servicer 3 alone, as an agent process steps it: its views made again, then the six
+            want3 = _reference_step([ref[3]], [extras[3]], [rxs[3]], t_s)
+            got3 = cs[3].step(Observation(step, t_s, 0.0, [], np.zeros((0, 3)), np.zeros((0, 3)), extras[3], rxs[3]))
+            assert (got3.accel_mps2.tobytes(), got3.transmissions[0].payload) == want3[0]
+            continue
+        want = _reference_step(ref, extras, rxs, t_s)
+        batch = ObservationBatch.of([c.name for c in cs], [Observation(step, t_s, 0.0, [], np.zeros((0, 3)), np.zeros((0, 3)), e, r)
+                                                           for e, r in zip(extras, rxs)])
+        cb = ServicerController.step_batch(cs, batch)
+        got = [(cb.accel_mps2[k].tobytes(), cb.command(k).transmissions[0].payload) for k in range(6)]
+        assert [(cb.command(k).accel_mps2.tobytes(), p) for k, (_a, p) in enumerate(got)] == got
+        assert got == want, step
+        for c, r in zip(cs, ref):
+            assert c.x_err.tobytes() == r.x_err.tobytes() and c.xi.tobytes() == r.xi.tobytes()
+            assert (c.tt is None) == (r.tt is None) and c.tt_sent_t == r.tt_sent_t and c.t_prev == r.t_prev
+            a, b = c.telemetry, r.telemetry
+            assert all(getattr(a, f).tobytes() == getattr(b, f).tobytes() for f in ("u_sync_n", "u_ct_n", "u_id_n", "u_applied_n"))
+            assert a.saturated == b.saturated
+
+
+def test_read_rows_is_read_of_each() -> None:
+    """Issue 29: `sensing.read_rows` stacks what `read` gives each measurement (named arrays with a
+    subject, a dict, lists, -0.0), and raises what `read` raises (missing, several subjects, NaN,
+    a wrong shape)."""
+    rng = np.random.default_rng(36)
+    named = [{f"{LEADER_REL_KEY}.position_m/lsat": rng.normal(size=3), f"{LEADER_REL_KEY}.velocity_mps/lsat": rng.normal(size=3)}
+             for _ in range(4)]
+    named[1][f"{LEADER_REL_KEY}.position_m/lsat"][1] = -0.0
+    mixed = named[:2] + [{LEADER_REL_KEY: {"position_m": [1.0, 2.0, 3.0], "velocity_mps": [0.0, -0.0, 1.0]}},
+                         {f"{LEADER_REL_KEY}.position_m": [4.0, 5, 6], f"{LEADER_REL_KEY}.velocity_mps": rng.normal(size=3)},
+                         {**named[2], "other": 1}] + named[3:]
+    for extras in (named, mixed, [], named[:1]):
+        pos, vel = sensing.read_rows(extras, LEADER_REL_KEY)
+        want = [sensing.read(e, LEADER_REL_KEY) for e in extras]
+        assert pos.tobytes() == np.array([s.position_m for s in want]).reshape(-1, 3).tobytes()
+        assert vel.tobytes() == np.array([s.velocity_mps for s in want]).reshape(-1, 3).tobytes()
+        assert pos.shape == vel.shape == (len(extras), 3)
+    nan = {**named[0], f"{LEADER_REL_KEY}.velocity_mps/lsat": np.array([0.0, np.nan, 1.0])}
+    two = {**named[0], f"{LEADER_REL_KEY}.position_m/x": np.zeros(3)}
+    short = {**named[0], f"{LEADER_REL_KEY}.position_m/lsat": np.zeros(2)}
+    for bad, err in (({}, KeyError), (two, KeyError), (nan, ValueError), (short, ValueError)):
+        for extras in ([bad], named[:2] + [bad], [bad] + named):
+            with pytest.raises(err) as got:
+                sensing.read_rows(extras, LEADER_REL_KEY)
+            with pytest.raises(err) as want:
+                [sensing.read(e, LEADER_REL_KEY) for e in extras]
+            assert str(got.value) == str(want.value)
+
+
+def test_ct_values_are_the_packets() -> None:
+    """Issue 29: `encode_ct_values` of a packet's 12 doubles is `encode_ct`, `decode_ct_values` gives
+    the doubles `decode_ct` holds (NaN, ±inf, -0.0, a float32 overflow raising as in encode_ct)."""
+    rng = np.random.default_rng(37)
+    for _ in range(200):
+        v = rng.normal(0, 10.0 ** rng.integers(-40, 39), 12)
+        v[rng.random(12) < 0.1] = rng.choice([np.nan, np.inf, -np.inf, -0.0, 5e-324])
+        p = packets.CTPacket(int(rng.integers(0, 256)), v[:6], v[6:])
+        raw = packets.encode_ct_values(p.index, v.tolist())
+        assert raw == packets.encode_ct(p)
+        j, vals = packets.decode_ct_values(raw)
+        back = packets.decode_ct(raw)
+        assert j == back.index and np.array(vals).tobytes() == np.concatenate([back.x_err, back.xi]).tobytes()
+    with pytest.raises(OverflowError):
+        packets.encode_ct_values(0, [1e39] + [0.0] * 11)
+    with pytest.raises(OverflowError):
+        packets.encode_ct(packets.CTPacket(0, np.array([1e39] + [0.0] * 5), np.zeros(6)))

@@ -26,7 +26,7 @@ from .apf import apf_force, apf_forces, buffer_force
 from .attitude import (desired_attitude, desired_attitudes, line_of_sight, pointing_torque, pointing_torques,
                        rate_damping_torque)
 from .chase import chase_force
-from .estimate import TargetEstimate, alpha_beta, consensus
+from .estimate import Consensus, TargetEstimate, alpha_beta
 from .gnc_tls import GncSettings, gnc_tls_fit, warm_fit
 from .limits import norm3, saturate_norm
 from .modes import bounce_force, next_mode, random_force
@@ -35,6 +35,8 @@ from .sensing import CaptureSensing
 from .trigger import TriggerSettings, cw_disturbance_bound, fires, fires_rows
 
 log = logging.getLogger("swarmhil.agent")
+CONSENSUS_OWN_WEIGHT = 0.8
+"""w_ii of eq. 30 for a direct own fit (`consensus`)."""
 
 
 class CaptureController:
@@ -52,6 +54,7 @@ class CaptureController:
         self.own: TargetEstimate | None = None
         self.est: TargetEstimate | None = None
         self.neighbours: dict[str, TargetEstimate] = {}
+        self._fused: Consensus | None = None  # eq. 30 of the estimates last fused (`Consensus.holds`)
         self.pool: list[tuple[float, np.ndarray]] = []
         self.last_fit_t = -np.inf
         self.axes_history: list[np.ndarray] = []
@@ -183,10 +186,12 @@ class CaptureController:
         fired = cls._fired(controllers, batch)
         n = len(controllers)
         seen: list[_Seen | None] = [None] * n
+        obs: list[Observation | None] = [None] * n  # (each made once, for both halves)
         for i, c in enumerate(controllers):  # first halves, then every estimate's closest point at once
             try:
                 s = CaptureSensing.from_dict(batch.extra[i] if batch.extra is not None else {})
-                seen[i] = c._perceive(batch.observation(i), s, decoded)
+                o = obs[i] = batch.observation(i)
+                seen[i] = c._perceive(o, s, decoded)
                 sensed.append(s)
             except Exception:  # noqa: BLE001 - as `step` raising in an agent node: this one commands zero
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -199,7 +204,7 @@ class CaptureController:
                 continue
             try:
                 frame = frames[i] if frames[i] is not None or sn.ell is None else surface_frame(sn.ell, s_i.position_m)
-                plans.append(c._act(batch.observation(i), s_i, dt_s, sn, frame,
+                plans.append(c._act(obs[i], s_i, dt_s, sn, frame,  # type: ignore[arg-type]
                                     None if f_col is None else f_col[i], fired[i]))
             except Exception:  # noqa: BLE001 - as above
                 log.exception("%s: p000-capture raised at step %d; commanding zero", c.sc_id, batch.step)
@@ -238,8 +243,12 @@ class CaptureController:
                 return Command(accel_mps2=acc[i].copy(), mode="fault")
             return pl_.command(torque[i].copy())
 
+        def sent(i: int) -> list[Transmission]:  # build(i).transmissions
+            pl_ = plans[i]
+            return [] if pl_ is None else pl_.transmissions
+
         return CommandBatch(accel_mps2=acc, modes=modes, build=build, torque_nm=torque,
-                            raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None))
+                            raised=tuple(i for i, pl_ in enumerate(plans) if pl_ is None), sent=sent)
 
     @staticmethod
     def _frames(seen: list["_Seen | None"], sensed: list[CaptureSensing | None]
@@ -312,9 +321,10 @@ class CaptureController:
         p = self.p
         received = self._receive(obs, decoded)
         txs: list[Transmission] = []
-        lm = r + quat.rotate(s.q_body_to_lvlh, s.landmarks_body_m) if len(s.landmarks_body_m) else np.zeros((0, 3))
-        detected = len(lm) >= p.detect_min_returns
-        if detected and t - self.last_fit_t >= p.perception_period_s - 1e-9:
+        returns = len(s.landmarks_body_m)
+        detected = returns >= p.detect_min_returns
+        if detected and t - self.last_fit_t >= p.perception_period_s - 1e-9:  # (the returns in LVLH only here)
+            lm = r + quat.rotate(s.q_body_to_lvlh, s.landmarks_body_m) if returns else np.zeros((0, 3))
             self.pool.append((t, lm))
             share = lm[self.rng.permutation(len(lm))[: p.landmarks_per_packet]]
             txs.append(Transmission(pl.LANDMARKS_TYPE, pl.encode_landmarks(t, share)))
@@ -322,8 +332,11 @@ class CaptureController:
             self.last_fit_t = t
         fresh = [e for src, e in self.neighbours.items() if t - e.t_s <= p.estimate_max_age_s]
         had_estimate = self.est is not None
-        self.est = consensus(self.own if self.own is not None and t - self.own.t_s <= p.estimate_max_age_s else None,
-                             fresh, t, own_weight=0.8) or self.est
+        own = self.own if self.own is not None and t - self.own.t_s <= p.estimate_max_age_s else None
+        fused = self._fused
+        if fused is None or not fused.holds(own, fresh, CONSENSUS_OWN_WEIGHT):
+            fused = self._fused = Consensus.of(own, fresh, CONSENSUS_OWN_WEIGHT)
+        self.est = (None if fused is None else fused.at(t)) or self.est  # = consensus(own, fresh, t, 0.8)
         ell = None
         if self.est is not None:
             try:

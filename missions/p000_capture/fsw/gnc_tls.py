@@ -110,14 +110,28 @@ def residuals_and_jacobian(points_t: np.ndarray, sqrt_w: np.ndarray, model: Mode
     k = points_t.shape[1]
     res = np.empty(k + 3)
     res[:k] = sqrt_w * rho * (1.0 - q_h)
-    res[k:] = prior * (s - s.mean())
+    res[k:] = prior * (s - np.add.reduce(s) / 3.0)  # (s.mean(): the same sum and division)
     jac = np.zeros((9, k + 3))
     jac[:3, :k] = (-(sqrt_w * (1.0 - q_h)) / np.maximum(rho, 1e-12)) * d - dr_dq2 * (rot @ al)
     # (l/a²) × l = (l_y l_z (a_y⁻² − a_z⁻²), l_z l_x (a_z⁻² − a_x⁻²), l_x l_y (a_x⁻² − a_y⁻²))
     jac[3:6, :k] = (dr_dq2 * local[_NEXT] * local[_AFTER]) * (inv_a2[_NEXT] - inv_a2[_AFTER])[:, None]
     jac[6:, :k] = -dr_dq2 * local * al
-    jac[6:, k:] = prior * (np.eye(3) - 1.0 / 3.0)
+    jac[6:, k:] = _prior_block(prior)
     return res, jac
+
+
+def _prior_block(prior: float) -> np.ndarray:
+    """prior·(I − 1/3), the sphere prior's Jacobian block, made once for the last prior weight (the
+    same object: a fit's settings; another, even of equal value, makes its own: -0.0, NaN)."""
+    global _PRIOR_BLOCK
+    if _PRIOR_BLOCK is None or _PRIOR_BLOCK[0] is not prior:
+        block = prior * (np.eye(3) - 1.0 / 3.0)
+        block.flags.writeable = False
+        _PRIOR_BLOCK = (prior, block)
+    return _PRIOR_BLOCK[1]
+
+
+_PRIOR_BLOCK: tuple[float, np.ndarray] | None = None
 
 
 _NEXT = np.array([1, 2, 0])

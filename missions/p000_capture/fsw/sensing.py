@@ -27,21 +27,13 @@ class CaptureSensing:
 
     @classmethod
     def from_dict(cls, extra: dict[str, Any]) -> "CaptureSensing":
-        def vec(key: str, n: int) -> np.ndarray:
-            if key not in extra:
-                raise KeyError(f"obs.extra lacks {key!r} (keys: {sorted(extra)})")
-            v = np.asarray(extra[key], dtype=float).reshape(-1)
-            if v.shape != (n,):
-                raise ValueError(f"{key} has shape {v.shape}, expected ({n},)")
-            return v
-
-        lm = np.asarray(extra.get(LANDMARKS_BODY_M, np.zeros((0, 3))), dtype=float).reshape(-1, 3)
-        ids = np.asarray(extra.get(LANDMARK_IDS, -np.ones(len(lm))), dtype=int).reshape(-1)
+        lm = np.asarray(extra[LANDMARKS_BODY_M] if LANDMARKS_BODY_M in extra else np.zeros((0, 3)), dtype=float).reshape(-1, 3)
+        ids = np.asarray(extra[LANDMARK_IDS] if LANDMARK_IDS in extra else -np.ones(len(lm)), dtype=int).reshape(-1)
         if len(ids) != len(lm):
             raise ValueError(f"{len(lm)} landmark returns but {len(ids)} ids")
         surf = extra.get(SURFACE_REL_M)
-        return cls(vec(Q_BODY_TO_LVLH, 4), vec(OMEGA_BODY_RADPS, 3), vec(POSITION_M, 3),
-                   vec(VELOCITY_MPS, 3), lm, ids,
+        return cls(_vec(extra, Q_BODY_TO_LVLH, 4), _vec(extra, OMEGA_BODY_RADPS, 3), _vec(extra, POSITION_M, 3),
+                   _vec(extra, VELOCITY_MPS, 3), lm, ids,
                    None if surf is None else np.asarray(surf, dtype=float).reshape(3))
 
     def to_dict(self) -> dict[str, Any]:
@@ -53,3 +45,13 @@ class CaptureSensing:
         if self.surface_rel_m is not None:
             d[SURFACE_REL_M] = self.surface_rel_m
         return d
+
+
+def _vec(extra: dict[str, Any], key: str, n: int) -> np.ndarray:
+    """extra[key] as a float vector of n entries (KeyError if absent, ValueError if another shape)."""
+    if key not in extra:
+        raise KeyError(f"obs.extra lacks {key!r} (keys: {sorted(extra)})")
+    v = np.asarray(extra[key], dtype=float).reshape(-1)
+    if v.shape != (n,):
+        raise ValueError(f"{key} has shape {v.shape}, expected ({n},)")
+    return v

@@ -105,20 +105,20 @@ class ServicerController:
         self.tt: packets.TTPacket | None = None
         self.tt_sent_t = 0.0
         self.t_prev: float | None = None
-        self.telemetry = ServicerTelemetry()
+        self._telemetry: ServicerTelemetry | tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray] = ServicerTelemetry()
         self._kind_number: int | None = None
+        self._views: _Views | None = None  # x_err and xi as rows of the arrays of the servicers stepped with it
 
-    def _receive(self, isl_rx: list[Any], decoded: dict[tuple[str, bytes], Any] | None = None) -> None:
-        """The leader's last TT packet and the other servicers' x~_j, ξ_j from the packets received;
-        `decoded`: the payloads already decoded this step (agent/controller.py `decode_once`: the
-        packets are read-only here, the CT rows copied)."""
-        for pkt in isl_rx:
-            if pkt.type == packets.TT_TYPE:
-                self.tt, self.tt_sent_t = decode_once(decoded, pkt, packets.decode_tt), float(pkt.sent_t)
-            elif pkt.type == packets.CT_TYPE:
-                ct = decode_once(decoded, pkt, packets.decode_ct)
-                if ct.index != self.index and 0 <= ct.index < len(self.xi):
-                    self.x_err[ct.index], self.xi[ct.index] = ct.x_err, ct.xi
+    @property
+    def telemetry(self) -> ServicerTelemetry:
+        """The terms of the last command (eq. 6) and whether the thrust limit cut it, made when read
+        from the rows its step kept (k, u_sync, u_ct, u_id, the limited u, their sum): a batch run
+        reads none of it (issue 29)."""
+        t = self._telemetry
+        if not isinstance(t, ServicerTelemetry):
+            k, u_sync, u_ct, u_id, u, total = t
+            t = self._telemetry = ServicerTelemetry(u_sync[k], u_ct[k], u_id[k], u[k], not _allclose(u[k], total[k]))
+        return t
 
     def _sphere_centres(self, t_s: float) -> np.ndarray:
         """q_Cg = q_TL + d_Cg, q_TL from the leader's packet carried forward to t (§5)."""
@@ -145,74 +145,161 @@ class ServicerController:
 
     @classmethod
     def step_batch(cls, controllers: list["ServicerController"], batch: ObservationBatch) -> CommandBatch:
-        """The step of S servicers: packets and measurements per servicer, the Nash CT gradient and
-        the ξ rate of eq. 18-20 over arrays (vectorised.py), grouped by what they share."""
+        """The step of S servicers, grouped by what they share: first every group's packets and
+        measurements into its stacked views (`_Views`: what may raise, before any state moves on),
+        then the Nash CT gradient and the ξ rate of eq. 18-20 over arrays (vectorised.py) and each
+        group's commands."""
         t_s = float(batch.t_s)
-        mes, centres = [], []
-        decoded: dict[tuple[str, bytes], Any] = {}  # each broadcast decoded once for every receiver
         extra, isl_rx = batch.extra, batch.isl_rx
+        decoded: dict[tuple[str, bytes], Any] = {}  # each broadcast decoded once for every receiver
         shared: dict[tuple[int, float, bytes], np.ndarray] = {}  # the centres of one TT packet (read-only here)
-        for r, c in enumerate(controllers):
-            c._receive(isl_rx[r] if isl_rx is not None else [], decoded)
-            me = sensing.read(extra[r] if extra is not None else {}, LEADER_REL_KEY)
-            c.x_err[c.index] = np.concatenate([me.position_m - c.slots_m[c.index], me.velocity_mps])
-            mes.append(me)
-            key = (id(c.tt), c.tt_sent_t, c.d_cg_m.tobytes())
-            got = shared.get(key)
-            if got is None:
-                got = shared[key] = c._sphere_centres(t_s)
-            centres.append(got)
         groups: dict[int, list[int]] = {}
         for r, c in enumerate(controllers):
             groups.setdefault(c._kind_id(), []).append(r)
-        cmds: list[Command] = [None] * len(controllers)  # type: ignore[list-item]
+        ready = []
         for rows in groups.values():
             cs = [controllers[r] for r in rows]
-            gx, rt = vectorised.grad_and_xi_rate(np.array([c.x_err for c in cs]), np.array([c.xi for c in cs]),
-                                                 cs[0].slots_m, np.array([centres[r] for r in rows]), cs[0].r_g_m,
-                                                 np.array([c.index for c in cs]), cs[0].g)
-            for r, cmd in zip(rows, cls._commands(cs, [mes[r] for r in rows], gx, rt, t_s)):
+            views = _Views.of(cs)
+            views.receive([isl_rx[r] if isl_rx is not None else [] for r in rows], decoded)
+            pos, vel = sensing.read_rows([extra[r] if extra is not None else {} for r in rows], LEADER_REL_KEY)
+            views.measure(pos, vel)
+            ready.append((rows, cs, views, pos, vel, views.centres(t_s, shared)))
+        cmds: list[Command] = [None] * len(controllers)  # type: ignore[list-item]
+        accel = np.empty((len(controllers), 3))
+        for rows, cs, views, pos, vel, centres in ready:
+            gx, rt = vectorised.grad_and_xi_rate(views.x_err, views.xi, cs[0].slots_m, centres, cs[0].r_g_m, views.own, cs[0].g)
+            accel[rows], group = cls._commands(cs, views, pos, vel, gx, rt, t_s)
+            for r, cmd in zip(rows, group):
                 cmds[r] = cmd
-        return CommandBatch.of(cmds)
+        # (CommandBatch.of(cmds): every acceleration a 3-vector, no torque)
+        return CommandBatch(accel_mps2=accel, modes=[c.mode for c in cmds], build=cmds.__getitem__)
 
     @staticmethod
-    def _commands(cs: list["ServicerController"], mes: list[Any], grad: np.ndarray, rate: np.ndarray,
-                  t_s: float) -> list[Command]:
+    def _commands(cs: list["ServicerController"], views: "_Views", pos: np.ndarray, vel: np.ndarray,
+                  grad: np.ndarray, rate: np.ndarray, t_s: float) -> tuple[np.ndarray, list[Command]]:
         """u_i = u_Li + u_ci* + u_id (eq. 6) of servicers that share their game, from their ∂V_i/∂x~_i
-        (grad, (S, 6)) and measured states, then the Euler step of each one's ξ_i (eq. 20) at its ξ
-        rate (rate, (S, 6)). Over rows, each row the arithmetic of one servicer alone: elementwise,
-        the natural relative acceleration's |r| a sum along the last axis, each norm of the
-        saturations its own `clip_norm` (`clip_norm_rows`)."""
+        (grad, (S, 6)) and measured states (pos, vel, (S, 3)), then the Euler step of each one's ξ_i
+        (eq. 20) at its ξ rate (rate, (S, 6)). Over rows, each row the arithmetic of one servicer
+        alone: elementwise, the natural relative acceleration's |r| a sum along the last axis, each
+        norm of the saturations its own `clip_norm`'s (`clip_norm_rows`). Servicer by servicer, in
+        order: its telemetry, its clock, its ξ_i, its packet (so a packet that cannot be encoded
+        leaves the servicers before it stepped, as one `step` each would). Returns the accelerations
+        (S, 3) and the commands."""
         g, m = cs[0].g, cs[0].g.mass_kg
         u_ct = m * nash.ct_accel(grad, g)
-        u_id = np.zeros((len(cs), 3))
-        if g.cancel_natural:
+        o0, tt0 = cs[0].orbit, cs[0].tt
+        if g.cancel_natural and all(c.orbit is o0 for c in cs):  # (one orbit, as a scenario's servicers share)
+            u_id = -m * natural_rel_accel(pos, vel, o0.semi_major_axis_m, o0.mean_motion_radps)
+        else:
+            u_id = np.zeros((len(cs), 3))
             by_orbit: dict[OrbitInfo, list[int]] = {}
-            for k, c in enumerate(cs):
+            for k, c in enumerate(cs if g.cancel_natural else []):
                 by_orbit.setdefault(c.orbit, []).append(k)
             for orbit, ks in by_orbit.items():
-                u_id[ks] = -m * natural_rel_accel(np.array([mes[k].position_m for k in ks]),
-                                                  np.array([mes[k].velocity_mps for k in ks]),
-                                                  orbit.semi_major_axis_m, orbit.mean_motion_radps)
-        u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
+                u_id[ks] = -m * natural_rel_accel(pos[ks], vel[ks], orbit.semi_major_axis_m, orbit.mean_motion_radps)
+        if tt0 is not None and all(c.tt is tt0 for c in cs):  # (one TT packet, as a step's broadcast)
+            u_sync = m * np.broadcast_to(tt0.leader_accel_mps2, (len(cs), 3))
+        else:
+            u_sync = m * np.array([c.tt.leader_accel_mps2 if c.tt is not None else np.zeros(3) for c in cs])
         total = u_sync + u_ct + u_id
         u = clip_norm_rows(total, g.max_thrust_n) if g.saturate == "sum" else u_sync + clip_norm_rows(u_ct + u_id, g.max_thrust_n)
-        unsaturated = _allclose_rows(u, total)
         xi_rate = rate.copy()
         xi_rate[:, :3] = clip_norm_rows(rate[:, :3], g.xi_rate_cap_mps)  # the position rate capped (guard)
         accel = u / m
+        # explicit Euler step of eq. 20 for each own block ξ_i (dt: each servicer's own clock)
+        dt = np.array([0.0 if c.t_prev is None else t_s - c.t_prev for c in cs])
+        rows, own = views.rows, views.own
+        xi_own = views.xi[rows, own] + dt[:, None] * xi_rate
+        values = np.concatenate((views.x_err[rows, own], xi_own), axis=1).tolist()  # each packet's x~_i, ξ_i
         out = []
         for k, c in enumerate(cs):
-            i = c.index
-            c.telemetry = ServicerTelemetry(u_sync[k], u_ct[k], u_id[k], u[k], not unsaturated[k])
-            # explicit Euler step of eq. 20 for the own block ξ_i
-            dt = 0.0 if c.t_prev is None else t_s - c.t_prev
+            c._telemetry = (k, u_sync, u_ct, u_id, u, total)
             c.t_prev = t_s
-            c.xi[i] = c.xi[i] + dt * xi_rate[k]
-            pkt = packets.CTPacket(i, c.x_err[i], c.xi[i])
+            c.xi[c.index] = xi_own[k]
             out.append(Command(accel_mps2=accel[k], mode="surround",
-                               transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct(pkt))]))
-        return out
+                               transmissions=[Transmission(packets.CT_TYPE, packets.encode_ct_values(c.index, values[k]))]))
+        return accel, out
+
+
+class _Views:
+    """The x~ and ξ (N, 6) of S servicers stepped together, stacked (S, N, 6): each servicer's own
+    `x_err` and `xi` are rows (views) of these, so a step reads and writes them without a copy per
+    servicer (issue 29). Made when the servicers first step together (their arrays copied in, then
+    theirs rebound to the rows) and again whenever they are not exactly these rows any more."""
+
+    __slots__ = ("members", "x_err", "xi", "x_rows", "xi_rows", "rows", "own")
+
+    def __init__(self, cs: list[ServicerController]) -> None:
+        self.members = tuple(cs)
+        self.x_err, self.xi = np.array([c.x_err for c in cs], dtype=float), np.array([c.xi for c in cs], dtype=float)
+        self.x_rows, self.xi_rows = list(self.x_err), list(self.xi)
+        self.rows, self.own = np.arange(len(cs)), np.array([c.index for c in cs])
+        for c, x, xi in zip(cs, self.x_rows, self.xi_rows):
+            c.x_err, c.xi, c._views = x, xi, self
+
+    @classmethod
+    def of(cls, cs: list[ServicerController]) -> "_Views":
+        """The views of `cs` (in this order): the ones they share, if they still hold their rows."""
+        v = cs[0]._views
+        if (v is not None and v.members == tuple(cs)
+                and all(c.x_err is x and c.xi is xi for c, x, xi in zip(cs, v.x_rows, v.xi_rows))):
+            return v
+        return cls(cs)
+
+    def receive(self, isl_rx: list[list[Any]], decoded: dict[tuple[str, bytes], Any]) -> None:
+        """Each servicer's packets received, in order: the leader's last TT packet (`tt`, `tt_sent_t`)
+        and the other servicers' x~_j, ξ_j (rows j of its view; the last packet of each j). `decoded`:
+        the payloads already decoded this step (agent/controller.py `decode_once`); each CT packet's
+        values made an array once (a row of `table`) for all its receivers."""
+        n = self.x_err.shape[1]
+        tt_type, ct_type, decode_tt = packets.TT_TYPE, packets.CT_TYPE, packets.decode_tt
+        row_of: dict[tuple[str, bytes], tuple[int, int]] = {}  # a CT packet -> (its j, its row of `table`)
+        table: list[tuple[float, ...]] = []
+        ks: list[int] = []
+        js: list[int] = []
+        rows: list[int] = []
+        for k, (c, rx) in enumerate(zip(self.members, isl_rx)):
+            got: dict[int, int] = {}  # j -> the row of its last packet
+            for pkt in rx:
+                typ = pkt.type
+                if typ == ct_type:
+                    key = (typ, pkt.payload)
+                    hit = row_of.get(key)
+                    if hit is None:
+                        j, values = decode_once(decoded, pkt, packets.decode_ct_values)
+                        hit = row_of[key] = (j, len(table))
+                        table.append(values)
+                    j, row = hit
+                    if j != c.index and 0 <= j < n:
+                        got[j] = row
+                elif typ == tt_type:
+                    c.tt, c.tt_sent_t = decode_once(decoded, pkt, decode_tt), float(pkt.sent_t)
+            ks += [k] * len(got)
+            js += got
+            rows += got.values()
+        if ks:
+            v = np.array(table, dtype=float)[rows]
+            self.x_err[ks, js], self.xi[ks, js] = v[:, :6], v[:, 6:]
+
+    def measure(self, pos: np.ndarray, vel: np.ndarray) -> None:
+        """Each servicer's own row of x~: its measured q_Li - q_Li,d and q'_Li (pos, vel: (S, 3))."""
+        rows, own = self.rows, self.own
+        self.x_err[rows, own, :3] = pos - self.members[0].slots_m[own]
+        self.x_err[rows, own, 3:] = vel
+
+    def centres(self, t_s: float, shared: dict[tuple[int, float, bytes], np.ndarray]) -> np.ndarray:
+        """(S, G, 3) each servicer's sphere centres (`_sphere_centres`): one read-only broadcast when
+        they share one TT packet; `shared` holds each packet's centres for this step."""
+        got = []
+        for c in self.members:
+            key = (id(c.tt), c.tt_sent_t, c.d_cg_m.tobytes())
+            centres = shared.get(key)
+            if centres is None:
+                centres = shared[key] = c._sphere_centres(t_s)
+            got.append(centres)
+        if all(x is got[0] for x in got):
+            return np.broadcast_to(got[0], (len(got),) + got[0].shape)
+        return np.array(got)
 
 
 def _allclose(a: np.ndarray, b: np.ndarray) -> bool:
@@ -222,14 +309,6 @@ def _allclose(a: np.ndarray, b: np.ndarray) -> bool:
     if math.isfinite(np.add.reduce(a) + np.add.reduce(b)):  # finite sums: every entry finite
         return bool((np.abs(a - b) <= 1e-8 + 1e-5 * np.abs(b)).all())
     return bool(np.allclose(a, b))
-
-
-def _allclose_rows(a: np.ndarray, b: np.ndarray) -> list[bool]:
-    """`_allclose` of each row pair of (S, 3) a and b: the finite test over all rows at once when every
-    row is finite, else row by row."""
-    if np.isfinite(np.add.reduce(a, axis=1) + np.add.reduce(b, axis=1)).all():
-        return (np.abs(a - b) <= 1e-8 + 1e-5 * np.abs(b)).all(axis=1).tolist()  # type: ignore[no-any-return]
-    return [_allclose(x, y) for x, y in zip(a, b)]
 
 
 @register(LEADER_CONTROLLER)

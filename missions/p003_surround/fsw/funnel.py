@@ -87,8 +87,16 @@ def clip_norm(vec: np.ndarray, limit: float) -> np.ndarray:
 
 def clip_norm_rows(vecs: np.ndarray, limit: float) -> np.ndarray:
     """Each row of `vecs` (S, 3) as `clip_norm` gives it, as a new array: the same norm per row
-    (sqrt of the row's dot with itself, what np.linalg.norm computes) and the same scaling."""
-    return np.array([clip_norm(v, limit) for v in np.asarray(vecs, dtype=float)]).reshape(-1, 3)
+    (sqrt of the row's dot with itself: a stacked np.matmul of (S, 1, 3) by (S, 3, 1) takes BLAS's
+    `ddot` per item, the product `clip_norm` and np.linalg.norm take) and the same scaling (the
+    rows not under the limit, NaN norms included, times limit / norm)."""
+    v = np.asarray(vecs, dtype=float).reshape(-1, 3)
+    norm = np.sqrt(np.matmul(v[:, None, :], v[:, :, None])[:, 0, 0])
+    out = v.copy()
+    over = ~(norm <= limit)
+    if over.any():
+        out[over] = v[over] * (limit / norm[over])[:, None]
+    return out
 
 
 def leader_accel(u_l_n: np.ndarray, p: FunnelParams) -> np.ndarray:

@@ -53,14 +53,27 @@ def decode_tt(payload: bytes) -> TTPacket:
 
 
 def encode_ct(p: CTPacket) -> bytes:
-    return _CT.pack(VERSION, p.index, *np.asarray(p.x_err, float).tolist(), *np.asarray(p.xi, float).tolist())
+    return encode_ct_values(p.index, [*np.asarray(p.x_err, float).tolist(), *np.asarray(p.xi, float).tolist()])
 
 
-def decode_ct(payload: bytes) -> CTPacket:
+def encode_ct_values(index: int, values: list[float]) -> bytes:
+    """The `p003.ct` payload of servicer `index` from the 12 doubles of x~_i then ξ_i as Python
+    floats (a batch turns all its rows into floats in one `tolist`, issue 29)."""
+    return _CT.pack(VERSION, index, *values)
+
+
+def decode_ct_values(payload: bytes) -> tuple[int, tuple[float, ...]]:
+    """(index, the 12 values of x~_i then ξ_i as Python floats) of a `p003.ct` payload, checked as
+    `decode_ct` checks it."""
     if len(payload) != _CT.size:
         raise ValueError(f"{CT_TYPE} payload must be {_CT.size} bytes, got {len(payload)}")
     version, index, *vals = _CT.unpack(payload)
     if version != VERSION:
         raise ValueError(f"{CT_TYPE} version {version}, expected {VERSION}")
+    return index, tuple(vals)
+
+
+def decode_ct(payload: bytes) -> CTPacket:
+    index, vals = decode_ct_values(payload)
     v = np.array(vals, dtype=float)
     return CTPacket(index, v[:6], v[6:])

@@ -63,3 +63,37 @@ def read(extra: dict[str, Any], key: str) -> RelativeState:
     if pos is None or vel is None:
         raise KeyError(f"obs.extra has no {key!r} (keys: {sorted(extra)})")
     return RelativeState(np.asarray(pos, dtype=float), np.asarray(vel, dtype=float))
+
+
+def read_rows(extras: list[dict[str, Any]], key: str) -> tuple[np.ndarray, np.ndarray]:
+    """(S, 3) positions and velocities of `read(e, key)` for every e of `extras`, stacked (the same
+    float64 values), checked once over the stack (issue 29); what `read` raises otherwise, for the
+    first e it raises for."""
+    pos, vel = [], []
+    pos_name, vel_name = f"{key}.position_m", f"{key}.velocity_mps"
+    seen: tuple[str, str] | None = None  # the two names `_named` found in the last e
+    for e in extras:
+        if seen is not None and len(e) == 2 and seen[0] in e and seen[1] in e:  # those two alone: what `_named` finds
+            p, v = e[seen[0]], e[seen[1]]
+        elif key in e:
+            s = read(e, key)
+            p, v = s.position_m, s.velocity_mps
+        else:
+            p, v = _named(e, pos_name), _named(e, vel_name)
+            if p is None or v is None:
+                read(e, key)  # its KeyError
+            names = [k for k in e if k == pos_name or k.startswith(pos_name + "/")]
+            names += [k for k in e if k == vel_name or k.startswith(vel_name + "/")]
+            seen = (names[0], names[1]) if len(names) == 2 else None
+        pos.append(p)
+        vel.append(v)
+    try:
+        rp, rv = np.array(pos, dtype=float), np.array(vel, dtype=float)
+        ok = rp.shape == rv.shape == (len(extras), 3) and math.isfinite(np.add.reduce(rp, axis=None) + np.add.reduce(rv, axis=None))
+    except (TypeError, ValueError):  # ragged or not numbers: `read` says which
+        ok = False
+    if ok:  # (a finite sum: every entry finite)
+        return rp, rv
+    states = [read(e, key) for e in extras]
+    return (np.array([s.position_m for s in states], dtype=float).reshape(-1, 3),
+            np.array([s.velocity_mps for s in states], dtype=float).reshape(-1, 3))
