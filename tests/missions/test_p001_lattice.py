@@ -298,6 +298,18 @@ def test_solve_each_and_row_dots_are_numpys_own_calls_byte_for_byte() -> None:
         _solve_and_dot_cases(rng, row_dots, solve_each)
 
 
+def test_solve_each_without_numpys_private_gufunc_is_the_same_call(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where numpy has no `_umath_linalg.solve1` (a private name), solve_each solves row by row
+    with np.linalg.solve: the same bytes."""
+    from swarmhil.missions.p001_lattice.fsw import cw
+    from swarmhil.missions.p001_lattice.fsw.controller import row_dots
+
+    monkeypatch.setattr(cw, "_SOLVE1", None)
+    rng = np.random.default_rng(293)
+    with np.errstate(over="ignore", invalid="ignore"):
+        _solve_and_dot_cases(rng, row_dots, cw.solve_each)
+
+
 def _solve_and_dot_cases(rng: np.random.Generator, row_dots, solve_each) -> None:  # noqa: ANN001
     from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, matvec_rows
 

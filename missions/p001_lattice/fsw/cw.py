@@ -10,7 +10,12 @@ v_d = -Phi_rv(T)^-1 Phi_rr(T) r with T = t_desire - t, tracked by g_far = k_g (v
 from __future__ import annotations
 
 import numpy as np
-from numpy.linalg import _umath_linalg  # np.linalg.solve's gufunc (solve_each)
+
+try:  # np.linalg.solve's own gufunc for a 1-D right-hand side (private to numpy: solve_each falls back)
+    from numpy.linalg import _umath_linalg
+    _SOLVE1 = getattr(_umath_linalg, "solve1", None)
+except ImportError:  # pragma: no cover - another numpy layout
+    _SOLVE1 = None
 
 
 def cw_position_blocks(n_radps: float, t_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -32,8 +37,11 @@ def solve_each(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """`np.linalg.solve(a, b[i])` of one (3, 3) float64 system `a` against each (3,) float64 row of
     `b` (k, 3): the gufunc `np.linalg.solve` calls for a 1-D right-hand side (LAPACK `dgesv` on each
     system alone), without the wrapper's checks and error state. A singular `a` gives NaN rows (and
-    numpy's invalid-value warning) instead of raising: the caller tests the result."""
-    return _umath_linalg.solve1(a, b)
+    numpy's invalid-value warning) instead of raising: the caller tests the result. Where numpy has
+    no such gufunc, one `np.linalg.solve` per row (the same LAPACK call; a singular `a` raises)."""
+    if _SOLVE1 is not None:
+        return _SOLVE1(a, b)
+    return np.array([np.linalg.solve(a, row) for row in b], dtype=float).reshape(b.shape)
 
 
 def matvec_rows(m: np.ndarray, rows: np.ndarray) -> np.ndarray:
