@@ -288,9 +288,9 @@ def test_cw_position_blocks_are_the_array_built_ones_byte_for_byte() -> None:
 
 def test_solve_each_and_row_dots_are_numpys_own_calls_byte_for_byte() -> None:
     """cw.solve_each equals np.linalg.solve of each system by itself (the per-agent `step`'s call,
-    a 1-D right-hand side) and controller.row_dots equals each row's `dot` (np.linalg.norm's
+    a 1-D right-hand side) and agent.rowwise.row_dots equals each row's `dot` (np.linalg.norm's
     square), byte for byte, NaN, ±inf, -0.0 and subnormals included in the rows."""
-    from swarmhil.missions.p001_lattice.fsw.controller import row_dots
+    from swarmhil.agent.rowwise import row_dots
     from swarmhil.missions.p001_lattice.fsw.cw import solve_each
 
     rng = np.random.default_rng(292)
@@ -302,7 +302,7 @@ def test_solve_each_without_numpys_private_gufunc_is_the_same_call(monkeypatch: 
     """Where numpy has no `_umath_linalg.solve1` (a private name), solve_each solves row by row
     with np.linalg.solve: the same bytes."""
     from swarmhil.missions.p001_lattice.fsw import cw
-    from swarmhil.missions.p001_lattice.fsw.controller import row_dots
+    from swarmhil.agent.rowwise import row_dots
 
     monkeypatch.setattr(cw, "_SOLVE1", None)
     rng = np.random.default_rng(293)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, register
+from swarmhil.agent.rowwise import row_dots
 from swarmhil.missions.p001_lattice.fsw.cw import cw_position_blocks, far_accel, matvec_rows, solve_each
 from swarmhil.missions.p001_lattice.fsw.layers import Layer, next_layer
 from swarmhil.missions.p001_lattice.contract import CONTROLLER, TB_GAIN, LatticeParams, hexagon_vertices
@@ -130,20 +131,6 @@ class LatticeController:
             u[over] *= (p.max_accel_mps2 / norm[over])[:, None]  # u * (u_max / |u|), row by row
         # finite: each norm is, so each entry is (and u_max / |u| of a finite |u| > u_max)
         return CommandBatch(accel_mps2=u, modes=[_MODE[c.layer] for c in controllers], finite=True)
-
-
-def row_dots(a: np.ndarray) -> np.ndarray:
-    """(N,) a_r . a_r of each row of a C-contiguous (N, 3) float64 array, each by the BLAS `ddot`
-    that `a[r].dot(a[r])` (and so `np.linalg.norm(a[r])`, its square root) calls: numpy's
-    `np.vecdot` (numpy >= 2) and `np.matmul` of a (1, 3) row by a (3, 1) column both call numpy's
-    `DOUBLE_dot` with the row's stride, as the 1-D dot does (tests/missions/test_p001_lattice.py,
-    byte for byte)."""
-    if _VECDOT is not None:
-        return _VECDOT(a, a)
-    return np.matmul(a[:, None, :], a[:, :, None]).reshape(len(a))
-
-
-_VECDOT = getattr(np, "vecdot", None)  # (numpy >= 2: the same per-row DOUBLE_dot, fewer numpy calls)
 
 
 def own_state_rows(extra: Any, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from swarmhil.agent.rowwise import row_dots
 from swarmhil.missions.p003_surround.contract import FunnelParams, performance, transformed_error
 
 
@@ -87,11 +88,11 @@ def clip_norm(vec: np.ndarray, limit: float) -> np.ndarray:
 
 def clip_norm_rows(vecs: np.ndarray, limit: float) -> np.ndarray:
     """Each row of `vecs` (S, 3) as `clip_norm` gives it, as a new array: the same norm per row
-    (sqrt of the row's dot with itself: a stacked np.matmul of (S, 1, 3) by (S, 3, 1) takes BLAS's
-    `ddot` per item, the product `clip_norm` and np.linalg.norm take) and the same scaling (the
-    rows not under the limit, NaN norms included, times limit / norm)."""
+    (sqrt of the row's dot with itself: `row_dots`, BLAS's `ddot` per row, the product `clip_norm`
+    and np.linalg.norm take) and the same scaling (the rows not under the limit, NaN norms
+    included, times limit / norm)."""
     v = np.asarray(vecs, dtype=float).reshape(-1, 3)
-    norm = np.sqrt(np.matmul(v[:, None, :], v[:, :, None])[:, 0, 0])
+    norm = np.sqrt(row_dots(v))
     out = v.copy()
     over = ~(norm <= limit)
     if over.any():
