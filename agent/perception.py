@@ -28,6 +28,7 @@ from swarmhil.agent.controller import Observation
 from swarmhil.agent.nav.base import Track, observation_arrays
 from swarmhil.agent.nav.ekf import EkfConfig
 from swarmhil.agent.nav.pipeline import VisionNav
+from swarmhil.agent.nav.rough import CHOICES as ROUGH_CHOICES
 from swarmhil.agent.nav.rough import RoughNavigator
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.optional import require
@@ -62,8 +63,9 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
 
 
 def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
-    """[nav.params] are the chosen navigator's settings: EkfConfig's fields, or the rough navigator's gate_px;
-    each a finite number >= 0 (confirm_hits and max_misses integers)."""
+    """[nav.params] are the chosen navigator's settings: EkfConfig's fields, or the rough navigator's gate_px,
+    range_model and velocity; each a finite number >= 0 (confirm_hits and max_misses integers), or one of
+    the named choices (agent/nav/rough.py CHOICES)."""
     import dataclasses
     import inspect
     import math
@@ -75,6 +77,10 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
     for key, val in params.items():
         if key not in known:
             raise ValueError(f"[nav.params].{key} is not a setting of the {navigator!r} navigator; known: {sorted(known)}")
+        if navigator == "rough" and key in ROUGH_CHOICES:
+            if val not in ROUGH_CHOICES[key]:
+                raise ValueError(f"[nav.params].{key} must be one of {list(ROUGH_CHOICES[key])} (got {val!r})")
+            continue
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val < 0:
             raise ValueError(f"[nav.params].{key} must be a finite number >= 0 (got {val!r})")
         if key in ("confirm_hits", "max_misses") and (not float(val).is_integer() or val < 1):

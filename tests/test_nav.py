@@ -193,3 +193,34 @@ def test_vision_nav_pipeline(imaging, navigator):
     pos_bound, vel_bound = PIPELINE_BOUNDS[(imaging, navigator)]
     assert np.linalg.norm(tracks[0].position_m - pos[0]) < pos_bound
     assert np.linalg.norm(tracks[0].velocity_mps - vel[0]) < vel_bound
+
+
+@pytest.mark.parametrize("accel_obs", [None, np.array([3e-4, -5e-4, 2e-4])])
+def test_rough_navigation_with_exact_blobs_is_exact_with_the_shape_and_the_dynamics(renderer, accel_obs):
+    """Exact blobs + the rough navigator's defaults (range from the silhouette the known shape shows
+    along the line of sight, velocity from the two frames under the known relative dynamics with the
+    observer's own thrust): what is left is the silhouette model's ~1e-4 of range, against the
+    face-on range's metres and the plain difference's lag (both kept as options, and worse here)."""
+    roe0 = np.array([[3.0, 300.0, 10.0, -15.0, 120.0, 5.0]])  # crosses the image's vertical axis
+    errs = {}
+    for rm, vm in (("silhouette", "dynamics"), ("face_on", "difference")):
+        nav = RoughNavigator(renderer.camera, renderer.shape, A_M, N_RADPS, range_model=rm, velocity=vm)
+        frames = fly(roe0, 0.3, 10.0, 40, nav, renderer, exact=True, accel_obs=accel_obs)
+        assert all(len(f[4]) == 1 and f[4][0].track_id == frames[1][4][0].track_id for f in frames[1:])
+        pos = np.array([f[4][0].position_m - f[1][0] for f in frames[1:]])
+        roe = np.array([f[4][0].roe_m - f[0][0] for f in frames[1:]])
+        errs[rm] = (np.abs(pos).max(), np.median(np.abs(roe), axis=0).max(), np.abs(roe).max())
+    pos_max, roe_median, roe_max = errs["silhouette"]
+    assert pos_max < 0.05  # 5 cm at 300 m
+    assert roe_median < 0.25 and roe_max < 2.5  # one frame crossing the axis: ~1 cm of range -> ~2 m
+    assert errs["face_on"][0] > 1.0 and errs["face_on"][1] > 1.0  # the paper's literal model: metres
+
+
+def test_rough_navigator_settings_are_validated():
+    from swarmhil.agent.perception import nav_config
+
+    assert nav_config({"navigator": "rough", "params": {"range_model": "face_on", "velocity": "difference"}})
+    with pytest.raises(ValueError, match=r"range_model must be one of \['silhouette', 'face_on'\]"):
+        nav_config({"navigator": "rough", "params": {"range_model": "sphere"}})
+    with pytest.raises(ValueError, match="velocity"):
+        RoughNavigator(Camera(), SpacecraftShape(), A_M, N_RADPS, velocity="central")

@@ -1,13 +1,25 @@
 """Paper 002 section 5's rough navigation: blobs of two successive frames -> relative state.
 
-- Range from area: z = f sqrt(A_true / A_blob) (A_true: the face-on silhouette, 0.24 m^2);
-  x, y from the pinhole relation (agent.nav.measure.rough_position_cam).
+- Range from area, z = f sqrt(A_true / A_blob). `range_model` says what A_true is:
+  "silhouette" (default): the area the known shape shows along the blob's line of sight,
+  A_true = A_z + A_x |x/z| + A_y |y/z| (agent.nav.measure, the EKF's own area model; x/z, y/z from
+  the centroid), so a neighbour off the boresight, which also shows its radial faces obliquely,
+  is not taken for a nearer one; "face_on": the paper's literal A_true = A_z, biased by up to 6.8 %
+  at the edge of the field of view (docs/camera-navigation.md). x, y from the pinhole relation.
 - Nearest-neighbour association between the two newest frames, on the image position predicted
-  with the blob's last image velocity, gated at `gate_px`.
-- Causal finite differences over the two newest frames (NOTES-002: the printed one uses the future
-  frame): zdot = dz/dt, xdot = z/f * du/dt + (u - cx)/f * zdot, ydot likewise (paper sec. 5 with
-  the camera axes of agent.camera.model).
-- LVLH -> ROE with the paper's M (agent.roe.lvlh_to_roe).
+  with the blob's last image velocity, gated at `gate_px`, one-to-one (Hungarian).
+- Velocity from the two newest frames (NOTES-002: the printed difference uses the future frame).
+  `velocity` = "dynamics" (default): the relative ROE at the newest frame that reproduce both
+  frames' positions under the known relative dynamics (paper 002 Eq. 2, Keplerian; the observer's
+  own commanded acceleration held over the interval as the known input, the neighbour's unknown
+  control taken as zero): with T(u) the ROE -> LVLH position map, Phi, Gamma the transition and
+  input matrices over dt (agent.nav.ekf),
+      [ T(u_t) ; T(u_{t-dt}) Phi^-1 ] alpha_t = [ r_t ; r_{t-dt} - T(u_{t-dt}) Phi^-1 Gamma a_j ],
+  six equations for the six ROE: the finite difference without its lag (a plain difference is the
+  mean velocity over the interval, dt/2 late, which the relative orbit's curvature and the
+  observer's own thrust turn into metres of a*da and a*de). "difference": the paper's causal
+  finite difference, zdot = dz/dt, xdot = z/f du/dt + (u - cx)/f zdot, ydot likewise, then
+  LVLH -> ROE with the paper's M (agent.roe.lvlh_to_roe).
 A track is output from its second frame on (it needs a velocity) and dropped at its first miss.
 """
 from __future__ import annotations
@@ -21,8 +33,13 @@ from swarmhil.agent.camera.model import R_LVLH_FROM_CAM, Camera
 from swarmhil.agent.camera.shape import SpacecraftShape
 from swarmhil.agent.nav.associate import assign
 from swarmhil.agent.nav.base import Track
-from swarmhil.agent.nav.measure import rough_position_cam
-from swarmhil.agent.roe import lvlh_to_roe
+from swarmhil.agent.nav.ekf import input_gamma, transition
+from swarmhil.agent.nav.measure import roe_position_matrix, rough_position_cam
+from swarmhil.agent.roe import lvlh_to_roe, roe_to_lvlh
+
+RANGE_MODELS = ("silhouette", "face_on")
+VELOCITY_MODELS = ("dynamics", "difference")
+CHOICES = {"range_model": RANGE_MODELS, "velocity": VELOCITY_MODELS}  # [nav.params] that name a choice
 
 
 @dataclass
@@ -36,20 +53,58 @@ class _Prev:
     hits: int
 
 
+def silhouette_area_m2(ray: np.ndarray, areas_m2: np.ndarray) -> np.ndarray:
+    """A_z + A_x |x/z| + A_y |y/z| (M,): the area of a body in nominal attitude seen along the rays
+    (M, 3) with z = 1 (agent.nav.measure module docstring)."""
+    ax, ay, az = (float(a) for a in areas_m2)
+    return az + ax * np.abs(ray[:, 0]) + ay * np.abs(ray[:, 1])
+
+
+def two_frame_roe(r0_m: np.ndarray, r1_m: np.ndarray, u1_rad: float, dt_s: float, a_m: float, n_radps: float,
+                  own_accel_mps2: np.ndarray | None) -> np.ndarray:
+    """The ROE (metres, neighbour relative to observer) at the newest frame that reproduce the LVLH
+    positions r0 (dt before) and r1 (at the reference's mean argument of latitude u1; u0 = u1 - n dt)
+    under Eq. 2 with the observer's own thrust a_j held over dt (module docstring): the 6 x 6 solve."""
+    u0_rad = u1_rad - n_radps * dt_s
+    phi_inv = np.linalg.inv(transition(n_radps, dt_s))
+    t0 = roe_position_matrix(u0_rad, n_radps) @ phi_inv
+    lhs = np.vstack((roe_position_matrix(u1_rad, n_radps), t0))
+    rhs = np.concatenate((r1_m, r0_m))
+    if own_accel_mps2 is not None:
+        rhs[3:] -= t0 @ (input_gamma(u0_rad, a_m, n_radps, dt_s) @ np.asarray(own_accel_mps2, dtype=float))
+    return np.linalg.solve(lhs, rhs)
+
+
 class RoughNavigator:
     name = "rough"
 
-    def __init__(self, camera: Camera, shape: SpacecraftShape, a_m: float, n_radps: float, gate_px: float = 30.0) -> None:
+    def __init__(self, camera: Camera, shape: SpacecraftShape, a_m: float, n_radps: float, gate_px: float = 30.0,
+                 range_model: str = "silhouette", velocity: str = "dynamics") -> None:
+        if range_model not in RANGE_MODELS:
+            raise ValueError(f"[nav.params].range_model must be one of {RANGE_MODELS} (got {range_model!r})")
+        if velocity not in VELOCITY_MODELS:
+            raise ValueError(f"[nav.params].velocity must be one of {VELOCITY_MODELS} (got {velocity!r})")
         self.camera = camera
-        self.area_true_m2 = float(shape.projected_areas_m2[2])
+        self.areas_m2 = np.asarray(shape.projected_areas_m2, dtype=float)
+        self.area_true_m2 = float(self.areas_m2[2])
         self.a_m, self.n = a_m, n_radps
         self.gate_px = gate_px
+        self.range_model, self.velocity = range_model, velocity
         self._prev: list[_Prev] = []
         self._next_id = 0
 
+    def positions_cam(self, blobs: Blobs) -> np.ndarray:
+        """(M, 3) camera-frame positions of the blobs: range from area under `range_model`."""
+        cam = self.camera
+        if self.range_model == "face_on":
+            return rough_position_cam(blobs.centroid_px, blobs.area_px, cam, self.area_true_m2)
+        ray = cam.ray(blobs.centroid_px).reshape(-1, 3)
+        z = cam.focal_px * np.sqrt(silhouette_area_m2(ray, self.areas_m2) / np.maximum(blobs.area_px, 1e-9))
+        return ray * z[:, None]
+
     def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
         cam = self.camera
-        p_cam = rough_position_cam(blobs.centroid_px, blobs.area_px, cam, self.area_true_m2)
+        p_cam = self.positions_cam(blobs)
         pred = np.array(
             [p.centroid_px + (0.0 if p.image_vel_pxps is None else p.image_vel_pxps * (t_s - p.t_s)) for p in self._prev]
         ).reshape(-1, 2)
@@ -64,13 +119,16 @@ class RoughNavigator:
             dt = t_s - prev.t_s
             c, z = blobs.centroid_px[m], p_cam[m, 2]
             duv = (c - prev.centroid_px) / dt
-            zdot = (z - prev.p_cam_m[2]) / dt
-            vel_cam = np.array(
-                [z / cam.focal_px * duv[0] + (c[0] - cam.cx) / cam.focal_px * zdot, z / cam.focal_px * duv[1] + (c[1] - cam.cy) / cam.focal_px * zdot, zdot]
-            )
             pos = R_LVLH_FROM_CAM @ p_cam[m]
-            vel = R_LVLH_FROM_CAM @ vel_cam
-            roe = lvlh_to_roe(pos, vel, u_rad, self.n)
+            if self.velocity == "dynamics":
+                roe = two_frame_roe(R_LVLH_FROM_CAM @ prev.p_cam_m, pos, u_rad, dt, self.a_m, self.n, own_accel_mps2)
+                pos, vel = roe_to_lvlh(roe, u_rad, self.n)
+            else:
+                zdot = (z - prev.p_cam_m[2]) / dt
+                vel_cam = np.array([z / cam.focal_px * duv[0] + (c[0] - cam.cx) / cam.focal_px * zdot,
+                                    z / cam.focal_px * duv[1] + (c[1] - cam.cy) / cam.focal_px * zdot, zdot])
+                vel = R_LVLH_FROM_CAM @ vel_cam
+                roe = lvlh_to_roe(pos, vel, u_rad, self.n)
             out.append(Track(prev.track_id, roe, pos, vel, None, prev.age + 1, prev.hits + 1, m))
             nxt.append(_Prev(prev.track_id, t_s, c.copy(), p_cam[m].copy(), duv, prev.age + 1, prev.hits + 1))
         for m in range(len(blobs)):
