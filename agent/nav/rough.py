@@ -60,19 +60,25 @@ def silhouette_area_m2(ray: np.ndarray, areas_m2: np.ndarray) -> np.ndarray:
     return az + ax * np.abs(ray[:, 0]) + ay * np.abs(ray[:, 1])
 
 
-def two_frame_roe(r0_m: np.ndarray, r1_m: np.ndarray, u1_rad: float, dt_s: float, a_m: float, n_radps: float,
-                  own_accel_mps2: np.ndarray | None) -> np.ndarray:
+def two_frame_roe(r0_m: np.ndarray, r1_m: np.ndarray, u1_rad: float, dt_s: float | np.ndarray, a_m: float,
+                  n_radps: float, own_accel_mps2: np.ndarray | None) -> np.ndarray:
     """The ROE (metres, neighbour relative to observer) at the newest frame that reproduce the LVLH
     positions r0 (dt before) and r1 (at the reference's mean argument of latitude u1; u0 = u1 - n dt)
-    under Eq. 2 with the observer's own thrust a_j held over dt (module docstring): the 6 x 6 solve."""
-    u0_rad = u1_rad - n_radps * dt_s
-    phi_inv = np.linalg.inv(transition(n_radps, dt_s))
-    t0 = roe_position_matrix(u0_rad, n_radps) @ phi_inv
-    lhs = np.vstack((roe_position_matrix(u1_rad, n_radps), t0))
-    rhs = np.concatenate((r1_m, r0_m))
-    if own_accel_mps2 is not None:
-        rhs[3:] -= t0 @ (input_gamma(u0_rad, a_m, n_radps, dt_s) @ np.asarray(own_accel_mps2, dtype=float))
-    return np.linalg.solve(lhs, rhs)
+    under Eq. 2 with the observer's own thrust a_j held over dt (module docstring): the 6 x 6 solve.
+    r0_m, r1_m (P, 3) or (3,); dt_s a scalar or (P,); returns (P, 6) or (6,)."""
+    r0, r1 = np.atleast_2d(r0_m), np.atleast_2d(r1_m)
+    dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (len(r1),))
+    out = np.empty((len(r1), 6))
+    for dt in np.unique(dts).tolist():  # one system per interval (a frame's pairs share one)
+        rows = np.flatnonzero(dts == dt)
+        u0_rad = u1_rad - n_radps * dt
+        t0 = roe_position_matrix(u0_rad, n_radps) @ np.linalg.inv(transition(n_radps, dt))
+        lhs = np.vstack((roe_position_matrix(u1_rad, n_radps), t0))
+        rhs = np.concatenate((r1[rows], r0[rows]), axis=1)
+        if own_accel_mps2 is not None:
+            rhs[:, 3:] -= t0 @ (input_gamma(u0_rad, a_m, n_radps, dt) @ np.asarray(own_accel_mps2, dtype=float))
+        out[rows] = np.linalg.solve(lhs, rhs.T).T
+    return out if np.ndim(r1_m) == 2 else out[0]
 
 
 class RoughNavigator:
@@ -113,24 +119,28 @@ class RoughNavigator:
         out: list[Track] = []
         nxt: list[_Prev] = []
         used = set()
-        for k, m in pairs:
-            prev = self._prev[k]
-            used.add(m)
-            dt = t_s - prev.t_s
-            c, z = blobs.centroid_px[m], p_cam[m, 2]
-            duv = (c - prev.centroid_px) / dt
-            pos = R_LVLH_FROM_CAM @ p_cam[m]
+        if pairs:  # every matched pair of the frame at once
+            prevs = [self._prev[k] for k, _ in pairs]
+            ms = [m for _, m in pairs]
+            used.update(ms)
+            dt = np.array([t_s - prev.t_s for prev in prevs])
+            c, z = blobs.centroid_px[ms], p_cam[ms, 2]
+            duv = (c - np.array([prev.centroid_px for prev in prevs])) / dt[:, None]
+            pos = p_cam[ms] @ R_LVLH_FROM_CAM.T  # a signed permutation: exact per row
             if self.velocity == "dynamics":
-                roe = two_frame_roe(R_LVLH_FROM_CAM @ prev.p_cam_m, pos, u_rad, dt, self.a_m, self.n, own_accel_mps2)
+                pos0 = np.array([prev.p_cam_m for prev in prevs]) @ R_LVLH_FROM_CAM.T
+                roe = two_frame_roe(pos0, pos, u_rad, dt, self.a_m, self.n, own_accel_mps2)
                 pos, vel = roe_to_lvlh(roe, u_rad, self.n)
             else:
-                zdot = (z - prev.p_cam_m[2]) / dt
-                vel_cam = np.array([z / cam.focal_px * duv[0] + (c[0] - cam.cx) / cam.focal_px * zdot,
-                                    z / cam.focal_px * duv[1] + (c[1] - cam.cy) / cam.focal_px * zdot, zdot])
-                vel = R_LVLH_FROM_CAM @ vel_cam
+                f = cam.focal_px
+                zdot = (z - np.array([prev.p_cam_m[2] for prev in prevs])) / dt
+                vel_cam = np.stack((z / f * duv[:, 0] + (c[:, 0] - cam.cx) / f * zdot,
+                                    z / f * duv[:, 1] + (c[:, 1] - cam.cy) / f * zdot, zdot), axis=1)
+                vel = vel_cam @ R_LVLH_FROM_CAM.T
                 roe = lvlh_to_roe(pos, vel, u_rad, self.n)
-            out.append(Track(prev.track_id, roe, pos, vel, None, prev.age + 1, prev.hits + 1, m))
-            nxt.append(_Prev(prev.track_id, t_s, c.copy(), p_cam[m].copy(), duv, prev.age + 1, prev.hits + 1))
+            for r, (prev, m) in enumerate(zip(prevs, ms)):
+                out.append(Track(prev.track_id, roe[r], pos[r], vel[r], None, prev.age + 1, prev.hits + 1, m))
+                nxt.append(_Prev(prev.track_id, t_s, c[r].copy(), p_cam[m].copy(), duv[r], prev.age + 1, prev.hits + 1))
         for m in range(len(blobs)):
             if m not in used:
                 nxt.append(_Prev(f"r{self._next_id}", t_s, blobs.centroid_px[m].copy(), p_cam[m].copy(), None, 0, 1))
