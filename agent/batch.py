@@ -143,6 +143,10 @@ class BatchPerception:
         self.ids = list(ids)
         self.perceptions = perceptions
         self.faults = faults
+        # the paper's exact imaging with one camera and shape for all: every spacecraft's blobs at once
+        r0 = perceptions[0].vision.renderer if perceptions else None
+        self._exact = r0 is not None and all(p.vision.imaging == "exact" and p.vision.renderer.camera == r0.camera
+                                             and repr(p.vision.renderer.shape) == repr(r0.shape) for p in perceptions)  # (its parameters)
 
     def observe(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, observers: list[str], offsets: np.ndarray,
                 position_cam_m: np.ndarray, attitude_wxyz: np.ndarray, own_accel_mps2: np.ndarray) -> ObservationBatch:
@@ -152,12 +156,25 @@ class BatchPerception:
         pos = np.asarray(position_cam_m, dtype=float).reshape(-1, 3)
         off = np.asarray(offsets, dtype=np.int64).tolist()
         accel = own_accel_mps2.tolist()
+        blobs = None
+        if self._exact:
+            from swarmhil.agent.blob.blobs import exact_blobs_many  # scene sensing only (the camera stack)
+
+            r0 = self.perceptions[0].vision.renderer
+            try:
+                blobs = exact_blobs_many(pos, rot, offsets, r0.camera, r0.shape)
+            except Exception:  # noqa: BLE001 - then each spacecraft's own, which faults alone (below)
+                blobs = None
         out = []
         for r, i in enumerate(rows.tolist()):
             a, b = off[r], off[r + 1]
             per = self.perceptions[i]
             try:  # (fresh arrays, as the agent's from its message, and its command's acceleration)
-                obs = per.observe_arrays(step, t_s, u_rad, pos[a:b].copy(), rot[a:b].copy(), np.array(accel[i], dtype=float))
+                if blobs is not None:
+                    obs = per.observe_blobs(step, t_s, u_rad, blobs[r], np.array(accel[i], dtype=float))
+                else:
+                    obs = per.observe_arrays(step, t_s, u_rad, pos[a:b].copy(), rot[a:b].copy(),
+                                             np.array(accel[i], dtype=float))
             except Exception:  # noqa: BLE001 - a navigation fault must not stop the flight software (AgentNode)
                 count_fault(self.faults, self.ids[i], "nav", step)
                 per.reset()

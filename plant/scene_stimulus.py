@@ -12,7 +12,7 @@ import numpy as np
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.plant.config import PlantConfig
-from swarmhil.plant.scene import matrix_to_quaternion_wxyz, scene
+from swarmhil.plant.scene import NOMINAL_BODY_TO_LVLH, SPACECRAFT_RADIUS_M, camera_from_lvlh, matrix_to_quaternion_wxyz, scene
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,8 @@ class SceneStimulusBuilder:
     def batch(self, observers: np.ndarray, pos_m: np.ndarray) -> SceneBatch:
         """`stimulus` of each of `observers` (in this order: the pointing jitter's draws), as arrays: the
         same scenes and the same quaternions (scipy's conversion is per matrix), no message."""
+        if self.jitter_rad <= 0:
+            return self._batch_fixed(np.asarray(observers, dtype=np.int64), pos_m)
         index = list(range(len(self.ids)))
         obs = np.asarray(observers, dtype=np.int64).tolist()
         errs, nbs, poss, rots = [], [], [], []
@@ -64,6 +66,28 @@ class SceneStimulusBuilder:
         return SceneBatch(np.cumsum(counts), np.array(nbs, dtype=np.int64),
                           np.concatenate(poss) if poss else np.zeros((0, 3)), quats,
                           np.array(errs, dtype=float).reshape(-1, 3))
+
+    def _batch_fixed(self, obs: np.ndarray, pos_m: np.ndarray) -> SceneBatch:
+        """`batch` without jitter: every observer's camera is turned by the same error, so `scene` of
+        all of them at once (elementwise the same: each pair's difference, its row of the product
+        with the one rotation, its norm and tests; the pairs in scene's order, observer by observer)."""
+        n, r = len(self.ids), len(obs)
+        pos = np.asarray(pos_m, dtype=float).reshape(-1, 3)
+        r_cl = camera_from_lvlh(None, self.bias_rad + 0.0)  # (scene's error: bias + 0.0)
+        rel = pos[None, :, :] - pos[obs][:, None, :]  # (R, N, 3): others_pos - observer_pos, self included
+        p = (rel.reshape(-1, 3) @ r_cl.T).reshape(r, n, 3)
+        rng = np.linalg.norm(p, axis=2)
+        keep = (rng <= self.max_range_m) & (p[..., 2] > -SPACECRAFT_RADIUS_M)
+        grow = SPACECRAFT_RADIUS_M * np.sqrt(1.0 + self.tan_half_fov**2)
+        keep &= (np.abs(p[..., 0]) <= self.tan_half_fov * p[..., 2] + grow) & (np.abs(p[..., 1]) <= self.tan_half_fov * p[..., 2] + grow)
+        keep[np.arange(r), obs] = False  # (nobody is in its own scene)
+        jj, kk = keep.nonzero()
+        offsets = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(np.bincount(jj, minlength=r), out=offsets[1:])
+        rot = np.broadcast_to(r_cl @ NOMINAL_BODY_TO_LVLH, (len(kk), 3, 3))
+        quats = matrix_to_quaternion_wxyz(rot) if len(kk) else np.zeros((0, 4))
+        errs = np.broadcast_to(self.bias_rad + 0.0, (r, 3)).copy()
+        return SceneBatch(offsets, kk, p[jj, kk], quats, errs)
 
     def stimulus(self, j: int, pos_m: np.ndarray, u_rad: float, hdr: pb.Header) -> pb.SceneStimulus:
         err, sc = self._scene(j, pos_m, self.ids)
