@@ -58,21 +58,23 @@ class RoughNavigator:
         out: list[Track] = []
         nxt: list[_Prev] = []
         used = set()
-        for k, m in pairs:
-            prev = self._prev[k]
-            used.add(m)
-            dt = t_s - prev.t_s
-            c, z = blobs.centroid_px[m], p_cam[m, 2]
-            duv = (c - prev.centroid_px) / dt
-            zdot = (z - prev.p_cam_m[2]) / dt
-            vel_cam = np.array(
-                [z / cam.focal_px * duv[0] + (c[0] - cam.cx) / cam.focal_px * zdot, z / cam.focal_px * duv[1] + (c[1] - cam.cy) / cam.focal_px * zdot, zdot]
-            )
-            pos = R_LVLH_FROM_CAM @ p_cam[m]
-            vel = R_LVLH_FROM_CAM @ vel_cam
-            roe = lvlh_to_roe(pos, vel, u_rad, self.n)
-            out.append(Track(prev.track_id, roe, pos, vel, None, prev.age + 1, prev.hits + 1, m))
-            nxt.append(_Prev(prev.track_id, t_s, c.copy(), p_cam[m].copy(), duv, prev.age + 1, prev.hits + 1))
+        if pairs:  # every pair at once: per pair the same elementwise arithmetic as one by one
+            prevs = [self._prev[k] for k, _ in pairs]
+            ms = [m for _, m in pairs]
+            used.update(ms)
+            dt = np.array([t_s - prev.t_s for prev in prevs])
+            c, z = blobs.centroid_px[ms], p_cam[ms, 2]
+            duv = (c - np.array([prev.centroid_px for prev in prevs])) / dt[:, None]
+            zdot = (z - np.array([prev.p_cam_m[2] for prev in prevs])) / dt
+            f = cam.focal_px
+            vel_cam = np.stack((z / f * duv[:, 0] + (c[:, 0] - cam.cx) / f * zdot, z / f * duv[:, 1] + (c[:, 1] - cam.cy) / f * zdot, zdot), axis=1)
+            # R_LVLH_FROM_CAM is a signed permutation: each row's product is exact, as R @ v of one
+            pos = p_cam[ms] @ R_LVLH_FROM_CAM.T
+            vel = vel_cam @ R_LVLH_FROM_CAM.T
+            roe = lvlh_to_roe(pos, vel, u_rad, self.n)  # elementwise: per row as for one
+            for r, (prev, m) in enumerate(zip(prevs, ms)):
+                out.append(Track(prev.track_id, roe[r], pos[r], vel[r], None, prev.age + 1, prev.hits + 1, m))
+                nxt.append(_Prev(prev.track_id, t_s, c[r], p_cam[m].copy(), duv[r], prev.age + 1, prev.hits + 1))
         for m in range(len(blobs)):
             if m not in used:
                 nxt.append(_Prev(f"r{self._next_id}", t_s, blobs.centroid_px[m].copy(), p_cam[m].copy(), None, 0, 1))
