@@ -56,9 +56,20 @@ def roe_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
     return roe_to_lvlh(np.eye(6), u_rad, n_radps)[0].T
 
 
+_T_CAM: dict[tuple[str, str], np.ndarray] = {}  # (u, n) exactly (float.hex: -0.0 is not 0.0) -> the read-only matrix
+
+
 def camera_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
-    """(3, 6): camera-frame position of the neighbour = this @ roe_m (nominal pointing)."""
-    return R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+    """(3, 6): camera-frame position of the neighbour = this @ roe_m (nominal pointing). Read-only,
+    remembered for the last few (u, n): the spacecraft of a batch run all ask for the same frame's."""
+    key = (float(u_rad).hex(), float(n_radps).hex())
+    t = _T_CAM.get(key)
+    if t is None:
+        if len(_T_CAM) >= 8:
+            _T_CAM.clear()
+        t = _T_CAM[key] = R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+        t.setflags(write=False)
+    return t
 
 
 def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: float,
