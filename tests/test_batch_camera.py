@@ -63,3 +63,17 @@ def test_a_navigation_fault_in_batch_mode_is_handled_as_by_the_agent(tmp_path: P
     assert faults and all(set(f) == {"nav"} for f in faults.values())
     assert batch.summary["agent_faults"] == faults
     assert _truth_sha(tmp_path / "all" / "run.mcap") == _truth_sha(tmp_path / "truth" / "run.mcap")
+
+
+@pytest.mark.parametrize("sets", [("sensing.pointing_error_rad=[0.002, -0.001, 0.003]",),
+                                  ("sensing.pointing_error_rad=[0.002, -0.001, 0.003]", "sensing.pointing_jitter_rad=0.001")],
+                         ids=["pointing-bias", "pointing-jitter"])
+def test_camera_batch_with_pointing_errors(tmp_path: Path, sets: tuple[str, ...]) -> None:
+    """The plant's scenes of all observers at once (a fixed pointing error: one rotation for all) and
+    observer by observer (jitter: each its own draw, in the message path's order) are the messages' values."""
+    sc = load_scenario(SCENARIOS / "sabatini-20-camera-exact.toml", list(sets)).with_overrides(duration_s=300.0)
+    full = run_in_process(sc, tmp_path / "all", "pe")
+    batch = run_in_process(sc, tmp_path / "truth", "pe", record="truth")
+    assert batch.summary["batch"]["used"]
+    assert _truth_sha(tmp_path / "all" / "run.mcap") == _truth_sha(tmp_path / "truth" / "run.mcap")
+    assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0.0
