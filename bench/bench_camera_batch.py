@@ -14,6 +14,10 @@ the end (the machine is shared).
 
     nice -n 10 .venv/bin/python bench/bench_camera_batch.py                  # both scenarios, 24 h
     nice -n 10 .venv/bin/python bench/bench_camera_batch.py --hours 6 --no-per-agent
+    .venv/bin/python bench/bench_camera_batch.py --parallel     # one scenario per core, at the same time
+
+With `--parallel` each scenario runs in its own child process (this script with `--scenarios NAME`),
+at the same time, as a campaign on 2 cores would run them; each child's figures are its own CPU.
 """
 from __future__ import annotations
 
@@ -60,7 +64,28 @@ def main() -> None:
     ap.add_argument("--no-per-agent", action="store_true", help="the batch path only")
     ap.add_argument("--seeds", type=int, default=20, help="campaign size of the estimate")
     ap.add_argument("--cores", type=int, default=2, help="cores of the estimate")
+    ap.add_argument("--parallel", action="store_true", help="each scenario in its own child process, all at once")
     a = ap.parse_args()
+    if a.parallel:
+        import re
+        import subprocess
+
+        print(f"load average at start: {os.getloadavg()}, cores: {os.cpu_count()}", flush=True)
+        args = [f"--hours={a.hours}", f"--seeds={a.seeds}", f"--cores={a.cores}"] + (["--no-per-agent"] if a.no_per_agent else [])
+        kids = [subprocess.Popen([sys.executable, __file__, f"--scenarios={n}", *args], stdout=subprocess.PIPE, text=True)
+                for n in a.scenarios.split(",")]
+        total = 0.0
+        for k in kids:
+            out, _ = k.communicate()
+            for line in out.splitlines():
+                if line.startswith(tuple(SCENARIOS)):
+                    print(line, flush=True)
+                    total += float(re.search(r"batch ([0-9.]+) s CPU", line).group(1))
+        print(f"load average at end: {os.getloadavg()}")
+        total *= a.seeds * 24.0 / a.hours
+        print(f"campaign estimate: {a.seeds} seeds x 24 h of each scenario on {a.cores} cores: "
+              f"{total:.0f} s CPU, {total / a.cores / 60:.1f} min with {a.cores} runs at a time (per-run CPU as measured here)")
+        return
     from swarmhil.deploy.scenario import load_scenario
 
     print(f"load average at start: {os.getloadavg()}, cores: {os.cpu_count()}", flush=True)
