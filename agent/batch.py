@@ -8,6 +8,11 @@ is checked as the agent node checks it (a controller that raises, or returns a n
 malformed acceleration, commands zero for that spacecraft and the fault is counted or logged).
 Between decision steps the previous command stays in force. No message is built: the observation
 arrives as arrays and the commands leave as an (N, 3) array (deploy/batch.py wires it to the plant).
+
+With the camera (`scene` stimulus, issue 36), `BatchPerception` runs each spacecraft's own
+`Perception` (agent/perception.py: camera -> blobs -> navigator) on the values its stimulus message
+would carry, with the command in force as its own acceleration, as `AgentNode.handle` does, and
+hands the controllers the tracks as one ObservationBatch.
 """
 from __future__ import annotations
 
@@ -18,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from swarmhil.agent.catalogue import make_controller
-from swarmhil.agent.controller import Command, CommandBatch, ObservationBatch, OrbitInfo, step_batch
+from swarmhil.agent.controller import Command, CommandBatch, Observation, ObservationBatch, OrbitInfo, step_batch
 
 log = logging.getLogger("swarmhil.agent")
 
@@ -111,3 +116,69 @@ class BatchAgents:
             self.last = cb
         self.steps += 1
         return self.accel_mps2
+
+
+def count_fault(faults: dict[str, dict[str, int]], sid: str, where: str, step: int) -> None:
+    """Count a handled fault of spacecraft `sid` ("nav" / "controller"); the first of each kind is
+    logged with its traceback (agent/node.py AgentNode._fault, the same messages)."""
+    f = faults.setdefault(sid, {})
+    n = f[where] = f.get(where, 0) + 1
+    if n == 1:
+        log.exception("%s: %s fault at step %d (handled; further ones are only counted)", sid, where, step)
+    else:
+        log.warning("%s: %s fault #%d at step %d", sid, where, n, step)
+
+
+class BatchPerception:
+    """Each spacecraft's camera pipeline (agent/perception.py `Perception`, one per spacecraft, built
+    from its agent config) fed with the values of its `scene` stimulus: per observer row r, bodies
+    offsets[r]:offsets[r+1] with camera-frame positions (P, 3) and attitude quaternions w, x, y, z
+    (P, 4), which become matrices as `Perception.observe` makes them (quat_to_matrix is elementwise:
+    all rows at once give each row's own matrix). As AgentNode.handle: the own acceleration is the
+    command in force before this step's decision; a navigation exception is logged (the first),
+    counted in `faults[id]["nav"]`, the spacecraft observes nothing this step and its navigation
+    restarts from the next frame."""
+
+    def __init__(self, ids: list[str], perceptions: list[Any], faults: dict[str, dict[str, int]]) -> None:
+        self.ids = list(ids)
+        self.perceptions = perceptions
+        self.faults = faults
+        # the paper's exact imaging with one camera and shape for all: every spacecraft's blobs at once
+        r0 = perceptions[0].vision.renderer if perceptions else None
+        self._exact = r0 is not None and all(p.vision.imaging == "exact" and p.vision.renderer.camera == r0.camera
+                                             and repr(p.vision.renderer.shape) == repr(r0.shape) for p in perceptions)  # (its parameters)
+
+    def observe(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, observers: list[str], offsets: np.ndarray,
+                position_cam_m: np.ndarray, attitude_wxyz: np.ndarray, own_accel_mps2: np.ndarray) -> ObservationBatch:
+        from swarmhil.agent.camera.model import quat_to_matrix  # scene sensing only (the camera stack)
+
+        rot = quat_to_matrix(attitude_wxyz).reshape(-1, 3, 3)
+        pos = np.asarray(position_cam_m, dtype=float).reshape(-1, 3)
+        off = np.asarray(offsets, dtype=np.int64).tolist()
+        accel = own_accel_mps2.tolist()
+        blobs = None
+        if self._exact:
+            from swarmhil.agent.blob.blobs import exact_blobs_many  # scene sensing only (the camera stack)
+
+            r0 = self.perceptions[0].vision.renderer
+            try:
+                blobs = exact_blobs_many(pos, rot, offsets, r0.camera, r0.shape)
+            except Exception:  # noqa: BLE001 - then each spacecraft's own, which faults alone (below)
+                blobs = None
+        out = []
+        for r, i in enumerate(rows.tolist()):
+            a, b = off[r], off[r + 1]
+            per = self.perceptions[i]
+            try:  # (fresh arrays, as the agent's from its message, and its command's acceleration)
+                if blobs is not None:
+                    obs = per.observe_blobs(step, t_s, u_rad, blobs[r], np.array(accel[i], dtype=float))
+                else:
+                    obs = per.observe_arrays(step, t_s, u_rad, pos[a:b].copy(), rot[a:b].copy(),
+                                             np.array(accel[i], dtype=float))
+            except Exception:  # noqa: BLE001 - a navigation fault must not stop the flight software (AgentNode)
+                count_fault(self.faults, self.ids[i], "nav", step)
+                per.reset()
+                obs = Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=[],
+                                  rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
+            out.append(obs)
+        return ObservationBatch.of(observers, out)

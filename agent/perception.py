@@ -134,10 +134,24 @@ class Perception:
         pos = np.array([[b.position_cam_m.x, b.position_cam_m.y, b.position_cam_m.z] for b in stim.bodies]).reshape(n, 3)
         rot = np.array([quat_to_matrix(np.array([b.attitude_cam.w, b.attitude_cam.x, b.attitude_cam.y, b.attitude_cam.z]))
                         for b in stim.bodies]).reshape(n, 3, 3)
-        self.tracks = self.vision.step(stim.header.t, stim.u_rad, pos, rot, int(stim.header.step), own_accel_mps2)
+        return self.observe_arrays(int(stim.header.step), stim.header.t, stim.u_rad, pos, rot, own_accel_mps2)
+
+    def observe_arrays(self, step: int, t_s: float, u_rad: float, pos_cam_m: np.ndarray, rot_body_to_cam: np.ndarray,
+                       own_accel_mps2: np.ndarray) -> Observation:
+        """`observe` of a stimulus given as its values: the bodies' camera-frame positions (n, 3) and
+        attitudes body -> camera (n, 3, 3) (the batch mode, deploy/batch.py: no message built or read)."""
+        self.tracks = self.vision.step(t_s, u_rad, pos_cam_m, rot_body_to_cam, step, own_accel_mps2)
+        return self._observation(step, t_s, u_rad)
+
+    def observe_blobs(self, step: int, t_s: float, u_rad: float, blobs: Any, own_accel_mps2: np.ndarray) -> Observation:
+        """`observe_arrays` of a frame whose blobs are already measured (the batch mode's exact imaging:
+        every spacecraft's blobs at once, agent/blob/blobs.py exact_blobs_many)."""
+        self.tracks = self.vision.update(t_s, u_rad, blobs, own_accel_mps2)
+        return self._observation(step, t_s, u_rad)
+
+    def _observation(self, step: int, t_s: float, u_rad: float) -> Observation:
         ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"]))
-        return Observation(step=int(stim.header.step), t_s=stim.header.t, u_rad=stim.u_rad, neighbour_ids=ids,
-                           rel_position_m=rp, rel_velocity_mps=rv)
+        return Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=ids, rel_position_m=rp, rel_velocity_mps=rv)
 
     def track_messages(self) -> list[pb.TrackEstimate]:
         out = []

@@ -14,9 +14,12 @@ in batch mode too: a sensing kind without a batch form hands its messages themse
 the bus, read by the agent's own `observation_from_rel`), and the inter-satellite link is the
 channel's own model (`BatchLink`: link/model.py `LinkModel`, fed as link/node.py feeds it, so the
 same packets reach the same receivers at the same steps; tests/test_batch_missions.py). Anything a
-batch run would have to drop instead falls back to the message path: a camera pipeline, beacons,
+batch run would have to drop instead falls back to the message path: beacons,
 sensing faults or the viewer companion. Spacecraft that fly attitude (paper 000) run in it too: the
-commands carry their torques (the plant's (N, 6) form, plant/flight.py).
+commands carry their torques (the plant's (N, 6) form, plant/flight.py). The camera (`scene`, issue
+36) too: the plant hands each observer's scene as arrays (plant/scene_stimulus.py SceneBatch: the
+values of its message) and every spacecraft's own perception turns them into its tracks
+(agent/batch.py BatchPerception), as its agent node would.
 """
 from __future__ import annotations
 
@@ -177,6 +180,15 @@ class BatchHook(LocalFlightSoftware):
         self.link = BatchLink(run, sc) if channel_enabled(sc, {}) else None  # the channel's own test of [link]
         # spacecraft that fly attitude: the commands go back with their torques, (N, 6) (plant/flight.py)
         self.attitude = any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft)
+        # the camera (`scene` stimulus, issue 36): each spacecraft's own perception, built as build_agent builds it
+        self.perception = None
+        if sc.sensing["kind"] == "scene":
+            from swarmhil.agent.batch import BatchPerception  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+            from swarmhil.agent.perception import Perception  # scene sensing only: camera, navigation and scipy
+
+            self.perception = BatchPerception(self.ids, [Perception(orbit.semi_major_axis_m, orbit.mean_motion_radps,
+                                                                    c["nav"], c["camera"]) for c in cfgs],
+                                              self.agents.faults)
 
     def commands(self, ctx: SensingContext, rows: np.ndarray,
                  sense: Callable[[], StimulusBatch | StimulusMessages]) -> np.ndarray:
@@ -205,6 +217,12 @@ class BatchHook(LocalFlightSoftware):
 
     def _observe(self, ctx: SensingContext, rows: np.ndarray, observers: list[str],
                  sense: Callable[[], StimulusBatch | StimulusMessages]) -> ObservationBatch:
+        if self.perception is not None and len(rows):  # every frame, whether or not a controller looks (AgentNode)
+            sb = sense()  # (plant/scene_stimulus.py SceneBatch)
+            batch = self.perception.observe(ctx.step, ctx.t_s, ctx.u_rad, rows, observers, sb.offsets, sb.position_cam_m,
+                                            sb.attitude_wxyz, self.agents.accel_mps2)
+            if self.agents.observes:
+                return batch
         if self.agents.observes and len(rows):
             rel = sense()
             if isinstance(rel, StimulusMessages):  # as the agent reads its stimulus message

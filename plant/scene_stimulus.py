@@ -6,12 +6,26 @@ Pointing error per observer: the scenario's constant `[sensing].pointing_error_r
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 
 import numpy as np
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.plant.config import PlantConfig
-from swarmhil.plant.scene import matrix_to_quaternion_wxyz, scene
+from swarmhil.plant.scene import NOMINAL_BODY_TO_LVLH, SPACECRAFT_RADIUS_M, camera_from_lvlh, matrix_to_quaternion_wxyz, scene
+
+
+@dataclass(frozen=True)
+class SceneBatch:
+    """The scene stimuli of R observers as arrays (the batch mode, deploy/batch.py): observer r's
+    bodies are rows offsets[r]:offsets[r+1], with the values its `SceneStimulus` carries (protobuf
+    doubles are float64): camera-frame positions and scalar-first attitude quaternions body -> camera."""
+
+    offsets: np.ndarray  # (R + 1,)
+    neighbour: np.ndarray  # (P,) index of each body in the ids
+    position_cam_m: np.ndarray  # (P, 3)
+    attitude_wxyz: np.ndarray  # (P, 4)
+    pointing_error_rad: np.ndarray  # (R, 3)
 
 
 class SceneStimulusBuilder:
@@ -23,11 +37,60 @@ class SceneStimulusBuilder:
         self.jitter_rad = float(scenario.sensing.get("pointing_jitter_rad", 0.0))
         self.rng = np.random.default_rng([int(scenario.seed), 0x5CE4E])
 
-    def stimulus(self, j: int, pos_m: np.ndarray, u_rad: float, hdr: pb.Header) -> pb.SceneStimulus:
+    def _scene(self, j: int, pos_m: np.ndarray, ids: list) -> tuple[np.ndarray, object]:
+        """Observer j's pointing error (drawn here, one draw per frame) and scene; `ids` name the bodies."""
         err = self.bias_rad + (self.rng.normal(0.0, self.jitter_rad, 3) if self.jitter_rad > 0 else 0.0)
         others = np.delete(np.arange(len(self.ids)), j)
-        sc = scene(pos_m[j], pos_m[others], [self.ids[k] for k in others], pointing_error_rad=err,
+        sc = scene(pos_m[j], pos_m[others], [ids[k] for k in others], pointing_error_rad=err,
                    max_range_m=self.max_range_m, tan_half_fov=self.tan_half_fov)
+        return err, sc
+
+    def batch(self, observers: np.ndarray, pos_m: np.ndarray) -> SceneBatch:
+        """`stimulus` of each of `observers` (in this order: the pointing jitter's draws), as arrays: the
+        same scenes and the same quaternions (scipy's conversion is per matrix), no message."""
+        if self.jitter_rad <= 0:
+            return self._batch_fixed(np.asarray(observers, dtype=np.int64), pos_m)
+        index = list(range(len(self.ids)))
+        obs = np.asarray(observers, dtype=np.int64).tolist()
+        errs, nbs, poss, rots = [], [], [], []
+        counts = np.zeros(len(obs) + 1, dtype=np.int64)
+        for r, j in enumerate(obs):
+            err, sc = self._scene(j, pos_m, index)
+            errs.append(np.broadcast_to(err, 3))
+            nbs.extend(sc.ids)
+            poss.append(sc.position_cam_m)
+            rots.append(sc.rot_body_to_cam)
+            counts[r + 1] = len(sc.ids)
+        rot = np.concatenate(rots) if rots else np.zeros((0, 3, 3))
+        quats = matrix_to_quaternion_wxyz(rot) if len(rot) else np.zeros((0, 4))
+        return SceneBatch(np.cumsum(counts), np.array(nbs, dtype=np.int64),
+                          np.concatenate(poss) if poss else np.zeros((0, 3)), quats,
+                          np.array(errs, dtype=float).reshape(-1, 3))
+
+    def _batch_fixed(self, obs: np.ndarray, pos_m: np.ndarray) -> SceneBatch:
+        """`batch` without jitter: every observer's camera is turned by the same error, so `scene` of
+        all of them at once (elementwise the same: each pair's difference, its row of the product
+        with the one rotation, its norm and tests; the pairs in scene's order, observer by observer)."""
+        n, r = len(self.ids), len(obs)
+        pos = np.asarray(pos_m, dtype=float).reshape(-1, 3)
+        r_cl = camera_from_lvlh(None, self.bias_rad + 0.0)  # (scene's error: bias + 0.0)
+        rel = pos[None, :, :] - pos[obs][:, None, :]  # (R, N, 3): others_pos - observer_pos, self included
+        p = (rel.reshape(-1, 3) @ r_cl.T).reshape(r, n, 3)
+        rng = np.linalg.norm(p, axis=2)
+        keep = (rng <= self.max_range_m) & (p[..., 2] > -SPACECRAFT_RADIUS_M)
+        grow = SPACECRAFT_RADIUS_M * np.sqrt(1.0 + self.tan_half_fov**2)
+        keep &= (np.abs(p[..., 0]) <= self.tan_half_fov * p[..., 2] + grow) & (np.abs(p[..., 1]) <= self.tan_half_fov * p[..., 2] + grow)
+        keep[np.arange(r), obs] = False  # (nobody is in its own scene)
+        jj, kk = keep.nonzero()
+        offsets = np.zeros(r + 1, dtype=np.int64)
+        np.cumsum(np.bincount(jj, minlength=r), out=offsets[1:])
+        rot = np.broadcast_to(r_cl @ NOMINAL_BODY_TO_LVLH, (len(kk), 3, 3))
+        quats = matrix_to_quaternion_wxyz(rot) if len(kk) else np.zeros((0, 4))
+        errs = np.broadcast_to(self.bias_rad + 0.0, (r, 3)).copy()
+        return SceneBatch(offsets, kk, p[jj, kk], quats, errs)
+
+    def stimulus(self, j: int, pos_m: np.ndarray, u_rad: float, hdr: pb.Header) -> pb.SceneStimulus:
+        err, sc = self._scene(j, pos_m, self.ids)
         msg = pb.SceneStimulus(header=hdr, u_rad=u_rad)
         e = msg.pointing_error_rad
         e.x, e.y, e.z = np.broadcast_to(err, 3).tolist()

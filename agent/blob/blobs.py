@@ -133,3 +133,34 @@ def exact_blobs(pos_cam_m: np.ndarray, rot_body_to_cam: np.ndarray, camera, shap
     bbox = np.stack((px[:, 1], px[:, 0], px[:, 1] + 1, px[:, 0] + 1), axis=1)
     order = np.lexsort((uv[:, 0], uv[:, 1]))
     return Blobs(uv[order], area[order], np.zeros(len(area)), np.ones(len(area), dtype=np.int64), bbox[order])
+
+
+def exact_blobs_many(pos_cam_m: np.ndarray, rot_body_to_cam: np.ndarray, offsets: np.ndarray, camera, shape) -> list[Blobs]:
+    """`exact_blobs` of R scenes at once (the batch mode, issue 36): scene r's bodies are rows
+    offsets[r]:offsets[r+1]. Each scene's Blobs equals its own `exact_blobs`, bit for bit: the
+    projection and the silhouette areas are computed per body (elementwise, the same arithmetic for
+    one body among many: tests/test_batch_camera.py), the order is the same stable sort on (v, u)
+    within each scene."""
+    pos = np.asarray(pos_cam_m, dtype=float).reshape(-1, 3)
+    rot = np.asarray(rot_body_to_cam, dtype=float).reshape(-1, 3, 3)
+    off = np.asarray(offsets, dtype=np.int64)
+    n = len(off) - 1
+    keep = camera.in_fov(pos)
+    owner = np.repeat(np.arange(n), np.diff(off))[keep]
+    pos, rot = pos[keep], rot[keep]
+    if len(pos) == 0:
+        return [Blobs.empty() for _ in range(n)]
+    uv = camera.project(pos)
+    area = silhouette_area_px(pos, rot, camera, shape)
+    px = np.floor(uv).astype(np.int64)
+    bbox = np.stack((px[:, 1], px[:, 0], px[:, 1] + 1, px[:, 0] + 1), axis=1)
+    order = np.lexsort((uv[:, 0], uv[:, 1], owner))  # stable: within a scene, exact_blobs's order
+    uv, area, bbox = uv[order], area[order], bbox[order]
+    bounds = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=bounds[1:])
+    out = []
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        m = b - a
+        out.append(Blobs(uv[a:b].copy(), area[a:b].copy(), np.zeros(m), np.ones(m, dtype=np.int64), bbox[a:b].copy())
+                   if m else Blobs.empty())
+    return out

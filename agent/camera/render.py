@@ -51,13 +51,26 @@ class Detector:
     seed: int = 0
 
 
+_BANKS: dict[tuple[int, int, int], np.ndarray] = {}  # (seed, H, W) -> the read-only bank, drawn once per process
+
+
 class NoiseBank:
-    """Standard normals (H, W) drawn once; frame k uses them rolled by a hashed offset."""
+    """Standard normals (H, W) drawn once; frame k uses them rolled by a hashed offset. The draw is
+    a function of (seed, H, W) alone, so the cameras of a process share one read-only bank, drawn
+    on first use (an exact-imaging pipeline never draws it; the batch mode's 20 pipelines draw it once)."""
 
     def __init__(self, camera: Camera, seed: int) -> None:
         self.h, self.w = camera.height_px, camera.width_px
         self.seed = seed
-        self.bank = np.random.default_rng(seed).standard_normal((self.h, self.w)).astype(np.float32)
+
+    @property
+    def bank(self) -> np.ndarray:
+        key = (int(self.seed), self.h, self.w)
+        b = _BANKS.get(key)
+        if b is None:
+            b = _BANKS[key] = np.random.default_rng(self.seed).standard_normal((self.h, self.w)).astype(np.float32)
+            b.setflags(write=False)
+        return b
 
     def offset(self, frame: int) -> tuple[int, int]:
         z = _splitmix64((self.seed * 0x9E3779B97F4A7C15 + frame) & 0xFFFFFFFFFFFFFFFF)

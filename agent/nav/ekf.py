@@ -184,6 +184,9 @@ def lvlh_to_roe_matrices(u_rad: float, n_radps: float) -> tuple[np.ndarray, np.n
     return mp, mv
 
 
+_PREDICT_TERMS: dict[tuple, tuple[np.ndarray, ...]] = {}  # EkfNavigator._predict_terms's shared terms
+
+
 class EkfNavigator:
     name = "ekf"
 
@@ -207,13 +210,24 @@ class EkfNavigator:
 
     def _predict_terms(self, dt: float, u0: float, own_accel: np.ndarray | None):
         """Phi, the models' process noises Q (M, 6, 6), the own-thrust shift Gamma a_j and the
-        Markov switch matrix over dt (module docstring)."""
-        phi = transition(self.n, dt)
-        gam = input_gamma(u0, self.a_m, self.n, dt)
-        gg = gam @ gam.T
-        qs = np.array([s**2 * gg for s in self.cfg.sigmas_mps2()])
+        Markov switch matrix over dt (module docstring). All but the shift depend on (n, a, dt, u0)
+        and the config only: remembered (read-only) for the last few, which the navigators of a batch
+        run share (each computes the same values)."""
+        key = (float(self.n).hex(), float(self.a_m).hex(), float(dt).hex(), float(u0).hex(), self.cfg)
+        terms = _PREDICT_TERMS.get(key)
+        if terms is None:
+            phi = transition(self.n, dt)
+            gam = input_gamma(u0, self.a_m, self.n, dt)
+            gg = gam @ gam.T
+            qs = np.array([s**2 * gg for s in self.cfg.sigmas_mps2()])
+            pi = self.cfg.switch_matrix(dt)
+            for a in (phi, gam, qs, pi):
+                a.setflags(write=False)
+            if len(_PREDICT_TERMS) >= 8:
+                _PREDICT_TERMS.clear()
+            terms = _PREDICT_TERMS[key] = (phi, gam, qs, pi)
+        phi, gam, qs, pi = terms
         shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
-        pi = self.cfg.switch_matrix(dt)
         return phi, qs, shift, pi
 
     def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
@@ -363,7 +377,7 @@ class EkfNavigator:
         for i, tr in enumerate(self.tracks):
             if i not in matched_t:
                 tr.misses += 1
-        finite = [bool(np.all(np.isfinite(tr.x)) and np.all(np.isfinite(tr.p))) for tr in self.tracks]
+        finite = [bool(np.isfinite(tr.x).all() and np.isfinite(tr.p).all()) for tr in self.tracks]
         self.faults += finite.count(False)
         self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, t_cam)]
         matched_b = {j for _, j in pairs}

@@ -56,9 +56,20 @@ def roe_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
     return roe_to_lvlh(np.eye(6), u_rad, n_radps)[0].T
 
 
+_T_CAM: dict[tuple[str, str], np.ndarray] = {}  # (u, n) exactly (float.hex: -0.0 is not 0.0) -> the read-only matrix
+
+
 def camera_position_matrix(u_rad: float, n_radps: float) -> np.ndarray:
-    """(3, 6): camera-frame position of the neighbour = this @ roe_m (nominal pointing)."""
-    return R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+    """(3, 6): camera-frame position of the neighbour = this @ roe_m (nominal pointing). Read-only,
+    remembered for the last few (u, n): the spacecraft of a batch run all ask for the same frame's."""
+    key = (float(u_rad).hex(), float(n_radps).hex())
+    t = _T_CAM.get(key)
+    if t is None:
+        if len(_T_CAM) >= 8:
+            _T_CAM.clear()
+        t = _T_CAM[key] = R_CAM_FROM_LVLH @ roe_position_matrix(u_rad, n_radps)
+        t.setflags(write=False)
+    return t
 
 
 def predict(model: MeasurementModel, roe_m: np.ndarray, u_rad: float, n_radps: float,
@@ -118,17 +129,23 @@ def predict_many(model: MeasurementModel, roe_m: np.ndarray, t_cam: np.ndarray) 
     f = cam.focal_px
     ax, ay, az = model.areas_m2
     z2 = _pow2(z)
-    k = az + (ax * np.abs(x) + ay * np.abs(y)) / z
+    side = ax * np.abs(x) + ay * np.abs(y)  # (each repeated subexpression computed once: the same values)
+    k = az + side / z
     sk = np.sqrt(np.maximum(k, 1e-12))
-    h = np.stack((cam.cx + f * x / z, cam.cy + f * y / z, f * sk / z), axis=1)
+    f_z = f / z
+    h = np.empty((k_, 3))
+    h[:, 0] = cam.cx + f * x / z
+    h[:, 1] = cam.cy + f * y / z
+    h[:, 2] = f * sk / z
+    two_sk_z = 2.0 * sk * z
     jp = np.zeros((k_, 3, 3))
-    jp[:, 0, 0] = f / z
+    jp[:, 0, 0] = f_z
     jp[:, 0, 2] = -f * x / z2
-    jp[:, 1, 1] = f / z
+    jp[:, 1, 1] = f_z
     jp[:, 1, 2] = -f * y / z2
-    jp[:, 2, 0] = f / z * ax * np.sign(x) / (2.0 * sk * z)
-    jp[:, 2, 1] = f / z * ay * np.sign(y) / (2.0 * sk * z)
-    jp[:, 2, 2] = -f * sk / z2 - f / z * (ax * np.abs(x) + ay * np.abs(y)) / (2.0 * sk * z2)
+    jp[:, 2, 0] = f_z * ax * np.sign(x) / two_sk_z
+    jp[:, 2, 1] = f_z * ay * np.sign(y) / two_sk_z
+    jp[:, 2, 2] = -f * sk / z2 - f_z * side / (2.0 * sk * z2)
     return h, jp @ t_cam, p
 
 

@@ -56,9 +56,15 @@ class VisionNav:
         pos = np.asarray(pos_cam_m, dtype=float).reshape(-1, 3)
         rot = np.asarray(rot_body_to_cam, dtype=float).reshape(-1, 3, 3)
         if self.imaging == "exact":
-            self.last_stacks = []
-            self.last_blobs = exact_blobs(pos, rot, r.camera, r.shape)
-        else:
-            self.last_stacks = r.render_rois(pos, rot, frame=frame)
-            self.last_blobs = extract_blobs(self.last_stacks, r.detector, self.min_pixels, backend=r.backend)
-        return self.navigator.update(t_s, u_rad, self.last_blobs, own_accel_mps2)
+            return self.update(t_s, u_rad, exact_blobs(pos, rot, r.camera, r.shape), own_accel_mps2)
+        stacks = r.render_rois(pos, rot, frame=frame)
+        return self.update(t_s, u_rad, extract_blobs(stacks, r.detector, self.min_pixels, backend=r.backend),
+                           own_accel_mps2, stacks)
+
+    def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None,
+               stacks: list[RoiStack] | None = None) -> list[Track]:
+        """The navigator's part of `step`, for a frame whose blobs are measured (the batch mode measures
+        every spacecraft's exact blobs at once: agent/blob/blobs.py exact_blobs_many)."""
+        self.last_stacks = [] if stacks is None else stacks
+        self.last_blobs = blobs
+        return self.navigator.update(t_s, u_rad, blobs, own_accel_mps2)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -22,6 +23,9 @@ from swarmhil.plant.dynamics.limits import row_norm
 from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
 from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
+
+if TYPE_CHECKING:  # (annotation only: the scene model is loaded by the scene kind alone)
+    from swarmhil.plant.scene_stimulus import SceneBatch
 
 
 class _SensorNoise:
@@ -143,6 +147,11 @@ class SceneKind:
 
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.SceneStimulus:
         return self.builder.stimulus(j, ctx.position_m, ctx.u_rad, hdr)
+
+    def batch(self, ctx: SensingContext, observers: np.ndarray) -> "SceneBatch":
+        """What `stimulus` gives each of `observers` (distinct, increasing indices), as arrays (the batch
+        mode: plant/scene_stimulus.py SceneBatch), the same values and the same draws in the same order."""
+        return self.builder.batch(observers, ctx.position_m)
 
 
 class RelativeParams(BaseModel):
