@@ -16,6 +16,13 @@ Over the seeds: mean, sample standard deviation and the 95 % confidence interval
 each difference (the paired test: the seed-to-seed spread of the dispersion cancels), and, for the
 per-step connectivity, how many seeds are within the tolerance and whether the confidence interval
 of the mean difference is. Writes OUT/paired.parquet, OUT/paired.csv and OUT/paired.md.
+
+`swarmhil campaign-compare BASE OTHER [OTHER2 ...]` (issue 36; `write_compare`): BASE against each
+OTHER as above, and OUT/compare.json and OUT/compare.md with, per OTHER, the paired count of seeds
+that split under OTHER and stay whole under BASE (whole: weakly connected at every step) and the
+converse, and a headline over the seeds where BASE stays whole all run (a split there is OTHER's
+sensing's): OTHER's mean and minimum per-step connectivity, how many seeds reach 97 %, the dV ratio;
+beside it the same over all seeds.
 """
 from __future__ import annotations
 
@@ -62,6 +69,15 @@ def initial_roe(campaign_dir: Path, seed: int) -> np.ndarray | None:
         return np.array([s["roe_m"] for s in cfg["spacecraft"]], dtype=float)
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def whole(row: dict[str, Any]) -> bool | None:
+    """Whether a run's swarm stayed whole: weakly connected at every step (its per-step weakly
+    connected fraction is exactly 1, i.e. it has no first split); None without the metric."""
+    v = row.get(WCF)
+    if v is None or not np.isfinite(float(v)):
+        return None
+    return float(v) == 1.0
 
 
 def _pair_value(kind: str, a: Any, b: Any) -> float | None:
@@ -119,6 +135,7 @@ def paired_rows(base_dir: Path, other_dir: Path, window_s: float | None = 7200.0
         for col, _label, kind in PAIRED_METRICS:
             row[f"base.{col}"], row[f"other.{col}"] = ra.get(col), rb.get(col)
             row[f"{kind}.{col}"] = _pair_value(kind, ra.get(col), rb.get(col))
+        row["base.whole"], row["other.whole"] = whole(ra), whole(rb)
         if window_s:
             wa = connectivity_windows(run_dir(base_dir, s), window_s)
             wb = connectivity_windows(run_dir(other_dir, s), window_s)
@@ -233,3 +250,152 @@ def write_paired(base_dir: str | Path, other_dir: str | Path, out: str | Path, l
 
 def _nwin(rows: Sequence[dict[str, Any]]) -> int:
     return max(sum(1 for k in r if k.startswith("window") and k.endswith(".base")) for r in rows)
+
+
+# --- one BASE against several OTHERs: the paired splits and the headline (issue 36) ----------------------
+HEADLINE_PCT = 97.0  # the headline counts the seeds whose per-step connectivity is at least this
+
+
+def _pct(v: Any) -> float | None:
+    return None if v is None or not np.isfinite(float(v)) else 100.0 * float(v)
+
+
+def _block(rows: Sequence[dict[str, Any]], at_least_pct: float) -> dict[str, Any]:
+    """Over `rows` (paired seeds): OTHER's and BASE's per-step weak connectivity [%] (mean, 95 % CI,
+    min, max: `mean_ci95`), how many OTHER runs reach `at_least_pct` and stay whole, the difference
+    [pp] and the dV ratio (mean_ci95 each)."""
+    other = [_pct(r.get(f"other.{WCF}")) for r in rows]
+    return {"n": len(rows), "seeds": [int(r["seed"]) for r in rows],
+            "other_connectivity_pct": mean_ci95(other),
+            "base_connectivity_pct": mean_ci95([_pct(r.get(f"base.{WCF}")) for r in rows]),
+            "other_at_least": int(sum(v is not None and v >= at_least_pct for v in other)),
+            "other_whole": int(sum(r.get("other.whole") is True for r in rows)),
+            "diff_pp": mean_ci95([r.get(f"pp.{WCF}") for r in rows]),
+            "dv_ratio": mean_ci95([r.get("ratio.delta_v_total_mps") for r in rows])}
+
+
+def compare_aggregates(rows: Sequence[dict[str, Any]], at_least_pct: float = HEADLINE_PCT) -> dict[str, Any]:
+    """What `campaign-compare` reports of one OTHER against BASE over the paired seeds (`paired_rows`):
+
+    - `split_other_only` / `split_base_only`: the seeds whose swarm splits under OTHER and stays
+      whole under BASE, and the converse (whole = weakly connected at every step, `whole`);
+    - `headline`: over the seeds where BASE stays whole all run (any split there is OTHER's
+      navigation's), OTHER's mean and min per-step connectivity, how many seeds reach
+      `at_least_pct`, the dV ratio (`_block`);
+    - `all_seeds`: the same over every paired seed."""
+    known = [r for r in rows if r.get("base.whole") is not None and r.get("other.whole") is not None]
+    so = [int(r["seed"]) for r in known if r["base.whole"] and not r["other.whole"]]
+    sb = [int(r["seed"]) for r in known if r["other.whole"] and not r["base.whole"]]
+    return {"seeds": [int(r["seed"]) for r in rows], "n": len(rows), "at_least_pct": float(at_least_pct),
+            "base_whole": int(sum(r.get("base.whole") is True for r in rows)),
+            "split_other_only": {"n": len(so), "seeds": so}, "split_base_only": {"n": len(sb), "seeds": sb},
+            "headline": _block([r for r in rows if r.get("base.whole") is True], at_least_pct),
+            "all_seeds": _block(rows, at_least_pct)}
+
+
+def default_labels(others: Sequence[str | Path]) -> tuple[str, ...]:
+    """BASE's and each OTHER's label when --label is not given: base, other (one OTHER, as before) or
+    the OTHER directories' names (other1, other2, ... if two share a name)."""
+    if len(others) == 1:
+        return ("base", "other")
+    names = [Path(o).name for o in others]
+    if len(set(names)) < len(names) or "base" in names:
+        names = [f"other{i + 1}" for i in range(len(others))]
+    return ("base", *names)
+
+
+def _ci_text(s: dict[str, Any], digits: int = 3, sign: bool = False) -> str:
+    if s["mean"] is None:
+        return "-"
+    f = (lambda v: f"{v:+.{digits}g}") if sign else (lambda v: f"{v:.{digits}g}")
+    return f(s["mean"]) + ("" if s["ci95_low"] is None else f" [{f(s['ci95_low'])}, {f(s['ci95_high'])}]")
+
+
+def write_compare(base_dir: str | Path, other_dirs: Sequence[str | Path], out: str | Path,
+                  labels: Sequence[str] | None = None, tolerance_pp: float = 2.0, window_s: float | None = 7200.0,
+                  at_least_pct: float = HEADLINE_PCT) -> dict[str, Any]:
+    """BASE against each OTHER: the paired table of each (`write_paired`: OUT/paired.* with one OTHER,
+    OUT/<label>/paired.* with several), then OUT/compare.json (the aggregates of `compare_aggregates`
+    per OTHER, by label, with the paired stats; what claims read) and OUT/compare.md (the headline
+    table, the all-seeds table and each seed's connectivity under every sensing).
+    Returns {"compare": the JSON's content, "paired": {label: write_paired's result}, "paths"}."""
+    base_dir, out = Path(base_dir), Path(out)
+    labels = tuple(labels) if labels else default_labels(other_dirs)
+    if len(labels) != len(other_dirs) + 1:
+        raise CompareError(f"--label must be given {len(other_dirs) + 1} times (BASE, then each OTHER) or not at all")
+    if len(set(labels)) != len(labels):
+        raise CompareError(f"the labels must differ: {', '.join(labels)}")
+    lbase = labels[0]
+    mbase = _campaign_meta(base_dir)
+    paired: dict[str, dict[str, Any]] = {}
+    others: dict[str, dict[str, Any]] = {}
+    for lab, od in zip(labels[1:], other_dirs):
+        od = Path(od)
+        dest = out if len(other_dirs) == 1 else out / lab
+        res = write_paired(base_dir, od, dest, (lbase, lab), tolerance_pp, window_s)
+        paired[lab] = res
+        mo = _campaign_meta(od)
+        others[lab] = {"dir": str(od), "scenario": mo.get("scenario"), "sets": mo.get("sets") or [],
+                       "paired_table": str(res["paths"][0]), "paired_md": str(res["paths"][2]),
+                       "same_initial_state": res["stats"]["same_initial_state"],
+                       "seeds_within_tolerance": res["stats"]["seeds_within"],
+                       "ci_within_tolerance": res["stats"]["ci_within"],
+                       **compare_aggregates(res["rows"], at_least_pct),
+                       "paired_stats": res["stats"]["metrics"]}
+    doc = {"base": {"label": lbase, "dir": str(base_dir), "scenario": mbase.get("scenario"),
+                    "sets": mbase.get("sets") or [], "duration_s": mbase.get("duration_s")},
+           "at_least_pct": float(at_least_pct), "tolerance_pp": float(tolerance_pp), "others": others}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "compare.json").write_text(json.dumps(doc, indent=1, default=_json_float))
+    (out / "compare.md").write_text("\n".join(_compare_md(doc, paired)))
+    return {"compare": doc, "paired": paired, "paths": (out / "compare.json", out / "compare.md")}
+
+
+def _json_float(v: Any) -> Any:
+    return float(v) if isinstance(v, np.floating) else bool(v) if isinstance(v, np.bool_) else str(v)
+
+
+def _compare_md(doc: dict[str, Any], paired: dict[str, dict[str, Any]]) -> list[str]:
+    b, q = doc["base"], doc["at_least_pct"]
+    lb = b["label"]
+    md = [f"# {', '.join(doc['others'])} against {lb}", "",
+          f"{lb}: `{b['scenario']}` (--set {b['sets'] or 'none'}), `{b['dir']}`; duration {b['duration_s']} s. "
+          f"Whole: weakly connected at every step (per-step connectivity 100 %, no first split).", "",
+          f"## Headline: the seeds where {lb} stays whole (a split there is the sensing's)", "",
+          f"| sensing | seeds where {lb} stays whole | connected per step, mean [%] | min [%] | seeds >= {q:g} % "
+          f"| seeds that stay whole | difference from {lb}, mean [95 % CI] [pp] | dV ratio, mean [95 % CI] |",
+          "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for lab, o in doc["others"].items():
+        h = o["headline"]
+        c = h["other_connectivity_pct"]
+        md.append(f"| {lab} | {h['n']} of {o['n']} | {_f(c['mean'])} | {_f(c['min'])} | {h['other_at_least']} of {h['n']} "
+                  f"| {h['other_whole']} of {h['n']} | {_ci_text(h['diff_pp'], sign=True)} | {_ci_text(h['dv_ratio'])} |")
+    md += ["", "## All paired seeds", "",
+           f"| sensing | seeds | connected per step, mean [%] ({lb}) | min [%] | seeds >= {q:g} % "
+           f"| difference from {lb}, mean [95 % CI] [pp] | dV ratio, mean [95 % CI] "
+           f"| split only under it (seeds) | split only under {lb} (seeds) | same start |",
+           "|---|---:|---:|---:|---:|---:|---:|---|---|---|"]
+    for lab, o in doc["others"].items():
+        a = o["all_seeds"]
+        c, cb = a["other_connectivity_pct"], a["base_connectivity_pct"]
+        sp = lambda d: f"{d['n']} ({', '.join(map(str, d['seeds'])) or 'none'})"  # noqa: E731
+        md.append(f"| {lab} | {o['n']} | {_f(c['mean'])} ({_f(cb['mean'])}) | {_f(c['min'])} "
+                  f"| {a['other_at_least']} of {o['n']} | {_ci_text(a['diff_pp'], sign=True)} | {_ci_text(a['dv_ratio'])} "
+                  f"| {sp(o['split_other_only'])} | {sp(o['split_base_only'])} | {_f(o['same_initial_state'])} |")
+    seeds = sorted({s for o in doc["others"].values() for s in o["seeds"]})
+    by = {lab: {r["seed"]: r for r in res["rows"]} for lab, res in paired.items()}
+    labs = list(doc["others"])
+    md += ["", "## Per seed: connected per step [%] (* whole), dV ratio", "",
+           f"| seed | {lb} | " + " | ".join(labs) + " | " + " | ".join(f"dV ratio {lab}" for lab in labs) + " |",
+           "|---:|" + "---:|" * (1 + 2 * len(labs))]
+    for s in seeds:
+        rows = [by[lab].get(s) for lab in labs]
+        first = next(r for r in rows if r is not None)
+        cell = lambda r, side: "-" if r is None else (  # noqa: E731
+            f"{_f(_pct(r.get(f'{side}.{WCF}')), 3)}{'*' if r.get(f'{side}.whole') else ''}")
+        md.append(f"| {s} | {cell(first, 'base')} | " + " | ".join(cell(r, "other") for r in rows) + " | "
+                  + " | ".join("-" if r is None else _f(r.get("ratio.delta_v_total_mps"), 3) for r in rows) + " |")
+    md += ["", "Machine-readable: `compare.json` (per sensing, by label: `headline`, `all_seeds`, `split_other_only`, "
+               "`split_base_only`, `paired_stats`); each sensing's paired table: `paired.md` / `paired.parquet`. "
+               "deploy/campaign_compare.py.", ""]
+    return md

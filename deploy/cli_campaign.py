@@ -102,31 +102,53 @@ def campaign(scenario: str, n_seeds: int, first_seed: int, sets: tuple[str, ...]
 
 @click.command("campaign-compare")
 @click.argument("base", type=click.Path(exists=True, file_okay=False))
-@click.argument("other", type=click.Path(exists=True, file_okay=False))
-@click.option("--label", "labels", multiple=True, help="Names of BASE and OTHER in the report (twice; default base, other).")
-@click.option("--out", "out", type=click.Path(file_okay=False), help="Output directory (default OTHER/paired-<BASE name>).")
+@click.argument("others", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False))
+@click.option("--label", "labels", multiple=True,
+              help="Names of BASE and of each OTHER in the report, in that order (default base, other; with "
+                   "several OTHERs their directory names).")
+@click.option("--out", "out", type=click.Path(file_okay=False),
+              help="Output directory (default OTHER/paired-<BASE name>; with several OTHERs BASE/compare).")
 @click.option("--tolerance-pp", type=click.FloatRange(min=0.0), default=2.0, show_default=True,
               help="Per-step weak connectivity: the allowed |OTHER - BASE| in percentage points.")
 @click.option("--window-h", type=click.FloatRange(min=0.0, min_open=True), default=2.0, show_default=True,
               help="Connectivity per time window of this many hours (from the recordings, when both were kept).")
-def campaign_compare(base: str, other: str, labels: tuple[str, ...], out: str | None, tolerance_pp: float,
-                     window_h: float) -> None:
-    """Compare two campaigns seed by seed (same seeds, same initial conditions): the difference in
-    connectivity, the dV ratio, closest approach, with 95 % confidence intervals over the seeds."""
-    from swarmhil.deploy.campaign_compare import WCF, CompareError, write_paired  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+@click.option("--at-least-pct", type=click.FloatRange(0.0, 100.0), default=97.0, show_default=True,
+              help="The headline counts the seeds whose per-step connectivity under OTHER is at least this [%].")
+def campaign_compare(base: str, others: tuple[str, ...], labels: tuple[str, ...], out: str | None, tolerance_pp: float,
+                     window_h: float, at_least_pct: float) -> None:
+    """Compare campaigns seed by seed against BASE (same seeds, same initial conditions): the
+    difference in connectivity, the dV ratio, closest approach, with 95 % confidence intervals over
+    the seeds; the seeds that split under OTHER only (and under BASE only); and a headline over the
+    seeds where BASE stays whole. Writes OUT/compare.json and OUT/compare.md beside the paired tables."""
+    from swarmhil.deploy.campaign_compare import WCF, CompareError, write_compare  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-    if labels and len(labels) != 2:
-        click.echo("error: --label must be given twice (BASE, then OTHER) or not at all", err=True)
+    if labels and len(labels) != len(others) + 1:
+        click.echo(f"error: --label must be given {len(others) + 1} times (BASE, then each OTHER) or not at all",
+                   err=True)
         sys.exit(2)
-    out_dir = Path(out) if out else Path(other) / f"paired-{Path(base).name}"
+    if out:
+        out_dir = Path(out)
+    else:
+        out_dir = Path(others[0]) / f"paired-{Path(base).name}" if len(others) == 1 else Path(base) / "compare"
     try:
-        res = write_paired(base, other, out_dir, labels or ("base", "other"), tolerance_pp, window_h * 3600.0)
+        res = write_compare(base, others, out_dir, labels or None, tolerance_pp, window_h * 3600.0, at_least_pct)
     except CompareError as exc:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
-    st = res["stats"]
-    s = st["metrics"][WCF]
-    ci = "" if s["ci95_low"] is None else f", 95 % CI [{s['ci95_low']:+.2f}, {s['ci95_high']:+.2f}]"
-    click.echo(f"{st['seeds']} paired seeds (same initial state: {st['same_initial_state']}); per-step weak "
-               f"connectivity difference {s['mean']:+.2f} pp{ci}; {st['seeds_within']} of {st['seeds']} within "
-               f"{tolerance_pp:g} pp; wrote {', '.join(str(p) for p in res['paths'])}")
+    lb = res["compare"]["base"]["label"]
+    for lab, one in res["paired"].items():
+        st = one["stats"]
+        s = st["metrics"][WCF]
+        agg = res["compare"]["others"][lab]
+        h = agg["headline"]
+        ci = "" if s["ci95_low"] is None else f", 95 % CI [{s['ci95_low']:+.2f}, {s['ci95_high']:+.2f}]"
+        hc = h["other_connectivity_pct"]
+        head = ("no seed" if not h["n"] else
+                f"mean {hc['mean']:.2f} %, min {hc['min']:.2f} %, {h['other_at_least']} of {h['n']} >= {at_least_pct:g} %")
+        click.echo(f"{'' if len(others) == 1 else lab + ': '}{st['seeds']} paired seeds (same initial state: "
+                   f"{st['same_initial_state']}); per-step weak connectivity difference {s['mean']:+.2f} pp{ci}; "
+                   f"{st['seeds_within']} of {st['seeds']} within {tolerance_pp:g} pp; split only under {lab}: "
+                   f"{agg['split_other_only']['n']}, only under {lb}: {agg['split_base_only']['n']}; where {lb} stays "
+                   f"whole ({h['n']} seeds): {head}; "
+                   f"wrote {', '.join(str(p) for p in one['paths'])}")
+    click.echo(f"wrote {', '.join(str(p) for p in res['paths'])}")
