@@ -83,6 +83,8 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
             continue
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val < 0:
             raise ValueError(f"[nav.params].{key} must be a finite number >= 0 (got {val!r})")
+        if key == "output_max_misses" and not float(val).is_integer():
+            raise ValueError(f"[nav.params].{key} must be an integer >= 0 (got {val!r})")
         if key in ("confirm_hits", "max_misses") and (not float(val).is_integer() or val < 1):
             raise ValueError(f"[nav.params].{key} must be an integer >= 1 (got {val!r})")
 

@@ -97,6 +97,20 @@ def test_track_creation_confirmation_gating_and_deletion():
     assert nav.tracks == []
 
 
+def test_output_max_misses_zero_outputs_only_the_tracks_seen_in_this_frame():
+    """output_max_misses = 0: a confirmed track that misses a frame is kept (it coasts, and takes its
+    blob back) but not output, so the controller acts only on neighbours the camera sees now."""
+    cam = Camera()
+    nav = EkfNavigator(cam, SpacecraftShape(), A_M, N_RADPS, EkfConfig(confirm_hits=3, max_misses=2, output_max_misses=0))
+    area = 0.24e6 / 200.0**2
+    out = [nav.update(10.0 * k, 0.0, _blob_at((540.0, 540.0), area)) for k in range(3)]
+    tid = out[-1][0].track_id
+    assert nav.update(30.0, 0.0, Blobs.empty()) == [] and len(nav.tracks) == 1  # kept, not output
+    back = nav.update(40.0, 0.0, _blob_at((540.0, 540.0), area))
+    assert [t.track_id for t in back] == [tid]  # the same track takes its blob back and is output again
+    assert EkfConfig().output_max_misses == -1  # the default: as max_misses
+
+
 def test_tracks_behind_the_camera_or_with_singular_s_are_not_associated_and_nothing_raises():
     from swarmhil.agent.nav.ekf import gated_distances
 

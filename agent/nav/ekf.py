@@ -35,7 +35,11 @@ detection range is kept (not output) for up to max_coast_s after its last blob i
 the blob back through the same gate when the relative orbit brings the neighbour into view again
 (the ROE hardly change meanwhile, so the converged estimate is kept instead of restarting from a
 0.2 m/s velocity prior); predicted in view and not seen for max_misses frames, it is deleted.
-Output: confirmed tracks with at most max_misses consecutive misses.
+Output: confirmed tracks with at most `output_max_misses` consecutive misses (default max_misses).
+With output_max_misses = 0 only the tracks a blob updated in this frame are output: the controller
+acts on the neighbours the camera sees now, as with ideal sensing, and a track that coasts while a
+new track has started on the same neighbour (its blob fell outside the old track's gate) is not
+handed over twice.
 
 Implementation (issue 16): each frame's predict with the IMM mixing, the innovations of every
 (track, blob) pair and the update of every matched track run over the track axis at once (means
@@ -72,6 +76,7 @@ class EkfConfig:
     gate_chi2: float = 16.27
     confirm_hits: int = 3
     max_misses: int = 5
+    output_max_misses: int = -1  # output confirmed tracks with at most this many misses; -1: max_misses (docstring)
     fov_margin: float = 1.2  # delete a coasting track predicted beyond margin * half FOV
     range_margin: float = 1.5  # ... or beyond margin * the camera's max range
     max_coast_s: float = 0.0  # > 0: a confirmed track predicted out of view coasts this long (docstring)
@@ -387,7 +392,9 @@ class EkfNavigator:
                 tr.blob_index = j
                 tr.last_hit_t_s = t_s
                 self.tracks.append(tr)
-        out = [tr for tr in self.tracks if tr.hits >= self.cfg.confirm_hits and tr.misses <= self.cfg.max_misses]
+        cfg = self.cfg
+        out_misses = cfg.max_misses if cfg.output_max_misses < 0 else min(cfg.output_max_misses, cfg.max_misses)
+        out = [tr for tr in self.tracks if tr.hits >= cfg.confirm_hits and tr.misses <= out_misses]
         if not out:
             return []
         pos, vel = roe_to_lvlh(np.stack([tr.x for tr in out]), u_rad, self.n)  # elementwise: per row as for one
