@@ -2,7 +2,7 @@
 (telemetry `sc/<id>/tm`) as flat rows (the package docstring says what they hold)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +38,7 @@ class DecisionRows:
     observer: np.ndarray  # (D,)
     neighbour: list[str]  # track id or, with `rel` sensing, the spacecraft id
     roe_jk_m: np.ndarray  # (D, 6) ROE of the observer relative to the neighbour, as the controller used it
+    behaviour: list[str] = field(default_factory=list)  # (D,) "collision_avoidance", "alignment", "attraction", "none"
 
 
 def _tm_topics(reader, run: str, ids: list[str]) -> dict[str, int]:
@@ -54,7 +55,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
     from mcap_protobuf.decoder import DecoderFactory
 
     step, obs, code, pos, vel, roe, cov, age, used = [], [], [], [], [], [], [], [], []
-    d_step, d_obs, d_nb, d_roe = [], [], [], []
+    d_step, d_obs, d_nb, d_roe, d_beh = [], [], [], [], []
     names: dict[tuple[int, str], int] = {}
     nan_cov = np.full(36, np.nan)
     with open(mcap_path, "rb") as f:
@@ -74,6 +75,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
                     d_obs.append(j)
                     d_nb.append(d.neighbour)
                     d_roe.append(list(d.roe_rel_m))
+                    d_beh.append(d.behaviour)
             for tr in tm.tracks:
                 if len(tr.roe_m) != 6:
                     continue
@@ -97,7 +99,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
         roe_m=np.asarray(roe, float).reshape(-1, 6), covariance_m2=np.asarray(cov, float).reshape(-1, 6, 6),
         age_steps=np.asarray(age, dtype=np.int64), used=np.asarray(used, dtype=bool))
     dec = DecisionRows(np.asarray(d_step, dtype=np.int64), np.asarray(d_obs, dtype=np.int64), d_nb,
-                       np.asarray(d_roe, float).reshape(-1, 6))
+                       np.asarray(d_roe, float).reshape(-1, 6), d_beh)
     return rows, dec
 
 
