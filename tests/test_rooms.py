@@ -422,7 +422,7 @@ def test_type_check_covers_the_interfaces() -> None:
     assert len(list(ROOT.glob("missions/*/contract.py"))) >= 2
 
 
-JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "figures", "page"),
+JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "diagnosis", "figures", "page"),
              "dashboards/bandwidth": ("read", "accounting", "figures", "page"),
              "missions/p000_capture/report": ("read", "analysis", "figures", "page"),
              # paper 002's analysis is its metrics hook; no `read`: its section reads only the reporter's truth

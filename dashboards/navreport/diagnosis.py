@@ -27,7 +27,8 @@ others are matched. At each truth row: visible pairs (truth); visible pairs with
 split into `lost` (the pair had one at the previous row: a lost track) and `missed` (it had none:
 not detected or not confirmed yet); false track rows; duplicate tracks (matched tracks of j on a k
 beyond the first); swaps (a matched row whose track's previous matched row was another true
-neighbour). Errors per layer, count / median / max over the rows of the step: `tracks` (every
+neighbour); breaks (a pair matched at the previous row and at this one, by another track id: the
+navigator dropped its track and started a new one on the same neighbour). Errors per layer, count / median / max over the rows of the step: `tracks` (every
 matched track the navigator output), `used` (the matched tracks the controller acted on: passed
 [nav].control_max_sigma_m and decided on), `decisions` (the ROE of the observer relative to the
 neighbour each behaviour decision used, against truth: analysis.decision_roe_errors; ROE only, a
@@ -106,6 +107,7 @@ class StepSeries:
     false_tracks: np.ndarray
     duplicate_tracks: np.ndarray
     swaps: np.ndarray
+    breaks: np.ndarray  # pairs matched at the previous row and now, under another track id
     layers: dict[str, dict[str, dict[str, np.ndarray]]]  # layer -> quantity -> count / median / max
     events: dict[str, list[dict[str, Any]]]  # first MAX_EVENTS lost tracks, swaps, false tracks
     event_counts: dict[str, int]
@@ -140,6 +142,10 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     swap_rows = order[1:][same & changed]
     swap_prev = order[:-1][same & changed]
     swaps = np.bincount(err.truth_row[swap_rows], minlength=T)[:T]
+    code = np.full((T, N, N), -1, dtype=np.int64)  # the matched track of each pair (one of them, with duplicates)
+    code[tr, j, k] = rows.track[m]
+    break_mask = np.zeros((T, N, N), dtype=bool)
+    break_mask[1:] = (code[1:] >= 0) & (code[:-1] >= 0) & (code[1:] != code[:-1])
 
     layers: dict[str, dict[str, dict[str, np.ndarray]]] = {}
     if rows.n:
@@ -162,6 +168,9 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
                         for t, a, b in np.argwhere(lost_mask)[:MAX_EVENTS]],
         "swaps": [{"step": int(rows.step[r]), "track": names[rows.track[r]], "from": ids[err.neighbour[p]],
                    "to": ids[err.neighbour[r]]} for r, p in list(zip(swap_rows, swap_prev))[:MAX_EVENTS]],
+        "breaks": [{"step": int(truth.step[t]), "observer": ids[a], "neighbour": ids[b],
+                    "from": names[code[t - 1, a, b]], "to": names[code[t, a, b]]}
+                   for t, a, b in np.argwhere(break_mask)[:MAX_EVENTS]],
     }
     fr = np.flatnonzero(false)
     false_tracks: list[dict[str, Any]] = []
@@ -171,11 +180,11 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
                              "rows": int(rr.size), "used_rows": int(rows.used[rr].sum()),
                              "nearest_true_m_min": _f(np.nanmin(err.assoc_m[rr])) if np.isfinite(err.assoc_m[rr]).any() else None})
     events["false_tracks"] = false_tracks
-    counts = {"lost_tracks": int(lost_mask.sum()), "swaps": int(swap_rows.size),
+    counts = {"lost_tracks": int(lost_mask.sum()), "swaps": int(swap_rows.size), "breaks": int(break_mask.sum()),
               "false_tracks": int(np.unique(rows.track[fr]).size), "false_track_rows": int(fr.size),
               "missed_pair_steps": int(missed_mask.sum()), "duplicate_track_rows": int(dup.sum())}
     return StepSeries(truth.step.copy(), truth.t_s.copy(), n_comp, vis.sum(axis=(1, 2)), missed_mask.sum(axis=(1, 2)),
-                      lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, layers, events, counts,
+                      lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, break_mask.sum(axis=(1, 2)), layers, events, counts,
                       {"gate_m": gate_m, "gate_fraction_of_estimated_range": gate_fraction})
 
 
@@ -183,7 +192,7 @@ def step_summary(s: StepSeries) -> dict[str, Any]:
     """Totals of the per-step comparisons over the run and the worst step of each (nav_summary.json)."""
     out: dict[str, Any] = {"definitions": "dashboards/navreport/diagnosis.py", "false_gate": s.false_gate,
                            "visible_pair_steps": int(s.visible_pairs.sum()), **s.event_counts}
-    for name in ("missed", "lost", "false_tracks", "duplicate_tracks", "swaps"):
+    for name in ("missed", "lost", "false_tracks", "duplicate_tracks", "swaps", "breaks"):
         v = getattr(s, name)
         out[f"steps_with_{name}"] = int(np.count_nonzero(v))
         out[f"worst_step_{name}"] = {"step": int(s.step[np.argmax(v)]), "count": int(v.max())} if v.size and v.max() > 0 else None
@@ -207,7 +216,7 @@ def step_series_json(s: StepSeries) -> dict[str, Any]:
             "step": s.step.tolist(), "t_s": s.t_s.tolist(), "components": s.components.tolist(),
             "visible_pairs": s.visible_pairs.tolist(), "missed": s.missed.tolist(), "lost": s.lost.tolist(),
             "false_tracks": s.false_tracks.tolist(), "duplicate_tracks": s.duplicate_tracks.tolist(),
-            "swaps": s.swaps.tolist(),
+            "swaps": s.swaps.tolist(), "breaks": s.breaks.tolist(),
             "layers": {layer: {name: {k: (v.tolist() if k == "count" else _v(v)) for k, v in st.items()}
                                for name, st in qs.items()} for layer, qs in s.layers.items()},
             "events": s.events, "event_counts": s.event_counts}
