@@ -142,8 +142,12 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     swap_rows = order[1:][same & changed]
     swap_prev = order[:-1][same & changed]
     swaps = np.bincount(err.truth_row[swap_rows], minlength=T)[:T]
-    code = np.full((T, N, N), -1, dtype=np.int64)  # the matched track of each pair (one of them, with duplicates)
-    code[tr, j, k] = rows.track[m]
+    code = np.full((T, N, N), -1, dtype=np.int64)  # the matched track of each pair (the nearest of duplicates)
+    key = (tr * N + j) * N + k
+    near = np.lexsort((err.assoc_m[m], key))
+    _, first = np.unique(key[near], return_index=True)
+    pick = near[first]
+    code[tr[pick], j[pick], k[pick]] = rows.track[m][pick]
     break_mask = np.zeros((T, N, N), dtype=bool)
     break_mask[1:] = (code[1:] >= 0) & (code[:-1] >= 0) & (code[1:] != code[:-1])
 
