@@ -11,9 +11,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from swarmhil.dashboards.kit import figures_of, render
-from swarmhil.dashboards.navreport.analysis import H, analyse_run
-from swarmhil.dashboards.navreport.diagnosis import (edge_line, splits, splits_summary, step_series, step_series_json,
-                                                    step_summary)
+from swarmhil.dashboards.navreport.analysis import H, RunNav, analyse_run
+from swarmhil.dashboards.navreport.diagnosis import (StepSeries, edge_line, splits, splits_summary, step_series,
+                                                    step_series_json, step_summary)
 from swarmhil.dashboards.navreport.figures import fig_steps, nav_figures
 from swarmhil.dashboards.run_metrics import summary_with_metrics
 
@@ -233,6 +233,24 @@ def layers_html(st: dict[str, Any]) -> str:
             + _html_table(["layer", "error", "rows", "median of the per-step medians", "max", "step of the max"], rows))
 
 
+def nav_diagnosis(nav: RunNav, out: Path, prefix: str = "") -> tuple[list[dict[str, Any]], StepSeries, list[dict[str, Any]]]:
+    """The splits and the per-step comparisons of an analysed run (diagnosis.py), their totals put into
+    nav.summary ("splits", "per_step"), and the two page sections (the per-step figure written into out)."""
+    sps = splits(nav)
+    steps = step_series(nav)
+    nav.summary["splits"] = splits_summary(sps)
+    nav.summary["per_step"] = step_summary(steps)
+    steps_fig = figures_of(out, [(fig_steps(steps, [s["t_s"] for s in sps], out / f"{prefix}steps.png"),
+                                  "Per step: weakly connected components of the visibility digraph (splits: red lines); "
+                                  "visible pairs with no matched track (missed, lost), false tracks, swaps, breaks, "
+                                  "duplicates; median (solid) and max (dotted) error of each layer.")])
+    sections = [{"anchor": "splits", "title": "Splits of the swarm: the visibility edges lost and what navigation believed",
+                 "html": splits_html(sps), "figures": []},
+                {"anchor": "per-step", "title": "Each navigation layer against truth, per step",
+                 "html": layers_html(nav.summary["per_step"]), "figures": steps_fig}]
+    return sps, steps, sections
+
+
 def write_nav_report(run_dir: str | Path) -> Path:
     """Navigation error of a run against truth: run_dir/navreport/index.html (+ PNGs, nav_summary.json,
     nav_table.md, nav_splits.json / .md, nav_steps.json). Returns the path of index.html."""
@@ -240,10 +258,7 @@ def write_nav_report(run_dir: str | Path) -> Path:
     nav = analyse_run(run_dir)
     out = run_dir / "navreport"
     out.mkdir(exist_ok=True)
-    sps = splits(nav)
-    steps = step_series(nav)
-    nav.summary["splits"] = splits_summary(sps)
-    nav.summary["per_step"] = step_summary(steps)
+    sps, steps, sections = nav_diagnosis(nav, out)
     (out / "nav_summary.json").write_text(json.dumps(nav.summary, indent=1))
     (out / "nav_splits.json").write_text(json.dumps({"definitions": "dashboards/navreport/diagnosis.py", "run": nav.truth.run,
                                                      "splits": sps}, indent=1))
@@ -252,14 +267,6 @@ def write_nav_report(run_dir: str | Path) -> Path:
     table = nav_table_rows(nav.summary) + diagnosis_rows(nav.summary)
     (out / "nav_table.md").write_text(_markdown(["quantity", "value"], [list(r) for r in table]))
     figs = nav_figures(nav, out)
-    steps_fig = figures_of(out, [(fig_steps(steps, [s["t_s"] for s in sps], out / "steps.png"),
-                                  "Per step: weakly connected components of the visibility digraph (splits: red lines); "
-                                  "visible pairs with no matched track (missed, lost), false tracks, swaps; median "
-                                  "(solid) and max (dotted) error of each layer.")])
-    sections = [{"anchor": "splits", "title": "Splits of the swarm: the visibility edges lost and what navigation believed",
-                 "html": splits_html(sps), "figures": []},
-                {"anchor": "per-step", "title": "Each navigation layer against truth, per step",
-                 "html": layers_html(nav.summary["per_step"]), "figures": steps_fig}]
     render("page.html", out / "index.html", title=f"Navigation error: {nav.truth.run}",
            head=[(k, html.escape(v)) for k, v in table], sections=sections,
            figures=figures_of(out, figs), intro="<p>Definitions: dashboards/navreport/ (package docstring). Numbers: nav_summary.json.</p>")
