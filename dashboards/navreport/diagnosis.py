@@ -14,10 +14,11 @@ and the other end k about j. A side's belief at a row is the track of the observ
 the true neighbour (analysis.associate: the nearest true relative position to the track's estimate;
 with several, the nearest), or none; with its estimate (LVLH position, velocity, ROE, 6x6 ROE
 covariance and its 1-sigma), whether the controller acted on it (a behaviour decision on that track
-at that step, with the behaviour and the ROE it used) and its errors against the true relative
+at that step, with the behaviour, the ROE it used and the acceleration it contributed, also along
+the line of sight) and its errors against the true relative
 state of the recorded truth: range |r_hat| - |r|, position, velocity, a*da, a*dl (signed),
 |a*de|, |a*di| (norms of the 2-vectors), NEES. Geometry of both the truth and the estimate: range
-margin (detection range - range) and image position (u, v) [px] with its margin to the nearest
+margin (detection range - range), range rate, and image position (u, v) [px] with its margin to the nearest
 image edge (f (tan(half FOV) - max(|x|, |z|) / y), the same square FOV; negative: outside; none
 behind the camera). With ideal `rel` sensing there are no tracks and a decision names the true id.
 
@@ -280,13 +281,17 @@ class _Beliefs:
             self.decisions[(int(drow[i]), int(dec.observer[i]), dec.neighbour[i])] = int(i)
         self.N = N
 
-    def _decision(self, t: int, j: int, name: str) -> dict[str, Any] | None:
+    def _decision(self, t: int, j: int, name: str, los: np.ndarray) -> dict[str, Any] | None:
+        """The controller's decision on this neighbour: behaviour, the ROE it used and its error, and the
+        acceleration it contributed, also along the true line of sight to the neighbour (> 0: towards it)."""
         i = self.decisions.get((t, j, name))
         if i is None:
             return None
         dec = self.nav.decisions
+        acc = dec.accel_mps2[i] if i < dec.accel_mps2.shape[0] else np.full(3, np.nan)
         return {"neighbour": name, "behaviour": dec.behaviour[i] if i < len(dec.behaviour) else None,
-                "roe_jk_m": _v(dec.roe_jk_m[i]), "roe_jk_err_m": _v(self.nav.decision_err[i])}
+                "roe_jk_m": _v(dec.roe_jk_m[i]), "roe_jk_err_m": _v(self.nav.decision_err[i]),
+                "accel_mps2": _v(acc), "accel_towards_neighbour_mps2": _f(acc @ los)}
 
     def entry(self, t: int, j: int, k: int) -> dict[str, Any]:
         nav, truth, cam = self.nav, self.nav.truth, self.nav.camera
@@ -294,13 +299,16 @@ class _Beliefs:
         half = cam.image_px / 2.0
         focal = half / cam.tan_half_fov
         rel = truth.position_m[t, k] - truth.position_m[t, j]
+        rel_v = truth.velocity_mps[t, k] - truth.velocity_mps[t, j]
         rng = float(np.linalg.norm(rel))
+        los = rel / rng if rng > 0 else np.full(3, np.nan)
         img, margin = _image(rel, focal, half, cam.tan_half_fov)
         out: dict[str, Any] = {
             "step": int(truth.step[t]), "t_s": float(truth.t_s[t]), "observer": truth.ids[j], "neighbour": truth.ids[k],
             "truly_visible": bool(nav.vis[t, j, k]) if nav.vis is not None else None,
-            "truth": {"position_m": _v(rel), "velocity_mps": _v(truth.velocity_mps[t, k] - truth.velocity_mps[t, j]),
+            "truth": {"position_m": _v(rel), "velocity_mps": _v(rel_v),
                       "roe_m": _v(truth.roe_m[t, k] - truth.roe_m[t, j]), "range_m": _f(rng),
+                      "range_rate_mps": _f(rel_v @ los),
                       "range_margin_m": _f(cam.detection_range_m - rng), "image_px": img, "fov_margin_px": _f(margin) if margin is not None else None}}
         cands = self.tracks.get((t, j, k), [])
         out["tracks_on_neighbour"] = len(cands)
@@ -319,14 +327,15 @@ class _Beliefs:
                 "position_m": _v(est), "velocity_mps": _v(rows.velocity_mps[r]), "roe_m": _v(rows.roe_m[r]),
                 "sigma_roe_m": _v(np.sqrt(np.clip(np.diagonal(cov), 0, None))) if np.isfinite(cov).all() else None,
                 "covariance_m2": [_v(c) for c in cov] if np.isfinite(cov).all() else None,
-                "range_m": _f(np.linalg.norm(est)), "image_px": e_img, "fov_margin_px": _f(e_margin) if e_margin is not None else None,
+                "range_m": _f(np.linalg.norm(est)), "range_rate_mps": _f(rows.velocity_mps[r] @ est / np.linalg.norm(est)),
+                "image_px": e_img, "fov_margin_px": _f(e_margin) if e_margin is not None else None,
                 "range_err_m": _f(np.linalg.norm(est) - rng), "position_err_m": _f(np.linalg.norm(err.position_err_m[r])),
                 "velocity_err_mps": _f(np.linalg.norm(err.velocity_err_mps[r])),
                 "da_err_m": _f(e[0]), "dl_err_m": _f(e[1]), "de_err_m": _f(np.hypot(e[2], e[3])),
                 "di_err_m": _f(np.hypot(e[4], e[5])), "roe_err_m": _v(e), "nees": _f(err.nees[r])}
-            out["decision"] = self._decision(t, j, tid)
+            out["decision"] = self._decision(t, j, tid, los)
         else:  # ideal sensing: the decision names the spacecraft
-            out["decision"] = self._decision(t, j, truth.ids[k])
+            out["decision"] = self._decision(t, j, truth.ids[k], los)
         return out
 
 

@@ -120,20 +120,26 @@ def _side_cells(v: dict[str, Any]) -> list[str]:
 EDGE_HEADER = ["edge", "last seen step", "lost by", "side", "track", "controller", "true range [m]", "range error [m]",
                "FOV margin true / estimated [px]", "error a.da / |a.de| / |a.di| [m]", "max 1-sigma a.da, a.de, a.di [m]",
                "steps tracked / acted on, window"]
-BELIEF_HEADER = ["step", "visible", "track", "controller", "true range [m]", "est. range [m]", "FOV margin true / est. [px]",
+BELIEF_HEADER = ["step", "visible", "track", "controller (accel. towards it [mm/s^2])", "true range [m]", "est. range [m]",
+                 "range rate true / est. [mm/s]", "FOV margin true / est. [px]",
                  "error a.da / |a.de| / |a.di| [m]", "velocity error [mm/s]", "max 1-sigma [m]", "NEES"]
 
 
 def _belief_cells(e: dict[str, Any]) -> list[str]:
     tr, dec, tru = e["track"], e["decision"], e["truth"]
-    ctrl = f"acting: {dec['behaviour']}" if dec else "-"
+    ctrl = "-"
+    if dec:
+        acc = dec.get("accel_towards_neighbour_mps2")
+        ctrl = f"{dec['behaviour']} ({_g(None if acc is None else 1e3 * acc)})"
+    rr = lambda x: None if x is None else 1e3 * x  # noqa: E731
     if tr is None:
         return [str(e["step"]), _fmt(e["truly_visible"]), "none", ctrl, _g(tru["range_m"], 4), "-",
-                f"{_g(tru['fov_margin_px'])} / -", "-", "-", "-", "-"]
+                f"{_g(rr(tru['range_rate_mps']))} / -", f"{_g(tru['fov_margin_px'])} / -", "-", "-", "-", "-"]
     sig = max(tr["sigma_roe_m"][i] for i in (0, 2, 3, 4, 5)) if tr["sigma_roe_m"] else None
     vel = None if tr["velocity_err_mps"] is None else 1e3 * tr["velocity_err_mps"]
     return [str(e["step"]), _fmt(e["truly_visible"]), tr["id"] + (" (false)" if tr["false"] else ""), ctrl,
-            _g(tru["range_m"], 4), _g(tr["range_m"], 4), f"{_g(tru['fov_margin_px'])} / {_g(tr['fov_margin_px'])}",
+            _g(tru["range_m"], 4), _g(tr["range_m"], 4), f"{_g(rr(tru['range_rate_mps']))} / {_g(rr(tr['range_rate_mps']))}",
+            f"{_g(tru['fov_margin_px'])} / {_g(tr['fov_margin_px'])}",
             f"{_g(tr['da_err_m'])} / {_g(tr['de_err_m'])} / {_g(tr['di_err_m'])}", _g(vel), _g(sig), _g(tr["nees"])]
 
 

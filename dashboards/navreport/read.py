@@ -39,6 +39,7 @@ class DecisionRows:
     neighbour: list[str]  # track id or, with `rel` sensing, the spacecraft id
     roe_jk_m: np.ndarray  # (D, 6) ROE of the observer relative to the neighbour, as the controller used it
     behaviour: list[str] = field(default_factory=list)  # (D,) "collision_avoidance", "alignment", "attraction", "none"
+    accel_mps2: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (D, 3) this neighbour's contribution to the command
 
 
 def _tm_topics(reader, run: str, ids: list[str]) -> dict[str, int]:
@@ -55,7 +56,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
     from mcap_protobuf.decoder import DecoderFactory
 
     step, obs, code, pos, vel, roe, cov, age, used = [], [], [], [], [], [], [], [], []
-    d_step, d_obs, d_nb, d_roe, d_beh = [], [], [], [], []
+    d_step, d_obs, d_nb, d_roe, d_beh, d_acc = [], [], [], [], [], []
     names: dict[tuple[int, str], int] = {}
     nan_cov = np.full(36, np.nan)
     with open(mcap_path, "rb") as f:
@@ -76,6 +77,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
                     d_nb.append(d.neighbour)
                     d_roe.append(list(d.roe_rel_m))
                     d_beh.append(d.behaviour)
+                    d_acc.append((d.accel_mps2.x, d.accel_mps2.y, d.accel_mps2.z))
             for tr in tm.tracks:
                 if len(tr.roe_m) != 6:
                     continue
@@ -99,7 +101,7 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
         roe_m=np.asarray(roe, float).reshape(-1, 6), covariance_m2=np.asarray(cov, float).reshape(-1, 6, 6),
         age_steps=np.asarray(age, dtype=np.int64), used=np.asarray(used, dtype=bool))
     dec = DecisionRows(np.asarray(d_step, dtype=np.int64), np.asarray(d_obs, dtype=np.int64), d_nb,
-                       np.asarray(d_roe, float).reshape(-1, 6), d_beh)
+                       np.asarray(d_roe, float).reshape(-1, 6), d_beh, np.asarray(d_acc, float).reshape(-1, 3))
     return rows, dec
 
 
