@@ -151,6 +151,14 @@ def test_report_nav_names_the_lost_edges_of_the_injected_split_and_what_navigati
                 got = x["track"]
                 assert got["id"] == tr.track and x["tracks_on_neighbour"] == len(mine)
                 assert got["used_by_controller"] == any(dd.neighbour == tr.track for dd in tm.decisions)
+                dd = [d for d in tm.decisions if d.neighbour == tr.track]
+                if dd:  # the controller's decision on it: behaviour and acceleration, along the true line of sight
+                    acc = np.array([dd[0].accel_mps2.x, dd[0].accel_mps2.y, dd[0].accel_mps2.z])
+                    assert x["decision"]["behaviour"] == dd[0].behaviour
+                    assert x["decision"]["accel_towards_neighbour_mps2"] == pytest.approx(
+                        acc @ true_rel / np.linalg.norm(true_rel), abs=1e-15)
+                else:
+                    assert x["decision"] is None
                 assert got["range_err_m"] == pytest.approx(np.linalg.norm(est) - np.linalg.norm(true_rel), abs=1e-9)
                 e_roe = np.array(tr.roe_m) - (roe[s][b] - roe[s][a])
                 assert got["da_err_m"] == pytest.approx(e_roe[0], abs=1e-9)

@@ -29,7 +29,8 @@ split into `lost` (the pair had one at the previous row: a lost track) and `miss
 not detected or not confirmed yet); false track rows; duplicate tracks (matched tracks of j on a k
 beyond the first); swaps (a matched row whose track's previous matched row was another true
 neighbour); breaks (a pair matched at the previous row and at this one, by another track id: the
-navigator dropped its track and started a new one on the same neighbour). Errors per layer, count / median / max over the rows of the step: `tracks` (every
+navigator dropped its track and started a new one on the same neighbour). Without any track in the
+telemetry (ideal `rel` sensing) these counts are kept but mean nothing (`tracks_recorded` false). Errors per layer, count / median / max over the rows of the step: `tracks` (every
 matched track the navigator output), `used` (the matched tracks the controller acted on: passed
 [nav].control_max_sigma_m and decided on), `decisions` (the ROE of the observer relative to the
 neighbour each behaviour decision used, against truth: analysis.decision_roe_errors; ROE only, a
@@ -113,6 +114,7 @@ class StepSeries:
     events: dict[str, list[dict[str, Any]]]  # first MAX_EVENTS lost tracks, swaps, false tracks
     event_counts: dict[str, int]
     false_gate: dict[str, float]
+    tracks_recorded: bool = True  # False: no track in the telemetry (ideal sensing), the track counts mean nothing
 
 
 def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float = FALSE_GATE_FRACTION) -> StepSeries:
@@ -190,13 +192,14 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
               "missed_pair_steps": int(missed_mask.sum()), "duplicate_track_rows": int(dup.sum())}
     return StepSeries(truth.step.copy(), truth.t_s.copy(), n_comp, vis.sum(axis=(1, 2)), missed_mask.sum(axis=(1, 2)),
                       lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, break_mask.sum(axis=(1, 2)), layers, events, counts,
-                      {"gate_m": gate_m, "gate_fraction_of_estimated_range": gate_fraction})
+                      {"gate_m": gate_m, "gate_fraction_of_estimated_range": gate_fraction}, rows.n > 0)
 
 
 def step_summary(s: StepSeries) -> dict[str, Any]:
     """Totals of the per-step comparisons over the run and the worst step of each (nav_summary.json)."""
     out: dict[str, Any] = {"definitions": "dashboards/navreport/diagnosis.py", "false_gate": s.false_gate,
-                           "visible_pair_steps": int(s.visible_pairs.sum()), **s.event_counts}
+                           "tracks_recorded": s.tracks_recorded, "visible_pair_steps": int(s.visible_pairs.sum()),
+                           **s.event_counts}
     for name in ("missed", "lost", "false_tracks", "duplicate_tracks", "swaps", "breaks"):
         v = getattr(s, name)
         out[f"steps_with_{name}"] = int(np.count_nonzero(v))
@@ -218,7 +221,7 @@ def step_summary(s: StepSeries) -> dict[str, Any]:
 def step_series_json(s: StepSeries) -> dict[str, Any]:
     """The per-step arrays as lists (nav_steps.json)."""
     return {"definitions": "dashboards/navreport/diagnosis.py", "false_gate": s.false_gate,
-            "step": s.step.tolist(), "t_s": s.t_s.tolist(), "components": s.components.tolist(),
+            "tracks_recorded": s.tracks_recorded, "step": s.step.tolist(), "t_s": s.t_s.tolist(), "components": s.components.tolist(),
             "visible_pairs": s.visible_pairs.tolist(), "missed": s.missed.tolist(), "lost": s.lost.tolist(),
             "false_tracks": s.false_tracks.tolist(), "duplicate_tracks": s.duplicate_tracks.tolist(),
             "swaps": s.swaps.tolist(), "breaks": s.breaks.tolist(),
@@ -357,8 +360,8 @@ def _verdict(entries: list[dict[str, Any]], last_row_step: int) -> dict[str, Any
             out["max_sigma_gained_roe_m"] = (max(tr["sigma_roe_m"][i] for i in (0, 2, 3, 4, 5))
                                              if tr["sigma_roe_m"] else None)
         elif dec is not None and None not in dec["roe_jk_err_m"]:  # ideal sensing: the ROE the decision used
-            e = np.asarray(dec["roe_jk_err_m"], float)
-            out.update({"da_err_m": _f(e[0]), "de_err_m": _f(np.hypot(e[2], e[3])), "di_err_m": _f(np.hypot(e[4], e[5]))})
+            e = np.asarray(dec["roe_jk_err_m"], float)  # of j relative to k: a*da's sign turned to k relative to j
+            out.update({"da_err_m": _f(-e[0]), "de_err_m": _f(np.hypot(e[2], e[3])), "di_err_m": _f(np.hypot(e[4], e[5]))})
     return out
 
 

@@ -193,7 +193,7 @@ def fig_steps(s: StepSeries, split_t_s: Sequence[float], path: Path) -> str:
     for name, c in (("missed", "C0"), ("lost", "C3"), ("false_tracks", "C1"), ("swaps", "C4"), ("duplicate_tracks", "C2"),
                     ("breaks", "C5")):
         v = getattr(s, name)
-        if v.any():
+        if v.any() and s.tracks_recorded:
             a.step(t, v, where="post", color=c, lw=0.9, label=name.replace("_", " "))
     a.set_ylabel("count per step")
     if a.get_legend_handles_labels()[0]:

@@ -86,7 +86,9 @@ def diagnosis_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
         first = (f"; first at step {sp['split_steps'][0]}, edges lost: {', '.join(sp['lost_edges_at_first_split']) or 'none'}"
                  if sp["splits"] else "")
         out.append(("splits of the visibility graph (1 -> more weakly connected components)", f"{sp['splits']}{first}"))
-    if st is not None:
+    if st is not None and not st.get("tracks_recorded", True):
+        out.append(("visible pairs without a track, false tracks, swaps", "n/a: no tracks in the telemetry"))
+    elif st is not None:
         out += [("visible pair-steps: missed (never tracked) / lost tracks (had one the step before)",
                  f"{st['visible_pair_steps']}: {st['missed_pair_steps']} / {st['lost_tracks']}"),
                 (f"false tracks (nearest true neighbour > max({_fmt(st['false_gate']['gate_m'])} m, "
@@ -132,9 +134,13 @@ def _belief_cells(e: dict[str, Any]) -> list[str]:
         acc = dec.get("accel_towards_neighbour_mps2")
         ctrl = f"{dec['behaviour']} ({_g(None if acc is None else 1e3 * acc)})"
     rr = lambda x: None if x is None else 1e3 * x  # noqa: E731
-    if tr is None:
+    if tr is None:  # with ideal sensing, the error of the ROE the decision used
+        roe = "-"
+        if dec and None not in dec["roe_jk_err_m"]:
+            d = dec["roe_jk_err_m"]
+            roe = f"{_g(-d[0])} / {_g(math.hypot(d[2], d[3]))} / {_g(math.hypot(d[4], d[5]))} (decision)"
         return [str(e["step"]), _fmt(e["truly_visible"]), "none", ctrl, _g(tru["range_m"], 4), "-",
-                f"{_g(rr(tru['range_rate_mps']))} / -", f"{_g(tru['fov_margin_px'])} / -", "-", "-", "-", "-"]
+                f"{_g(rr(tru['range_rate_mps']))} / -", f"{_g(tru['fov_margin_px'])} / -", roe, "-", "-", "-"]
     sig = max(tr["sigma_roe_m"][i] for i in (0, 2, 3, 4, 5)) if tr["sigma_roe_m"] else None
     vel = None if tr["velocity_err_mps"] is None else 1e3 * tr["velocity_err_mps"]
     return [str(e["step"]), _fmt(e["truly_visible"]), tr["id"] + (" (false)" if tr["false"] else ""), ctrl,
