@@ -218,7 +218,7 @@ def test_per_step_comparison_against_truth_of_the_split_run(split_run):
         assert doc["missed"] == ser.missed.tolist() and doc["components"] == ser.components.tolist()
 
 
-def _nav(vis: np.ndarray, pos: np.ndarray, rows: TrackRows):
+def _nav(vis: np.ndarray, pos: np.ndarray, rows: TrackRows, dec: DecisionRows):
     """A RunNav of hand-made arrays (no recording)."""
     from types import SimpleNamespace
 
@@ -228,8 +228,7 @@ def _nav(vis: np.ndarray, pos: np.ndarray, rows: TrackRows):
     truth = SimpleNamespace(step=np.arange(T), t_s=10.0 * np.arange(T), ids=[f"s{i}" for i in range(N)], n_bodies=N,
                             n_steps=T, position_m=pos, velocity_mps=np.zeros_like(pos), roe_m=np.zeros((T, N, 6)),
                             alive=np.ones((T, N), bool), run="hand")
-    dec = DecisionRows(np.zeros(0, int), np.zeros(0, int), [], np.zeros((0, 6)), [])
-    return RunNav(truth, rows, associate(rows, truth), dec, np.zeros((0, 6)), {}, vis, CAM)
+    return RunNav(truth, rows, associate(rows, truth), dec, np.zeros((dec.step.size, 6)), {}, vis, CAM)
 
 
 def test_splits_swaps_and_breaks_on_hand_made_arrays():
@@ -254,8 +253,10 @@ def test_splits_swaps_and_breaks_on_hand_made_arrays():
     rows = TrackRows(step=np.array([e[0] for e in est]), observer=np.zeros(R, int), track=np.array([e[1] for e in est]),
                      track_names=["s0/a", "s0/b", "s0/c", "s0/d"], position_m=np.array([e[2] for e in est], float),
                      velocity_mps=np.zeros((R, 3)), roe_m=np.zeros((R, 6)), covariance_m2=np.full((R, 6, 6), np.nan),
-                     age_steps=np.zeros(R, int), used=np.zeros(R, bool))
-    nav = _nav(vis, pos, rows)
+                     age_steps=np.zeros(R, int), used=np.array([e[:2] == (2, 1) for e in est]))
+    # the controller acted on track b at step 2: attraction, 0.1 mm/s^2 along +y, i.e. towards s1
+    dec = DecisionRows(np.array([2]), np.array([0]), ["b"], np.zeros((1, 6)), ["attraction"], np.array([[0.0, 1e-4, 0.0]]))
+    nav = _nav(vis, pos, rows, dec)
     sp = splits(nav, before_steps=3)
     assert len(sp) == 1 and sp[0]["step"] == 4
     edges = {(e["observer"], e["neighbour"]): e for e in sp[0]["lost_edges"]}
@@ -265,6 +266,12 @@ def test_splits_swaps_and_breaks_on_hand_made_arrays():
     b = {x["step"]: x for x in edges[("s0", "s1")]["belief_observer"]}
     assert [b[s]["track"]["id"] if b[s]["track"] else None for s in range(1, 5)] == ["a", "b", "b", None]
     assert b[3]["tracks_on_neighbour"] == 2  # b and c: the nearer, b, is the belief
+    assert b[2]["track"]["used_by_controller"] and not b[3]["track"]["used_by_controller"]
+    assert b[2]["decision"]["behaviour"] == "attraction" and b[3]["decision"] is None
+    assert b[2]["decision"]["accel_towards_neighbour_mps2"] == pytest.approx(1e-4)
+    v = edges[("s0", "s1")]["observer_view"]
+    assert (v["step"], v["had_track"], v["id"], v["controller_acting"]) == (3, True, "b", False)
+    assert (v["steps_in_window"], v["steps_tracked"], v["steps_acted_on"]) == (3, 3, 1)
     ser = step_series(nav)
     assert ser.swaps.tolist() == [0, 0, 1, 0, 0, 0]
     assert ser.breaks.tolist() == [0, 0, 1, 0, 0, 0]  # s1: track a at step 1, b at step 2
