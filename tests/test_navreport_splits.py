@@ -188,10 +188,11 @@ def test_per_step_comparison_against_truth_of_the_split_run(split_run):
     assert ser.step.tolist() == steps
     assert ser.components.tolist() == [len(set(_components(n, zip(*np.nonzero(vis[s]))))) for s in steps]
     assert ser.visible_pairs.tolist() == [int(vis[s].sum()) for s in steps]
-    tracked = {}
+    tracked, reported = {}, {}
     false = 0
     for s in steps:
         t = np.zeros((n, n), bool)
+        reported[s] = np.array([(ids[j], s) in tms for j in range(n)])[:, None]
         for j in range(n):
             tm = tms.get((ids[j], s))
             for tr in (tm.tracks if tm is not None else []):
@@ -203,9 +204,12 @@ def test_per_step_comparison_against_truth_of_the_split_run(split_run):
                 else:
                     false += 1
         tracked[s] = t
-    untracked = [int((vis[s] & ~tracked[s]).sum()) for s in steps]
+    # the agents' last telemetry is of the step before the run's last truth: its visible pairs are not counted
+    assert ser.no_telemetry.tolist() == [int((vis[s] & ~reported[s]).sum()) for s in steps]
+    assert ser.no_telemetry[-1] == ser.visible_pairs[-1] > 0 and ser.no_telemetry[:-1].sum() == 0
+    untracked = [int((vis[s] & ~tracked[s] & reported[s]).sum()) for s in steps]
     assert (ser.missed + ser.lost).tolist() == untracked
-    lost = [0] + [int((vis[s] & ~tracked[s] & tracked[p]).sum()) for p, s in zip(steps, steps[1:])]
+    lost = [0] + [int((vis[s] & ~tracked[s] & reported[s] & tracked[p]).sum()) for p, s in zip(steps, steps[1:])]
     assert ser.lost.tolist() == lost
     assert int(ser.false_tracks.sum()) == false == int(false_rows(nav).sum())
     assert ser.swaps.sum() == 0  # the EKF associates on the likelihood: no track jumps to another spacecraft here

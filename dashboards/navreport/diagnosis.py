@@ -24,7 +24,9 @@ behind the camera). With ideal `rel` sensing there are no tracks and a decision 
 
 **Per step against truth** (`step_series`). A track row is false when its nearest true neighbour is
 farther from its estimate than max(`FALSE_GATE_M`, `FALSE_GATE_FRACTION` x estimated range); the
-others are matched. At each truth row: visible pairs (truth); visible pairs with no matched track,
+others are matched. At each truth row: visible pairs (truth); visible pairs whose observer sent no telemetry at that
+step (`no_telemetry`: the last truth row of a run, a dead or paused agent); the other visible pairs
+with no matched track,
 split into `lost` (the pair had one at the previous row: a lost track) and `missed` (it had none:
 not detected or not confirmed yet); false track rows; duplicate tracks (matched tracks of j on a k
 beyond the first); swaps (a matched row whose track's previous matched row was another true
@@ -104,6 +106,7 @@ class StepSeries:
     t_s: np.ndarray
     components: np.ndarray  # weakly connected components of the visibility digraph
     visible_pairs: np.ndarray
+    no_telemetry: np.ndarray  # visible pairs whose observer sent no telemetry at that step (not counted below)
     missed: np.ndarray  # visible, no matched track now nor at the previous row
     lost: np.ndarray  # visible, no matched track now, one at the previous row
     false_tracks: np.ndarray
@@ -129,7 +132,13 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     hit = np.zeros((T, N, N), dtype=np.int64)
     np.add.at(hit, (tr, j, k), 1)
     tracked = hit > 0
-    untracked = vis & ~tracked
+    reported = np.ones((T, N), dtype=bool)  # the observer sent telemetry at that step
+    if rows.tm_step.size:
+        reported[:] = False
+        tmr = truth_rows_of_steps(truth, rows.tm_step)
+        reported[tmr[tmr >= 0], rows.tm_observer[tmr >= 0]] = True
+    silent = vis & ~reported[:, :, None]
+    untracked = vis & ~tracked & reported[:, :, None]
     before = np.zeros_like(tracked)
     before[1:] = tracked[:-1]
     lost_mask = untracked & before
@@ -189,8 +198,10 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     events["false_tracks"] = false_tracks
     counts = {"lost_tracks": int(lost_mask.sum()), "swaps": int(swap_rows.size), "breaks": int(break_mask.sum()),
               "false_tracks": int(np.unique(rows.track[fr]).size), "false_track_rows": int(fr.size),
-              "missed_pair_steps": int(missed_mask.sum()), "duplicate_track_rows": int(dup.sum())}
-    return StepSeries(truth.step.copy(), truth.t_s.copy(), n_comp, vis.sum(axis=(1, 2)), missed_mask.sum(axis=(1, 2)),
+              "missed_pair_steps": int(missed_mask.sum()), "duplicate_track_rows": int(dup.sum()),
+              "visible_pair_steps_without_telemetry": int(silent.sum())}
+    return StepSeries(truth.step.copy(), truth.t_s.copy(), n_comp, vis.sum(axis=(1, 2)), silent.sum(axis=(1, 2)),
+                      missed_mask.sum(axis=(1, 2)),
                       lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, break_mask.sum(axis=(1, 2)), layers, events, counts,
                       {"gate_m": gate_m, "gate_fraction_of_estimated_range": gate_fraction}, rows.n > 0)
 
@@ -222,7 +233,7 @@ def step_series_json(s: StepSeries) -> dict[str, Any]:
     """The per-step arrays as lists (nav_steps.json)."""
     return {"definitions": "dashboards/navreport/diagnosis.py", "false_gate": s.false_gate,
             "tracks_recorded": s.tracks_recorded, "step": s.step.tolist(), "t_s": s.t_s.tolist(), "components": s.components.tolist(),
-            "visible_pairs": s.visible_pairs.tolist(), "missed": s.missed.tolist(), "lost": s.lost.tolist(),
+            "visible_pairs": s.visible_pairs.tolist(), "no_telemetry": s.no_telemetry.tolist(), "missed": s.missed.tolist(), "lost": s.lost.tolist(),
             "false_tracks": s.false_tracks.tolist(), "duplicate_tracks": s.duplicate_tracks.tolist(),
             "swaps": s.swaps.tolist(), "breaks": s.breaks.tolist(),
             "layers": {layer: {name: {k: (v.tolist() if k == "count" else _v(v)) for k, v in st.items()}

@@ -89,8 +89,9 @@ def diagnosis_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
     if st is not None and not st.get("tracks_recorded", True):
         out.append(("visible pairs without a track, false tracks, swaps", "n/a: no tracks in the telemetry"))
     elif st is not None:
-        out += [("visible pair-steps: missed (never tracked) / lost tracks (had one the step before)",
-                 f"{st['visible_pair_steps']}: {st['missed_pair_steps']} / {st['lost_tracks']}"),
+        out += [("visible pair-steps: missed (never tracked) / lost tracks (had one the step before) / observer sent no telemetry",
+                 f"{st['visible_pair_steps']}: {st['missed_pair_steps']} / {st['lost_tracks']} / "
+                 f"{st.get('visible_pair_steps_without_telemetry', 0)}"),
                 (f"false tracks (nearest true neighbour > max({_fmt(st['false_gate']['gate_m'])} m, "
                  f"{_fmt(st['false_gate']['gate_fraction_of_estimated_range'])} x range)): tracks / rows",
                  f"{st['false_tracks']} / {st['false_track_rows']}"),
