@@ -129,9 +129,14 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     false = false_rows(nav, gate_m, gate_fraction)
     m = (err.truth_row >= 0) & ~false
     tr, j, k = err.truth_row[m], rows.observer[m], err.neighbour[m]
-    hit = np.zeros((T, N, N), dtype=np.int64)
-    np.add.at(hit, (tr, j, k), 1)
-    tracked = hit > 0
+    tracked = np.zeros((T, N, N), dtype=bool)  # dense like the visibility series; the rest is kept sparse
+    tracked[tr, j, k] = True
+    # one row per (truth row, j, k) matched: the nearest of duplicate tracks
+    key = (tr * N + j) * N + k
+    near = np.lexsort((err.assoc_m[m], key))
+    ukey, first, n_on_pair = np.unique(key[near], return_index=True, return_counts=True)
+    pick = near[first]
+    dup = np.bincount(ukey // (N * N), weights=n_on_pair - 1, minlength=T)[:T].astype(np.int64)
     reported = np.ones((T, N), dtype=bool)  # the observer sent telemetry at that step
     if rows.tm_step.size:
         reported[:] = False
@@ -145,7 +150,6 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     missed_mask = untracked & ~before
     ok_rows = err.truth_row >= 0
     false_per_row = np.bincount(err.truth_row[ok_rows & false], minlength=T)[:T]
-    dup = np.clip(hit - 1, 0, None).sum(axis=(1, 2))
     # swaps among matched rows, in the order of each track's life
     idx = np.flatnonzero(m)
     order = idx[np.lexsort((rows.step[idx], rows.track[idx]))]
@@ -154,14 +158,12 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
     swap_rows = order[1:][same & changed]
     swap_prev = order[:-1][same & changed]
     swaps = np.bincount(err.truth_row[swap_rows], minlength=T)[:T]
-    code = np.full((T, N, N), -1, dtype=np.int64)  # the matched track of each pair (the nearest of duplicates)
-    key = (tr * N + j) * N + k
-    near = np.lexsort((err.assoc_m[m], key))
-    _, first = np.unique(key[near], return_index=True)
-    pick = near[first]
-    code[tr[pick], j[pick], k[pick]] = rows.track[m][pick]
-    break_mask = np.zeros((T, N, N), dtype=bool)
-    break_mask[1:] = (code[1:] >= 0) & (code[:-1] >= 0) & (code[1:] != code[:-1])
+    # breaks: the pair's (nearest) track at consecutive truth rows has another id
+    p_tr, p_pair, p_code = tr[pick], j[pick] * N + k[pick], rows.track[m][pick]
+    o = np.lexsort((p_tr, p_pair))
+    p_tr, p_pair, p_code = p_tr[o], p_pair[o], p_code[o]
+    brk = np.flatnonzero((p_pair[1:] == p_pair[:-1]) & (p_tr[1:] == p_tr[:-1] + 1) & (p_code[1:] != p_code[:-1])) + 1
+    breaks = np.bincount(p_tr[brk], minlength=T)[:T]
 
     layers: dict[str, dict[str, dict[str, np.ndarray]]] = {}
     if rows.n:
@@ -184,9 +186,8 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
                         for t, a, b in np.argwhere(lost_mask)[:MAX_EVENTS]],
         "swaps": [{"step": int(rows.step[r]), "track": names[rows.track[r]], "from": ids[err.neighbour[p]],
                    "to": ids[err.neighbour[r]]} for r, p in list(zip(swap_rows, swap_prev))[:MAX_EVENTS]],
-        "breaks": [{"step": int(truth.step[t]), "observer": ids[a], "neighbour": ids[b],
-                    "from": names[code[t - 1, a, b]], "to": names[code[t, a, b]]}
-                   for t, a, b in np.argwhere(break_mask)[:MAX_EVENTS]],
+        "breaks": [{"step": int(truth.step[p_tr[i]]), "observer": ids[p_pair[i] // N], "neighbour": ids[p_pair[i] % N],
+                    "from": names[p_code[i - 1]], "to": names[p_code[i]]} for i in brk[:MAX_EVENTS]],
     }
     fr = np.flatnonzero(false)
     false_tracks: list[dict[str, Any]] = []
@@ -196,13 +197,13 @@ def step_series(nav: RunNav, gate_m: float = FALSE_GATE_M, gate_fraction: float 
                              "rows": int(rr.size), "used_rows": int(rows.used[rr].sum()),
                              "nearest_true_m_min": _f(np.nanmin(err.assoc_m[rr])) if np.isfinite(err.assoc_m[rr]).any() else None})
     events["false_tracks"] = false_tracks
-    counts = {"lost_tracks": int(lost_mask.sum()), "swaps": int(swap_rows.size), "breaks": int(break_mask.sum()),
+    counts = {"lost_tracks": int(lost_mask.sum()), "swaps": int(swap_rows.size), "breaks": int(brk.size),
               "false_tracks": int(np.unique(rows.track[fr]).size), "false_track_rows": int(fr.size),
               "missed_pair_steps": int(missed_mask.sum()), "duplicate_track_rows": int(dup.sum()),
               "visible_pair_steps_without_telemetry": int(silent.sum())}
     return StepSeries(truth.step.copy(), truth.t_s.copy(), n_comp, vis.sum(axis=(1, 2)), silent.sum(axis=(1, 2)),
                       missed_mask.sum(axis=(1, 2)),
-                      lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, break_mask.sum(axis=(1, 2)), layers, events, counts,
+                      lost_mask.sum(axis=(1, 2)), false_per_row, dup, swaps, breaks, layers, events, counts,
                       {"gate_m": gate_m, "gate_fraction_of_estimated_range": gate_fraction}, rows.n > 0)
 
 
