@@ -32,7 +32,7 @@ from swarmhil.dashboards.interactive import write_plotly_js
 from swarmhil.dashboards.kit import SiteFigure, figures_of, nav_bar, render
 from swarmhil.dashboards.navreport.analysis import analyse_run
 from swarmhil.dashboards.navreport.figures import nav_figures
-from swarmhil.dashboards.navreport.page import nav_table_rows
+from swarmhil.dashboards.navreport.page import diagnosis_rows, nav_diagnosis, nav_table_rows
 
 MAX_EVENT_ROWS = 5000  # rows of the event page; data/events.csv has them all
 
@@ -84,7 +84,7 @@ def write_site(run_dir: Path, out: Path, title: str, head: list[tuple[str, str]]
                intro=bandwidth_section(lt, out, interactive=js is not None), plotly_js=js)
     if nav_body is not None:
         render("page.html", out / "navigation.html", title=f"Navigation error: {fr['run']}", pages=bar,
-               head=nav_body[0], figures=nav_body[1], intro=nav_body[2])
+               head=nav_body[0], figures=nav_body[1], intro=nav_body[2], sections=nav_body[3])
     ev = fr["events"]
     render("events.html", out / "events.html", title=f"Events: {fr['run']}", pages=bar,
            events=[(f"{r.t_s:.6g}", r.step, r.source, r.kind, r.subject, r.detail)
@@ -106,10 +106,13 @@ def _topics(mcap: Path) -> set[str]:
     return {split_topic(ch.topic)[1] for ch in s.channels.values()} if s is not None else set()
 
 
-def _navigation(run_dir: Path, out: Path) -> tuple[list[tuple[str, str]], list[SiteFigure], str] | None:
-    """(head rows, figures, note) of the navigation page; None when no agent reported navigation."""
+def _navigation(run_dir: Path, out: Path) -> tuple[list[tuple[str, str]], list[SiteFigure], str, list[dict[str, Any]]] | None:
+    """(head rows, figures, note, sections: the splits and the per-step comparison) of the navigation
+    page; None when no agent reported navigation."""
     nav = analyse_run(run_dir)
     if nav.rows.n == 0 and nav.decisions.step.size == 0:
         return None
     figs = figures_of(out, nav_figures(nav, out, prefix="nav_"))
-    return [(k, html.escape(v)) for k, v in nav_table_rows(nav.summary)], figs, "<p>Definitions: dashboards/navreport/ (package docstring).</p>"
+    _sps, _steps, sections = nav_diagnosis(nav, out, prefix="nav_")
+    head = [(k, html.escape(v)) for k, v in nav_table_rows(nav.summary) + diagnosis_rows(nav.summary)]
+    return head, figs, "<p>Definitions: dashboards/navreport/ (package docstring).</p>", sections

@@ -49,7 +49,7 @@ CONTRACT_MAY_IMPORT = {"numpy", "bus"}
 PRODUCT = ("agent", "bus", "plant", "link", "dashboards", "deploy", "missions", "swarmhil")
 LAYERS = {"bus": 0, "plant": 1, "agent": 1, "link": 1, "dashboards": 2, "swarmhil": 2, "deploy": 3}
 ROOM_PART_LAYER = {"contract": 0, "fsw": 1, "sense": 1, "report": 2, "seeds": 3}  # docs/architecture.md
-LOCAL_IMPORTS_MAX = 149  # +1 swarmhil/__init__.py's lazy analysis API (PEP 562: the namespace root loads nothing); function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
+LOCAL_IMPORTS_MAX = 153  # +4 issue 36: the batch mode loads the camera stack only for scene sensing (agent/batch.py, 3) and the plant its batch scenes (1); +1 swarmhil/__init__.py's lazy analysis API (PEP 562: the namespace root loads nothing); function-local imports of project modules: 142 after issue 25 step 3 (main at ba2b475: 240), +10 with the external flight software and faults, +1 fault campaigns (deploy commands loading what they run), +1 deploy/scenario.plant_config (the plant's config, where the scenario lives; an agent image loads deploy/scenario.py, not plant/), -1 deploy/campaign_compare (the rule and the count from plant/sensors.py), -5 issue 25 step 1 (the p000 and p003 reports read their contracts at the top)
 ROOMS_WITH_CONTRACT = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")
 ROOMS_MOVED = ("p000_capture", "p001_lattice", "p002_sabatini", "p003_surround", "p004_lbdnn")  # rooms whose fsw, sense and report live in missions/<room>/ (issue 25 steps 1-2)
 NO_SENSE = {"p001_lattice", "p002_sabatini"}  # they fly the plant's generic kinds (`relative`; `rel` and the camera scene)
@@ -422,7 +422,7 @@ def test_type_check_covers_the_interfaces() -> None:
     assert len(list(ROOT.glob("missions/*/contract.py"))) >= 2
 
 
-JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "figures", "page"),
+JOB_ORDER = {"dashboards/navreport": ("read", "analysis", "diagnosis", "figures", "page"),
              "dashboards/bandwidth": ("read", "accounting", "figures", "page"),
              "missions/p000_capture/report": ("read", "analysis", "figures", "page"),
              # paper 002's analysis is its metrics hook; no `read`: its section reads only the reporter's truth

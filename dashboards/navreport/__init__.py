@@ -21,9 +21,15 @@ same step (the scene stimulus of step k is imaged from the truth of step k; dash
 - Coverage: the fraction of truly visible pairs (plant rule, plant/sensors.visibility_matrix) that
   have a track associated with them at that step.
 
-`write_nav_report(run_dir)` writes run_dir/navreport/{index.html, nav_summary.json, nav_table.md,
-*.png}; `write_comparison(run_dirs, out_dir)` the table across runs (total dV, weak connectivity,
-separations, closest approach, navigation error) as Markdown, JSON and HTML.
+- Splits and per-step comparisons (issue 36, `diagnosis`): each split of the visibility digraph
+  (1 weakly connected component -> more) with the edges lost and what both ends' navigation believed
+  about each over the steps before; per step, the visible pairs without a track (missed, lost), false
+  tracks, swaps, breaks and duplicates, and the errors of each layer (tracks, tracks used, decisions).
 
-The package is split by job, each module importing only the ones before it: `read` (tracks and decisions from telemetry) <- `analysis` (association, errors, summary) <- `figures` <- `page` (navreport/ and the comparison of runs).
+`write_nav_report(run_dir)` writes run_dir/navreport/{index.html, nav_summary.json, nav_table.md,
+nav_splits.json, nav_splits.md, nav_steps.json, *.png}; `write_comparison(run_dirs, out_dir)` the
+table across runs (total dV, weak connectivity, separations, closest approach, navigation error) as
+Markdown, JSON and HTML.
+
+The package is split by job, each module importing only the ones before it: `read` (tracks and decisions from telemetry) <- `analysis` (association, errors, summary) <- `diagnosis` (splits, per-step comparisons) <- `figures` <- `page` (navreport/ and the comparison of runs).
 """

@@ -12,7 +12,7 @@ import numpy as np
 from swarmhil.dashboards.navreport.read import DecisionRows, TrackRows, read_tracks
 from swarmhil.dashboards.run_config import run_camera
 from swarmhil.dashboards.truth_io import TruthArrays, read_truth, run_id_of
-from swarmhil.plant.sensors import visibility_series, weak_components
+from swarmhil.plant.sensors import CameraGeometry, visibility_series, weak_components
 
 H = 3600.0
 
@@ -253,6 +253,8 @@ class RunNav:
     decisions: DecisionRows
     decision_err: np.ndarray
     summary: dict[str, Any]
+    vis: np.ndarray | None = None  # (T, N, N) the plant's visibility digraph of each truth row (plant/sensors.py)
+    camera: CameraGeometry | None = None  # the run's camera (range, square FOV) that visibility was computed with
 
 
 def analyse_run(run_dir: str | Path) -> RunNav:
@@ -266,10 +268,11 @@ def analyse_run(run_dir: str | Path) -> RunNav:
     err = associate(rows, truth)
     derr = decision_roe_errors(dec, rows, err, truth)
     cam = run_camera(run_dir, summary)
-    vis = visibility_series(truth.position_m, cam, truth.alive) if rows.n else None
+    vis_all = visibility_series(truth.position_m, cam, truth.alive)
+    vis = vis_all if rows.n else None
     s = nav_summary(rows, err, derr, vis)
     if vis is not None:
         s.update(held_back_summary(rows, err, vis, truth, cam.detection_range_m))
     s["run"] = truth.run
-    return RunNav(truth, rows, err, dec, derr, s)
+    return RunNav(truth, rows, err, dec, derr, s, vis_all, cam)
 

@@ -10,6 +10,7 @@ from swarmhil.dashboards.figstyle import pyplot as _plt
 from swarmhil.dashboards.figstyle import save as _save
 from swarmhil.dashboards.figstyle import time_unit
 from swarmhil.dashboards.navreport.analysis import H, NavErrors, RunNav, roe_error_magnitudes
+from swarmhil.dashboards.navreport.diagnosis import StepSeries
 from swarmhil.dashboards.navreport.read import TrackRows
 
 ROE_COMPONENTS = ["a da", "a dl", "a dex", "a dey", "a dix", "a diy"]
@@ -172,3 +173,43 @@ def nav_figures(nav: RunNav, out: Path, prefix: str = "") -> list[tuple[str, str
                      "NEES of the ROE estimate (6 dof): mean 6 and median 5.35 when consistent."))
     return figs
 
+
+
+def fig_steps(s: StepSeries, split_t_s: Sequence[float], path: Path) -> str:
+    """Per truth step (dashboards/navreport/diagnosis.py): components of the visibility digraph,
+    missed / lost / false / swapped tracks, and the median error of each layer; splits marked."""
+    plt = _plt()
+    tu, xl = time_unit(s.t_s)
+    t = s.t_s / tu
+    panels = [("components", None)] + [(q, u) for q, u in (("range_m", "range [m]"), ("velocity_mps", "velocity [m/s]"),
+                                                          ("da_m", "|a da| [m]"), ("de_m", "|a de| [m]"))
+                                      if any(q in qs for qs in s.layers.values())]
+    fig, ax = plt.subplots(len(panels) + 1, 1, figsize=(8, 1.6 * (len(panels) + 1)), sharex=True)
+    a = ax[0]
+    a.step(t, s.components, where="post", color="k", lw=1.0, label="components (visibility)")
+    a.set_ylabel("components")
+    a.set_ylim(0.5, max(2, int(s.components.max()) if s.components.size else 1) + 0.5)
+    a = ax[1]
+    for name, c in (("missed", "C0"), ("lost", "C3"), ("false_tracks", "C1"), ("swaps", "C4"), ("duplicate_tracks", "C2"),
+                    ("breaks", "C5")):
+        v = getattr(s, name)
+        if v.any() and s.tracks_recorded:
+            a.step(t, v, where="post", color=c, lw=0.9, label=name.replace("_", " "))
+    a.set_ylabel("count per step")
+    if a.get_legend_handles_labels()[0]:
+        a.legend(loc="upper right", ncol=5)
+    a.set_title("Against truth, per step: visible pairs without a matched track, false tracks, swaps")
+    for a, (q, label) in zip(ax[2:], panels[1:]):
+        for i, (layer, qs) in enumerate(s.layers.items()):
+            if q in qs and np.isfinite(qs[q]["median"]).any():
+                a.plot(t, np.maximum(qs[q]["median"], 1e-9), color=f"C{i}", lw=0.8, label=f"{layer}: median")
+                a.plot(t, np.maximum(qs[q]["max"], 1e-9), color=f"C{i}", lw=0.5, ls=":", label=f"{layer}: max")
+        a.set_yscale("log")
+        a.set_ylabel(label)
+        if a.get_legend_handles_labels()[0]:
+            a.legend(loc="upper right", ncol=3)
+    for a in ax:
+        for ts in split_t_s:
+            a.axvline(ts / tu, color="C3", lw=0.6, alpha=0.6)
+    ax[-1].set_xlabel(xl)
+    return _save(fig, path)

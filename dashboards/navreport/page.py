@@ -11,8 +11,10 @@ from typing import Any, Sequence
 import numpy as np
 
 from swarmhil.dashboards.kit import figures_of, render
-from swarmhil.dashboards.navreport.analysis import H, analyse_run
-from swarmhil.dashboards.navreport.figures import nav_figures
+from swarmhil.dashboards.navreport.analysis import H, RunNav, analyse_run
+from swarmhil.dashboards.navreport.diagnosis import (StepSeries, edge_line, splits, splits_summary, step_series,
+                                                    step_series_json, step_summary)
+from swarmhil.dashboards.navreport.figures import fig_steps, nav_figures
 from swarmhil.dashboards.run_metrics import summary_with_metrics
 
 
@@ -76,19 +78,210 @@ def nav_table_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
     return out
 
 
+def diagnosis_rows(s: dict[str, Any]) -> list[tuple[str, str]]:
+    """(quantity, value) rows of the splits and the per-step comparisons (nav_summary.json "splits", "per_step")."""
+    sp, st = s.get("splits"), s.get("per_step")
+    out = []
+    if sp is not None:
+        first = (f"; first at step {sp['split_steps'][0]}, edges lost: {', '.join(sp['lost_edges_at_first_split']) or 'none'}"
+                 if sp["splits"] else "")
+        out.append(("splits of the visibility graph (1 -> more weakly connected components)", f"{sp['splits']}{first}"))
+    if st is not None and not st.get("tracks_recorded", True):
+        out.append(("visible pairs without a track, false tracks, swaps", "n/a: no tracks in the telemetry"))
+    elif st is not None:
+        out += [("visible pair-steps: missed (never tracked) / lost tracks (had one the step before) / observer sent no telemetry",
+                 f"{st['visible_pair_steps']}: {st['missed_pair_steps']} / {st['lost_tracks']} / "
+                 f"{st.get('visible_pair_steps_without_telemetry', 0)}"),
+                (f"false tracks (nearest true neighbour > max({_fmt(st['false_gate']['gate_m'])} m, "
+                 f"{_fmt(st['false_gate']['gate_fraction_of_estimated_range'])} x range)): tracks / rows",
+                 f"{st['false_tracks']} / {st['false_track_rows']}"),
+                ("track swaps (matched to another true neighbour than before) / duplicate track rows",
+                 f"{st['swaps']} / {st['duplicate_track_rows']}"),
+                ("track breaks (a tracked pair's track replaced by a new one from one step to the next)", str(st["breaks"]))]
+    return out
+
+
+def _g(x: Any, d: int = 3) -> str:
+    return "-" if x is None else _fmt(float(x), d)
+
+
+def _side_cells(v: dict[str, Any]) -> list[str]:
+    if not v:
+        return ["-"] * 8
+    if v.get("had_track"):
+        track = f"{v['id']}{' (false)' if v.get('false') else ''}"
+    else:
+        track = "none"
+    ctrl = f"acting: {v['behaviour']}" if v.get("controller_acting") else "not acting"
+    return [track, ctrl, _g(v.get("true_range_m"), 4), _g(v.get("range_err_m")),
+            f"{_g(v.get('true_fov_margin_px'))} / {_g(v.get('fov_margin_px'))}",
+            f"{_g(v.get('da_err_m'))} / {_g(v.get('de_err_m'))} / {_g(v.get('di_err_m'))}",
+            _g(v.get("max_sigma_gained_roe_m")),
+            f"{v['steps_tracked']} / {v['steps_acted_on']} of {v['steps_in_window']}"]
+
+
+EDGE_HEADER = ["edge", "last seen step", "lost by", "side", "track", "controller", "true range [m]", "range error [m]",
+               "FOV margin true / estimated [px]", "error a.da / |a.de| / |a.di| [m]", "max 1-sigma a.da, a.de, a.di [m]",
+               "steps tracked / acted on, window"]
+BELIEF_HEADER = ["step", "visible", "track", "controller (accel. towards it [mm/s^2])", "true range [m]", "est. range [m]",
+                 "range rate true / est. [mm/s]", "FOV margin true / est. [px]",
+                 "error a.da / |a.de| / |a.di| [m]", "velocity error [mm/s]", "max 1-sigma [m]", "NEES"]
+
+
+def _belief_cells(e: dict[str, Any]) -> list[str]:
+    tr, dec, tru = e["track"], e["decision"], e["truth"]
+    ctrl = "-"
+    if dec:
+        acc = dec.get("accel_towards_neighbour_mps2")
+        ctrl = f"{dec['behaviour']} ({_g(None if acc is None else 1e3 * acc)})"
+    rr = lambda x: None if x is None else 1e3 * x  # noqa: E731
+    if tr is None:  # with ideal sensing, the error of the ROE the decision used
+        roe = "-"
+        if dec and None not in dec["roe_jk_err_m"]:
+            d = dec["roe_jk_err_m"]
+            roe = f"{_g(-d[0])} / {_g(math.hypot(d[2], d[3]))} / {_g(math.hypot(d[4], d[5]))} (decision)"
+        return [str(e["step"]), _fmt(e["truly_visible"]), "none", ctrl, _g(tru["range_m"], 4), "-",
+                f"{_g(rr(tru['range_rate_mps']))} / -", f"{_g(tru['fov_margin_px'])} / -", roe, "-", "-", "-"]
+    sig = max(tr["sigma_roe_m"][i] for i in (0, 2, 3, 4, 5)) if tr["sigma_roe_m"] else None
+    vel = None if tr["velocity_err_mps"] is None else 1e3 * tr["velocity_err_mps"]
+    return [str(e["step"]), _fmt(e["truly_visible"]), tr["id"] + (" (false)" if tr["false"] else ""), ctrl,
+            _g(tru["range_m"], 4), _g(tr["range_m"], 4), f"{_g(rr(tru['range_rate_mps']))} / {_g(rr(tr['range_rate_mps']))}",
+            f"{_g(tru['fov_margin_px'])} / {_g(tr['fov_margin_px'])}",
+            f"{_g(tr['da_err_m'])} / {_g(tr['de_err_m'])} / {_g(tr['di_err_m'])}", _g(vel), _g(sig), _g(tr["nees"])]
+
+
+def _edge_rows(e: dict[str, Any]) -> list[list[str]]:
+    name = f"{e['observer']} -> {e['neighbour']}"
+    last = str(e["last_seen_step"]) + ("" if e["lost_at_split"] else " (before)")
+    cause = "+".join(e["cause"]) or "?"
+    return [[name, last, cause, f"{e['observer']} about {e['neighbour']}", *_side_cells(e.get("observer_view", {}))],
+            ["", "", "", f"{e['neighbour']} about {e['observer']}", *_side_cells(e.get("neighbour_view", {}))]]
+
+
+def _split_title(sp: dict[str, Any]) -> str:
+    comps = " | ".join("{" + ", ".join(c) + "}" for c in sp["components"])
+    return (f"Split at step {sp['step']} (t = {_fmt(sp['t_s'], 6)} s, {_fmt(sp['t_s'] / H)} h): 1 -> "
+            f"{len(sp['components'])} components {comps}; window from step {sp['window_start_step']}")
+
+
+def splits_markdown(sps: list[dict[str, Any]], max_detailed: int = 20) -> str:
+    """nav_splits.md: each split, its lost edges (both sides at the last step each was seen) and the
+    observer's belief step by step."""
+    if not sps:
+        return "No split: the visibility digraph never went from one weakly connected component to more.\n"
+    parts = [f"{len(sps)} split(s) of the visibility digraph (dashboards/navreport/diagnosis.py; all in nav_splits.json).\n"]
+    for sp in sps[:max_detailed]:
+        parts.append(f"## {_split_title(sp)}\n")
+        parts += [f"- {edge_line(sp, e)}" for e in sp["lost_edges"]]
+        parts.append("")
+        parts.append(_markdown(EDGE_HEADER, [r for e in sp["lost_edges"] for r in _edge_rows(e)]))
+        for e in sp["lost_edges"]:
+            for side, key in ((f"{e['observer']} about {e['neighbour']}", "belief_observer"),
+                              (f"{e['neighbour']} about {e['observer']}", "belief_neighbour")):
+                b = e.get(key) or []
+                if key == "belief_neighbour" and not any(x["track"] or x["decision"] for x in b):
+                    parts.append(f"{side}: no track and no decision over the window.\n")
+                    continue
+                parts.append(f"{side}, step by step:\n")
+                parts.append(_markdown(BELIEF_HEADER, [_belief_cells(x) for x in b]))
+    if len(sps) > max_detailed:
+        parts.append(f"... and {len(sps) - max_detailed} more at steps {', '.join(str(s['step']) for s in sps[max_detailed:])}\n")
+    return "\n".join(parts)
+
+
+def splits_text(navreport_dir: str | Path, max_splits: int = 3) -> str:
+    """A few lines for the terminal: the splits of a run (from its nav_splits.json) and the lost edges of the first."""
+    doc = json.loads((Path(navreport_dir) / "nav_splits.json").read_text())
+    sps = doc["splits"]
+    if not sps:
+        return f"{doc['run']}: no split of the visibility graph\n"
+    lines = [f"{doc['run']}: {len(sps)} split(s) of the visibility graph at steps "
+             f"{', '.join(str(s['step']) for s in sps[:20])}{' ...' if len(sps) > 20 else ''}"]
+    for sp in sps[:max_splits]:
+        lines.append(f"  {_split_title(sp)}")
+        lines += [f"    {edge_line(sp, e)}" for e in sp["lost_edges"]]
+    return "\n".join(lines) + "\n"
+
+
+def _html_table(header: list[str], rows: list[list[str]]) -> str:
+    th = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    return "<table><tr>" + th + "</tr>" + "".join(
+        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows) + "</table>"
+
+
+def splits_html(sps: list[dict[str, Any]], max_detailed: int = 20) -> str:
+    """The splits section of the page (same content as nav_splits.md)."""
+    if not sps:
+        return "<p>No split: the visibility digraph never went from one weakly connected component to more.</p>"
+    out = [f"<p>{len(sps)} split(s). Lost edges: the visibility edges j -> k (j sees k) that held the new components "
+           "together; each with why it went (truth geometry), and what each side's navigation held at the last step "
+           "the edge existed and step by step before (definitions: dashboards/navreport/diagnosis.py; every number in "
+           "nav_splits.json, text in nav_splits.md).</p>"]
+    for sp in sps[:max_detailed]:
+        out.append(f"<h3>{html.escape(_split_title(sp))}</h3>")
+        out.append(_html_table(EDGE_HEADER, [r for e in sp["lost_edges"] for r in _edge_rows(e)]))
+        for e in sp["lost_edges"]:
+            b = e.get("belief_observer") or []
+            out.append(f"<details><summary>{html.escape(e['observer'])} about {html.escape(e['neighbour'])}, step by step"
+                       f"</summary>{_html_table(BELIEF_HEADER, [_belief_cells(x) for x in b])}</details>")
+            b = e.get("belief_neighbour") or []
+            if any(x["track"] or x["decision"] for x in b):
+                out.append(f"<details><summary>{html.escape(e['neighbour'])} about {html.escape(e['observer'])}, step by "
+                           f"step</summary>{_html_table(BELIEF_HEADER, [_belief_cells(x) for x in b])}</details>")
+    if len(sps) > max_detailed:
+        out.append(f"<p>... and {len(sps) - max_detailed} more at steps "
+                   f"{html.escape(', '.join(str(s['step']) for s in sps[max_detailed:]))}.</p>")
+    return "".join(out)
+
+
+def layers_html(st: dict[str, Any]) -> str:
+    """Per layer: rows compared, median of the per-step medians, worst value and its step."""
+    rows = []
+    for layer, qs in st.get("layers", {}).items():
+        for name, b in qs.items():
+            rows.append([layer, name, str(b["rows"]), _g(b["median_of_step_medians"]), _g(b["max"]),
+                         "-" if b["worst_step"] is None else str(b["worst_step"])])
+    return ("<p>Each navigation layer against truth, per step (tracks: every matched track; used: those the "
+            "controller acted on; decisions: the ROE each behaviour decision used). Series per step: nav_steps.json.</p>"
+            + _html_table(["layer", "error", "rows", "median of the per-step medians", "max", "step of the max"], rows))
+
+
+def nav_diagnosis(nav: RunNav, out: Path, prefix: str = "") -> tuple[list[dict[str, Any]], StepSeries, list[dict[str, Any]]]:
+    """The splits and the per-step comparisons of an analysed run (diagnosis.py), their totals put into
+    nav.summary ("splits", "per_step"), and the two page sections (the per-step figure written into out)."""
+    sps = splits(nav)
+    steps = step_series(nav)
+    nav.summary["splits"] = splits_summary(sps)
+    nav.summary["per_step"] = step_summary(steps)
+    steps_fig = figures_of(out, [(fig_steps(steps, [s["t_s"] for s in sps], out / f"{prefix}steps.png"),
+                                  "Per step: weakly connected components of the visibility digraph (splits: red lines); "
+                                  "visible pairs with no matched track (missed, lost), false tracks, swaps, breaks, "
+                                  "duplicates; median (solid) and max (dotted) error of each layer.")])
+    sections = [{"anchor": "splits", "title": "Splits of the swarm: the visibility edges lost and what navigation believed",
+                 "html": splits_html(sps), "figures": []},
+                {"anchor": "per-step", "title": "Each navigation layer against truth, per step",
+                 "html": layers_html(nav.summary["per_step"]), "figures": steps_fig}]
+    return sps, steps, sections
+
+
 def write_nav_report(run_dir: str | Path) -> Path:
     """Navigation error of a run against truth: run_dir/navreport/index.html (+ PNGs, nav_summary.json,
-    nav_table.md). Returns the path of index.html."""
+    nav_table.md, nav_splits.json / .md, nav_steps.json). Returns the path of index.html."""
     run_dir = Path(run_dir)
     nav = analyse_run(run_dir)
     out = run_dir / "navreport"
     out.mkdir(exist_ok=True)
+    sps, steps, sections = nav_diagnosis(nav, out)
     (out / "nav_summary.json").write_text(json.dumps(nav.summary, indent=1))
-    table = nav_table_rows(nav.summary)
+    (out / "nav_splits.json").write_text(json.dumps({"definitions": "dashboards/navreport/diagnosis.py", "run": nav.truth.run,
+                                                     "splits": sps}, indent=1))
+    (out / "nav_splits.md").write_text(splits_markdown(sps))
+    (out / "nav_steps.json").write_text(json.dumps(step_series_json(steps)))
+    table = nav_table_rows(nav.summary) + diagnosis_rows(nav.summary)
     (out / "nav_table.md").write_text(_markdown(["quantity", "value"], [list(r) for r in table]))
     figs = nav_figures(nav, out)
     render("page.html", out / "index.html", title=f"Navigation error: {nav.truth.run}",
-           head=[(k, html.escape(v)) for k, v in table],
+           head=[(k, html.escape(v)) for k, v in table], sections=sections,
            figures=figures_of(out, figs), intro="<p>Definitions: dashboards/navreport/ (package docstring). Numbers: nav_summary.json.</p>")
     return out / "index.html"
 

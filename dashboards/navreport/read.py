@@ -2,7 +2,7 @@
 (telemetry `sc/<id>/tm`) as flat rows (the package docstring says what they hold)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +24,9 @@ class TrackRows:
     covariance_m2: np.ndarray  # (R, 6, 6), NaN where the estimator has none
     age_steps: np.ndarray  # (R,)
     used: np.ndarray  # (R,) bool: the controller made a decision on this track at this step
+    # (M,) every Telemetry message's step and observer, with or without tracks (what was reported at all)
+    tm_step: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    tm_observer: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def n(self) -> int:
@@ -38,6 +41,8 @@ class DecisionRows:
     observer: np.ndarray  # (D,)
     neighbour: list[str]  # track id or, with `rel` sensing, the spacecraft id
     roe_jk_m: np.ndarray  # (D, 6) ROE of the observer relative to the neighbour, as the controller used it
+    behaviour: list[str] = field(default_factory=list)  # (D,) "collision_avoidance", "alignment", "attraction", "none"
+    accel_mps2: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (D, 3) this neighbour's contribution to the command
 
 
 def _tm_topics(reader, run: str, ids: list[str]) -> dict[str, int]:
@@ -54,8 +59,9 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
     from mcap_protobuf.decoder import DecoderFactory
 
     step, obs, code, pos, vel, roe, cov, age, used = [], [], [], [], [], [], [], [], []
-    d_step, d_obs, d_nb, d_roe = [], [], [], []
+    d_step, d_obs, d_nb, d_roe, d_beh, d_acc = [], [], [], [], [], []
     names: dict[tuple[int, str], int] = {}
+    tm_step, tm_obs = [], []
     nan_cov = np.full(36, np.nan)
     with open(mcap_path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
@@ -66,6 +72,8 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
             if schema is None or schema.name != TELEMETRY_SCHEMA:
                 continue
             j, k = topics[ch.topic], int(tm.header.step)
+            tm_step.append(k)
+            tm_obs.append(j)
             decided = set()
             for d in tm.decisions:
                 decided.add(d.neighbour)
@@ -74,6 +82,8 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
                     d_obs.append(j)
                     d_nb.append(d.neighbour)
                     d_roe.append(list(d.roe_rel_m))
+                    d_beh.append(d.behaviour)
+                    d_acc.append((d.accel_mps2.x, d.accel_mps2.y, d.accel_mps2.z))
             for tr in tm.tracks:
                 if len(tr.roe_m) != 6:
                     continue
@@ -95,9 +105,10 @@ def read_tracks(mcap_path: str | Path, run: str, ids: list[str]) -> tuple[TrackR
         track=np.asarray(code, dtype=np.int64), track_names=track_names,
         position_m=np.asarray(pos, float).reshape(-1, 3), velocity_mps=np.asarray(vel, float).reshape(-1, 3),
         roe_m=np.asarray(roe, float).reshape(-1, 6), covariance_m2=np.asarray(cov, float).reshape(-1, 6, 6),
-        age_steps=np.asarray(age, dtype=np.int64), used=np.asarray(used, dtype=bool))
+        age_steps=np.asarray(age, dtype=np.int64), used=np.asarray(used, dtype=bool),
+        tm_step=np.asarray(tm_step, dtype=np.int64), tm_observer=np.asarray(tm_obs, dtype=np.int64))
     dec = DecisionRows(np.asarray(d_step, dtype=np.int64), np.asarray(d_obs, dtype=np.int64), d_nb,
-                       np.asarray(d_roe, float).reshape(-1, 6))
+                       np.asarray(d_roe, float).reshape(-1, 6), d_beh, np.asarray(d_acc, float).reshape(-1, 3))
     return rows, dec
 
 
