@@ -60,6 +60,28 @@ def silhouette_area_m2(ray: np.ndarray, areas_m2: np.ndarray) -> np.ndarray:
     return az + ax * np.abs(ray[:, 0]) + ay * np.abs(ray[:, 1])
 
 
+def _frame_system(u1_rad: float, dt_s: float, a_m: float, n_radps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lhs (6, 6), T(u0) Phi^-1 (3, 6), Gamma (6, 3)) of `two_frame_roe` for one frame interval; the
+    navigators of a batch step share one reference u and dt, so the last few are remembered
+    (read-only; the same values whether remembered or not)."""
+    key = (u1_rad, dt_s, a_m, n_radps)
+    hit = _SYSTEMS.get(key)
+    if hit is None:
+        u0_rad = u1_rad - n_radps * dt_s
+        t0 = roe_position_matrix(u0_rad, n_radps) @ np.linalg.inv(transition(n_radps, dt_s))
+        lhs = np.vstack((roe_position_matrix(u1_rad, n_radps), t0))
+        hit = (lhs, t0, input_gamma(u0_rad, a_m, n_radps, dt_s))
+        for m in hit:
+            m.setflags(write=False)
+        if len(_SYSTEMS) >= 8:
+            _SYSTEMS.clear()
+        _SYSTEMS[key] = hit
+    return hit
+
+
+_SYSTEMS: dict[tuple[float, float, float, float], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+
+
 def two_frame_roe(r0_m: np.ndarray, r1_m: np.ndarray, u1_rad: float, dt_s: float | np.ndarray, a_m: float,
                   n_radps: float, own_accel_mps2: np.ndarray | None) -> np.ndarray:
     """The ROE (metres, neighbour relative to observer) at the newest frame that reproduce the LVLH
@@ -69,14 +91,14 @@ def two_frame_roe(r0_m: np.ndarray, r1_m: np.ndarray, u1_rad: float, dt_s: float
     r0, r1 = np.atleast_2d(r0_m), np.atleast_2d(r1_m)
     dts = np.broadcast_to(np.asarray(dt_s, dtype=float), (len(r1),))
     out = np.empty((len(r1), 6))
-    for dt in np.unique(dts).tolist():  # one system per interval (a frame's pairs share one)
-        rows = np.flatnonzero(dts == dt)
-        u0_rad = u1_rad - n_radps * dt
-        t0 = roe_position_matrix(u0_rad, n_radps) @ np.linalg.inv(transition(n_radps, dt))
-        lhs = np.vstack((roe_position_matrix(u1_rad, n_radps), t0))
+    same = dts.min() == dts.max() if len(dts) else True
+    groups = [(float(dts[0]), slice(None))] if same and len(dts) else \
+        [(dt, np.flatnonzero(dts == dt)) for dt in np.unique(dts).tolist()]
+    for dt, rows in groups:  # one system per interval (a frame's pairs share one)
+        lhs, t0, gamma = _frame_system(u1_rad, dt, a_m, n_radps)
         rhs = np.concatenate((r1[rows], r0[rows]), axis=1)
         if own_accel_mps2 is not None:
-            rhs[:, 3:] -= t0 @ (input_gamma(u0_rad, a_m, n_radps, dt) @ np.asarray(own_accel_mps2, dtype=float))
+            rhs[:, 3:] -= t0 @ (gamma @ np.asarray(own_accel_mps2, dtype=float))
         out[rows] = np.linalg.solve(lhs, rhs.T).T
     return out if np.ndim(r1_m) == 2 else out[0]
 
