@@ -47,14 +47,14 @@ def test_a_navigation_fault_in_batch_mode_is_handled_as_by_the_agent(tmp_path: P
     restarted; the same counts and the same truth as the agents' (AgentNode.handle)."""
     from swarmhil.agent.perception import Perception
 
-    real = Perception.observe_arrays
+    real = Perception._observation  # what both paths call after the navigator's update (batch: observe_blobs)
 
-    def flaky(self, step, t_s, u_rad, pos, rot, own_accel):
-        if step % 7 == 3 and len(pos) % 2 == 1:  # deterministic in the data: the same frames in both paths
+    def flaky(self, step, t_s, u_rad):
+        if step % 7 == 3 and len(self.tracks) % 2 == 1:  # deterministic in the data: the same frames in both paths
             raise np.linalg.LinAlgError("injected")
-        return real(self, step, t_s, u_rad, pos, rot, own_accel)
+        return real(self, step, t_s, u_rad)
 
-    monkeypatch.setattr(Perception, "observe_arrays", flaky)
+    monkeypatch.setattr(Perception, "_observation", flaky)
     sc = load_scenario(SCENARIOS / "sabatini-20-camera-exact.toml").with_overrides(duration_s=300.0)
     full = run_in_process(sc, tmp_path / "all", "nf")
     batch = run_in_process(sc, tmp_path / "truth", "nf", record="truth")
