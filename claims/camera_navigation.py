@@ -1,7 +1,7 @@
 """docs/camera-navigation.md "The camera campaign against ideal sensing" (issue 36): paper 002's swarm
 flown with the camera, over seeds, paired with ideal sensing.
 
-One source (tier `study`: 40 camera runs of 24 h on the per-agent path), three campaigns of the same
+One source (tier `study`: 40 camera runs of 24 h in batch mode, about an hour on 2 cores), three campaigns of the same
 seeds and initial conditions, each `swarmhil campaign SCENARIO --seeds 20 --first-seed 0 --duration
 86400 --record truth` (deploy/campaign.py), then `swarmhil campaign-compare` of ideal sensing against
 both camera modes (deploy/campaign_compare.py `write_compare`, its compare.json):
