@@ -5,6 +5,8 @@ Every error names the file and the bad field, e.g.
 """
 from __future__ import annotations
 
+import logging
+
 import math
 import tomllib
 from dataclasses import dataclass, field
@@ -155,6 +157,8 @@ class Scenario:
         if duration_s is not None:
             s.duration_s = _positive(self.source, "--duration", duration_s)
             _check_steps(self.source, "--duration", s.duration_s, s.step_s)
+            _check_fault_starts(self.source, getattr(s, "faults", ()) or (), s.duration_s, s.step_s, "--duration",
+                                warn_only=True)
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63):
             raise _err(self.source, "--seed", "must be a non-negative integer", seed)
         if mode is not None:
@@ -167,6 +171,27 @@ class Scenario:
                 s.ids, s.roe_m = _generate(self.source, self.sections["dispersion"], s.seed, self)
                 s.spacecraft = _generated_specs(s.ids, s.roe_m)
         return s
+
+
+def _check_fault_starts(src: str, faults: Any, duration_s: float, step_s: float, flag: str,
+                        warn_only: bool = False) -> None:
+    """A fault that would start at or after the run's last step never fires: in the scenario file
+    itself a scenario error naming it, not a run that exits 0 without it (issue 37); for a run
+    shortened by --duration a warning (the report then says it never started)."""
+    if not faults:
+        return
+    from swarmhil.plant.faults import FaultWindow  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+    steps = int(round(duration_s / step_s))
+    for f in faults:
+        if FaultWindow.of(f, step_s).start_step >= steps:
+            if warn_only:
+                logging.getLogger("swarmhil.deploy").warning(
+                    "%s: [[fault]] %r starts at %g s, at or after the end of this run (%s = %g s): it will not fire",
+                    src, f.name, f.start_s, flag, duration_s)
+                continue
+            raise ScenarioError(f"{src}: [[fault]] {f.name!r} starts at {f.start_s:g} s, at or after the end of the run "
+                                f"({flag} = {duration_s:g} s): it would never fire")
 
 
 DEFAULT_EPOCH_UTC = "2000-01-01T12:00:00Z"
@@ -455,6 +480,7 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>", *, flight_softw
             sc.faults = parse_faults(src, doc["fault"], sc.ids, step, {b.id: b.motion.kind for b in sc.bodies})
         except FaultError as exc:
             raise ScenarioError(str(exc)) from None
+        _check_fault_starts(src, sc.faults, sc.duration_s, step, "[run].duration_s")
     cartesian = fidelity in ("cw", "inertial")
     if not cartesian and (sc.bodies or any(s.inertia_kgm2 is not None for s in sc.spacecraft)):
         raise _err(src, "[plant].fidelity", "must be 'cw' or 'inertial' for [[body]] tables or attitude "

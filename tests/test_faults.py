@@ -580,3 +580,25 @@ def test_centre_d2_is_the_per_axis_form_byte_for_byte() -> None:
                 for pos in (np.ascontiguousarray(wide[:, :3]), wide[:, 1:4]):
                     got, want = centre_d2(pos), before(pos)
                     assert got.shape == want.shape == (n, n) and got.tobytes() == want.tobytes(), n
+
+
+def test_a_fault_starting_after_the_run_is_an_error_in_the_file_and_a_warning_for_a_shortened_run(tmp_path, caplog) -> None:
+    """A [[fault]] whose start lies at or after the scenario's own end would never fire: the file is
+    refused with a message naming the fault; a run shortened by --duration only warns (its report
+    says the fault never started, as the servicing test above checks)."""
+    import logging
+
+    from conftest import SCENARIOS
+    from swarmhil.deploy.scenario import ScenarioError, load_scenario
+
+    text = (SCENARIOS / "sabatini-20-faults.toml").read_text()
+    broken = tmp_path / "late.toml"
+    broken.write_text(text.replace("duration_s = 14400.0", "duration_s = 3000.0"))
+    with pytest.raises(ScenarioError, match=r"'split' starts at 3600 s, at or after the end of the run "
+                                            r"\(\[run\].duration_s = 3000 s\): it would never fire"):
+        load_scenario(broken)
+    with caplog.at_level(logging.WARNING, logger="swarmhil.deploy"):
+        short = load_scenario(SCENARIOS / "sabatini-20-faults.toml").with_overrides(duration_s=3000.0)
+    assert short.duration_s == 3000.0
+    assert "'split' starts at 3600 s, at or after the end of this run (--duration = 3000 s): it will not fire" in caplog.text
+    assert "sc07-thruster" not in caplog.text  # at 2400 s: it fires
