@@ -157,10 +157,15 @@ def _v_axes(v: Values) -> str:
     return "reproduced (within 2 %)" if _vals(v, "within-2pct") == _vals(v, "agents") else "not reproduced"
 
 
+def _worst(v: Values, suffix: str) -> float:
+    """The largest of case (i)'s value over its seeds (`p000.repro.seeds`) and case (ii)'s."""
+    return max(float(v[f"p000.repro.seeds.{suffix}"]), float(v[_id("ii", 1, suffix)]))  # type: ignore[arg-type]
+
+
 def _v_attitude(v: Values) -> str:
-    if max(_vals(v, "pointing-max")) >= 1.0:
+    if _worst(v, "pointing-max") >= 1.0:
         return "not reproduced: pointing error above 1° at the end"
-    if max(_vals(v, "settle-max")) <= SETTLE_QUICK_S:
+    if _worst(v, "settle-max") <= SETTLE_QUICK_S:
         return "reproduced"
     return "partly: small in the end; \"quickly\" is tens of seconds with the saturated PD (trap 2)"
 

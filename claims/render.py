@@ -37,9 +37,13 @@ def verdicts(table: Table, claims: Mapping[str, Claim], values: Values | None = 
 
 
 def _verdict(fn: Callable[[Values], str], vals: Values) -> str:
+    """The row's verdict; "(not recorded)" when a value it reads is not recorded yet (None). A verdict
+    that reads an id the registry does not hold is a bug in the table, raised, not hidden."""
     try:
         return fn(vals)
-    except (TypeError, KeyError):  # a value not recorded yet
+    except KeyError as exc:
+        raise KeyError(f"a verdict reads {exc.args[0]!r}, which is not a claim of the registry") from None
+    except TypeError:  # a value not recorded yet
         return "(not recorded)"
 
 

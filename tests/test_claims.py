@@ -276,3 +276,28 @@ def test_the_release_study_builds_and_its_recorded_rows_are_the_docs():
                 n_rows += 1
     assert set(ids) <= shown
     assert n_rows >= 5  # paper oct, 0, 1, 2 and ae 3 recorded on 2026-12-03
+
+
+def test_every_verdict_reads_only_claims_and_a_missing_id_is_raised_not_hidden():
+    """Each table's verdicts computed from the recorded values read only ids of the registry (a
+    verdict reading another id was shown as "(not recorded)" before); the renderer raises on one."""
+    from swarmhil.claims.registry import registry
+    from swarmhil.claims.render import _verdict, verdicts
+
+    reg = registry()
+    for table in reg.tables.values():
+        verdicts(table, reg.claims)  # raises KeyError naming the id if a verdict reads a non-claim
+    with pytest.raises(KeyError, match="p000.nonexistent.*not a claim"):
+        _verdict(lambda v: v["p000.nonexistent"], {})
+    assert _verdict(lambda v: str(float(v["x"])), {"x": None}) == "(not recorded)"
+
+
+def test_paper002_threshold_and_spacing_verdicts_judge_what_their_rows_claim():
+    from swarmhil.claims.paper002 import _v_ca_vis, _v_integrity
+
+    base = {"p002.split30": 3, "p002.split35": 1}
+    assert _v_integrity({**base, "p002.intact10": 0, "p002.intact20": 0}).startswith("not reproduced: integrity already lost at 10 %")
+    assert _v_integrity({**base, "p002.intact10": 1, "p002.intact20": 2}).startswith("partly")
+    assert _v_ca_vis({"p002.ca-vis": 68.2, "p002.ca-vis-steady": 124.6}).startswith("partly")
+    assert _v_ca_vis({"p002.ca-vis": 68.2, "p002.ca-vis-steady": 90.0}) == "not reproduced: below d_min, above d_min_trans"
+    assert _v_ca_vis({"p002.ca-vis": 104.0, "p002.ca-vis-steady": 124.6}).startswith("reproduced")
