@@ -133,12 +133,12 @@ def test_the_claims_source_reads_the_campaigns_and_renders_its_row(compared: dic
     assert len(before) == 2 * N_SEEDS
     res = cam.camera_campaign(range(FIRST_SEED, FIRST_SEED + N_SEEDS), SPAN_S, out=d, modes=cam.MODES[:1], jobs=1)
     assert {p: p.stat().st_mtime_ns for p in before} == before  # read, not run again
-    doc = json.loads((d / "compare" / "compare.json").read_text())
+    doc = json.loads((d / "compare-exact" / "compare.json").read_text())
     assert res == cam.campaign_result(doc)
     assert res["seeds"] == N_SEEDS and res["exact.split_only"] == doc["others"]["exact"]["split_other_only"]["n"]
     reg = registry()
-    mine = [c for c in reg.claims.values() if c.source == cam.SOURCE]
-    assert mine and reg.sources[cam.SOURCE].tier == "study"
+    mine = [c for c in reg.claims.values() if c.source == cam.source_of("exact")]
+    assert mine and reg.sources[cam.source_of("exact")].tier == "study"
     values = {}
     for c in mine:
         if "filter" in c.id:
