@@ -63,4 +63,4 @@ ALT_PENDING: tuple[str, ...] = ()  # all measured (2026-12-03)
 # recorded)" until `swarmhil claims --study --only SOURCE --record` and `--write`.
 # tests/test_claims.py accepts their claims without a value and fails once one is recorded, so the
 # list only shrinks. The camera campaign (issue 36) waits for the navigation fix it measures.
-RECORD_PENDING: tuple[str, ...] = ("p002.cam.campaign.exact", "p002.cam.campaign.filter")
+RECORD_PENDING: tuple[str, ...] = ()
