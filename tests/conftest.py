@@ -106,9 +106,10 @@ def assert_refused(ep: str, good_credential, bad: list[tuple[str, object]], monk
         monkeypatch.setattr(zenoh_bus, "CONNECT_TIMEOUT_MS", normal)
 
 
-def weakly_connected_by_hand(n: int, edges) -> bool:
-    """Are n nodes one component when the directed edges (j, k) are taken undirected? Union-find,
-    written here as the tests' own reference (not plant.sensors / dashboards.metrics)."""
+def components_by_hand(n: int, edges) -> list[int]:
+    """Component label (smallest member) of each of n nodes, the directed edges (j, k) taken
+    undirected. Union-find, written here as the tests' own reference (not plant.sensors /
+    dashboards.metrics)."""
     parent = list(range(n))
 
     def root(i: int) -> int:
@@ -118,5 +119,11 @@ def weakly_connected_by_hand(n: int, edges) -> bool:
         return i
 
     for j, k in edges:
-        parent[root(int(j))] = root(int(k))
-    return len({root(i) for i in range(n)}) == 1
+        a, b = root(int(j)), root(int(k))
+        parent[max(a, b)] = min(a, b)
+    return [root(i) for i in range(n)]
+
+
+def weakly_connected_by_hand(n: int, edges) -> bool:
+    """Are n nodes one component when the directed edges (j, k) are taken undirected?"""
+    return len(set(components_by_hand(n, edges))) == 1

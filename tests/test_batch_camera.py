@@ -4,27 +4,15 @@ agent/batch.py BatchPerception), and their truth is the per-agent message path's
 """
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import SCENARIOS
+from test_batch_mode import _truth_sha  # the truth messages' sha256 and count, as the other batch twins
 from swarmhil.deploy.launcher import run_in_process
 from swarmhil.deploy.scenario import load_scenario
-
-
-def _truth_sha(path: Path) -> tuple[str, int]:
-    from mcap.reader import make_reader
-
-    h, n = hashlib.sha256(), 0
-    with open(path, "rb") as f:
-        for _s, ch, m in make_reader(f).iter_messages(log_time_order=False):
-            if ch.topic == "truth":
-                h.update(m.data)
-                n += 1
-    return h.hexdigest(), n
 
 
 @pytest.mark.parametrize("name", ["sabatini-20-camera-exact", "sabatini-20-camera-filter"], ids=["exact-rough", "render-ekf"])

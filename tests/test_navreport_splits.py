@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from conftest import SCENARIOS, read_mcap
+from conftest import SCENARIOS, components_by_hand, read_mcap
 from swarmhil.dashboards.navreport.analysis import analyse_run
 from swarmhil.dashboards.navreport.diagnosis import false_rows, split_rows, splits, step_series
 from swarmhil.dashboards.navreport.read import DecisionRows, TrackRows
@@ -48,22 +48,6 @@ def split_run(tmp_path_factory) -> Path:
     return d / "run"
 
 
-def _components(n: int, edges) -> list[int]:
-    """Component label (smallest member) of each node, edges taken undirected: the tests' own union-find."""
-    parent = list(range(n))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for j, k in edges:
-        a, b = root(int(j)), root(int(k))
-        parent[max(a, b)] = min(a, b)
-    return [root(i) for i in range(n)]
-
-
 def _by_hand(run_dir: Path):
     truth, tms = {}, {}
     for topic, _l, _p, m in read_mcap(run_dir / "run.mcap"):
@@ -82,7 +66,7 @@ def _by_hand(run_dir: Path):
 def test_report_nav_names_the_lost_edges_of_the_injected_split_and_what_navigation_believed(split_run, tmp_path):
     ids, steps, _truth, tms, pos, roe, vis = _by_hand(split_run)
     n = len(ids)
-    comps = {s: _components(n, zip(*np.nonzero(vis[s]))) for s in steps}
+    comps = {s: components_by_hand(n, zip(*np.nonzero(vis[s]))) for s in steps}
     ncomp = {s: len(set(c)) for s, c in comps.items()}
     hand_splits = [s for a, s in zip(steps, steps[1:]) if ncomp[a] == 1 and ncomp[s] > 1]
     assert hand_splits, "the injected fault did not split the swarm"
@@ -186,7 +170,7 @@ def test_per_step_comparison_against_truth_of_the_split_run(split_run):
     nav = analyse_run(split_run)
     ser = step_series(nav)
     assert ser.step.tolist() == steps
-    assert ser.components.tolist() == [len(set(_components(n, zip(*np.nonzero(vis[s]))))) for s in steps]
+    assert ser.components.tolist() == [len(set(components_by_hand(n, zip(*np.nonzero(vis[s]))))) for s in steps]
     assert ser.visible_pairs.tolist() == [int(vis[s].sum()) for s in steps]
     tracked, reported = {}, {}
     false = 0
