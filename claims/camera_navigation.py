@@ -226,7 +226,7 @@ TABLES = [Table(
     ("camera (same seeds and initial state as ideal)", "seeds (24 h each)", "per-step weak connectivity, mean over the seeds",
      "difference from ideal [pp], mean [95 % CI]", "seeds split under it, whole under ideal (the converse)",
      "the seeds where ideal stays whole: the camera's per-step connectivity", "ΔV ratio to ideal, mean [95 % CI]",
-     "target (issue 36)", "verdict"),
+     "target", "verdict"),
     (_row("exact", "exact blobs + rough navigation (`sabatini-20-camera-exact`)"),
      _row("filter", "rendered images + EKF (`sabatini-20-camera-filter`)")),
     measured=(1, 2, 3, 4, 5, 6), verdict_col=8,
