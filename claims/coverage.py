@@ -48,7 +48,7 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/performance.md", "Batch run ÷ vectorised floor, papers 000, 001, 003 and 004", "mission-floors"),
     Required("docs/performance.md", "Paper 000 in-process: the issue's figures", "p000-speed"),
     Required("docs/reliability.md", "Lockstep does not depend on load", "reliability-lockstep"),
-    Required("docs/camera-navigation.md", "The camera campaign against ideal sensing (issue 36)", "camera-campaign"),
+    Required("docs/camera-navigation.md", "The camera campaign against ideal sensing", "camera-campaign"),
 )
 
 NOT_YET = tuple(r for r in REQUIRED if r.table is None)
@@ -62,5 +62,5 @@ ALT_PENDING: tuple[str, ...] = ()  # all measured (2026-12-03)
 # Sources registered with their table before any value is recorded: the table renders "(not
 # recorded)" until `swarmhil claims --study --only SOURCE --record` and `--write`.
 # tests/test_claims.py accepts their claims without a value and fails once one is recorded, so the
-# list only shrinks. The camera campaign (issue 36) waits for the navigation fix it measures.
+# list only shrinks.
 RECORD_PENDING: tuple[str, ...] = ()
