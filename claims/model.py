@@ -21,7 +21,8 @@ TIERS = ("quick", "all", "study", "bench")  # seconds, minutes (system tests), h
 
 @dataclass(frozen=True)
 class Tol:
-    """How far a rerun may land from the recorded value: |measured - recorded| <= abs + rel*|recorded|.
+    """How far a rerun may land from the recorded value: |measured - recorded| <= abs + rel*|recorded|,
+    or, when the registry resolved an envelope from a measured ensemble (`lo`, `hi`), lo <= measured <= hi.
 
     Strings and identifier lists must match exactly. `shape_only` (bench timings on the shared
     machine): only that a finite number of the right kind was measured."""
@@ -29,7 +30,16 @@ class Tol:
     abs: float = 0.0
     rel: float = 0.0
     shape_only: bool = False
-    auto: bool = False  # resolved by the registry: max(3 |value - alt|, half a unit of the printed digit)
+    auto: bool = False  # resolved by the registry from the measured spread (`resolve_tol`)
+    lo: float | None = None  # the band's edges when resolved as an envelope (both set or neither)
+    hi: float | None = None
+
+    def band(self, recorded: float) -> tuple[float, float]:
+        """The interval of numbers that stand for `recorded`."""
+        if self.lo is not None and self.hi is not None:
+            return self.lo, self.hi
+        half = self.abs + self.rel * abs(float(recorded))
+        return float(recorded) - half, float(recorded) + half
 
     def holds(self, measured: Value, recorded: Value) -> bool:
         """Whether `measured` stands for `recorded` (never when nothing was recorded)."""
@@ -41,13 +51,16 @@ class Tol:
             return False
         if self.shape_only:
             return True
-        return abs(float(measured) - float(recorded)) <= self.abs + self.rel * abs(float(recorded)) + 1e-12
+        lo, hi = self.band(float(recorded))
+        return lo - 1e-12 <= float(measured) <= hi + 1e-12
 
     def describe(self) -> str:
         if self.shape_only:
             return "presence and shape only"
         if self.auto:
             return "auto (not resolved)"
+        if self.lo is not None and self.hi is not None:
+            return f"within [{self.lo:.4g}, {self.hi:.4g}]"
         parts = ([f"±{self.abs:g}"] if self.abs else []) + ([f"±{100 * self.rel:g} %"] if self.rel else [])
         return " + ".join(parts) or "exact"
 
@@ -99,6 +112,10 @@ class Claim:
     alt: Value | None = None
     nudged: tuple[float, ...] = ()  # the values of the source's one-ulp nudged runs (recorded.json)
     machines: tuple[float, ...] = ()  # the default kernels' values on other processors (recorded.json)
+    # A difference meant to be about zero (round-off around a plane, a floor against the truth): its
+    # band may reach zero. Any other claim with a non-zero value must have a band that stops short of
+    # zero, so that it can fail (`band_reaches_zero`, refused by the registry).
+    residual: bool = False
 
     def render(self, v: Value | None = None, spec: str | None = None) -> str:
         """The value as the doc prints it."""
@@ -140,22 +157,47 @@ def half_digit(value: float, spec: str) -> float:
     return 0.5 * 10.0 ** (math.floor(math.log10(v)) - max(n, 1) + 1)
 
 
-NUDGE_MARGIN = 1.5  # times the range of {value, alt, nudged runs}: a sample of about ten, not the extremes
+ENVELOPE_PAD = 0.5  # with an ensemble: the band is [min, max] of the sample widened by this x its range each side
+CAP = 0.9  # a non-residual band stops at (1 - CAP) x the value: it never reaches zero (docs/claims.md "The cap")
 
 
 def resolve_tol(tol: Tol, value: Value | None, alt: Value | None, spec: str, margin: float = 3.0,
-                nudged: Sequence[float] = (), machines: Sequence[float] = ()) -> Tol:
-    """An `auto` tolerance made concrete: the largest of margin x the measured cross-kernel spread,
-    NUDGE_MARGIN x the range of the value, alt, the one-ulp nudged runs' values and the values
-    other processors gave (`machines`, when recorded), and half a unit of the doc's last printed
-    digit; so the measured last-bit spread passes and any change the doc would show beyond it fails."""
+                nudged: Sequence[float] = (), machines: Sequence[float] = (), residual: bool = False) -> Tol:
+    """An `auto` tolerance made concrete from the measured spread, so the measured last-bit spread
+    passes and any change the doc would show beyond it fails.
+
+    Two samples (value, alt): value ± max(margin x |value - alt|, half a unit of the doc's last
+    printed digit, tol.abs) + tol.rel x |value|. An ensemble (the one-ulp nudged runs, other
+    processors' values): the envelope [min - p, max + p] of {value, alt, nudged, machines}, with
+    p = max(ENVELOPE_PAD x its range, half a digit, tol.abs + tol.rel x |value|). Either way, unless
+    the claim is a residual, the edge towards zero is capped at (1 - CAP) x value: a band never
+    reaches zero for a non-zero value (a recorded sample beyond the cap then fails the tests)."""
     if not tol.auto or not isinstance(value, (int, float)):
         return tol
-    spread = abs(float(value) - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
-    sample = [float(value)] + [float(v) for v in ([alt] if isinstance(alt, (int, float)) else []) + list(nudged)
-                               + list(machines) if math.isfinite(float(v))]
-    ensemble = (max(sample) - min(sample)) if nudged or machines else 0.0
-    return Tol(abs=max(tol.abs, margin * spread, NUDGE_MARGIN * ensemble, half_digit(float(value), spec)), rel=tol.rel)
+    v = float(value)
+    digit = half_digit(v, spec)
+    spread = abs(v - float(alt)) if isinstance(alt, (int, float)) and math.isfinite(float(alt)) else 0.0
+    sample = [v] + [float(x) for x in ([alt] if isinstance(alt, (int, float)) else []) + list(nudged) + list(machines)
+                    if math.isfinite(float(x))]
+    if nudged or machines:
+        pad = max(ENVELOPE_PAD * (max(sample) - min(sample)), digit, tol.abs + tol.rel * abs(v))
+        out = Tol(lo=min(sample) - pad, hi=max(sample) + pad)
+    else:
+        out = Tol(abs=max(tol.abs, margin * spread, digit), rel=tol.rel)
+    lo, hi = out.band(v)
+    if residual or v == 0.0 or (lo > 0.0 if v > 0 else hi < 0.0):
+        return out
+    return Tol(lo=(1.0 - CAP) * v, hi=hi) if v > 0 else Tol(lo=lo, hi=(1.0 - CAP) * v)
+
+
+def band_reaches_zero(claim: Claim) -> bool:
+    """Whether a numeric, non-zero, non-residual claim's band includes zero (or crosses it): a
+    check that a measured 0 would pass cannot fail where it matters. Timings (`shape_only`) aside."""
+    v = claim.value
+    if claim.residual or claim.tol.shape_only or not isinstance(v, (int, float)) or isinstance(v, bool) or v == 0:
+        return False
+    lo, hi = claim.tol.band(float(v))
+    return lo <= 0.0 if v > 0 else hi >= 0.0
 
 
 PLACEHOLDER = re.compile(r"\{([a-z0-9][a-z0-9_.\-]*)(?::([^{}]*))?\}")

@@ -66,20 +66,20 @@ def _below(s: Mapping[str, Any]) -> float | str:
     return "not by 360" if math.isinf(t) else t
 
 
-# (field, claim suffix, format, tolerance) for a case that does not diverge
-# Relative spreads between the two kernel sets measured on the paper's case (value, alt), x3: a floor
-# under every case's own auto tolerance (3 x its spread), so a case is never checked more tightly
-# than the loop's measured sensitivity. The errors
-# after 200 s move by 31-42 % (1.33 vs 0.91 m mean, 4.83 vs 2.82 m max): the saturated network and
-# the noise amplify the last bits; the time to 10 m, the peak command and lambda do not move.
+# (field, claim suffix, format, tolerance) for a case that does not diverge. Each case's tolerance
+# comes from its own measured ensemble (value, alt and eight one-ulp nudged runs: claims/model.py
+# resolve_tol), capped so that it never reaches zero. The small relative floors below are the paper
+# case's cross-kernel spread x3 (Δv, ‖Φ‖, V, ζ̃, mean ‖u‖; none comes near zero). The errors after
+# 200 s have no floor: the paper case's ranged 0.93-1.69 m (mean) and 2.79-5.57 m (max) over its ten
+# runs, and a floor made from that reached zero for every case (no network, whose spread is 3e-14, too).
 def _k(rel: float = 0.0, abs_: float = 0.0) -> Tol:
     return Tol(abs=abs_, rel=rel, auto=True)
 
 
 FIELDS: tuple[tuple[str, str, str, Tol], ...] = (
     ("lambda_min_H", "lambda", ".3f", _k()),
-    ("e_mean_after_200s_m", "e-mean", "s3", _k(0.93)),
-    ("e_max_after_200s_m", "e-max", "s3", _k(1.25)),
+    ("e_mean_after_200s_m", "e-mean", "s3", _k()),
+    ("e_max_after_200s_m", "e-max", "s3", _k()),
     ("t_e_below_10m_s", "t-below-10m", ".1f", _k(abs_=0.3)),
     ("zeta_tilde_mean_after_150s_mps", "zeta-mean", ".2g", _k(0.001)),
     ("zeta_tilde_max_after_150s_mps", "zeta-max", ".3g", _k(0.001)),

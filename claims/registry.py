@@ -16,7 +16,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from swarmhil.claims.model import Claim, Source, Table, resolve_tol
+from swarmhil.claims.model import Claim, Source, Table, band_reaches_zero, resolve_tol
 
 RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
@@ -52,9 +52,20 @@ class Registry:
         return [c for c in self.claims.values() if self.tier(c) in tiers]
 
 
+def refuse_band_reaching_zero(claim: Claim) -> None:
+    """A claim whose tolerance band reaches zero for a non-zero value is refused: it would pass a
+    measured 0 (docs/claims.md "The cap"). Declare it `residual=True` when it is a difference meant
+    to be about zero, or narrow its tolerance."""
+    if band_reaches_zero(claim):
+        lo, hi = claim.tol.band(float(claim.value))  # type: ignore[arg-type]
+        raise ValueError(f"claim {claim.id}: its band [{lo:.4g}, {hi:.4g}] reaches zero for the value "
+                         f"{claim.value:.4g} ({claim.tol.describe()}); narrow it or declare the claim a residual")
+
+
 @lru_cache(maxsize=1)
 def registry() -> Registry:
-    """All modules merged, recorded values attached; duplicate ids and dangling references refused."""
+    """All modules merged, recorded values attached; duplicate ids, dangling references and bands
+    reaching zero refused."""
     rec = read_recorded()
     sources: dict[str, Source] = {}
     claims: dict[str, Claim] = {}
@@ -73,7 +84,8 @@ def registry() -> Registry:
             machines = tuple(float(v) for v in r.get("machines", {}).values())
             claims[c.id] = dataclasses.replace(c, value=value, alt=alt, nudged=nudged, machines=machines,
                                                tol=resolve_tol(c.tol, value, alt, c.fmt, nudged=nudged,
-                                                               machines=machines))
+                                                               machines=machines, residual=c.residual))
+            refuse_band_reaching_zero(claims[c.id])
         for t in m.TABLES:
             if t.id in tables:
                 raise ValueError(f"table {t.id} twice")

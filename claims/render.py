@@ -101,7 +101,8 @@ def doc_drift(tables: Mapping[str, Table], claims: Mapping[str, Claim], root: Pa
 
 
 def doc_line(table: Table, row_index: int, root: Path = ROOT) -> int | None:
-    """The line of the doc (1-based) that holds a row of a marked table."""
+    """The line of the doc (1-based) that holds a row of a marked table: the marker's line + 3
+    (header, separator, then the rows)."""
     lines = (root / table.doc).read_text().splitlines()
-    start = next((i for i, line in enumerate(lines) if line.strip() == f"<!-- claims:{table.id} -->"), None)
-    return None if start is None else start + 3 + row_index
+    marker = next((i + 1 for i, line in enumerate(lines) if line.strip() == f"<!-- claims:{table.id} -->"), None)
+    return None if marker is None else marker + 3 + row_index
