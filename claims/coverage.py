@@ -46,7 +46,7 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/performance.md", "Where the time of an in-process run goes", "performance-profile"),
     Required("docs/performance.md", "The real-time-factor curve", "rtf-curve"),
     Required("docs/performance.md", "Batch run ÷ vectorised floor, papers 000, 001, 003 and 004", "mission-floors"),
-    Required("docs/performance.md", "Paper 000 in-process: the issue's figures", "p000-speed"),
+    Required("docs/performance.md", "Paper 000 in-process", "p000-speed"),
     Required("docs/reliability.md", "Lockstep does not depend on load", "reliability-lockstep"),
     Required("docs/camera-navigation.md", "The camera campaign against ideal sensing", "camera-campaign"),
 )

@@ -1,4 +1,4 @@
-"""docs/performance.md "Paper 000 in-process: the issue's figures" (issue 29): in one invocation,
+"""docs/performance.md "Paper 000 in-process" (issue 29): in one invocation,
 each job in its own subprocess (bench/bench_p000.py `run_side`), one after the other,
 
 - 60 s of case (ii) (capture-20, 1 200 steps): the tree before issue 29 (a8239fd, `git archive`d,
@@ -55,7 +55,7 @@ KEYS = ([(f"{k}.{m}", f"{name} {dur:.0f} s, {tree}: {m} [s]", ".1f") for k, name
            ("load_start", "load average (1 min) at the start", ".1f"), ("load_end", "load average (1 min) at the end", ".1f")])
 CLAIMS = [Claim(f"p000speed.{k}", "p000speed.runs", (lambda k: lambda s: s[k])(k), SHAPE, words, fmt)
           for k, words, fmt in KEYS]
-ROWS = (Row(("case (ii), capture-20, 60 s (1 200 steps): a8239fd (before issue 29), every message",
+ROWS = (Row(("case (ii), capture-20, 60 s (1 200 steps): a8239fd (the tree before batch mode for paper 000), every message",
              "{p000speed.c20_60_before.cpu}", "{p000speed.c20_60_before.wall}", ""), params=("60", "1200")),
         Row(("the same in this tree's batch mode (`--record truth`)", "{p000speed.c20_60.cpu}", "{p000speed.c20_60.wall}",
              "×{p000speed.c20_60.ratio_cpu} CPU, ×{p000speed.c20_60.ratio_wall} wall"), params=()),
@@ -65,5 +65,5 @@ ROWS = (Row(("case (ii), capture-20, 60 s (1 200 steps): a8239fd (before issue 2
              "≤ 60 s wall"), params=("550", "60")),
         Row(("load average (1 min) at the start → end", "{p000speed.load_start} → {p000speed.load_end}", "", ""),
             params=("1",)))
-TABLES = [Table("p000-speed", DOC, ("run (in-process)", "CPU s", "wall s", "issue 29's goal / ratio"), ROWS,
+TABLES = [Table("p000-speed", DOC, ("run (in-process)", "CPU s", "wall s", "goal / ratio"), ROWS,
                 measured=(1, 2, 3), align=("---", "---:", "---:", "---"))]
