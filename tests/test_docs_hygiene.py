@@ -48,3 +48,15 @@ def test_the_rules_catch_what_they_are_for():
 def test_docs_have_no_machine_paths_issue_numbers_or_branch_names(doc: Path):
     found = violations(doc.read_text())
     assert not found, "\n".join(f"{doc.relative_to(ROOT)}:{n}: {rule}: {m!r}" for n, rule, m in found)
+
+
+def test_readme_layout_names_every_top_level_folder():
+    """README's layout table has a row for every folder the repository tracks at its top."""
+    import subprocess
+
+    tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
+    folders = {p.split("/")[0] for p in tracked if "/" in p}
+    layout = (ROOT / "README.md").read_text().split("## Layout", 1)[1].split("\n## ", 1)[0]
+    rows = set(re.findall(r"^\| `([^`/]+)/` \|", layout, re.M))
+    assert folders - rows == set(), f"README's layout lacks {sorted(folders - rows)}"
+    assert rows - folders == set(), f"README's layout names folders that do not exist: {sorted(rows - folders)}"
