@@ -344,6 +344,9 @@ def fault_stats(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             ci = binomtest(k, judged).proportion_ci(0.95, "wilson") if judged else None
             s[name] = {"n": k, "fraction": k / judged if judged else None,
                        "ci95_low": None if ci is None else float(ci.low), "ci95_high": None if ci is None else float(ci.high)}
+        if any("baseline_outcome" in f for f in fs):
+            base = [str(f.get("baseline_outcome") or "not judged") for f in fs]
+            s["baseline"] = {name: base.count(name) for name in (*COUNTED, "not judged")}
         ttr = [f.get("link_time_to_reconnect_s" if str(kind).startswith("link_") else "time_to_reconnect_s")
                for f, o in zip(fs, outcome) if o == "split and recovered"]
         s["time_to_reconnect_s"] = mean_ci95(ttr)
@@ -364,7 +367,8 @@ def _fault_lines(rows: list[dict[str, Any]], meta: dict[str, Any], f: Callable[[
              f"after it. Split and recovered: one component again after the window, staying so for {held}. Not "
              "recovered: split and not whole again for that long by the run's end. Not judged: no such graph, the "
              "fault had not ended, or the swarm was whole at the run's end but not for that long. Fractions of the "
-             "judged faults, each with Wilson's 95 % interval.", "",
+             "judged faults, each with Wilson's 95 % interval; with --baseline, a second row per kind judges the same "
+             "windows on the same seeds' runs without faults (what the swarm does anyway).", "",
              "| fault kind | drawn | judged | never split | split and recovered | not recovered | "
              "time to reconnect, mean [s] | swarm ΔV in window, mean [m/s] |", "|---|---:|---:|---|---|---|---:|---:|"]
     for kind, s in stats.items():
@@ -375,6 +379,10 @@ def _fault_lines(rows: list[dict[str, Any]], meta: dict[str, Any], f: Callable[[
             cells.append(f"{c['n']} ({f(c['fraction'])}{ci})")
         lines.append(f"| {kind} | {s['drawn']} | {s['judged']} | {' | '.join(cells)} | "
                      f"{f(s['time_to_reconnect_s']['mean'])} | {f(s['delta_v_in_window_mps']['mean'])} |")
+        if "baseline" in s:
+            b = s["baseline"]
+            lines.append(f"| {kind}, same windows without faults | {s['drawn']} | {s['drawn'] - b['not judged']} | "
+                         f"{' | '.join(str(b[name]) for name in COUNTED)} | | |")
     extra = mean_ci95([r.get("delta_v_extra_mps") for r in rows if r.get("status") == "ok"])
     if extra["n"]:
         ci = "" if extra["ci95_low"] is None else f", 95 % CI [{f(extra['ci95_low'])}, {f(extra['ci95_high'])}]"
@@ -514,6 +522,11 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
             b = base.get(r["seed"])
             if r.get("status") == "ok" and b is not None:
                 r["delta_v_extra_mps"] = r["delta_v_total_mps"] - b["delta_v_total_mps"]
+                if r.get("faults"):
+                    from swarmhil.dashboards.sections.faults import with_baseline_outcomes  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+                    r["faults"] = json.dumps(with_baseline_outcomes(json.loads(r["faults"]),
+                                                                    run_dir(out / "baseline", int(r["seed"]))))
     table = write_table(out, rows)
     report = write_report(out, rows, meta)
     return {"ran": todo, "skipped": skipped, "rows": rows, "table": table, "report": report, "wall_s": wall}

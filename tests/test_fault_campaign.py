@@ -205,3 +205,26 @@ def test_dask_fault_campaign_rows_equal_single_runs_of_the_drawn_scenario(tmp_pa
         assert f"| {kind} | {n} |" in report, report
     assert "Extra ΔV over the same seed without faults (OUT/baseline)" in report
     assert "<h2>Faults (drawn from" in (tmp_path / "c" / "report.html").read_text()
+
+
+def test_a_baseline_judges_the_same_windows_without_the_fault(tmp_path: Path) -> None:
+    """with_baseline_outcomes judges each drawn fault's window on the baseline run's series, and the
+    report puts those counts on a row of their own under the faulted ones."""
+    from swarmhil.dashboards.run_metrics import SERIES
+    from swarmhil.dashboards.sections.faults import with_baseline_outcomes
+    from swarmhil.deploy.campaign import _fault_lines, fault_stats
+
+    t = np.arange(0.0, 2000.0, 10.0)
+    ncomp = np.where((t >= 500.0) & (t < 700.0), 2, 1)        # the swarm splits on its own over [500, 700) s
+    np.savez(tmp_path / SERIES, t_s=t, delta_v_total_mps=np.zeros(t.size), n_components=ncomp)
+    drawn = [{"kind": "k", "start_s": 100.0, "end_s": 200.0, "hold_s": 300.0, "outcome": "not recovered"},
+             {"kind": "k", "start_s": 450.0, "end_s": 600.0, "hold_s": 300.0, "outcome": "not recovered"},
+             {"kind": "link_partition", "start_s": 100.0, "end_s": 200.0, "hold_s": 300.0}]
+    got = with_baseline_outcomes(drawn, tmp_path)
+    assert [f["baseline_outcome"] for f in got] == ["split and recovered", "split and recovered", "not judged"]
+    assert [f["baseline_outcome"] for f in with_baseline_outcomes(drawn, tmp_path / "none")] == ["not judged"] * 3
+    rows = [{"status": "ok", "faults": json.dumps(got[:2])}]
+    assert fault_stats(rows)["k"]["baseline"] == {"never split": 0, "split and recovered": 2, "not recovered": 0,
+                                                   "not judged": 0}
+    lines = _fault_lines(rows, {"faults": {"file": "f.toml"}}, lambda v: "" if v is None else f"{v:.3g}")
+    assert "| k, same windows without faults | 2 | 2 | 0 | 2 | 0 | | |" in lines, lines

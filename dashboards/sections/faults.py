@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.keys import split_topic
 from swarmhil.dashboards.run_config import camera_from_config
 from swarmhil.dashboards.run_metrics import SERIES
 from swarmhil.dashboards.sections import (SectionContext, SectionResult, controllers_of, error_metrics_for,
@@ -167,9 +169,6 @@ def read_deliveries(mcap: Path) -> tuple[np.ndarray, list[str], list[str]]:
     """(sent_t_s, src, receiver) of every packet the link channel delivered (`isl/rx/<id>` topics)."""
     from mcap.reader import make_reader
 
-    from swarmhil.bus import swarmhil_pb2 as pb
-    from swarmhil.bus.keys import split_topic
-
     sent: list[float] = []
     src: list[str] = []
     dst: list[str] = []
@@ -303,4 +302,22 @@ def drawn_fault_recovery(drawn: list[dict[str, Any]], config: dict[str, Any], ru
         ended = end_s <= float(t_s[-1])
         rec = recovery(t_s, dv, ncomp, f["start_s"], end_s, hold, links if is_link_fault(f) else None)
         out.append({**f, "end_s": end_s, "ended_in_run": ended, "run_end_s": float(t_s[-1]), **rec})
+    return out
+
+
+def with_baseline_outcomes(faults: list[dict[str, Any]], base_dir: Path) -> list[dict[str, Any]]:
+    """Each drawn fault with `baseline_outcome`: the outcome of its window judged the same way on the
+    same seed's run without faults (its metric series; not judged where there is none, or for a
+    link fault, whose graph a baseline without the fault does not record), so a report can tell
+    what the fault did from what the swarm does anyway."""
+    path = Path(base_dir) / SERIES
+    series = np.load(path) if path.is_file() else None
+    out = []
+    for f in faults:
+        outcome = "not judged"
+        if series is not None and "n_components" in series and not str(f["kind"]).startswith("link_") \
+                and f.get("hold_s") is not None:
+            outcome = recovery(series["t_s"], series["delta_v_total_mps"][:, None], series["n_components"],
+                               f["start_s"], f["end_s"], f["hold_s"])["outcome"]
+        out.append({**f, "baseline_outcome": outcome})
     return out
