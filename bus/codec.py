@@ -215,6 +215,25 @@ def check_complete_command(cmd: "pb.ActuatorCommand") -> None:
         raise RejectedPacket("ActuatorCommand: no controller name (truncated?)")
 
 
+def command_rejection(cmd: "pb.ActuatorCommand", key_id: str, run: str) -> str | None:
+    """Why a decoded ActuatorCommand on spacecraft `key_id`'s `act` key of `run` must not be acted
+    on, or None: no header, another run's header.run, a header.source other than the key's
+    spacecraft, or a command cut short (`check_complete_command`). The plant (which rejects it and
+    publishes an Event "rejected_command") and the recorder (which records it as a RejectedSample)
+    both ask here, so the recording and the flight agree."""
+    if not cmd.HasField("header"):
+        return "ActuatorCommand: no header"
+    if cmd.header.run != run:
+        return f"ActuatorCommand: header.run {cmd.header.run!r} is not {run!r}"
+    if cmd.header.source != key_id:
+        return f"header.source {cmd.header.source!r} does not match key id {key_id!r}"
+    try:
+        check_complete_command(cmd)
+    except RejectedPacket as exc:
+        return str(exc)
+    return None
+
+
 def check_known(value: str, known: Iterable[str], what: str) -> None:
     if value not in known:
         raise RejectedPacket(f"unknown {what} {value!r}")

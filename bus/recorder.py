@@ -7,7 +7,10 @@ protobuf FileDescriptorSet of the key's message type (registered once per type),
 encoding `protobuf`, zstd chunks. With every truth it also writes Foxglove's own
 `foxglove.FrameTransforms` (`foxglove/tf`) and `foxglove.SceneUpdate` (`foxglove/scene`), and
 with every event a `foxglove.Log` (`foxglove/log`): bus/foxglove_scene.py. A payload that does not parse as its key's type is kept too,
-wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it.
+wrapped in `swarmhil.v1.UndecodableSample` on the same topic, so readers never trip on it; an
+ActuatorCommand the plant does not act on (another run's or another source's, bus/codec.py
+`command_rejection`) is kept as a `swarmhil.v1.RejectedSample`, so it never reads as an accepted
+command. Both carry the step and time the run was at when they arrived.
 A killed recorder loses at most its open chunk, which is written out at the first clock tick after
 `FLUSH_PERIOD_S` (1 s) of wall time: so about a second; `swarmhil mcap repair` salvages the rest,
 and the launcher restarts a killed recorder into a new segment `run.NNN.mcap` (metadata
@@ -32,7 +35,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
-from swarmhil.bus.codec import message_type_of_topic, sim_time_ns
+from swarmhil.bus.codec import command_rejection, message_type_of_topic, sim_time_ns
 from swarmhil.bus.foxglove_scene import FoxgloveScene
 from swarmhil.bus.mcap_writer import RecorderWriter
 from swarmhil.bus.keys import Keys
@@ -100,6 +103,8 @@ class McapRecorder:
         self._topic_channel: dict[str, tuple[type[Message], int]] = {}  # topic -> (type, channel) of its last sample
         self.count = 0
         self.undecodable = 0
+        self.rejected = 0          # commands written as RejectedSample (bus/codec.py command_rejection)
+        self._last_step = 0        # the step of the last clock tick: the step an undecodable or rejected sample arrived in
         self._by_topic: dict[str, list[int]] = {}  # topic -> [messages, bytes]
         self._last_t_ns = 0
         self._closed = False
@@ -171,13 +176,24 @@ class McapRecorder:
         else:
             msg, t, reason = parse_sample(cls, payload)
         at_ns = self._last_t_ns if t is None else t
+        rejected = command_rejection(msg, key.rsplit("/", 2)[-2], self.run) \
+            if cls is pb.ActuatorCommand and msg is not None else None
         if reason:
             self.undecodable += 1
-            wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason,
-                                           header=pb.Header(run=self.run, source="recorder", t=self._last_t_ns / 1e9))
+            wrapped = pb.UndecodableSample(key=key, payload=payload, reason=reason, header=self._arrival())
             cls, payload, msg = pb.UndecodableSample, wrapped.SerializeToString(), None
-        elif at_ns > self._last_t_ns:
-            self._last_t_ns = at_ns
+        elif rejected:  # a command the plant does not act on: never recorded as one it did
+            self.rejected += 1
+            at_ns = self._last_t_ns
+            hdr: Any = getattr(msg, "header")
+            wrapped = pb.RejectedSample(key=key, payload=payload, reason=rejected, header=self._arrival(),
+                                        claimed_source=hdr.source, claimed_run=hdr.run)
+            cls, payload, msg = pb.RejectedSample, wrapped.SerializeToString(), None
+        else:
+            if cls is pb.Tick:
+                self._last_step = int((msg or pb.Tick.FromString(payload)).header.step)  # type: ignore[attr-defined]
+            if at_ns > self._last_t_ns:
+                self._last_t_ns = at_ns
         assert cls is not None  # a sample of an unknown key is parse_sample's reason, wrapped above
         self._add(topic, cls, payload, at_ns, wall_ns)
         if cls is pb.Tick and self._flush_period_s is not None and time.monotonic() - self._last_flush >= self._flush_period_s:
@@ -186,6 +202,11 @@ class McapRecorder:
         if self._scene is not None and msg is not None:
             for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
                 self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
+
+    def _arrival(self) -> Any:
+        """The header of a sample the recorder wraps: the run, source "recorder", and the step and
+        simulation time the run was at when it arrived (the last clock tick's)."""
+        return pb.Header(run=self.run, source="recorder", step=self._last_step, t=self._last_t_ns / 1e9)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully
@@ -281,4 +302,4 @@ class RecorderNode:
         if flush:
             flush()
         self.rec.close()
-        return {"messages": self.rec.count, "undecodable": self.rec.undecodable}
+        return {"messages": self.rec.count, "undecodable": self.rec.undecodable, "rejected": self.rec.rejected}

@@ -323,3 +323,19 @@ class UndecodableSample(_message.Message):
     payload: bytes
     reason: str
     def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., key: _Optional[str] = ..., payload: _Optional[bytes] = ..., reason: _Optional[str] = ...) -> None: ...
+
+class RejectedSample(_message.Message):
+    __slots__ = ("header", "key", "payload", "reason", "claimed_source", "claimed_run")
+    HEADER_FIELD_NUMBER: _ClassVar[int]
+    KEY_FIELD_NUMBER: _ClassVar[int]
+    PAYLOAD_FIELD_NUMBER: _ClassVar[int]
+    REASON_FIELD_NUMBER: _ClassVar[int]
+    CLAIMED_SOURCE_FIELD_NUMBER: _ClassVar[int]
+    CLAIMED_RUN_FIELD_NUMBER: _ClassVar[int]
+    header: Header
+    key: str
+    payload: bytes
+    reason: str
+    claimed_source: str
+    claimed_run: str
+    def __init__(self, header: _Optional[_Union[Header, _Mapping]] = ..., key: _Optional[str] = ..., payload: _Optional[bytes] = ..., reason: _Optional[str] = ..., claimed_source: _Optional[str] = ..., claimed_run: _Optional[str] = ...) -> None: ...

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Iterable, Sequence
 
-from swarmhil.deploy.fault_draws import FaultDrawError, draw_faults, load_fault_draws, read_fault_draws, with_drawn_faults
+from swarmhil.deploy.fault_draws import FaultDrawError, draw_faults, load_fault_draws, with_drawn_faults
 
 __all__ = ["FaultDrawError", "draw_faults", "load_fault_draws", "run_campaign", "with_drawn_faults"]  # re-exported for the command
 
@@ -108,8 +108,10 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
 
         sc = load_scenario(scenario, list(sets)).with_overrides(seed=int(seed), duration_s=duration_s)
         drawn: list[dict[str, Any]] = []
+        hold: float | None = None
         if faults:
-            drawn = draw_faults(load_fault_draws(faults, sc.ids), sc.ids, int(seed))
+            draws = load_fault_draws(faults, sc.ids)
+            drawn, hold = draw_faults(draws, sc.ids, int(seed)), draws.recovery.hold_s
             sc = with_drawn_faults(sc, drawn).with_overrides(seed=int(seed), duration_s=duration_s)
             row["faults_n"] = len(drawn)
         res = run_in_process(sc, rdir, f"{_safe(sc.name)}-seed{int(seed)}", progress=False, record=record,
@@ -130,7 +132,7 @@ def run_seed(scenario: str, sets: Sequence[str], seed: int, out: str, duration_s
         if faults:
             from swarmhil.dashboards.sections.faults import drawn_fault_recovery  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-            row["faults"] = json.dumps(drawn_fault_recovery(drawn, sc.resolved(), rdir) if metrics else drawn)
+            row["faults"] = json.dumps(drawn_fault_recovery(drawn, sc.resolved(), rdir, hold) if metrics else drawn)
         if not keep_recording:
             (rdir / "run.mcap").unlink(missing_ok=True)
     except Exception as exc:  # noqa: BLE001 - a failed run is a row, not a lost campaign
@@ -307,12 +309,24 @@ REPORT_METRICS = (
 )
 
 
-def fault_stats(rows: list[dict[str, Any]], within_s: float) -> dict[str, dict[str, Any]]:
-    """Per fault kind, over the ok runs of a fault campaign: the faults drawn; those judged (the swarm
-    has a visibility graph, the fault ended in the run, and either the swarm was whole again within
-    `within_s` of its end or the run went on that long after it: a run that ends sooner, not yet
-    whole, says nothing); the recovered ones; their fraction with its Wilson 95 % interval
-    (scipy.stats.binomtest); the time to reconnect and the swarm's ΔV in the fault's window."""
+def fault_outcome(f: dict[str, Any]) -> str:
+    """A drawn fault's outcome (dashboards/sections/faults.py `judge`, OUTCOMES): a link fault's on
+    the link graph of its deliveries, any other's on the camera-visibility graph; "not judged" where
+    the run has no such graph (or did not record the link's deliveries)."""
+    key = "link_outcome" if str(f["kind"]).startswith("link_") else "outcome"
+    return str(f.get(key) or "not judged")
+
+
+COUNTED = ("never split", "split and recovered", "not recovered")  # the outcomes a fault campaign counts
+
+
+def fault_stats(rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per fault kind, over the ok runs of a fault campaign: the faults drawn; how many the swarm
+    never split under, split under and recovered from (whole again and staying so for the run's
+    hold_s), split under and did not recover from by the run's end, and could not be judged
+    (`fault_outcome`); the fraction of the judged ones in each of the three with its Wilson 95 %
+    interval (scipy.stats.binomtest); the time to the held reconnection of the recovered ones and
+    the swarm's ΔV in the fault's window."""
     from scipy.stats import binomtest
 
     by_kind: dict[str, list[dict[str, Any]]] = {}
@@ -322,33 +336,53 @@ def fault_stats(rows: list[dict[str, Any]], within_s: float) -> dict[str, dict[s
                 by_kind.setdefault(f["kind"], []).append(f)
     out: dict[str, dict[str, Any]] = {}
     for kind, fs in sorted(by_kind.items()):
-        ttr = [f.get("time_to_reconnect_s") for f in fs]
-        judged = [f for f, t in zip(fs, ttr) if f.get("ended_in_run") and "time_to_reconnect_s" in f and (
-            (t is not None and t <= within_s) or f["run_end_s"] - f["end_s"] >= within_s)]
-        ok = [f for f in judged if f["time_to_reconnect_s"] is not None and f["time_to_reconnect_s"] <= within_s]
-        ci = binomtest(len(ok), len(judged)).proportion_ci(0.95, "wilson") if judged else None
-        out[kind] = {"drawn": len(fs), "judged": len(judged), "recovered": len(ok),
-                     "fraction": len(ok) / len(judged) if judged else None,
-                     "ci95_low": None if ci is None else float(ci.low), "ci95_high": None if ci is None else float(ci.high),
-                     "time_to_reconnect_s": mean_ci95([t for t in ttr if t is not None]),
-                     "delta_v_in_window_mps": mean_ci95([f.get("delta_v_in_window_mps") for f in fs])}
+        outcome = [fault_outcome(f) for f in fs]
+        judged = sum(o in COUNTED for o in outcome)
+        s: dict[str, Any] = {"drawn": len(fs), "judged": judged, "not judged": len(fs) - judged}
+        for name in COUNTED:
+            k = outcome.count(name)
+            ci = binomtest(k, judged).proportion_ci(0.95, "wilson") if judged else None
+            s[name] = {"n": k, "fraction": k / judged if judged else None,
+                       "ci95_low": None if ci is None else float(ci.low), "ci95_high": None if ci is None else float(ci.high)}
+        if any("baseline_outcome" in f for f in fs):
+            base = [str(f.get("baseline_outcome") or "not judged") for f in fs]
+            s["baseline"] = {name: base.count(name) for name in (*COUNTED, "not judged")}
+        ttr = [f.get("link_time_to_reconnect_s" if str(kind).startswith("link_") else "time_to_reconnect_s")
+               for f, o in zip(fs, outcome) if o == "split and recovered"]
+        s["time_to_reconnect_s"] = mean_ci95(ttr)
+        s["delta_v_in_window_mps"] = mean_ci95([f.get("delta_v_in_window_mps") for f in fs])
+        out[kind] = s
     return out
 
 
 def _fault_lines(rows: list[dict[str, Any]], meta: dict[str, Any], f: Callable[[Any], str]) -> list[str]:
-    """The fault campaign's part of report.md: recovery per kind, and the extra ΔV over the baseline."""
-    within = float(meta["recovery_within_s"])
-    stats = fault_stats(rows, within)
+    """The fault campaign's part of report.md: outcomes per kind, and the extra ΔV over the baseline."""
+    stats = fault_stats(rows)
+    holds = sorted({float(x["hold_s"]) for r in rows if r.get("status") == "ok"
+                    for x in json.loads(r.get("faults") or "[]") if x.get("hold_s") is not None})
+    held = " or ".join(f"{f(h)} s" for h in holds) or "the run's [recovery].hold_s"
     lines = [f"## Faults (drawn from {meta['faults']['file']})", "",
-             f"Recovered: the camera-visibility graph is one weakly connected component again within {f(within)} s "
-             f"of the fault's end (judged only where the swarm has that graph and the run lasted that long, or "
-             f"recovered sooner). Fraction with Wilson's 95 % interval.", "",
-             "| fault kind | drawn | judged | recovered | fraction | 95 % CI | time to reconnect, mean [s] | "
-             "swarm ΔV in window, mean [m/s] |", "|---|---:|---:|---:|---:|---|---:|---:|"]
+             "Each fault judged on a graph of the swarm: a link fault on the link graph of its deliveries, any other on "
+             "the camera-visibility graph. Never split: one weakly connected component all through the window and "
+             f"after it. Split and recovered: one component again after the window, staying so for {held}. Not "
+             "recovered: split and not whole again for that long by the run's end. Not judged: no such graph, the "
+             "fault had not ended, or the swarm was whole at the run's end but not for that long. Fractions of the "
+             "judged faults, each with Wilson's 95 % interval; with --baseline, a second row per kind judges the same "
+             "windows on the same seeds' runs without faults (what the swarm does anyway).", "",
+             "| fault kind | drawn | judged | never split | split and recovered | not recovered | "
+             "time to reconnect, mean [s] | swarm ΔV in window, mean [m/s] |", "|---|---:|---:|---|---|---|---:|---:|"]
     for kind, s in stats.items():
-        ci = "" if s["ci95_low"] is None else f"[{s['ci95_low']:.3f}, {s['ci95_high']:.3f}]"
-        lines.append(f"| {kind} | {s['drawn']} | {s['judged']} | {s['recovered']} | {f(s['fraction'])} | {ci} | "
+        cells = []
+        for name in COUNTED:
+            c = s[name]
+            ci = "" if c["ci95_low"] is None else f" [{c['ci95_low']:.3f}, {c['ci95_high']:.3f}]"
+            cells.append(f"{c['n']} ({f(c['fraction'])}{ci})")
+        lines.append(f"| {kind} | {s['drawn']} | {s['judged']} | {' | '.join(cells)} | "
                      f"{f(s['time_to_reconnect_s']['mean'])} | {f(s['delta_v_in_window_mps']['mean'])} |")
+        if "baseline" in s:
+            b = s["baseline"]
+            lines.append(f"| {kind}, same windows without faults | {s['drawn']} | {s['drawn'] - b['not judged']} | "
+                         f"{' | '.join(str(b[name]) for name in COUNTED)} | | |")
     extra = mean_ci95([r.get("delta_v_extra_mps") for r in rows if r.get("status") == "ok"])
     if extra["n"]:
         ci = "" if extra["ci95_low"] is None else f", 95 % CI [{f(extra['ci95_low'])}, {f(extra['ci95_high'])}]"
@@ -488,9 +522,12 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
             b = base.get(r["seed"])
             if r.get("status") == "ok" and b is not None:
                 r["delta_v_extra_mps"] = r["delta_v_total_mps"] - b["delta_v_total_mps"]
+                if r.get("faults"):
+                    from swarmhil.dashboards.sections.faults import with_baseline_outcomes  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+                    r["faults"] = json.dumps(with_baseline_outcomes(json.loads(r["faults"]),
+                                                                    run_dir(out / "baseline", int(r["seed"]))))
     table = write_table(out, rows)
-    if faults is not None:
-        meta["recovery_within_s"] = read_fault_draws(faults).recovery.within_s
     report = write_report(out, rows, meta)
     return {"ran": todo, "skipped": skipped, "rows": rows, "table": table, "report": report, "wall_s": wall}
 

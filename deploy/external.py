@@ -18,7 +18,9 @@ The kit holds everything a client that imports nothing of the project needs:
 - `agent-<id>.cred` (user:password) when the run authenticates, and `tls/` (the run's CA, this
   agent's client certificate and key) when it runs on mutual TLS.
 
-Paths inside join.json are relative to the kit directory. The kit holds a secret: the directory
+File names inside join.json are relative to the kit directory, except the `zenoh` block's TLS
+files, which are absolute (the block works as given from any working directory; a kit copied to
+another machine resolves `tls` against its own directory). The kit holds a secret: the directory
 is 0700 and every file 0600, like the run's `secrets/`.
 """
 from __future__ import annotations
@@ -95,8 +97,11 @@ def _write(path: Path, text: str | bytes) -> None:
 
 
 def join_document(sc: Any, run: str, sid: str, router: list[str], credential: Any, tls_files: dict[str, str] | None,
-                  agent_cfg: dict[str, Any]) -> dict[str, Any]:
-    """join.json of spacecraft `sid` (paths relative to the kit directory)."""
+                  agent_cfg: dict[str, Any], kit_dir: Path | None = None) -> dict[str, Any]:
+    """join.json of spacecraft `sid`. File names in `credential`, `tls`, `proto` and `keys_json` are
+    relative to the kit directory (a kit copied elsewhere still finds them); the `zenoh` block's TLS
+    files are absolute paths in `kit_dir` (the kit where it was written), so the block works as
+    given from any working directory."""
     k = Keys(run)
     user = f"agent-{sid}"
     keys = {"sense": k.sense(sid, sc.sensing["kind"]), "act": k.act(sid), "tm": k.tm(sid), "isl_tx": k.isl_tx(sid),
@@ -109,9 +114,10 @@ def join_document(sc: Any, run: str, sid: str, router: list[str], credential: An
         zenoh_cfg.update({"transport/auth/usrpwd/user": credential.user,
                           "transport/auth/usrpwd/password": credential.password})
     if tls_files is not None:
-        zenoh_cfg.update({"transport/link/tls/root_ca_certificate": tls_files["ca"],
-                          "transport/link/tls/connect_certificate": tls_files["cert"],
-                          "transport/link/tls/connect_private_key": tls_files["key"],
+        at = (lambda name: str(kit_dir / name)) if kit_dir is not None else (lambda name: name)
+        zenoh_cfg.update({"transport/link/tls/root_ca_certificate": at(tls_files["ca"]),
+                          "transport/link/tls/connect_certificate": at(tls_files["cert"]),
+                          "transport/link/tls/connect_private_key": at(tls_files["key"]),
                           "transport/link/tls/enable_mtls": True})
     return {
         "kit_version": KIT_VERSION,
@@ -134,7 +140,9 @@ def join_document(sc: Any, run: str, sid: str, router: list[str], credential: An
         "credential": None if credential is None else f"{user}.cred",
         "tls": tls_files,
         "zenoh": zenoh_cfg,
-        "paths_relative_to": "this directory",
+        "paths_relative_to": "this directory (credential, tls, proto, keys_json); the zenoh block's TLS files are "
+                             "absolute paths of the kit where it was written: a copied kit resolves `tls` against its "
+                             "own directory instead",
         "proto": "swarmhil.proto",
         "keys_json": "keys.json",
         "agent": agent_cfg,
@@ -162,7 +170,7 @@ def write_join_kit(out: Path, sc: Any, run: str, sid: str, router: list[str], se
             for role, name in (("ca", "ca.pem"), ("cert", f"{user}.pem"), ("key", f"{user}.key")):
                 _write(kit / "tls" / name, (security.tls.dir / name).read_bytes())
                 tls_files[role] = f"tls/{name}"
-    doc = join_document(sc, run, sid, router, credential, tls_files, agent_config(sc, sid))
+    doc = join_document(sc, run, sid, router, credential, tls_files, agent_config(sc, sid), kit.resolve())
     _write(kit / "join.json.tmp", json.dumps(doc, indent=1) + "\n")
     (kit / "join.json.tmp").replace(kit / "join.json")
     return kit

@@ -5,7 +5,8 @@ schedule from its seed, and the drawn faults are added to the scenario's `[[faul
 (plant/faults.py validates them as if written by hand):
 
     [recovery]
-    within_s = 3600.0            # a fault counts as recovered when the swarm is whole again this soon after its end
+    hold_s = 5400.0              # recovered: the swarm whole again after the fault and staying so this long
+                                 # (default: the scenario's [recovery].hold_s, one orbit period unless it says)
 
     [[draw]]
     kind = "thruster_stuck_off"  # any [[fault]] kind (docs/faults.md)
@@ -90,8 +91,11 @@ class Draw(BaseModel):
 
 
 class Recovery(BaseModel):
+    """[recovery]: hold_s, how long the swarm must stay whole after a fault for it to count as
+    recovered (None: the scenario's own [recovery].hold_s, by default one orbit period)."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-    within_s: float = Field(3600.0, gt=0)
+    hold_s: float | None = Field(None, ge=0)
 
 
 class FaultDraws(BaseModel):

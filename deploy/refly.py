@@ -75,13 +75,19 @@ def segments(run: Path) -> list[Path]:
     return out
 
 
+WRAPPED = {pb.UndecodableSample.DESCRIPTOR.full_name, pb.RejectedSample.DESCRIPTOR.full_name}
+"""The recorder's wrappers of samples no process acted on (bus/recorder.py): not inputs or outputs."""
+
+
 def _iter_messages(paths: list[Path]) -> Iterator[tuple[str, bytes]]:
+    """(topic, payload) of every recorded sample but the recorder's wrappers (WRAPPED)."""
     from mcap.reader import make_reader
 
     for p in paths:
         with open(p, "rb") as f:
-            for _schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
-                yield relative_topic(channel.topic), message.data
+            for schema, channel, message in make_reader(f).iter_messages(log_time_order=False):
+                if schema is None or schema.name not in WRAPPED:
+                    yield relative_topic(channel.topic), message.data
 
 
 def _meta_and_document(path: Path) -> tuple[str | None, dict[str, Any] | None, dict[str, Any] | None]:

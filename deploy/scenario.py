@@ -21,7 +21,7 @@ from swarmhil.bus.keys import check_token
 SECTIONS = {
     "run", "orbit", "plant", "camera", "actuator", "controller", "sensing", "dispersion",
     "spacecraft", "body", "link", "beacon", "nav", "time", "viz", "supervision", "security", "fault",
-    "contact",
+    "contact", "recovery",
 }
 RESTART_POLICIES = ("never", "on-failure")
 PROPAGATORS = ("linear", "j2", "cw", "inertial")  # plant/dynamics/propagator.py
@@ -143,7 +143,15 @@ class Scenario:
             "body": [b.model_dump() for b in self.bodies],
             "faults": [fault_summary(f) for f in self.faults],
             "contact": self.contact.model_dump() if self.contact is not None else None,
+            "recovery": {"hold_s": self.recovery_hold_s},
         }
+
+    @property
+    def recovery_hold_s(self) -> float:
+        """[recovery].hold_s: how long the swarm must stay whole after a fault to count as recovered
+        (dashboards/sections/faults.py `judge`); default one period of the reference orbit, 2 pi / n."""
+        hold = (self.sections.get("recovery") or {}).get("hold_s")
+        return float(hold) if hold is not None else 2.0 * math.pi / self.orbit.mean_motion_radps
 
     @property
     def steps(self) -> int:
@@ -440,13 +448,14 @@ def parse_scenario(doc: dict[str, Any], src: str = "<scenario>", *, flight_softw
 
     _beacon(src, doc)
     _viz(src, doc)
+    _recovery(src, doc)
     sc = Scenario(
         name=name, source=src, duration_s=duration, step_s=step, seed=seed, mode=mode, speed=speed,
         orbit=orbit, fidelity=fidelity, drag=drag, camera=camera, max_accel_mps2=max_accel,
         controller=controller, controller_params=params, sensing=sensing, ids=[], roe_m=np.zeros((0, 6)),
         stall_timeout_s=stall, restart=restart, max_restarts=max_restarts, auth=auth, tls=tls,
         decision_period_steps=decision_steps,
-        sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion") if k in doc},
+        sections={k: doc[k] for k in ("link", "beacon", "nav", "viz", "dispersion", "recovery") if k in doc},
         actuator_limit=limit, doc=doc, plant_options=plant_options, epoch_utc=epoch_utc,
     )
     if "link" in doc:
@@ -504,6 +513,14 @@ def _contact(src: str, table: Any) -> Any:
         return ContactConfig.model_validate(table)
     except ValidationError as exc:
         raise ScenarioError(format_validation_error(src, "[contact]", exc, ContactConfig)) from None
+
+
+def _recovery(src: str, doc: dict[str, Any]) -> None:
+    """[recovery]: hold_s, how long (simulated seconds) the swarm must stay whole after a fault for
+    the fault to count as recovered (docs/faults.md); omitted: one orbit period."""
+    t = _table(src, doc, "recovery", {"hold_s"})
+    if "hold_s" in t:
+        _num(src, "[recovery].hold_s", t["hold_s"], 0.0, 86400.0 * 365)
 
 
 def _supervision(src: str, doc: dict[str, Any]) -> tuple[float, str, int]:

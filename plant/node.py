@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -16,7 +17,7 @@ import numpy as np
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
-from swarmhil.bus.codec import RejectedPacket, Rejections, check_complete_command, decode, header, sim_time_ns
+from swarmhil.bus.codec import RejectedPacket, Rejections, command_rejection, decode, header, sim_time_ns
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, body_entry
 from swarmhil.plant.config import PlantConfig
@@ -30,6 +31,7 @@ from swarmhil.plant.world import World
 from swarmhil.plant.worlds import make_world
 
 log = logging.getLogger("swarmhil.plant")
+REJECT_EVENTS_MAX = 1000  # Events "rejected_command" per run; summary.json counts every rejection
 
 
 @dataclass
@@ -71,6 +73,7 @@ class PlantNode:
         self._rejoin: set[str] = set()      # dead agents whose token is back: alive again at the next step
         self.held = np.zeros((len(config.ids), 6))  # last command (accel, torque) of each spacecraft, held on a miss
         self._seq: dict[str, int] = {}
+        self._seq_lock = threading.Lock()
         self._step = 0
         self.timing: dict[str, float] = {}
         self._sense_keys = [self.keys.sense(sid, config.sensing["kind"]) for sid in config.ids]
@@ -144,22 +147,35 @@ class PlantNode:
         self.box.wake()
 
     def _on_command(self, key: str, payload: bytes) -> None:
+        cmd = None
         try:
             sc = self._act_ids.get(key)
             if sc is None:
                 _kind, sc, _ = self.keys.parse(key)
                 if sc not in self.world.index:
                     raise RejectedPacket(f"unknown spacecraft id {sc!r}")
-            cmd = decode(pb.ActuatorCommand, payload, run=self.run_id)
-            check_complete_command(cmd)
-            if cmd.header.source != sc:
-                raise RejectedPacket(f"header.source {cmd.header.source!r} does not match key id {sc!r}")
+            cmd = decode(pb.ActuatorCommand, payload)
+            why = command_rejection(cmd, sc, self.run_id)
+            if why:
+                raise RejectedPacket(why)
         except (RejectedPacket, ValueError) as exc:
-            self.rejections.add(key, str(exc))
+            self._reject_command(key, str(exc), cmd)
             return
         a, tq = cmd.accel_mps2, cmd.torque_nm  # (np.concatenate of the two `arr`: the same six float64)
         if not self.box.put(int(cmd.header.step), sc, np.array([a.x, a.y, a.z, tq.x, tq.y, tq.z])):
             self.stats.late_commands += 1
+
+    def _reject_command(self, key: str, reason: str, cmd: Any) -> None:
+        """A command the plant does not act on: counted (summary.json rejected_packets) and, for the
+        first REJECT_EVENTS_MAX, an Event "rejected_command" whose subject is the spacecraft of the
+        key and whose detail (JSON) gives the key, the reason and what the command claimed (source,
+        run, step; empty when it did not decode)."""
+        self.rejections.add(key, reason)
+        if self.rejections.total <= REJECT_EVENTS_MAX:
+            hdr = cmd.header if cmd is not None else None
+            self._event("rejected_command", key.rsplit("/", 2)[-2], json.dumps(
+                {"key": key, "reason": reason, "claimed_source": hdr.source if hdr else "",
+                 "claimed_run": hdr.run if hdr else "", "claimed_step": int(hdr.step) if hdr else None}))
 
     def _on_barrier(self, key: str, payload: bytes) -> None:
         try:
@@ -177,8 +193,9 @@ class PlantNode:
 
     # --- helpers ----------------------------------------------------------------------------
     def _next_seq(self, key: str) -> int:
-        seq = self._seq.get(key, 0)
-        self._seq[key] = seq + 1
+        with self._seq_lock:  # events also go out from the command callback (rejected commands)
+            seq = self._seq.get(key, 0)
+            self._seq[key] = seq + 1
         return seq
 
     def _hdr(self, key: str) -> pb.Header:

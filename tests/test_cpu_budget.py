@@ -7,12 +7,14 @@ not wall time) in the drift-null controller of every agent; the budgeted one get
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import SCENARIOS, read_mcap
+from system_tools import missing
 from swarmhil.deploy.cpu_budget import available, limit, period_quota_us
 
 BURN_S = 0.02
@@ -68,9 +70,31 @@ def _compute_s(run: Path) -> dict[str, np.ndarray]:
 
 
 def _require_cgroup_cpu(tmp_path: Path) -> None:
+    """CPU budgets enforceable here, else a skip naming why; in CI (CI=true) a failure instead, so
+    that CI never passes with the budget unchecked (tests/system_tools.py `missing`)."""
     why = available()
     if why is not None:
-        pytest.skip(f"CPU budgets cannot be enforced on this machine: {why}")
+        missing("CPU budgets (a writable cgroup cpu controller)",
+                f"they cannot be enforced on this machine: {why}; run as root on Linux with cgroups")
+
+
+def test_in_ci_an_unenforceable_budget_fails_instead_of_skipping(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Where budgets cannot be enforced the budget tests skip with the reason, except in CI, where
+    they fail with one line (planted: a skip under CI=true fails this test)."""
+    monkeypatch.setattr(sys.modules[__name__], "available", lambda: "no cpu controller (test)")
+    monkeypatch.setenv("CI", "true")
+    try:
+        _require_cgroup_cpu(tmp_path)
+        outcome = "went on"
+    except pytest.fail.Exception as exc:
+        outcome = f"failed: {exc}"
+    except pytest.skip.Exception as exc:  # a skip must not end this test as a skip: that is the bug
+        outcome = f"skipped: {exc}"
+    assert outcome.startswith("failed: CI: CPU budgets") and "no cpu controller (test)" in outcome, outcome
+    monkeypatch.delenv("CI")
+    with pytest.raises(pytest.skip.Exception, match="no cpu controller"):
+        _require_cgroup_cpu(tmp_path)
 
 
 def test_a_budgeted_agent_computes_slower_by_about_its_fraction(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -160,9 +160,12 @@ class Flight:
         return self.launcher.returncode, out, err, fc_out
 
 
-def _forge_commands(kit: Path, stop: threading.Event) -> None:
-    """With the kit's credential, full thrust commands for the other spacecraft, every step, until
-    stopped: were they let through, the plant would take them (right run, source = the key's id)."""
+def _forge_commands(kit: Path, stop: threading.Event, done: dict[str, int]) -> None:
+    """With the kit's credential, until stopped: full-thrust commands for the other spacecraft every
+    step (were they let through, the plant would take them: right run, source = the key's id), and
+    on sc02's own key, every 0.1 s, a command naming another run, one naming another source and a
+    payload that does not parse. `done` counts what was put, and `connected` whether the session
+    reached the run's router (the test then knows the forger did connect and publish)."""
     import zenoh
 
     from swarmhil.bus import swarmhil_pb2 as pb
@@ -171,14 +174,26 @@ def _forge_commands(kit: Path, stop: threading.Event) -> None:
     cfg = zenoh.Config()
     for key, value in doc["zenoh"].items():
         cfg.insert_json5(key, json.dumps(value))
+    run = doc["run"]
+    cmd = lambda run_, src, step: pb.ActuatorCommand(  # noqa: E731
+        header=pb.Header(run=run_, source=src, step=step, t=step * 10.0), accel_mps2=pb.Vector3(x=1e-3, y=1e-3, z=1e-3),
+        controller="rogue").SerializeToString()
     with zenoh.open(cfg) as session:
-        pubs = {sid: session.declare_publisher(f"swarm/{doc['run']}/sc/{sid}/act") for sid in ("sc01", "sc03")}
+        done["connected"] = int(bool(list(session.info.routers_zid())))
+        pubs = {sid: session.declare_publisher(f"swarm/{run}/sc/{sid}/act") for sid in ("sc01", "sc03")}
+        own = session.declare_publisher(doc["keys"]["act"])
+        last_own = 0.0
         while not stop.wait(0.02):
             for step in range(100):
                 for sid, pub in pubs.items():
-                    pub.put(pb.ActuatorCommand(header=pb.Header(run=doc["run"], source=sid, step=step, t=step * 10.0),
-                                               accel_mps2=pb.Vector3(x=1e-3, y=1e-3, z=1e-3), controller="rogue")
-                            .SerializeToString())
+                    pub.put(cmd(run, sid, step))
+            done["other_keys"] = done.get("other_keys", 0) + 200
+            if time.monotonic() - last_own >= 0.1:
+                last_own = time.monotonic()
+                own.put(cmd("another-run", "sc02", 0))
+                own.put(cmd(run, "sc01", 0))
+                own.put(b"\xff\xff not a command")
+                done["own_key"] = done.get("own_key", 0) + 1
 
 
 def _truth(path: Path) -> list[bytes]:
@@ -189,7 +204,9 @@ def _truth(path: Path) -> list[bytes]:
 
 
 def _acts(path: Path, sid: str) -> list:
-    return [m for t, _l, _p, m in read_mcap(path) if t == f"sc/{sid}/act"]
+    """The commands recorded on sid's act key as ActuatorCommands (rejected ones are RejectedSamples)."""
+    return [m for t, _l, _p, m in read_mcap(path) if t == f"sc/{sid}/act"
+            and m.DESCRIPTOR.full_name == "swarmhil.v1.ActuatorCommand"]
 
 
 def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: Path, fc_build: Path) -> None:
@@ -201,17 +218,42 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
     steps = ["--duration", "1000"]
     flight = Flight(tmp_path / "ext", "hil1", fc_build, steps)
     stop = threading.Event()
-    rogue = threading.Thread(target=_forge_commands, args=(flight.kit, stop), daemon=True)
+    forged: dict[str, int] = {}
+    rogue = threading.Thread(target=_forge_commands, args=(flight.kit, stop, forged), daemon=True)
     rogue.start()  # sc02's credential put on sc01's and sc03's keys: the router's ACL drops it all
     code, out, err, fc_out = flight.finish()
     stop.set()
     rogue.join(10)
     assert code == 0, (out, err, fc_out)
+    # the forger did reach the router and publish, on the others' keys and on its own
+    assert forged.get("connected") == 1 and forged.get("other_keys", 0) >= 1000 and forged.get("own_key", 0) >= 2, forged
     assert "fc: answered 100 stimuli" in fc_out, fc_out
     modules = set(json.loads(flight.audit.read_text()))
     assert {"zenoh", "numpy", "swarmhil_pb2"} <= modules and not modules & PROJECT_PACKAGES, modules & PROJECT_PACKAGES
     s = json.loads((tmp_path / "ext" / "summary.json").read_text())
-    assert s["steps"] == 100 and not s["dead_agents"] and not s["missed_deadlines"] and s["rejected_packets"] == 0, s
+    assert s["steps"] == 100 and not s["dead_agents"] and not s["missed_deadlines"], s
+    # nothing forged on sc01's or sc03's keys reached the plant (the ACL dropped it); what it forged on
+    # its own key did, and was rejected: one Event each with the reason and the claimed source, the
+    # commands recorded as RejectedSample (never as ActuatorCommand), the garbage with its step
+    msgs = read_mcap(tmp_path / "ext" / "run.mcap")
+    assert s["rejected_packets_by_key"] == {"swarm/hil1/sc/sc02/act": s["rejected_packets"]}, s
+    events = [m for t, _l, _p, m in msgs if t == "event" and m.kind == "rejected_command"]
+    # (rejections after the recorder stopped, at the run's end, are counted but not recorded)
+    assert 3 <= len(events) <= s["rejected_packets"] and {e.subject for e in events} == {"sc02"}
+    details = [json.loads(e.detail) for e in events]
+    assert {(d["claimed_source"], d["claimed_run"]) for d in details} == {("sc02", "another-run"), ("sc01", "hil1"), ("", "")}
+    assert any("header.run 'another-run' is not 'hil1'" in d["reason"] for d in details)
+    assert any("header.source 'sc01' does not match key id 'sc02'" in d["reason"] for d in details)
+    on_key = [m for t, _l, _p, m in msgs if t == "sc/sc02/act"]
+    kinds = {m.DESCRIPTOR.full_name for m in on_key}
+    assert kinds == {"swarmhil.v1.ActuatorCommand", "swarmhil.v1.RejectedSample", "swarmhil.v1.UndecodableSample"}
+    rejected = [m for m in on_key if m.DESCRIPTOR.full_name == "swarmhil.v1.RejectedSample"]
+    assert {(m.claimed_source, m.claimed_run) for m in rejected} == {("sc02", "another-run"), ("sc01", "hil1")}
+    undecodable = [m for m in on_key if m.DESCRIPTOR.full_name == "swarmhil.v1.UndecodableSample"]
+    assert undecodable and all(m.payload == b"\xff\xff not a command" for m in undecodable)
+    wrapped = [m.header for m in rejected + undecodable]
+    assert all(h.source == "recorder" and 0 <= h.step <= 100 and h.t == h.step * 10.0 for h in wrapped)
+    assert max(h.step for h in wrapped) > 0, [h.step for h in wrapped]   # the step each arrived in, not 0
     assert s["external"]["sc02"]["joined_after_s"] is not None and "agent-sc02" not in s["pids"]
 
     sc = load_scenario(SCENARIO, ["spacecraft.1.fsw=builtin"]).with_overrides(duration_s=1000.0)
@@ -403,3 +445,76 @@ def test_external_flight_computer_over_mutual_tls_from_its_own_namespace(tmp_pat
     truth = _truth(out / "run.mcap")
     assert len(truth) == 101 and truth == _truth(tmp_path / "builtin" / "run.mcap")
     assert s["delta_v_mps"]["sc02"] > 0 and s["delta_v_mps"] == ref.summary["delta_v_mps"]
+
+
+def test_kit_tls_paths_work_from_any_directory_and_a_missing_file_fails_fast(tmp_path: Path, fc_build: Path) -> None:
+    """A --tls kit: the `zenoh` block names its TLS files by absolute paths that exist (it works as
+    given from any working directory), `tls` by names relative to the kit (a copied kit finds them);
+    the reference flight computer with a kit whose CA file is gone stops at once with one line
+    naming the file, not after the 15 s connect timeout."""
+    from swarmhil.bus.acl import make_run_security
+    from swarmhil.deploy.external import write_join_kit
+
+    sc = load_scenario(SCENARIO)
+    (tmp_path / "secrets").mkdir()
+    sec = make_run_security(tmp_path / "secrets", "kt", ["plant", "agent-sc02"], tls=True)
+    kit = write_join_kit(tmp_path / "run", sc, "kt", "sc02", ["tls/127.0.0.1:1"], sec)
+    doc = json.loads((kit / "join.json").read_text())
+    tls = {k: v for k, v in doc["zenoh"].items() if k.startswith("transport/link/tls/") and isinstance(v, str)}
+    assert len(tls) == 3 and all(Path(v).is_absolute() and Path(v).is_file() for v in tls.values()), tls
+    assert sorted(tls.values()) == sorted(str(kit.resolve() / v) for v in doc["tls"].values())
+    moved = tmp_path / "elsewhere" / "kit"
+    import shutil
+
+    shutil.copytree(kit, moved)
+    shutil.rmtree(kit)  # the absolute paths now point nowhere; the copy resolves `tls` itself
+    (moved / "tls" / "ca.pem").unlink()
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    t0 = time.monotonic()
+    r = subprocess.run([sys.executable, str(FC / "fc.py"), str(moved), "--build", str(fc_build)], capture_output=True,
+                       text=True, env=env, cwd=tmp_path, timeout=60)
+    assert time.monotonic() - t0 < 10.0 and r.returncode == 1, (r.stdout, r.stderr)
+    assert r.stderr.strip() == (f"fc: {moved}/join.json: TLS file {moved.resolve()}/tls/ca.pem "
+                                f"(transport/link/tls/root_ca_certificate) does not exist"), r.stderr
+
+
+def test_the_doc_drift_null_law_is_the_built_in_bit_for_bit() -> None:
+    """docs/hil.md "The built-in laws, to the bit": the drift-null steps written in plain Python
+    floats (no numpy) give the built-in controller's command bit for bit, for 0 to 7 neighbours
+    over many random states, including ones the clip cuts."""
+    import random
+
+    import numpy as np
+
+    from swarmhil.agent.controller import Observation, OrbitInfo
+    from swarmhil.agent.controllers import DriftNullController
+
+    def doc_law(pos: list, vel: list, n: float, gain: float, amax: float) -> tuple[float, float, float]:
+        if not pos:
+            return (0.0, 0.0, 0.0)
+        da = [(4.0 * p[0]) + ((2.0 * v[1]) / n) for p, v in zip(pos, vel)]
+        total = 0.0
+        for d in da:
+            total += d
+        m = total / len(da)
+        u = ((gain * n) / 2.0) * m
+        return (0.0, min(max(u, -amax), amax), 0.0)
+
+    rnd = random.Random(37)
+    n = 0.0011082
+    checked = clipped = 0
+    for _ in range(3000):
+        k = rnd.randrange(0, 8)
+        pos = [[rnd.uniform(-1, 1) * 10 ** rnd.uniform(-2, 3) for _ in range(3)] for _ in range(k)]
+        vel = [[rnd.uniform(-1, 1) * 10 ** rnd.uniform(-4, 0) for _ in range(3)] for _ in range(k)]
+        gain, amax = 10 ** rnd.uniform(-5, -2), 10 ** rnd.uniform(-5, -2)
+        obs = Observation(step=0, t_s=0.0, u_rad=0.0, neighbour_ids=[f"n{i}" for i in range(k)],
+                          rel_position_m=np.array(pos, dtype=float).reshape(-1, 3),
+                          rel_velocity_mps=np.array(vel, dtype=float).reshape(-1, 3))
+        built_in = DriftNullController(OrbitInfo(7e6, n), gain, amax).step(obs)
+        want = doc_law(pos, vel, n, gain, amax)
+        assert tuple(built_in.accel_mps2.tolist()) == want, (k, built_in.accel_mps2, want)
+        assert built_in.mode == ("search" if k == 0 else "drift-null")
+        checked += 1
+        clipped += abs(want[1]) == amax
+    assert checked == 3000 and 100 < clipped < 2900   # both branches of the clip were exercised

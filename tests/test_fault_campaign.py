@@ -95,7 +95,9 @@ accel_mps2 = [0.0, 1e-4, 0.0]
     ('[[draw]]\nkind = "thruster_stuck_off"\ntargets = 3\npool = ["sc01"]\nstart_s = 0.0\nduration_s = 1.0',
      r"\[\[draw\]\]\[0\] needs 3 spacecraft from a pool of 1"),
     ('[[draw]]\nkind = "thruster_stuck_off"\nstart_s = 0.0', r"\[\[draw\]\]\[0\].duration_s Field required"),
-    ('[recovery]\nwithin_s = 10.0', r"f.toml: .draw Field required"),
+    ('[recovery]\nhold_s = 10.0', r"f.toml: .draw Field required"),
+    ('[[draw]]\nkind = "thruster_stuck_off"\nstart_s = 0.0\nduration_s = 1.0\n[recovery]\nwithin_s = 10.0',
+     r"f.toml: .recovery.within_s is not a known field"),
     ('[[draw]\n', r"f.toml: not TOML"),
 ])
 def test_bad_faults_files_are_one_precise_line(tmp_path: Path, body: str, message: str) -> None:
@@ -117,23 +119,33 @@ def test_cli_refuses_a_bad_faults_file_and_a_baseline_without_faults(tmp_path: P
         assert not (tmp_path / "c" / "campaign.json").exists()  # nothing started
 
 
-def test_recovery_fraction_judges_only_what_it_can() -> None:
-    from swarmhil.deploy.campaign import fault_stats
+def test_fault_outcomes_are_counted_apart_and_never_split_is_not_recovered() -> None:
+    from swarmhil.deploy.campaign import _fault_lines, fault_stats
 
-    def fault(ttr, end_s=1000.0, run_end_s=5000.0, ended=True):
-        return {"kind": "k", "end_s": end_s, "run_end_s": run_end_s, "ended_in_run": ended,
-                "time_to_reconnect_s": ttr, "delta_v_in_window_mps": 0.1}
+    def fault(outcome, kind="k", **extra):
+        return {"kind": kind, "outcome": outcome, "hold_s": 5400.0, "delta_v_in_window_mps": 0.1,
+                "time_to_reconnect_s": 100.0 if outcome == "split and recovered" else None, **extra}
 
-    faults = [fault(0.0), fault(3000.0), fault(None),                 # recovered, too late, never: judged
-              fault(None, run_end_s=2000.0), fault(None, ended=False),  # run too short, never ended: not judged
-              fault(500.0, run_end_s=1200.0)]                          # recovered before a short run's end: judged
+    faults = [fault("never split"), fault("never split"), fault("split and recovered"), fault("not recovered"),
+              fault("not judged"),
+              # a link fault is judged on its link graph: never split on the cameras, split and lost on the link
+              fault("never split", kind="link_partition", link_outcome="not recovered"),
+              fault("never split", kind="link_partition")]  # no link deliveries recorded: not judged
     rows = [{"status": "ok", "faults": json.dumps(faults)}, {"status": "error", "faults": json.dumps(faults)}]
-    s = fault_stats(rows, within_s=1800.0)["k"]
-    assert (s["drawn"], s["judged"], s["recovered"], s["fraction"]) == (6, 4, 2, 0.5)
+    stats = fault_stats(rows)
+    s = stats["k"]
+    assert (s["drawn"], s["judged"], s["not judged"]) == (5, 4, 1)
+    assert [s[o]["n"] for o in ("never split", "split and recovered", "not recovered")] == [2, 1, 1]
+    assert s["split and recovered"]["fraction"] == 0.25 and s["time_to_reconnect_s"]["mean"] == 100.0
     from scipy.stats import binomtest
 
     ci = binomtest(2, 4).proportion_ci(0.95, "wilson")
-    assert (s["ci95_low"], s["ci95_high"]) == (ci.low, ci.high) and 0.0 < ci.low < 0.5 < ci.high < 1.0
+    assert (s["never split"]["ci95_low"], s["never split"]["ci95_high"]) == (ci.low, ci.high)
+    link = stats["link_partition"]
+    assert (link["judged"], link["not recovered"]["n"], link["never split"]["n"]) == (1, 1, 0)
+    lines = "\n".join(_fault_lines(rows, {"faults": {"file": "f.toml"}}, lambda v: "" if v is None else f"{v:.3g}"))
+    assert "| k | 5 | 4 | 2 (0.5 [0.150, 0.850]) | 1 (0.25 [0.046, 0.699]) | 1 (0.25 [0.046, 0.699]) |" in lines, lines
+    assert "staying so for 5.4e+03 s" in lines
 
 
 def test_dask_fault_campaign_rows_equal_single_runs_of_the_drawn_scenario(tmp_path: Path) -> None:
@@ -163,6 +175,9 @@ def test_dask_fault_campaign_rows_equal_single_runs_of_the_drawn_scenario(tmp_pa
         for f in got:
             kinds[f["kind"]] = kinds.get(f["kind"], 0) + 1
             assert f["time_to_reconnect_s"] is None or f["time_to_reconnect_s"] >= 0.0
+            assert f["outcome"] in ("never split", "split and recovered", "not recovered", "not judged")
+            assert f["recovered"] is (True if f["outcome"] == "split and recovered" else
+                                      False if f["outcome"] == "not recovered" else None)
         # the same run by hand: the scenario file with the drawn faults written in, flown in-process
         doc = tomllib.loads(SCENARIO.read_text())
         text = SCENARIO.read_text() + "".join(
@@ -190,3 +205,26 @@ def test_dask_fault_campaign_rows_equal_single_runs_of_the_drawn_scenario(tmp_pa
         assert f"| {kind} | {n} |" in report, report
     assert "Extra ΔV over the same seed without faults (OUT/baseline)" in report
     assert "<h2>Faults (drawn from" in (tmp_path / "c" / "report.html").read_text()
+
+
+def test_a_baseline_judges_the_same_windows_without_the_fault(tmp_path: Path) -> None:
+    """with_baseline_outcomes judges each drawn fault's window on the baseline run's series, and the
+    report puts those counts on a row of their own under the faulted ones."""
+    from swarmhil.dashboards.run_metrics import SERIES
+    from swarmhil.dashboards.sections.faults import with_baseline_outcomes
+    from swarmhil.deploy.campaign import _fault_lines, fault_stats
+
+    t = np.arange(0.0, 2000.0, 10.0)
+    ncomp = np.where((t >= 500.0) & (t < 700.0), 2, 1)        # the swarm splits on its own over [500, 700) s
+    np.savez(tmp_path / SERIES, t_s=t, delta_v_total_mps=np.zeros(t.size), n_components=ncomp)
+    drawn = [{"kind": "k", "start_s": 100.0, "end_s": 200.0, "hold_s": 300.0, "outcome": "not recovered"},
+             {"kind": "k", "start_s": 450.0, "end_s": 600.0, "hold_s": 300.0, "outcome": "not recovered"},
+             {"kind": "link_partition", "start_s": 100.0, "end_s": 200.0, "hold_s": 300.0}]
+    got = with_baseline_outcomes(drawn, tmp_path)
+    assert [f["baseline_outcome"] for f in got] == ["split and recovered", "split and recovered", "not judged"]
+    assert [f["baseline_outcome"] for f in with_baseline_outcomes(drawn, tmp_path / "none")] == ["not judged"] * 3
+    rows = [{"status": "ok", "faults": json.dumps(got[:2])}]
+    assert fault_stats(rows)["k"]["baseline"] == {"never split": 0, "split and recovered": 2, "not recovered": 0,
+                                                   "not judged": 0}
+    lines = _fault_lines(rows, {"faults": {"file": "f.toml"}}, lambda v: "" if v is None else f"{v:.3g}")
+    assert "| k, same windows without faults | 2 | 2 | 0 | 2 | 0 | | |" in lines, lines

@@ -66,7 +66,7 @@ def test_faults_are_typed_with_windows_in_steps() -> None:
 
 
 # --- runs read back from the recording -------------------------------------------------------------
-def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.toml") -> object:
+def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.toml", **tables: dict) -> object:
     """Paper 002's shipped swarm (20 spacecraft, rel sensing), shortened, with these faults."""
     import tomllib
 
@@ -75,6 +75,7 @@ def sabatini(*faults: dict, duration_s: float = 300.0, name: str = "sabatini-20.
     d = tomllib.loads((SCENARIOS / name).read_text())
     d["run"]["duration_s"] = duration_s
     d["fault"] = [dict(f) for f in faults]
+    d.update(tables)
     return parse_scenario(d, name)
 
 
@@ -139,7 +140,9 @@ def test_thruster_faults_act_in_the_actuator_model_and_are_seen_in_the_truth(tmp
     cam = CameraGeometry(**sc.camera)
     connected = [weakly_connected(visibility_matrix(np.array([pos[k][i] for i in sc.ids]), cam)) for k in range(31)]
     assert (rec["fault1"]["components_max_in_window"] == 1) == all(connected[10:20])
-    assert (rec["fault1"]["time_to_reconnect_s"] == 0.0) == connected[20]
+    assert rec["fault1"]["split"] == (not all(connected[10:]))   # in the window or after it
+    if not rec["fault1"]["split"]:  # never split: nothing recovered, no reconnection
+        assert (rec["fault1"]["recovered"], rec["fault1"]["time_to_reconnect_s"]) == (None, None)
 
 
 def test_recovery_reads_the_window_and_the_reconnection() -> None:
@@ -148,12 +151,114 @@ def test_recovery_reads_the_window_and_the_reconnection() -> None:
     t = np.arange(8) * 10.0
     dv = np.outer(np.arange(8.0), [1.0, 2.0])        # the swarm spends 3 m/s a step
     ncomp = np.array([1, 1, 2, 3, 2, 2, 1, 1])
-    assert recovery(t, dv, ncomp, 20.0, 40.0) == {"delta_v_in_window_mps": 6.0, "components_at_start": 2,
-                                                  "components_max_in_window": 3, "components_at_end": 2,
-                                                  "time_to_reconnect_s": 20.0}
-    assert recovery(t, dv, ncomp, 20.0, None)["time_to_reconnect_s"] == 0.0   # to the run's end: one component there
-    assert recovery(t, dv, np.array([1, 2, 2, 2, 2, 2, 2, 2]), 10.0, 30.0)["time_to_reconnect_s"] is None
-    assert recovery(t, dv, None, 0.0, 70.0) == {"delta_v_in_window_mps": 21.0}
+    assert recovery(t, dv, ncomp, 20.0, 40.0, hold_s=10.0) == {
+        "delta_v_in_window_mps": 6.0, "hold_s": 10.0, "components_at_start": 2, "components_max_in_window": 3,
+        "components_at_end": 2, "split": True, "recovered": True, "time_to_reconnect_s": 20.0,
+        "outcome": "split and recovered"}
+    # held for 10 s from t = 60 s: recovered; for 20 s the run ends (t = 70 s) too soon to tell
+    too_soon = recovery(t, dv, ncomp, 20.0, 40.0, hold_s=20.0)
+    assert (too_soon["recovered"], too_soon["time_to_reconnect_s"], too_soon["outcome"]) == (None, None, "not judged")
+    # to the run's end, whole there but not for hold_s after it: not judged; split there: not recovered
+    assert recovery(t, dv, ncomp, 20.0, None, hold_s=10.0)["outcome"] == "not judged"
+    never = recovery(t, dv, np.array([1, 2, 2, 2, 2, 2, 2, 2]), 10.0, 30.0, hold_s=10.0)
+    assert (never["split"], never["recovered"], never["time_to_reconnect_s"]) == (True, False, None)
+    # the fault had not ended when the run did: split, nothing to say of recovery
+    assert recovery(t, dv, ncomp, 20.0, 900.0, hold_s=0.0)["outcome"] == "not judged"
+    whole = recovery(t, dv, np.ones(8, dtype=int), 10.0, 30.0, hold_s=10.0)
+    assert (whole["split"], whole["recovered"], whole["outcome"]) == (False, None, "never split")
+    assert recovery(t, dv, None, 0.0, 70.0, hold_s=10.0) == {"delta_v_in_window_mps": 21.0}
+
+
+def test_a_swarm_whole_briefly_after_a_fault_then_split_to_the_end_has_not_recovered() -> None:
+    """The stuck-on thruster as a reviewer found it: after the fault's end the swarm takes 2300 s to
+    be whole, stays whole 160 s, then is split to the run's end. Not recovered (held for one orbit
+    it was not); the same swarm staying whole from that step for one orbit has recovered, 2300 s
+    after the fault's end; a link graph series is judged beside it under `link_` keys."""
+    from swarmhil.dashboards.sections.faults import held_reconnection, recovery
+
+    t = np.arange(0.0, 12000.0, 10.0)
+    orbit = 5677.0
+    end = 1000.0
+    ncomp = np.where(t < 600.0, 1, 2)                             # split from t = 600 s, in the window
+    back = (t >= end + 2300.0) & (t < end + 2300.0 + 160.0)       # whole for 160 s
+    ncomp = np.where(back, 1, ncomp)
+    dv = np.zeros((t.size, 1))
+    rec = recovery(t, dv, ncomp, 500.0, end, hold_s=orbit)
+    assert (rec["split"], rec["recovered"], rec["time_to_reconnect_s"], rec["outcome"]) == (
+        True, False, None, "not recovered")
+    assert held_reconnection(t, ncomp == 1, int(end // 10), orbit) == (None, False)
+    stays = np.where(t >= end + 2300.0, 1, ncomp)
+    ok = recovery(t, dv, stays, 500.0, end, hold_s=orbit, link_components=ncomp)
+    assert (ok["recovered"], ok["time_to_reconnect_s"]) == (True, 2300.0)
+    assert (ok["link_split"], ok["link_recovered"], ok["link_components_max_in_window"]) == (True, False, 2)
+
+
+def test_link_components_join_spacecraft_a_delivery_reached_within_the_window() -> None:
+    """Three spacecraft a, b, c sending every 30 s: a-b and b-c deliveries make one component; c's
+    packets stop reaching anyone over [100, 200) s (and nobody's reach c): two components from one
+    window after the last delivery until the first after the cut."""
+    from swarmhil.dashboards.sections.faults import link_components, link_window_s
+
+    t = np.arange(0.0, 300.0, 10.0)
+    sent, src, dst = [], [], []
+    for ts in np.arange(0.0, 300.0, 30.0):
+        for s_, d_ in (("a", "b"), ("b", "a"), ("b", "c"), ("c", "b")):
+            if s_ == "c" or d_ == "c":
+                if 100.0 <= ts < 200.0:
+                    continue
+            sent.append(ts)
+            src.append(s_)
+            dst.append(d_)
+    w = link_window_s(np.array(sent), src, 10.0)
+    assert w == 60.0
+    n = link_components(t, ["a", "b", "c"], np.array(sent), src, dst, w)
+    # the last b-c delivery before the cut was sent at 90 s: up until 150 s; the next at 210 s
+    assert list(n[t < 150.0]) == [1] * 15 and list(n[(t >= 150.0) & (t < 210.0)]) == [2] * 6
+    assert list(n[t >= 210.0]) == [1] * int((t >= 210.0).sum())
+
+
+def section_metrics(sc, out) -> dict:
+    """The report's faults section (summary.json["metrics"]["faults"]) of a recorded run."""
+    from swarmhil.dashboards.sections import SectionContext
+    from swarmhil.dashboards.sections.faults import faults
+    from swarmhil.dashboards.truth_io import read_truth
+
+    truth = read_truth(out / "run.mcap")
+    return faults(SectionContext(out, out / "run.mcap", out, {}, sc.resolved(), truth)).metrics
+
+
+def test_a_stuck_on_thruster_that_splits_the_swarm_to_the_end_is_split_and_not_recovered(tmp_path) -> None:
+    """sabatini-20 for 1500 s with sc05's thrusters stuck on at 5 mm/s^2 along-track over [100, 300) s:
+    the swarm splits after the window and is not whole again by the run's end, recounted here from
+    the recorded positions: split, not recovered, no time to reconnect."""
+    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected
+
+    sc = sabatini({"kind": "thruster_stuck_on", "name": "stuck", "targets": ["sc05"], "start_s": 100.0,
+                   "end_s": 300.0, "accel_mps2": [0.0, 5e-3, 0.0]}, duration_s=1500.0)
+    msgs = run(sc, tmp_path / "r")
+    rec = section_metrics(sc, tmp_path / "r")["stuck"]
+    pos, cam = positions(msgs), CameraGeometry(**sc.camera)
+    whole = [weakly_connected(visibility_matrix(np.array([pos[k][i] for i in sc.ids]), cam)) for k in sorted(pos)]
+    assert all(whole[:10]) and not whole[-1]          # whole before the fault, split at the run's end
+    assert rec["hold_s"] == pytest.approx(2 * math.pi / sc.orbit.mean_motion_radps)
+    assert (rec["split"], rec["recovered"], rec["time_to_reconnect_s"], rec["outcome"]) == (
+        True, False, None, "not recovered"), rec
+
+
+def test_an_odd_even_partition_splits_the_link_graph_not_the_cameras(tmp_path) -> None:
+    """sabatini-20-beacon with the link split into odd and even spacecraft over [100, 250) s and
+    [recovery] hold_s = 60 s: the link graph of the recorded deliveries has two or more components
+    in the window and is whole again after it (held 60 s), while the camera graph never split."""
+    odd = [f"sc{i:02d}" for i in range(1, 21, 2)]
+    sc = sabatini({"kind": "link_partition", "name": "odd-even", "groups": [odd], "start_s": 100.0, "end_s": 250.0},
+                  name="sabatini-20-beacon.toml", duration_s=500.0, recovery={"hold_s": 60.0})
+    msgs = run(sc, tmp_path / "r")
+    across = [m for t, _l, _p, m in msgs if t.startswith("isl/rx/") and (m.src in odd) != (t.rsplit("/", 1)[1] in odd)]
+    assert not [m for m in across if 100.0 <= m.sent_t < 250.0] and [m for m in across if m.sent_t >= 250.0]
+    rec = section_metrics(sc, tmp_path / "r")["odd-even"]
+    assert rec["link_components_max_in_window"] >= 2 and rec["link_split"] is True, rec
+    assert rec["link_recovered"] is True and 0.0 < rec["link_time_to_reconnect_s"] <= 60.0, rec
+    assert (rec["split"], rec["components_max_in_window"], rec["outcome"]) == (False, 1, "never split"), rec
 
 
 def test_excursion_reads_a_mission_error_around_the_window() -> None:
@@ -602,3 +707,34 @@ def test_a_fault_starting_after_the_run_is_an_error_in_the_file_and_a_warning_fo
     assert short.duration_s == 3000.0
     assert "'split' starts at 3600 s, at or after the end of this run (--duration = 3000 s): it will not fire" in caplog.text
     assert "sc07-thruster" not in caplog.text  # at 2400 s: it fires
+
+
+def test_the_cli_refuses_a_fault_with_an_empty_window_or_past_the_end_in_one_line(tmp_path) -> None:
+    """`swarmhil run` exits 2 with one line, and flies nothing, for a fault whose window holds no
+    step ([21, 29) s with 10 s steps) and for one that starts at the run's end."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    head = ('[run]\nname = "e"\nduration_s = 100.0\nstep_s = 10.0\n[[spacecraft]]\nid = "s0"\n'
+            'roe_m = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]\n[[fault]]\nkind = "thruster_stuck_off"\ntargets = ["s0"]\n')
+    for window, why in (("start_s = 21.0\nend_s = 29.0\n", "[[fault]][0] lasts less than one step of 10.0 s"),
+                        ("start_s = 100.0\n", "[[fault]] 'fault0' starts at 100 s, at or after the end of the run")):
+        path = tmp_path / "f.toml"
+        path.write_text(head + window)
+        r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(path), "--in-process",
+                            "--out", str(tmp_path / "out")], capture_output=True, text=True, cwd=ROOT, timeout=120)
+        assert r.returncode == 2 and why in r.stderr and r.stderr.strip().count("\n") == 0, r.stderr
+        assert not (tmp_path / "out" / "run.mcap").exists()
+
+
+def test_recovery_hold_defaults_to_one_orbit_and_is_validated() -> None:
+    sc = parse_scenario(doc(STUCK), "f.toml")
+    assert sc.resolved()["recovery"] == {"hold_s": pytest.approx(2 * math.pi / sc.orbit.mean_motion_radps)}
+    assert 5000.0 < sc.recovery_hold_s < 6500.0   # a low Earth orbit's period
+    assert parse_scenario({**doc(STUCK), "recovery": {"hold_s": 600}}, "f.toml").resolved()["recovery"] == {"hold_s": 600.0}
+    for table, message in (({"hold_s": -1.0}, "[recovery].hold_s must be >= 0.0"),
+                           ({"within_s": 1.0}, "[recovery].within_s is not a known field")):
+        with pytest.raises(ScenarioError, match=re.escape(message)):
+            parse_scenario({**doc(STUCK), "recovery": table}, "f.toml")

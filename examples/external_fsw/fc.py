@@ -45,12 +45,20 @@ def load_kit(kit: Path) -> dict[str, Any]:
     return doc
 
 
+TLS_ROLES = {"transport/link/tls/root_ca_certificate": "ca", "transport/link/tls/connect_certificate": "cert",
+             "transport/link/tls/connect_private_key": "key"}
+
+
 def zenoh_config(kit: Path, doc: dict[str, Any], connect: str | None) -> zenoh.Config:
-    """The kit's client settings; TLS file paths are relative to the kit directory."""
+    """The kit's client settings. The TLS files are taken from the kit's `tls` names, relative to
+    the kit directory (so a kit copied to another machine works too), and checked before dialling:
+    Zenoh reads them only when it connects, and a missing one shows up as a bare connect timeout."""
     cfg = zenoh.Config()
     for key, value in doc["zenoh"].items():
-        if key.startswith("transport/link/tls/") and isinstance(value, str):
-            value = str((kit / value).resolve())
+        if key in TLS_ROLES:
+            value = str((kit / doc["tls"][TLS_ROLES[key]]).resolve())
+            if not Path(value).is_file():
+                raise SystemExit(f"fc: {kit}/join.json: TLS file {value} ({key}) does not exist")
         if key == "connect/endpoints" and connect:
             value = [connect]
         cfg.insert_json5(key, json.dumps(value))
