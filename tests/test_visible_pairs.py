@@ -142,3 +142,42 @@ def test_contact_pairs_of_a_large_swarm_are_the_matrix_ones(monkeypatch: pytest.
             assert ("s0", "s1") not in mons[0]._contact
             found += len(events[0])
     assert found > 100
+
+
+def _truth_sha(path) -> str:
+    import hashlib
+
+    from mcap.reader import make_reader
+
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for _s, ch, m in make_reader(f).iter_messages(log_time_order=False):
+            if ch.topic == "truth":
+                h.update(m.data)
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("scenario,sets", [("sabatini-20.toml", ()),
+                                           ("sabatini-20.toml", ("sensing.roe_noise_fraction=0.1",)),
+                                           ("sabatini-20-camera-exact.toml", ())], ids=["rel", "rel-noisy", "scene"])
+def test_a_batch_run_of_100_flies_the_same_truth_with_the_tree(tmp_path, monkeypatch: pytest.MonkeyPatch,
+                                                               scenario: str, sets: tuple[str, ...]) -> None:
+    """100 spacecraft of paper 002, 10 min in batch mode: the truth with the spatial index (rel stimulus,
+    scenes, contact) is the truth with the (N, N) forms, bit for bit; and the per-agent message path
+    (each agent's stimulus message from the same pairs) flies it too."""
+    from conftest import SCENARIOS
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
+    from swarmhil.plant import contact, scene_stimulus, sensors
+
+    sc = load_scenario(SCENARIOS / scenario, ["dispersion.count=100", *sets]).with_overrides(duration_s=600.0)
+    tree = run_in_process(sc, tmp_path / "tree", "same", record="truth")
+    assert tree.summary["batch"]["used"]
+    for module in (sensors, scene_stimulus, contact):
+        monkeypatch.setattr(module, "TREE_MIN_COUNT", 10**9)
+    run_in_process(sc, tmp_path / "matrix", "same", record="truth")
+    assert _truth_sha(tmp_path / "tree" / "run.mcap") == _truth_sha(tmp_path / "matrix" / "run.mcap")
+    if scenario == "sabatini-20.toml" and not sets:
+        monkeypatch.undo()
+        run_in_process(sc, tmp_path / "messages", "same", opts={"batch": False}, record="truth")
+        assert _truth_sha(tmp_path / "tree" / "run.mcap") == _truth_sha(tmp_path / "messages" / "run.mcap")

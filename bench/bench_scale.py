@@ -1,0 +1,123 @@
+"""Paper 002's swarm at N spacecraft in batch mode: the cost of a spacecraft-step against N. Not a
+test: the table goes to docs/scaling.md.
+
+Each N runs what `swarmhil run SCENARIO --set dispersion.count=N --in-process --record truth` runs
+(deploy.launcher.run_in_process(record="truth"), the batch mode: deploy/batch.py), twice: a short run
+(`--short-steps` steps) and a long one (`--hours`); the cost per spacecraft-step is the difference
+of their CPU seconds over the difference of their spacecraft-steps, so the start-up (scenario draw,
+N controllers, the recording's set-up) is apart, in its own column (the short run's CPU). CPU is
+this process's (`time.process_time`, the recorder's compression thread included), wall the run's.
+Ratios are against the smallest N measured in the same invocation; the load average is printed at
+the start and the end (the machine is shared). A figure of the cost against N is written with
+`--figure PATH` (matplotlib, the `reports` extra).
+
+    nice -n 10 .venv/bin/python bench/bench_scale.py --hours 2                       # rel, N = 20 100 300 1000
+    nice -n 10 .venv/bin/python bench/bench_scale.py --hours 2 --sensing scene --figure docs/img/scaling.png
+    nice -n 10 .venv/bin/python bench/bench_scale.py --counts 1000 --hours 24          # the batch day of 1,000
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+SCENARIOS = {"rel": "sabatini-20.toml", "scene": "sabatini-20-camera-exact.toml"}
+
+
+def one(scenario: Path, count: int, steps: int, tmp: Path) -> dict[str, float]:
+    """CPU and wall seconds of one batch run of `steps` steps with `count` spacecraft."""
+    from swarmhil.deploy.launcher import run_in_process
+    from swarmhil.deploy.scenario import load_scenario
+
+    c0, w0 = time.process_time(), time.monotonic()
+    sc = load_scenario(scenario, [f"dispersion.count={count}"])
+    sc = sc.with_overrides(duration_s=steps * sc.step_s)
+    res = run_in_process(sc, tmp / f"n{count}-{steps}", "scale", record="truth")
+    cpu, wall = time.process_time() - c0, time.monotonic() - w0
+    assert (res.summary.get("batch") or {}).get("used"), res.summary.get("batch")
+    return {"cpu_s": cpu, "wall_s": wall, "steps": steps}
+
+
+def measure(scenario: Path, counts: list[int], hours: float, short_steps: int) -> list[dict[str, float]]:
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench-scale-") as d:
+        tmp = Path(d)
+        one(scenario, counts[0], 2, tmp)  # every module loaded before the first figure
+        for n in counts:
+            short = one(scenario, n, short_steps, tmp)
+            steps = int(round(hours * 3600.0 / 10.0))
+            long = one(scenario, n, steps, tmp)
+            per = (long["cpu_s"] - short["cpu_s"]) / (n * (steps - short_steps))
+            row = {"n": n, "steps": steps, "startup_cpu_s": short["cpu_s"], "cpu_s": long["cpu_s"],
+                   "wall_s": long["wall_s"], "us_per_sc_step": per * 1e6,
+                   "day_min": (per * n * 8640 + short["cpu_s"]) / 60.0}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    base = rows[0]["us_per_sc_step"]
+    for r in rows:
+        r["ratio"] = r["us_per_sc_step"] / base
+    return rows
+
+
+def table(rows: list[dict[str, float]], sensing: str) -> str:
+    out = [f"| N ({sensing}) | steps | CPU per spacecraft-step | ratio to N = {rows[0]['n']} | start-up CPU | "
+           "CPU of the run | wall of the run | a day (8,640 steps), CPU |",
+           "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        out.append(f"| {r['n']} | {r['steps']} | {r['us_per_sc_step']:.1f} us | {r['ratio']:.2f} | "
+                   f"{r['startup_cpu_s']:.1f} s | {r['cpu_s']:.1f} s | {r['wall_s']:.1f} s | {r['day_min']:.1f} min |")
+    return "\n".join(out)
+
+
+def figure(results: dict[str, list[dict[str, float]]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for sensing, rows in results.items():
+        ax.plot([r["n"] for r in rows], [r["us_per_sc_step"] for r in rows], "o-", label=f"sensing {sensing}")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("spacecraft N")
+    ax.set_ylabel("CPU per spacecraft-step (us)")
+    ax.set_title("Paper 002's swarm in batch mode (--in-process --record truth)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    print(f"figure: {path}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--counts", type=int, nargs="+", default=[20, 100, 300, 1000])
+    ap.add_argument("--sensing", nargs="+", choices=sorted(SCENARIOS), default=["rel"])
+    ap.add_argument("--hours", type=float, default=2.0, help="simulated hours of the long run of each N")
+    ap.add_argument("--short-steps", type=int, default=10, help="steps of the start-up run of each N")
+    ap.add_argument("--figure", type=Path, default=None, help="write the cost against N here (PNG)")
+    args = ap.parse_args()
+    print(f"load average at start: {os.getloadavg()}", flush=True)
+    results = {}
+    for sensing in args.sensing:
+        rows = measure(ROOT / "deploy" / "scenarios" / SCENARIOS[sensing], sorted(args.counts), args.hours,
+                       args.short_steps)
+        results[sensing] = rows
+        print(table(rows, sensing), flush=True)
+    print(f"load average at end: {os.getloadavg()}", flush=True)
+    if args.figure is not None:
+        figure(results, args.figure)
+
+
+if __name__ == "__main__":
+    main()
