@@ -144,19 +144,6 @@ def test_contact_pairs_of_a_large_swarm_are_the_matrix_ones(monkeypatch: pytest.
     assert found > 100
 
 
-def _truth_sha(path) -> str:
-    import hashlib
-
-    from mcap.reader import make_reader
-
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for _s, ch, m in make_reader(f).iter_messages(log_time_order=False):
-            if ch.topic == "truth":
-                h.update(m.data)
-    return h.hexdigest()
-
-
 @pytest.mark.parametrize("scenario,sets", [("sabatini-20.toml", ()),
                                            ("sabatini-20.toml", ("sensing.roe_noise_fraction=0.1",)),
                                            ("sabatini-20-camera-exact.toml", ())], ids=["rel", "rel-noisy", "scene"])
@@ -169,6 +156,7 @@ def test_a_batch_run_of_100_flies_the_same_truth_with_the_tree(tmp_path, monkeyp
     from swarmhil.deploy.launcher import run_in_process
     from swarmhil.deploy.scenario import load_scenario
     from swarmhil.plant import contact, scene_stimulus, sensors
+    from test_batch_mode import _truth_sha
 
     sc = load_scenario(SCENARIOS / scenario, ["dispersion.count=100", *sets]).with_overrides(duration_s=600.0)
     tree = run_in_process(sc, tmp_path / "tree", "same", record="truth")
