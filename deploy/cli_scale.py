@@ -2,6 +2,8 @@
 density (deploy/scale.py, docs/scaling.md)."""
 from __future__ import annotations
 
+import sys
+
 import click
 
 
@@ -18,8 +20,9 @@ def scale(scenario: str, count: int, out: str | None) -> None:
 
     try:
         path, base, scaled = write_scaled(scenario, count, out)
-    except ValueError as exc:  # (a ScenarioError: the file and the field)
-        raise click.ClickException(str(exc)) from None
+    except ValueError as exc:  # a ScenarioError naming the file and the field: one line, exit code 2 (docs/cli.md)
+        click.echo(f"error: {' '.join(str(exc).split())}", err=True)
+        sys.exit(2)
     click.echo(f"wrote {path}")
     for tag, d in (("base", base), ("scaled", scaled)):
         click.echo(f"  {tag:6s} {d.count:5d} spacecraft, along-track span {d.along_track_span_m / 1000.0:7.1f} km, "

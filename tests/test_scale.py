@@ -48,4 +48,4 @@ def test_scaled_names_and_the_command(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     assert "100 spacecraft" in res.output and "per km" in res.output and load_scenario(tmp_path / "s.toml").name == "sabatini-100"
     res = CliRunner().invoke(main, ["scale", str(SCENARIOS / "sabatini-20.toml"), "0", "--out", str(tmp_path / "z.toml")])
-    assert res.exit_code == 1 and "[dispersion].count must be an integer" in res.output
+    assert res.exit_code == 2 and "[dispersion].count must be an integer" in res.output
