@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import struct
+from typing import Any
 
 import numpy as np
 
@@ -78,6 +79,7 @@ def body_entry(body: bytes) -> bytes:
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z
+_BITS = 1 << np.arange(11, dtype=np.int64)  # a body's 11 present flags -> one integer
 MAX_PLANS = 256  # patterns of present fields kept (TruthEncoder._plan; ~30 kB each for 20 bodies)
 
 
@@ -177,7 +179,8 @@ class TruthEncoder:
         self._buf = np.zeros(self._nv, dtype=np.uint8)
         self._vals = self._buf.view(np.float64).reshape(n, 16)
         self._plans: dict[bytes, np.ndarray] = {}
-        self._row_plans: dict[tuple[int, bytes], np.ndarray] = {}  # (body, its present fields) -> its part of a plan
+        self._row_plans: dict[tuple[int, int], np.ndarray] = {}  # (body, its present fields' bits) -> its part of a plan
+        self._last: tuple[np.ndarray, list[Any]] | None = None  # the last plan's (patterns as integers, parts)
         self._tail_u: tuple[float, float, bytes] | None = None  # (a, n, their bytes)
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
@@ -215,15 +218,25 @@ class TruthEncoder:
         been seen, whose parts are kept per body, the others' parts as kept (in a large swarm some
         body's pattern is new almost every step: only its rows are planned, not all N)."""
         rows = self._row_plans
-        keys = [(i, row.tobytes()) for i, row in enumerate(present)]
-        parts = [rows.get(k) for k in keys]
-        new = [i for i, p in enumerate(parts) if p is None]
+        codes = present.view(np.uint8) @ _BITS  # each body's pattern as one integer
+        last = self._last
+        if last is None or not rows:  # (none yet, or the kept parts were dropped: MAX_PLANS)
+            changed, parts = range(len(codes)), [None] * len(codes)
+        else:  # the bodies whose pattern differs from the last plan's
+            changed, parts = np.flatnonzero(codes != last[0]).tolist(), list(last[1])
+        keys = {i: (i, c) for i, c in zip(changed, codes[changed].tolist())}
+        new = []
+        for i, k in keys.items():
+            parts[i] = rows.get(k)
+            if parts[i] is None:
+                new.append(i)
         if new:
             at = np.array(new, dtype=np.intp)
             take, ends = self._plan(present[at], at)
             starts = [0, *ends[:-1].tolist()]
             for i, a, b in zip(new, starts, ends.tolist()):
                 parts[i] = rows[keys[i]] = take[a:b]
+        self._last = (codes, parts)
         return np.concatenate(parts)  # type: ignore[arg-type]
 
     def _grow(self, buf: np.ndarray) -> None:
