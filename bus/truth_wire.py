@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import Any
 
 import numpy as np
 
@@ -180,7 +179,7 @@ class TruthEncoder:
         self._vals = self._buf.view(np.float64).reshape(n, 16)
         self._plans: dict[bytes, np.ndarray] = {}
         self._row_plans: dict[tuple[int, int], np.ndarray] = {}  # (body, its present fields' bits) -> its part of a plan
-        self._last: tuple[np.ndarray, list[Any]] | None = None  # the last plan's (patterns as integers, parts)
+        self._last: tuple[np.ndarray, list[np.ndarray | None]] | None = None  # the last plan's (patterns as integers, parts)
         self._tail_u: tuple[float, float, bytes] | None = None  # (a, n, their bytes)
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
@@ -220,8 +219,9 @@ class TruthEncoder:
         rows = self._row_plans
         codes = present.view(np.uint8) @ _BITS  # each body's pattern as one integer
         last = self._last
+        parts: list[np.ndarray | None]
         if last is None or not rows:  # (none yet, or the kept parts were dropped: MAX_PLANS)
-            changed, parts = range(len(codes)), [None] * len(codes)
+            changed, parts = list(range(len(codes))), [None] * len(codes)
         else:  # the bodies whose pattern differs from the last plan's
             changed, parts = np.flatnonzero(codes != last[0]).tolist(), list(last[1])
         keys = {i: (i, c) for i, c in zip(changed, codes[changed].tolist())}
