@@ -16,6 +16,7 @@ the start and the end (the machine is shared). A figure of the cost against N is
     nice -n 10 .venv/bin/python bench/bench_scale.py --sensing rel scene --hours 1 --compare-matrix \
         --figure docs/img/scaling.png                                                 # docs/scaling.md's table
     nice -n 10 .venv/bin/python bench/bench_scale.py --counts 1000 --hours 24          # the batch day of 1,000
+    .venv/bin/python bench/bench_scale.py --pairs-only --counts 20 40 64 100 1000     # the neighbour search alone
 """
 from __future__ import annotations
 
@@ -142,6 +143,24 @@ def figure(results: dict[str, list[dict[str, float]]], path: Path) -> None:
     print(f"figure: {path}")
 
 
+def pairs_only(counts: list[int]) -> None:
+    """The neighbour search alone (plant/sensors.py visible_pairs), the k-d tree against the (N, N) matrix,
+    on a string of N spacecraft 200 m apart as the dispersion draws them (best of 5 x 200 calls)."""
+    import timeit
+
+    import numpy as np
+
+    from swarmhil.plant.sensors import CameraGeometry, visible_pairs
+
+    cam, rng = CameraGeometry(), np.random.default_rng(1)
+    print("| N | k-d tree | (N, N) matrix | tree / matrix |\n|---:|---:|---:|---:|")
+    for n in counts:
+        pos = np.c_[rng.normal(0, 30, n), np.arange(n) * 200.0 + rng.normal(0, 40, n), rng.normal(0, 30, n)]
+        t = [min(timeit.repeat(lambda: visible_pairs(pos, cam, None, tree=tree), number=200, repeat=5)) / 200
+             for tree in (True, False)]
+        print(f"| {n} | {t[0] * 1e6:.0f} us | {t[1] * 1e6:.0f} us | {t[0] / t[1]:.2f} |", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--counts", type=int, nargs="+", default=[20, 100, 300, 1000])
@@ -153,8 +172,12 @@ def main() -> None:
                     help="each long run flies at least this many spacecraft-steps (more steps for a small N)")
     ap.add_argument("--compare-matrix", action="store_true",
                     help="also run each N with the (N, N) neighbour search (no spatial index), right after")
+    ap.add_argument("--pairs-only", action="store_true", help="time the neighbour search alone, tree against matrix")
     args = ap.parse_args()
     print(f"load average at start: {os.getloadavg()}", flush=True)
+    if args.pairs_only:
+        pairs_only(sorted(args.counts))
+        return
     results = {}
     for sensing in args.sensing:
         rows = measure(ROOT / "deploy" / "scenarios" / SCENARIOS[sensing], sorted(args.counts), args.hours,
