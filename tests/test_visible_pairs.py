@@ -169,3 +169,21 @@ def test_a_batch_run_of_100_flies_the_same_truth_with_the_tree(tmp_path, monkeyp
         monkeypatch.undo()
         run_in_process(sc, tmp_path / "messages", "same", opts={"batch": False}, record="truth")
         assert _truth_sha(tmp_path / "tree" / "run.mcap") == _truth_sha(tmp_path / "messages" / "run.mcap")
+
+
+def test_the_pairs_of_a_drawn_swarm_of_1000_are_the_matrix_ones() -> None:
+    """The scaled paper 002 swarm itself (`--set dispersion.count=1000`), around its orbit: the tree's
+    pairs are the matrix's at every sample (ROE -> LVLH at 12 arguments of latitude)."""
+    from conftest import SCENARIOS
+    from swarmhil.deploy.scenario import load_scenario
+    from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh
+
+    sc = load_scenario(SCENARIOS / "sabatini-20.toml", ["dispersion.count=1000"])
+    cam = CameraGeometry(**sc.camera)
+    seen = 0
+    for u in np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False):
+        pos, _v = roe_to_lvlh(np.asarray(sc.roe_m, dtype=float), float(u), sc.orbit.mean_motion_radps)
+        want, got = _brute(pos, cam, None), visible_pairs(pos, cam)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        seen += len(want[0])
+    assert seen > 12 * 1000  # more than one neighbour a spacecraft on average
