@@ -75,7 +75,7 @@ class SceneStimulusBuilder:
         n, r = len(self.ids), len(obs)
         pos = np.asarray(pos_m, dtype=float).reshape(-1, 3)
         r_cl = camera_from_lvlh(None, self.bias_rad + 0.0)  # (scene's error: bias + 0.0)
-        if n >= TREE_MIN_COUNT and np.isfinite(pos).all():
+        if n >= TREE_MIN_COUNT and not np.any(self.bias_rad) and np.isfinite(pos).all():
             jj, kk, p = self._pairs_by_tree(obs, pos, r_cl)
         else:
             rel = pos[None, :, :] - pos[obs][:, None, :]  # (R, N, 3): others_pos - observer_pos, self included
@@ -104,7 +104,10 @@ class SceneStimulusBuilder:
         """(observer row, body index, camera-frame position) of every body in an observer's scene, in
         the (N, N) form's order, from the pairs within range of a spatial index (plant/sensors.py
         `pairs_within`; a rotation keeps distances, and the query radius is padded): each candidate's
-        difference, its row of the product with the one rotation and the same tests, elementwise."""
+        difference, its row of the product with the one rotation and the same tests, elementwise.
+        Only for the nominal pointing (no [sensing].pointing_error_rad): its rotation is a signed
+        permutation, so each row's product is exact whatever the number of rows; a general rotation's
+        product is BLAS's, whose kernels (and last bits) may depend on the number of rows."""
         a, b = pairs_within(pos, self.max_range_m)
         at = np.full(len(pos), -1, dtype=np.int64)
         at[obs] = np.arange(len(obs))
