@@ -78,6 +78,7 @@ def body_entry(body: bytes) -> bytes:
 # One body is one row of bytes: every field in field-number order of BodyState, inside Truth
 # field 2; a double is a 9-byte slot (tag + 8 bytes), masked out of the row when absent.
 _VEC = (0x09, 0x11, 0x19)  # Vector3 x, y, z
+_BITS = 1 << np.arange(11, dtype=np.int64)  # a body's 11 present flags -> one integer
 MAX_PLANS = 256  # patterns of present fields kept (TruthEncoder._plan; ~30 kB each for 20 bodies)
 
 
@@ -154,17 +155,13 @@ class TruthEncoder:
                 tmpl[i, col:col + len(seg)] = np.frombuffer(seg, dtype=np.uint8)
             kmask[i, id_col:id_col + w_id] = np.arange(w_id) < len(id_seg[i])
             kmask[i, kind_col:kind_col + w_kind] = np.arange(w_kind) < len(kind_seg[i])
-        # per step, everything through flat indices into the (n, width) row buffer
-        rows = np.arange(n)[:, None] * width
-        self._tmpl, self._keep = tmpl.ravel(), kmask.ravel()
-        self._dbl = (rows + (np.array(dbl)[:, None] + np.arange(8)).ravel()).ravel()  # value bytes of the 16 doubles
-        slot = np.repeat(np.arange(10), 9)  # the double of each of the 90 optional-slot columns
-        self._opt = (rows + np.array(opt)).ravel()
-        self._opt_src = (np.arange(n)[:, None] * 11 + slot).ravel()  # into (n, 11): 10 doubles + alive
-        self._alive = (rows + np.array(alive_cols)).ravel()
-        self._alive_src = np.repeat(np.arange(n) * 11 + 10, 2)
-        self._sub = (rows + np.array(sub_len)).ravel()
-        self._len_lo, self._len_hi = rows[:, 0] + 1, rows[:, 0] + 2  # the two body-length bytes
+        # a plan is made for some rows (the bodies whose pattern is new) through these columns of a row
+        self._tmpl, self._keep = tmpl, kmask  # (n, width)
+        self._dbl = (np.array(dbl)[:, None] + np.arange(8)).ravel()  # the value bytes of the 16 doubles
+        self._slot = np.repeat(np.arange(10), 9)  # the double of each of the 90 optional-slot columns
+        self._opt = np.array(opt)
+        self._alive = np.array(alive_cols)
+        self._sub = np.array(sub_len)
         # (n, 11) presence -> Vector3 lengths (x 9) and the optional bytes of the body
         self._count = np.zeros((11, 4), dtype=np.int64)
         for j, d in enumerate((range(0, 3), range(3, 6), range(7, 10))):
@@ -181,7 +178,8 @@ class TruthEncoder:
         self._buf = np.zeros(self._nv, dtype=np.uint8)
         self._vals = self._buf.view(np.float64).reshape(n, 16)
         self._plans: dict[bytes, np.ndarray] = {}
-        self._row_plans: dict[tuple[int, bytes], np.ndarray] = {}  # (body, its present fields) -> its part of a plan
+        self._row_plans: dict[tuple[int, int], np.ndarray] = {}  # (body, its present fields' bits) -> its part of a plan
+        self._last: tuple[np.ndarray, list[np.ndarray | None]] | None = None  # the last plan's (patterns as integers, parts)
         self._tail_u: tuple[float, float, bytes] | None = None  # (a, n, their bytes)
 
     def encode(self, header: bytes, u_rad: float, a_m: float, n_radps: float, position_m: np.ndarray,
@@ -213,45 +211,64 @@ class TruthEncoder:
                          _double(0x19, float(u_rad)), fixed[2]))
 
     def _plan_of_rows(self, present: np.ndarray) -> np.ndarray:
-        """`_plan` of a pattern (n, 11) from each body's own part when every body has shown its
-        pattern before (a body's bytes depend on its own present fields only: a new pattern is often
-        old rows in a new combination, such as commanded components that are exactly zero now
-        and then); else `_plan`, whose parts are kept per body."""
+        """`_plan` of a pattern (n, 11) from each body's own part (a body's bytes depend on its own
+        present fields only: a new pattern is often old rows in a new combination, such as commanded
+        components that are exactly zero now and then): `_plan` of the bodies whose pattern has not
+        been seen, whose parts are kept per body, the others' parts as kept (in a large swarm some
+        body's pattern is new almost every step: only its rows are planned, not all N)."""
         rows = self._row_plans
-        keys = [(i, row.tobytes()) for i, row in enumerate(present)]
-        parts = [rows.get(k) for k in keys]
-        if all(p is not None for p in parts):
-            return np.concatenate(parts)  # type: ignore[arg-type]
-        take, ends = self._plan(present)
-        for k, part in zip(keys, np.split(take, ends[:-1])):
-            rows[k] = part
-        return take
+        codes = present.view(np.uint8) @ _BITS  # each body's pattern as one integer
+        last = self._last
+        parts: list[np.ndarray | None]
+        if last is None or not rows:  # (none yet, or the kept parts were dropped: MAX_PLANS)
+            changed, parts = list(range(len(codes))), [None] * len(codes)
+        else:  # the bodies whose pattern differs from the last plan's
+            changed, parts = np.flatnonzero(codes != last[0]).tolist(), list(last[1])
+        keys = {i: (i, c) for i, c in zip(changed, codes[changed].tolist())}
+        new = []
+        for i, k in keys.items():
+            parts[i] = rows.get(k)
+            if parts[i] is None:
+                new.append(i)
+        if new:
+            at = np.array(new, dtype=np.intp)
+            take, ends = self._plan(present[at], at)
+            starts = [0, *ends[:-1].tolist()]
+            for i, a, b in zip(new, starts, ends.tolist()):
+                parts[i] = rows[keys[i]] = take[a:b]
+        self._last = (codes, parts)
+        return np.concatenate(parts)  # type: ignore[arg-type]
 
     def _grow(self, buf: np.ndarray) -> None:
         """Replace the buffer (the values' bytes kept at its start) and the values' view of it."""
         self._buf = buf
         self._vals = buf[:self._nv].view(np.float64).reshape(self._vals.shape)
 
-    def _plan(self, pr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """For one pattern of present fields (n, 11): the indices into `_buf` of the truth's body
-        bytes (the values' bytes where a present double goes, else the pattern's own fixed bytes,
-        appended to `_buf` here), and where each body's bytes end among them (n,)."""
-        buf = self._tmpl.copy()
-        keep = self._keep.copy()
-        flat = pr.ravel()
-        keep[self._opt] = flat[self._opt_src]
-        keep[self._alive] = flat[self._alive_src]
-        lens = pr.view(np.uint8) @ self._count  # (n, 4): position, velocity, accel_cmd lengths; optional bytes
-        buf[self._sub] = lens[:, :3].ravel()
-        body = self._base + lens[:, 3]  # the body's length, a one- or two-byte varint
+    def _plan(self, pr: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """For the pattern of present fields pr (m, 11) of the bodies `rows` (default: all, in order):
+        the indices into `_buf` of their body bytes (the values' bytes where a present double goes,
+        else the pattern's own fixed bytes, appended to `_buf` here), and where each body's bytes
+        end among them (m,)."""
+        rows = np.arange(len(pr)) if rows is None else np.asarray(rows, dtype=np.intp)
+        m, width = len(rows), self._tmpl.shape[1]
+        buf = self._tmpl[rows]  # (m, width) copies
+        keep = self._keep[rows]
+        keep[:, self._opt] = pr[:, self._slot]
+        keep[:, self._alive] = pr[:, 10:11]
+        lens = pr.view(np.uint8) @ self._count  # (m, 4): position, velocity, accel_cmd lengths; optional bytes
+        buf[:, self._sub] = lens[:, :3]
+        body = self._base[rows] + lens[:, 3]  # the body's length, a one- or two-byte varint
         long = body >= 0x80
-        buf[self._len_lo] = (body & 0x7F) | (long << 7)
-        buf[self._len_hi] = body >> 7
-        keep[self._len_hi] = long
-        at = np.cumsum(keep) - 1  # where each kept byte of the rows lands in the output
-        kept = keep[self._dbl]
-        fixed = buf[keep]
+        buf[:, 1] = (body & 0x7F) | (long << 7)
+        buf[:, 2] = body >> 7
+        keep[:, 2] = long
+        flat = keep.ravel()
+        at = np.cumsum(flat) - 1  # where each kept byte of the rows lands in the output
+        dbl = (np.arange(m)[:, None] * width + self._dbl).ravel()  # (row, double, byte) order
+        kept = flat[dbl]
+        fixed = buf.ravel()[flat]
         take = len(self._buf) + np.arange(len(fixed), dtype=np.intp)  # the fixed bytes, appended below
-        take[at[self._dbl][kept]] = np.flatnonzero(kept)  # the values' bytes: _dbl is (row, double, byte) order
+        src = (rows[:, None] * len(self._dbl) + np.arange(len(self._dbl))).ravel()  # the values' bytes of these rows
+        take[at[dbl][kept]] = src[kept]
         self._grow(np.concatenate((self._buf, fixed)))
-        return take, np.cumsum(keep.reshape(len(pr), -1).sum(axis=1))
+        return take, np.cumsum(keep.sum(axis=1))

@@ -421,8 +421,8 @@ from swarmhil.deploy.cli_campaign import campaign as _campaign_cmd; main.add_com
 from swarmhil.deploy.cli_campaign import campaign_compare as _campaign_compare_cmd; main.add_command(_campaign_compare_cmd)  # noqa: E402,E702
 from swarmhil.claims.cli import claims as _claims_cmd; main.add_command(_claims_cmd)  # noqa: E402,E702
 from swarmhil.deploy.cli_image import image as _image_cmd; main.add_command(_image_cmd)  # noqa: E402,E702
+from swarmhil.deploy.cli_scale import scale as _scale_cmd; main.add_command(_scale_cmd)  # noqa: E402,E702
 
 
 if __name__ == "__main__":
     main()
-

@@ -767,7 +767,7 @@ def _explicit(src: str, items: Any) -> list[Any]:
 def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.ndarray]:
     from swarmhil.plant.dispersion import Dispersion, draw_roe  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.plant.dynamics.roe_linear import roe_to_lvlh  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-    from swarmhil.plant.sensors import CameraGeometry, visibility_matrix, weakly_connected  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.plant.sensors import CameraGeometry, visible_pairs, weakly_connected_pairs  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
     if not isinstance(d, dict):
         raise _err(src, "[dispersion]", "must be a table", d)
@@ -798,6 +798,6 @@ def _generate(src: str, d: Any, seed: int, sc: Scenario) -> tuple[list[str], np.
         if not want_connected:
             return ids, roe
         pos, _v = roe_to_lvlh(roe, sc.orbit.u0_rad, sc.orbit.mean_motion_radps)
-        if weakly_connected(visibility_matrix(pos, cam)):
+        if weakly_connected_pairs(count, *visible_pairs(pos, cam)):  # (the visibility digraph's pairs)
             return ids, roe
     raise _err(src, "[dispersion]", f"gave no weakly connected initial swarm in {tries} draws; widen or tighten it", d)

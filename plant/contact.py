@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from swarmhil.plant.sensors import TREE_MIN_COUNT, pairs_within
+
 if TYPE_CHECKING:  # (plant/config.py imports this module's ContactConfig)
     from swarmhil.plant.config import PlantConfig
 
@@ -60,6 +62,33 @@ def centre_d2(pos_m: np.ndarray) -> np.ndarray:
     dx += dy
     dx += dz
     return dx
+
+
+@dataclass(frozen=True)
+class CloseCentres:
+    """The pairs (a, b), a < b, of a large swarm whose centres are within `reach` of each other (and maybe
+    a few just beyond: plant/sensors.py `pairs_within`, a spatial index), with their squared distances
+    computed as `centre_d2` computes them: what `centre_d2` and `reach2` decide for every pair that can
+    touch, without the (N, N) matrices."""
+
+    a: np.ndarray
+    b: np.ndarray
+    d2: np.ndarray
+
+    @staticmethod
+    def of(pos_m: np.ndarray, reach_m: float) -> "CloseCentres":
+        a, b = pairs_within(pos_m, reach_m)
+        d = pos_m[a] - pos_m[b]
+        d *= d
+        d2 = d[:, 0] + d[:, 1]
+        d2 += d[:, 2]
+        order = np.lexsort((b, a))  # (row-major, as np.nonzero of the matrix)
+        return CloseCentres(a[order], b[order], d2[order])
+
+    def hits(self, radius_m: np.ndarray, margin_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs closer than their reach r_a + r_b + margin_m (`reach2`'s sum, squared)."""
+        hit = self.d2 < (radius_m[self.a] + radius_m[self.b] + margin_m) ** 2
+        return self.a[hit], self.b[hit]
 
 
 def reach2(radius_m: np.ndarray, margin_m: float) -> np.ndarray:
@@ -125,12 +154,16 @@ class ContactMonitor:
         self._reach2_contact = reach2(self.radius_m, 0.0)
         self._reach2_near = reach2(self.radius_m, self.cfg.keep_out_m)
 
-    def _pairs(self, pos_m: np.ndarray, d2: np.ndarray, body_truth: list[Any], near: bool) -> set[tuple[str, str]]:
-        hit = d2 < (self._reach2_near if near else self._reach2_contact)
+    def _pairs(self, pos_m: np.ndarray, d2: Any, body_truth: list[Any], near: bool) -> set[tuple[str, str]]:
         out: set[tuple[str, str]] = set()
-        if np.count_nonzero(hit):
-            i, j = np.nonzero(hit)
+        if isinstance(d2, CloseCentres):
+            i, j = d2.hits(self.radius_m, self.cfg.keep_out_m if near else 0.0)
             out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
+        else:
+            hit = d2 < (self._reach2_near if near else self._reach2_contact)
+            if np.count_nonzero(hit):
+                i, j = np.nonzero(hit)
+                out = {(self.ids[a], self.ids[b]) for a, b in zip(i.tolist(), j.tolist())}
         margin = self.cfg.keep_out_m if near else 0.0
         for bt in body_truth:
             shape = None if self.cfg.point_masses else bt.spec.shape
@@ -142,7 +175,10 @@ class ContactMonitor:
     def check(self, step: int, t_s: float, pos_m: np.ndarray, body_truth: list[Any]) -> list[tuple[str, str, str]]:
         """(kind "contact" | "near_miss", "a|b", detail) of the pairs that came into contact or within
         the keep-out distance at this step."""
-        d2 = centre_d2(pos_m)
+        if len(pos_m) >= TREE_MIN_COUNT and np.isfinite(pos_m).all():  # a large swarm: the pairs near enough only
+            d2: Any = CloseCentres.of(pos_m, 2.0 * float(self.radius_m.max(initial=0.0)) + self.cfg.keep_out_m)
+        else:
+            d2 = centre_d2(pos_m)
         contact = set() if self.cfg.point_masses else self._pairs(pos_m, d2, body_truth, False)
         near = self._pairs(pos_m, d2, body_truth, True) if self.cfg.keep_out_m > 0 else set()
         if not (contact or near or self._contact or self._near):

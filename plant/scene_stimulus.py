@@ -13,6 +13,7 @@ import numpy as np
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.scene import NOMINAL_BODY_TO_LVLH, SPACECRAFT_RADIUS_M, camera_from_lvlh, matrix_to_quaternion_wxyz, scene
+from swarmhil.plant.sensors import TREE_MIN_COUNT, pairs_within
 
 
 @dataclass(frozen=True)
@@ -74,20 +75,50 @@ class SceneStimulusBuilder:
         n, r = len(self.ids), len(obs)
         pos = np.asarray(pos_m, dtype=float).reshape(-1, 3)
         r_cl = camera_from_lvlh(None, self.bias_rad + 0.0)  # (scene's error: bias + 0.0)
-        rel = pos[None, :, :] - pos[obs][:, None, :]  # (R, N, 3): others_pos - observer_pos, self included
-        p = (rel.reshape(-1, 3) @ r_cl.T).reshape(r, n, 3)
-        rng = np.linalg.norm(p, axis=2)
-        keep = (rng <= self.max_range_m) & (p[..., 2] > -SPACECRAFT_RADIUS_M)
-        grow = SPACECRAFT_RADIUS_M * np.sqrt(1.0 + self.tan_half_fov**2)
-        keep &= (np.abs(p[..., 0]) <= self.tan_half_fov * p[..., 2] + grow) & (np.abs(p[..., 1]) <= self.tan_half_fov * p[..., 2] + grow)
-        keep[np.arange(r), obs] = False  # (nobody is in its own scene)
-        jj, kk = keep.nonzero()
+        if n >= TREE_MIN_COUNT and not np.any(self.bias_rad) and np.isfinite(pos).all():
+            jj, kk, p = self._pairs_by_tree(obs, pos, r_cl)
+        else:
+            rel = pos[None, :, :] - pos[obs][:, None, :]  # (R, N, 3): others_pos - observer_pos, self included
+            p = (rel.reshape(-1, 3) @ r_cl.T).reshape(r, n, 3)
+            keep = self._in_scene(p)
+            keep[np.arange(r), obs] = False  # (nobody is in its own scene)
+            jj, kk = keep.nonzero()
+            p = p[jj, kk]
         offsets = np.zeros(r + 1, dtype=np.int64)
         np.cumsum(np.bincount(jj, minlength=r), out=offsets[1:])
         rot = np.broadcast_to(r_cl @ NOMINAL_BODY_TO_LVLH, (len(kk), 3, 3))
         quats = matrix_to_quaternion_wxyz(rot) if len(kk) else np.zeros((0, 4))
         errs = np.broadcast_to(self.bias_rad + 0.0, (r, 3)).copy()
-        return SceneBatch(offsets, kk, p[jj, kk], quats, errs)
+        return SceneBatch(offsets, kk, p, quats, errs)
+
+    def _in_scene(self, p: np.ndarray) -> np.ndarray:
+        """Which camera-frame positions p (..., 3) `scene` keeps: centre within range, in front of the
+        camera, inside the FOV grown by the body's angular radius (elementwise, for any leading axes)."""
+        keep = (np.linalg.norm(p, axis=-1) <= self.max_range_m) & (p[..., 2] > -SPACECRAFT_RADIUS_M)
+        grow = SPACECRAFT_RADIUS_M * np.sqrt(1.0 + self.tan_half_fov**2)
+        keep &= (np.abs(p[..., 0]) <= self.tan_half_fov * p[..., 2] + grow) & (np.abs(p[..., 1]) <= self.tan_half_fov * p[..., 2] + grow)
+        return keep
+
+    def _pairs_by_tree(self, obs: np.ndarray, pos: np.ndarray, r_cl: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(observer row, body index, camera-frame position) of every body in an observer's scene, in
+        the (N, N) form's order, from the pairs within range of a spatial index (plant/sensors.py
+        `pairs_within`; a rotation keeps distances, and the query radius is padded): each candidate's
+        difference, its row of the product with the one rotation and the same tests, elementwise.
+        Only for the nominal pointing (no [sensing].pointing_error_rad): its rotation is a signed
+        permutation, so each row's product is exact whatever the number of rows; a general rotation's
+        product is BLAS's, whose kernels (and last bits) may depend on the number of rows."""
+        a, b = pairs_within(pos, self.max_range_m)
+        at = np.full(len(pos), -1, dtype=np.int64)
+        at[obs] = np.arange(len(obs))
+        j, k = np.concatenate((a, b)), np.concatenate((b, a))
+        mine = at[j] >= 0
+        j, k = j[mine], k[mine]
+        p = (pos[k] - pos[j]) @ r_cl.T
+        keep = self._in_scene(p)
+        jj, kk, p = at[j[keep]], k[keep], p[keep]
+        order = np.lexsort((kk, jj))
+        return jj[order], kk[order], p[order]
 
     def stimulus(self, j: int, pos_m: np.ndarray, u_rad: float, hdr: pb.Header) -> pb.SceneStimulus:
         err, sc = self._scene(j, pos_m, self.ids)

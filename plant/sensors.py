@@ -58,6 +58,66 @@ def visibility_matrix(pos_m: np.ndarray, cam: VisibilityRule, alive: np.ndarray 
     return vis
 
 
+TREE_MIN_COUNT = 64
+"""From this many spacecraft, `visible_pairs` finds the candidate pairs with a spatial index (a k-d
+tree over the positions, rebuilt per call); below it, the (N, N) matrix costs less than the tree."""
+
+RANGE_PAD = 1e-9
+"""Relative margin of a spatial-index query radius over the exact test's radius, so that a pair the
+exact test keeps by a tie at its edge is always among the candidates (the tree's distance is rounded
+its own way)."""
+
+
+def pairs_within(pos_m: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate pairs (a, b), a < b, among the rows of pos_m (N, 3, finite) whose centres may be within
+    `radius_m`: every pair whose distance is <= radius_m, and possibly a few just beyond it (the query
+    radius is padded by `RANGE_PAD`). A k-d tree over the positions (scipy's cKDTree, built here):
+    O(N log N + pairs) instead of the N^2 differences. Callers apply their exact test to the candidates."""
+    from scipy.spatial import cKDTree  # (on use: the viewer and reports that read this module need no tree)
+
+    if len(pos_m) < 2:
+        none = np.zeros(0, dtype=np.int64)
+        return none, none
+    ab = cKDTree(pos_m).query_pairs(radius_m * (1.0 + RANGE_PAD) + RANGE_PAD, output_type="ndarray")
+    return ab[:, 0].astype(np.int64), ab[:, 1].astype(np.int64)
+
+
+def visible_pairs(pos_m: np.ndarray, cam: VisibilityRule, alive: np.ndarray | None = None,
+                  tree: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(j, k) of every pair where j sees k: `visibility_matrix(pos_m, cam, alive).nonzero()`, the same
+    pairs in the same (row-major) order, without the (N, N) matrix when the swarm is large.
+
+    `tree` None: the spatial index from `TREE_MIN_COUNT` spacecraft (True / False force it). With the
+    index, the candidates are the pairs within the detection range (`pairs_within`, both directions),
+    and each is kept by the same `in_view` test of the same difference r_k - r_j as the matrix's, so
+    the set is the matrix's exactly, ties at the range and at the field-of-view edges included
+    (tests/test_visible_pairs.py). Positions that are not all finite take the matrix."""
+    n = len(pos_m)
+    if not (n >= TREE_MIN_COUNT if tree is None else tree) or not np.isfinite(pos_m).all():
+        return visibility_matrix(pos_m, cam, alive).nonzero()
+    a, b = pairs_within(pos_m, cam.detection_range_m)
+    j, k = np.concatenate((a, b)), np.concatenate((b, a))
+    if alive is not None:  # a dead observer sees nothing
+        keep = np.asarray(alive, dtype=bool)[j]
+        j, k = j[keep], k[keep]
+    seen = in_view(pos_m[k] - pos_m[j], cam, np.empty(len(j), dtype=bool))
+    j, k = j[seen], k[seen]
+    order = np.lexsort((k, j))
+    return j[order], k[order]
+
+
+def weakly_connected_pairs(n: int, j: np.ndarray, k: np.ndarray) -> bool:
+    """True when the digraph on n nodes with edges j -> k is weakly connected (n >= 1): `weakly_connected`
+    of the matrix the pairs come from, by scipy's sparse components (no (N, N) matrix)."""
+    from scipy.sparse import coo_matrix  # (on use, as pairs_within)
+    from scipy.sparse.csgraph import connected_components
+
+    if n < 1:
+        return False
+    g = coo_matrix((np.ones(len(j), dtype=np.int8), (j, k)), shape=(n, n)).tocsr()
+    return int(connected_components(g, directed=True, connection="weak", return_labels=False)) == 1
+
+
 def visibility_series(position_m: np.ndarray, cam: VisibilityRule, alive: np.ndarray | None = None) -> np.ndarray:
     """(T, N, N) bool: V[t, j, k] when j sees k at step t (`visibility_matrix` of each step, for many
     steps per numpy call: the same comparisons). position_m (T, N, 3), alive (T, N). The reports

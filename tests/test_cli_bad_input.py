@@ -80,6 +80,7 @@ def _scenario_cases() -> list:
         "sweep": lambda p, f: ["sweep", p, "--param", "run.seed", "--values", "1", "--out", str(f["d"] / "never")],
         "campaign": lambda p, f: ["campaign", p, "--seeds", "1", "--out", str(f["d"] / "never")],
         "compose": lambda p, f: ["compose", p, "--out", str(f["d"] / "never.yml")],
+        "scale": lambda p, f: ["scale", p, "100", "--out", str(f["d"] / "never-scaled.toml")],
     }
     kinds = {"missing": ("no_toml", "missing.toml"), "empty": ("empty_toml", "no spacecraft"),
              "cut short": ("cut_toml", "not valid TOML"), "garbage": ("garbage_toml", "not UTF-8"),
@@ -168,6 +169,10 @@ CASES = [
     ("claims unknown option", lambda f: ["claims", "--no-such-tier"], "--no-such-tier", 2),
     ("compose external spacecraft", lambda f: ["compose", str(SCENARIOS / "hil-3.toml"), "--out", str(f["d"] / "c.yml")],
      "external flight software", 2),
+    ("scale past 1000", lambda f: ["scale", str(SCENARIOS / "sabatini-20.toml"), "1001", "--out", str(f["d"] / "s.toml")],
+     "[dispersion].count must be an integer in 1..1000", 2),
+    ("scale explicit spacecraft", lambda f: ["scale", str(SCENARIOS / "sabatini-20-explicit.toml"), "100", "--out",
+                                             str(f["d"] / "s.toml")], "no [dispersion] table", 2),
     ("image wheelhouse into a file", lambda f: ["image", "wheelhouse", str(f["garbage"])], "OUT", 2),
     ("image base without docker", lambda f: ["image", "base", "--rootfs", str(f["garbage"]), "--docker",
                                              str(f["d"] / "no-docker")], "no-docker", 1),

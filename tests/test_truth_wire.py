@@ -146,10 +146,10 @@ def test_new_combinations_of_seen_rows_equal_protobuf(monkeypatch, max_plans: in
     plans = 0
     full = enc._plan
 
-    def counted(pr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def counted(pr: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         nonlocal plans
         plans += 1
-        return full(pr)
+        return full(pr, rows)
 
     monkeypatch.setattr(enc, "_plan", counted)
     for step in range(300):
@@ -228,3 +228,32 @@ def test_recorded_truths_with_a_target_equal_protobuf(tmp_path) -> None:
                                     [t.velocity_mps.x, t.velocity_mps.y, t.velocity_mps.z],
                                     [t.attitude.w, t.attitude.x, t.attitude.y, t.attitude.z],
                                     [t.angular_velocity_radps.x, t.angular_velocity_radps.y, t.angular_velocity_radps.z])]) == data
+
+
+def test_a_large_swarm_plans_only_its_new_bodies(monkeypatch) -> None:
+    """300 bodies, a few of which show a new pattern of present fields every step (as in a swarm of
+    hundreds, where some commanded component is exactly zero somewhere almost every step): the same
+    bytes as protobuf, and only the bodies with a new pattern are planned, not all of them each time."""
+    rng = np.random.default_rng(39)
+    n = 300
+    ids = [f"sc{i:03d}" for i in range(n)]
+    enc = TruthEncoder(ids)
+    planned = []
+    full = enc._plan
+
+    def counted(pr: np.ndarray, rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        planned.append(len(pr))
+        return full(pr, rows)
+
+    monkeypatch.setattr(enc, "_plan", counted)
+    pos, vel, acc = (_values(rng, (n, 3), 0.0) for _ in range(3))
+    dv, roe, alive = _values(rng, (n,), 0.0), _values(rng, (n, 6), 0.0), np.ones(n, dtype=bool)
+    for step in range(60):
+        acc = _values(rng, (n, 3), 0.0)
+        acc[rng.integers(n, size=3), rng.integers(3, size=3)] = rng.choice([0.0, -0.0])
+        alive[rng.integers(n)] = step % 7 != 3
+        want = _protobuf("r", "plant", step, 1.0, step, 0.5, 7e6, 1e-3, ids, ["spacecraft"] * n, pos, vel, dv, alive,
+                         acc, roe)
+        assert enc.encode(encode_header("r", "plant", step, 1.0, step), 0.5, 7e6, 1e-3, pos, vel, dv, alive, acc,
+                          roe) == want, step
+    assert planned[0] == n and len(planned) > 30 and max(planned[1:]) <= 4, planned

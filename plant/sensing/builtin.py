@@ -1,7 +1,8 @@
 """Built-in sensing kinds.
 
 - `rel` (paper 002, issue 2): ideal (or ROE-noised) relative LVLH states of the spacecraft the
-  observer's camera could see (plant/sensors.py visibility_matrix).
+  observer's camera could see (plant/sensors.py visible_pairs: the visibility rule's pairs, by a
+  spatial index in large swarms).
 - `scene` (paper 002, issue 4): camera-frame poses of nearby bodies (plant/scene_stimulus.py).
 - `relative` (issue 11): relative position and velocity of every spacecraft within a sensing ball
   (`range_m`), optionally with the observer's own state in the scenario frame (a GNSS-like absolute
@@ -22,7 +23,7 @@ from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.dynamics.limits import row_norm
 from swarmhil.plant.dynamics.roe_linear import lvlh_to_roe, roe_to_lvlh
 from swarmhil.plant.sensing.registry import SensingContext, register_sensing
-from swarmhil.plant.sensors import CameraGeometry, visibility_matrix
+from swarmhil.plant.sensors import CameraGeometry, visible_pairs
 
 if TYPE_CHECKING:  # (annotation only: the scene model is loaded by the scene kind alone)
     from swarmhil.plant.scene_stimulus import SceneBatch
@@ -57,11 +58,20 @@ class RelKind:
         self.cam = CameraGeometry(**scenario.camera)
         self.noise = _SensorNoise(scenario) if scenario.sensing.get("roe_noise_fraction", 0.0) > 0 else None
 
+    def _pairs(self, ctx: SensingContext) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(j, k, row) of the step, computed once: j sees k (plant/sensors.py `visible_pairs`, row-major:
+        the visibility matrix's nonzero()), observer j's pairs at row[j]:row[j + 1]."""
+        def make() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            j, k = visible_pairs(ctx.position_m, self.cam, ctx.alive)
+            return j, k, np.searchsorted(j, np.arange(len(ctx.position_m) + 1))
+
+        return ctx.cached("visible_pairs", make)
+
     def stimulus(self, ctx: SensingContext, j: int, hdr: pb.Header) -> pb.RelStimulus:
-        vis = ctx.cached("visibility", lambda: visibility_matrix(ctx.position_m, self.cam, ctx.alive))
+        _j, kk_all, row = self._pairs(ctx)
         pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
         stim = pb.RelStimulus(header=hdr, u_rad=u)
-        for kk in np.flatnonzero(vis[j]).tolist():
+        for kk in kk_all[row[j]:row[j + 1]].tolist():
             rp, rv = pos[kk] - pos[j], vel[kk] - vel[j]
             if self.noise is not None:
                 rp, rv = self.noise.apply(rp, rv, u)
@@ -98,15 +108,17 @@ class RelKind:
         order), for all of them at once as arrays (the batch mode, issue 16): the same values
         (elementwise, the same pairs in the same order, the noise drawn from the same generator in
         the same order)."""
-        vis = ctx.cached("visibility", lambda: visibility_matrix(ctx.position_m, self.cam, ctx.alive))
+        j, kk, _row = self._pairs(ctx)
         pos, vel, u = ctx.position_m, ctx.velocity_mps, ctx.u_rad
         obs = np.asarray(observers, dtype=np.int64)
-        if len(obs) == len(vis):  # every spacecraft observes (observers are distinct): vis's own rows
-            jj, kk = vis.nonzero()
-            j = jj
-        else:
-            jj, kk = vis[obs].nonzero()  # row by row, neighbours in index order: stimulus's order
-            j = obs[jj]
+        if len(obs) == len(pos):  # every spacecraft observes (observers are distinct): every pair, in order
+            jj = j
+        else:  # the observers' pairs, row by row, neighbours in index order: stimulus's order
+            at = np.full(len(pos), -1, dtype=np.int64)
+            at[obs] = np.arange(len(obs))
+            mine = at[j] >= 0
+            j, kk = j[mine], kk[mine]
+            jj = at[j]
         state = np.concatenate((pos, vel), axis=1)  # position and velocity differences in one gather
         d = state[kk] - state[j]
         rp, rv = d[:, :3], d[:, 3:]
