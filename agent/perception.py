@@ -151,6 +151,12 @@ class Perception:
         self.tracks = self.vision.update(t_s, u_rad, blobs, own_accel_mps2)
         return self._observation(step, t_s, u_rad)
 
+    def observe_tracks(self, step: int, t_s: float, u_rad: float, tracks: list[Track]) -> Observation:
+        """`observe_blobs` of a frame whose navigator update ran outside this object (the batch mode
+        updates the EKF navigators of a step together: agent/nav/ekf.py update_many): its tracks."""
+        self.tracks = tracks
+        return self._observation(step, t_s, u_rad)
+
     def _observation(self, step: int, t_s: float, u_rad: float) -> Observation:
         ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"]))
         return Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=ids, rel_position_m=rp, rel_velocity_mps=rv)
