@@ -134,7 +134,9 @@ class BatchPerception:
     from its agent config) fed with the values of its `scene` stimulus: per observer row r, bodies
     offsets[r]:offsets[r+1] with camera-frame positions (P, 3) and attitude quaternions w, x, y, z
     (P, 4), which become matrices as `Perception.observe` makes them (quat_to_matrix is elementwise:
-    all rows at once give each row's own matrix). As AgentNode.handle: the own acceleration is the
+    all rows at once give each row's own matrix), through agent/perception.py `observe_many` (every
+    observer's imaging, then the EKF navigators of all observers together, bit for bit each one's
+    own update, then each one's observation). As AgentNode.handle: the own acceleration is the
     command in force before this step's decision; a navigation exception is logged (the first),
     counted in `faults[id]["nav"]`, the spacecraft observes nothing this step and its navigation
     restarts from the next frame."""
@@ -150,61 +152,21 @@ class BatchPerception:
 
     def observe(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, observers: list[str], offsets: np.ndarray,
                 position_cam_m: np.ndarray, attitude_wxyz: np.ndarray, own_accel_mps2: np.ndarray) -> ObservationBatch:
-        """Each observer's imaging, then the navigators (the EKF ones of all observers together,
-        agent/nav/ekf.py update_many, bit for bit each one's own update), then each one's
-        observation; a fault at any stage is that observer's alone, handled once its turn comes."""
-        from swarmhil.agent.camera.model import quat_to_matrix  # scene sensing only (the camera stack)
-        from swarmhil.agent.nav.ekf import EkfNavigator, update_many  # scene sensing only (the camera stack)
+        from swarmhil.agent.perception import observe_many  # scene sensing only (the camera stack)
 
-        rot = quat_to_matrix(attitude_wxyz).reshape(-1, 3, 3)
-        pos = np.asarray(position_cam_m, dtype=float).reshape(-1, 3)
-        off = np.asarray(offsets, dtype=np.int64).tolist()
-        accel = own_accel_mps2.tolist()
         idx = rows.tolist()
+        accel = own_accel_mps2.tolist()
         pers = [self.perceptions[i] for i in idx]
-        blobs = None
-        if self._exact:
-            from swarmhil.agent.blob.blobs import exact_blobs_many  # scene sensing only (the camera stack)
-
-            r0 = self.perceptions[0].vision.renderer
-            try:
-                blobs = exact_blobs_many(pos, rot, offsets, r0.camera, r0.shape)
-            except Exception:  # noqa: BLE001 - then each spacecraft's own, which faults alone (below)
-                blobs = None
         # (fresh arrays, as the agent's from its message, and its command's acceleration)
-        acc = [np.array(accel[i], dtype=float) for i in idx]
-        seen: list[Any] = []  # per observer: its blobs, or the exception its imaging raised
-        for r, per in enumerate(pers):
-            try:
-                if blobs is not None:
-                    b = blobs[r]
-                    per.vision.keep(b)
-                else:
-                    b, stacks = per.vision.image(pos[off[r]:off[r + 1]].copy(), rot[off[r]:off[r + 1]].copy(), step)
-                    per.vision.keep(b, stacks)
-                seen.append(b)
-            except Exception as e:  # noqa: BLE001 - handled in its turn (below)
-                seen.append(e)
-        ok = [r for r, b in enumerate(seen) if not isinstance(b, Exception)]
-        tracks: list[Any] = list(seen)
-        navs = [pers[r].vision.navigator for r in ok]
-        if navs and all(type(nav) is EkfNavigator for nav in navs):
-            for r, res in zip(ok, update_many(navs, t_s, u_rad, [seen[r] for r in ok], [acc[r] for r in ok])):
-                tracks[r] = res
-        else:
-            for r in ok:
-                try:
-                    tracks[r] = pers[r].vision.navigator.update(t_s, u_rad, seen[r], acc[r])
-                except Exception as e:  # noqa: BLE001 - handled in its turn (below)
-                    tracks[r] = e
+        got = observe_many(pers, step, t_s, u_rad, offsets, position_cam_m, attitude_wxyz,
+                           [np.array(accel[i], dtype=float) for i in idx], self._exact)
         out = []
-        for r, (i, per) in enumerate(zip(idx, pers)):
-            try:
-                if isinstance(tracks[r], Exception):
-                    raise tracks[r]
-                obs = per.observe_tracks(step, t_s, u_rad, tracks[r])
-            except Exception:  # noqa: BLE001 - a navigation fault must not stop the flight software (AgentNode)
-                count_fault(self.faults, self.ids[i], "nav", step)
+        for i, per, obs in zip(idx, pers, got):
+            if isinstance(obs, Exception):  # a navigation fault must not stop the flight software (AgentNode)
+                try:
+                    raise obs
+                except Exception:  # noqa: BLE001 - logged with its traceback (the first), counted
+                    count_fault(self.faults, self.ids[i], "nav", step)
                 per.reset()
                 obs = Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=[],
                                   rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))
