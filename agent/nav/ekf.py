@@ -270,6 +270,7 @@ def measurements(blobs: Blobs) -> np.ndarray:
 
 
 _PREDICT_TERMS: dict[tuple, tuple[np.ndarray, ...]] = {}  # EkfNavigator._predict_terms's shared terms
+_BATCH_KEYS: dict[tuple, int] = {}  # EkfNavigator.batch_key: one number per distinct setting of the filter
 
 
 class EkfNavigator:
@@ -286,8 +287,9 @@ class EkfNavigator:
         self._next_id = 0
         self.faults = 0  # updates skipped (singular or non-finite S) + tracks dropped as non-finite
         mdl = self.model  # what `update_many` needs equal to step navigators together (all the arithmetic's inputs)
-        self.batch_key = (type(self), float(a_m).hex(), float(n_radps).hex(), self.cfg, camera, mdl.camera,
-                          tuple(float(a).hex() for a in mdl.areas_m2), mdl.extent_m, mdl.centroid_floor_px, mdl.area_rel_sigma)
+        key = (type(self), float(a_m).hex(), float(n_radps).hex(), self.cfg, camera, mdl.camera,
+               tuple(float(a).hex() for a in mdl.areas_m2), mdl.extent_m, mdl.centroid_floor_px, mdl.area_rel_sigma)
+        self.batch_key = _BATCH_KEYS.setdefault(key, len(_BATCH_KEYS))  # (a small int: compared every frame)
 
     # -- filter steps (issue 16: every track, model and matched pair at once; numpy over the
     #    track axis, each product the same 2-D product per track as the per-track filter had) ---
@@ -298,9 +300,15 @@ class EkfNavigator:
 
     def _predict_terms(self, dt: float, u0: float, own_accel: np.ndarray | None):
         """Phi, the models' process noises Q (M, 6, 6), the own-thrust shift Gamma a_j and the
-        Markov switch matrix over dt (module docstring). All but the shift depend on (n, a, dt, u0)
-        and the config only: remembered (read-only) for the last few, which the navigators of a batch
-        run share (each computes the same values)."""
+        Markov switch matrix over dt (module docstring)."""
+        phi, gam, qs, pi = self._terms(dt, u0)
+        shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
+        return phi, qs, shift, pi
+
+    def _terms(self, dt: float, u0: float) -> tuple[np.ndarray, ...]:
+        """Phi, Gamma, Q and the switch matrix: they depend on (n, a, dt, u0) and the config only,
+        remembered (read-only) for the last few, which the navigators of a batch run share (each
+        computes the same values)."""
         key = (float(self.n).hex(), float(self.a_m).hex(), float(dt).hex(), float(u0).hex(), self.cfg)
         terms = _PREDICT_TERMS.get(key)
         if terms is None:
@@ -314,9 +322,7 @@ class EkfNavigator:
             if len(_PREDICT_TERMS) >= 8:
                 _PREDICT_TERMS.clear()
             terms = _PREDICT_TERMS[key] = (phi, gam, qs, pi)
-        phi, gam, qs, pi = terms
-        shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
-        return phi, qs, shift, pi
+        return terms
 
     def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
         """IMM interaction (mixing) then each model's prediction, for all tracks at once; one model:
@@ -537,19 +543,20 @@ def _frame_arrays(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: lis
         xm, pm, mu = np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
     predicted = np.zeros(g_, bool)
     # the prediction: the navigators that share Phi, Q and the switch matrix (a frame: all) together
-    groups: dict[tuple[int, int, int], list[tuple[int, np.ndarray]]] = {}
-    terms: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    groups: dict[tuple[str, str], list[tuple[int, np.ndarray]]] = {}
+    terms: dict[tuple[str, str], tuple[np.ndarray, ...]] = {}
     for k, nav in enumerate(navs):  # as `update`: predicted when the navigator has a clock, tracks and dt > 0
         if nav._t is None or not counts[k] or t_s - nav._t <= 0.0:
             continue
-        phi, qs, shift, pi = nav._predict_terms(t_s - nav._t, nav._u, own_accel_mps2[k])
-        key = (id(phi), id(qs), id(pi))
-        groups.setdefault(key, []).append((k, shift))
-        terms[key] = (phi, qs, pi)
+        key = (float(nav._t).hex(), float(nav._u).hex())  # (a frame: one) -> Phi, Gamma, Q, switch (exactly: -0.0 is not 0.0)
+        if key not in terms:
+            terms[key] = nav._terms(t_s - nav._t, nav._u)
+        gam, acc = terms[key][1], own_accel_mps2[k]
+        groups.setdefault(key, []).append((k, np.zeros(6) if acc is None else gam @ np.asarray(acc, dtype=float)))
     x = np.zeros((g_, 6))
     p = np.zeros((g_, 6, 6))
     for key, members in groups.items():
-        phi, qs, pi = terms[key]
+        phi, _, qs, pi = terms[key]
         if sum(int(counts[k]) for k, _ in members) == g_:  # (the usual frame: every row, no copies)
             rows = slice(None)
         else:
@@ -570,10 +577,14 @@ def _frame_arrays(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: lis
     upd_q: list[int] = []
     upd_b: list[int] = []
     if seen:
-        trows = np.concatenate([np.arange(start[k], start[k + 1]) for k in seen])
-        nb = [len(blobs[k]) for k in seen]
+        tcount = counts[seen]
+        nb = np.array([len(blobs[k]) for k in seen], dtype=np.int64)
+        is_seen = np.zeros(len(navs), bool)
+        is_seen[seen] = True
+        trows = np.flatnonzero(np.repeat(is_seen, counts))  # the seen navigators' rows, in order
         bstart = np.concatenate(([0], np.cumsum(nb)))
-        tstart = np.concatenate(([0], np.cumsum([int(counts[k]) for k in seen])))
+        npairs = tcount * nb
+        qstarts = np.concatenate(([0], np.cumsum(npairs)))
         cen = np.concatenate([blobs[k].centroid_px for k in seen])
         area = np.concatenate([blobs[k].area_px for k in seen])
         sig = np.concatenate([blobs[k].area_sigma_px for k in seen])
@@ -581,23 +592,23 @@ def _frame_arrays(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: lis
         hs, jacs, pcam = predict_many(model, x[trows], t_cam)
         depth = pcam[:, 2]
         hph = jacs @ p[trows] @ jacs.transpose(0, 2, 1)
-        ti = np.concatenate([tstart[i] + np.repeat(np.arange(int(counts[k])), nb[i]) for i, k in enumerate(seen)])
-        bj = np.concatenate([bstart[i] + np.tile(np.arange(nb[i]), int(counts[k])) for i, k in enumerate(seen)])
+        # pairs navigator by navigator, track-major: each track of navigator k with each of its blobs
+        ti = np.repeat(np.arange(len(trows)), np.repeat(nb, tcount))
+        owner = np.repeat(np.arange(len(seen)), npairs)
+        bj = bstart[owner] + (np.arange(int(qstarts[-1])) - qstarts[owner]) % nb[owner]
         nu = zs[bj] - hs[ti]
         s = hph[ti] + noise_cov_pairs(model, depth[ti], area[bj], sig[bj])
         bad_pair = ~(np.isfinite(s).all(axis=(1, 2)) & np.isfinite(nu).all(axis=1))
         ok = (depth > MIN_DEPTH_M) & ~(np.bincount(ti, weights=bad_pair, minlength=len(trows)) > 0)
         d2, logdet = pair_distances(nu, s, ok[ti])
-        qstart = 0
         for i, k in enumerate(seen):
-            t_k, b_k = int(counts[k]), nb[i]
+            t_k, b_k, qstart = int(counts[k]), int(nb[i]), int(qstarts[i])
             seg = slice(qstart, qstart + t_k * b_k)
             pairs[k] = assign_likelihood(d2[seg].reshape(t_k, b_k), logdet[seg].reshape(t_k, b_k), cfg.gate_chi2)
             for a, b in pairs[k]:
                 upd_g.append(int(start[k]) + a)
                 upd_q.append(qstart + a * b_k + b)
                 upd_b.append(int(bstart[i]) + b)
-            qstart += t_k * b_k
     bad = np.zeros(len(navs), dtype=np.int64)
     upd_rows = np.zeros(0, dtype=np.int64)
     upd: tuple[np.ndarray, ...] = ()
