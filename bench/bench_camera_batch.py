@@ -67,6 +67,7 @@ def one(sc, batch: bool, tmp: Path, tag: str) -> tuple[float, float, str, dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--hours", type=float, default=24.0)
+    ap.add_argument("--seed", type=int, help="the scenario's [run].seed (default: the scenario's own)")
     ap.add_argument("--scenarios", default=",".join(SCENARIOS))
     ap.add_argument("--no-per-agent", action="store_true", help="the batch path only")
     ap.add_argument("--seeds", type=int, default=20, help="campaign size of the estimate")
@@ -111,7 +112,7 @@ def main() -> None:
         for name in a.scenarios.split(","):
             base = load_scenario(root / "deploy" / "scenarios" / f"{name}.toml")
             one(base.with_overrides(duration_s=60.0), True, tmp, f"{name}-warm")  # imports, numba kernels
-            sc = base.with_overrides(duration_s=a.hours * 3600.0)
+            sc = base.with_overrides(duration_s=a.hours * 3600.0, seed=a.seed)
             cpu_b, wall_b, sha_b, sum_b = one(sc, True, tmp, f"{name}-batch")
             line = (f"{name} {a.hours:g} h: batch {cpu_b:.1f} s CPU ({wall_b:.1f} s wall), dV {sum_b['delta_v_total_mps']:.6g} m/s, "
                     f"faults {sum_b.get('agent_faults')}, truth {sha_b[:16]}")
@@ -142,7 +143,7 @@ def compare_ref(a: argparse.Namespace) -> None:
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev], check=True, capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(ref)], input=archive, check=True)
         print(f"load average at start: {os.getloadavg()}, cores: {os.cpu_count()}; old = {rev}, new = {here}", flush=True)
-        common = [f"--hours={a.hours}", "--no-per-agent"]
+        common = [f"--hours={a.hours}", "--no-per-agent"] + ([] if a.seed is None else [f"--seed={a.seed}"])
         for name in a.scenarios.split(","):
             kids = {tag: subprocess.Popen([sys.executable, __file__, f"--scenarios={name}", *common, *extra],
                                           stdout=subprocess.PIPE, text=True)
@@ -154,7 +155,7 @@ def compare_ref(a: argparse.Namespace) -> None:
                 got[tag] = (float(re.search(r"batch ([0-9.]+) s CPU", line).group(1)), re.search(r"truth ([0-9a-f]+)", line).group(1), line)
                 print(f"  {tag}: {line}", flush=True)
             (c_old, t_old, _), (c_new, t_new, _) = got["old"], got["new"]
-            print(f"{name} {a.hours:g} h batch: old {c_old:.1f} s CPU, new {c_new:.1f} s CPU, old / new x{c_old / c_new:.2f}, "
+            print(f"{name} {a.hours:g} h batch{'' if a.seed is None else f', seed {a.seed}'}: old {c_old:.1f} s CPU, new {c_new:.1f} s CPU, old / new x{c_old / c_new:.2f}, "
                   f"truth {'SAME' if t_old == t_new else 'DIFFERENT'}", flush=True)
         print(f"load average at end: {os.getloadavg()}")
 
