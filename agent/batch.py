@@ -134,7 +134,9 @@ class BatchPerception:
     from its agent config) fed with the values of its `scene` stimulus: per observer row r, bodies
     offsets[r]:offsets[r+1] with camera-frame positions (P, 3) and attitude quaternions w, x, y, z
     (P, 4), which become matrices as `Perception.observe` makes them (quat_to_matrix is elementwise:
-    all rows at once give each row's own matrix). As AgentNode.handle: the own acceleration is the
+    all rows at once give each row's own matrix), through agent/perception.py `observe_many` (every
+    observer's imaging, then the EKF navigators of all observers together, bit for bit each one's
+    own update, then each one's observation). As AgentNode.handle: the own acceleration is the
     command in force before this step's decision; a navigation exception is logged (the first),
     counted in `faults[id]["nav"]`, the spacecraft observes nothing this step and its navigation
     restarts from the next frame."""
@@ -150,33 +152,21 @@ class BatchPerception:
 
     def observe(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, observers: list[str], offsets: np.ndarray,
                 position_cam_m: np.ndarray, attitude_wxyz: np.ndarray, own_accel_mps2: np.ndarray) -> ObservationBatch:
-        from swarmhil.agent.camera.model import quat_to_matrix  # scene sensing only (the camera stack)
+        from swarmhil.agent.perception import observe_many  # scene sensing only (the camera stack)
 
-        rot = quat_to_matrix(attitude_wxyz).reshape(-1, 3, 3)
-        pos = np.asarray(position_cam_m, dtype=float).reshape(-1, 3)
-        off = np.asarray(offsets, dtype=np.int64).tolist()
+        idx = rows.tolist()
         accel = own_accel_mps2.tolist()
-        blobs = None
-        if self._exact:
-            from swarmhil.agent.blob.blobs import exact_blobs_many  # scene sensing only (the camera stack)
-
-            r0 = self.perceptions[0].vision.renderer
-            try:
-                blobs = exact_blobs_many(pos, rot, offsets, r0.camera, r0.shape)
-            except Exception:  # noqa: BLE001 - then each spacecraft's own, which faults alone (below)
-                blobs = None
+        pers = [self.perceptions[i] for i in idx]
+        # (fresh arrays, as the agent's from its message, and its command's acceleration)
+        got = observe_many(pers, step, t_s, u_rad, offsets, position_cam_m, attitude_wxyz,
+                           [np.array(accel[i], dtype=float) for i in idx], self._exact)
         out = []
-        for r, i in enumerate(rows.tolist()):
-            a, b = off[r], off[r + 1]
-            per = self.perceptions[i]
-            try:  # (fresh arrays, as the agent's from its message, and its command's acceleration)
-                if blobs is not None:
-                    obs = per.observe_blobs(step, t_s, u_rad, blobs[r], np.array(accel[i], dtype=float))
-                else:
-                    obs = per.observe_arrays(step, t_s, u_rad, pos[a:b].copy(), rot[a:b].copy(),
-                                             np.array(accel[i], dtype=float))
-            except Exception:  # noqa: BLE001 - a navigation fault must not stop the flight software (AgentNode)
-                count_fault(self.faults, self.ids[i], "nav", step)
+        for i, per, obs in zip(idx, pers, got):
+            if isinstance(obs, Exception):  # a navigation fault must not stop the flight software (AgentNode)
+                try:
+                    raise obs
+                except Exception:  # noqa: BLE001 - logged with its traceback (the first), counted
+                    count_fault(self.faults, self.ids[i], "nav", step)
                 per.reset()
                 obs = Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=[],
                                   rel_position_m=np.zeros((0, 3)), rel_velocity_mps=np.zeros((0, 3)))

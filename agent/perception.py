@@ -26,7 +26,8 @@ from swarmhil.agent.camera.model import Camera, quat_to_matrix
 from swarmhil.agent.camera.render import compose_frame
 from swarmhil.agent.controller import Observation
 from swarmhil.agent.nav.base import Track, observation_arrays
-from swarmhil.agent.nav.ekf import EkfConfig
+from swarmhil.agent.blob.blobs import exact_blobs_many
+from swarmhil.agent.nav.ekf import EkfConfig, EkfNavigator, update_many
 from swarmhil.agent.nav.pipeline import VisionNav
 from swarmhil.agent.nav.rough import CHOICES as ROUGH_CHOICES
 from swarmhil.agent.nav.rough import RoughNavigator
@@ -151,6 +152,12 @@ class Perception:
         self.tracks = self.vision.update(t_s, u_rad, blobs, own_accel_mps2)
         return self._observation(step, t_s, u_rad)
 
+    def observe_tracks(self, step: int, t_s: float, u_rad: float, tracks: list[Track]) -> Observation:
+        """`observe_blobs` of a frame whose navigator update ran outside this object (the batch mode
+        updates the EKF navigators of a step together: agent/nav/ekf.py update_many): its tracks."""
+        self.tracks = tracks
+        return self._observation(step, t_s, u_rad)
+
     def _observation(self, step: int, t_s: float, u_rad: float) -> Observation:
         ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"]))
         return Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=ids, rel_position_m=rp, rel_velocity_mps=rv)
@@ -187,3 +194,56 @@ class Perception:
         buf = io.BytesIO()
         Image.fromarray(img, mode="L").save(buf, format="PNG")
         return buf.getvalue()
+
+
+def observe_many(perceptions: list[Perception], step: int, t_s: float, u_rad: float, offsets: np.ndarray,
+                 position_cam_m: np.ndarray, attitude_wxyz: np.ndarray, own_accel_mps2: list[np.ndarray],
+                 exact: bool = False) -> list[Observation | Exception]:
+    """`observe_arrays` of several spacecraft's perceptions for one frame (the batch mode,
+    agent/batch.py BatchPerception): perception r sees the bodies offsets[r]:offsets[r+1] with
+    camera-frame positions (P, 3) and attitude quaternions w, x, y, z (P, 4) (matrices as `observe`
+    makes them: quat_to_matrix is elementwise, all rows at once give each row its own). Each one's
+    imaging (`exact`: the paper's exact blobs of every scene at once, exact_blobs_many, when all share
+    one camera and shape), then the navigators (the EKF ones together, agent/nav/ekf.py update_many:
+    bit for bit each one's own update), then each one's observation. Returns per perception its
+    Observation, or the exception its own `observe_arrays` would have raised (its state is then
+    undefined: reset it)."""
+    rot = quat_to_matrix(attitude_wxyz).reshape(-1, 3, 3)
+    pos = np.asarray(position_cam_m, dtype=float).reshape(-1, 3)
+    off = np.asarray(offsets, dtype=np.int64).tolist()
+    blobs = None
+    if exact and perceptions:
+        r0 = perceptions[0].vision.renderer
+        try:
+            blobs = exact_blobs_many(pos, rot, offsets, r0.camera, r0.shape)
+        except Exception:  # noqa: BLE001 - then each spacecraft's own, which faults alone (below)
+            blobs = None
+    got: list[Any] = []  # per perception: its blobs, tracks, observation or the exception that ended it
+    for r, per in enumerate(perceptions):
+        try:
+            if blobs is not None:
+                b, stacks = blobs[r], None
+            else:  # (fresh arrays, as the agent's from its message)
+                b, stacks = per.vision.image(pos[off[r]:off[r + 1]].copy(), rot[off[r]:off[r + 1]].copy(), step)
+            per.vision.keep(b, stacks)
+            got.append(b)
+        except Exception as e:  # noqa: BLE001 - that spacecraft's fault alone
+            got.append(e)
+    ok = [r for r, b in enumerate(got) if not isinstance(b, Exception)]
+    navs = [perceptions[r].vision.navigator for r in ok]
+    if navs and all(type(nav) is EkfNavigator for nav in navs):
+        for r, res in zip(ok, update_many(navs, t_s, u_rad, [got[r] for r in ok], [own_accel_mps2[r] for r in ok])):
+            got[r] = res
+    else:
+        for r in ok:
+            try:
+                got[r] = perceptions[r].vision.navigator.update(t_s, u_rad, got[r], own_accel_mps2[r])
+            except Exception as e:  # noqa: BLE001 - that spacecraft's fault alone
+                got[r] = e
+    for r, per in enumerate(perceptions):
+        if not isinstance(got[r], Exception):
+            try:
+                got[r] = per.observe_tracks(step, t_s, u_rad, got[r])
+            except Exception as e:  # noqa: BLE001 - that spacecraft's fault alone
+                got[r] = e
+    return got

@@ -30,7 +30,8 @@ def test_camera_batch_truth_equals_the_per_agent_path(tmp_path: Path, name: str)
     assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {}
 
 
-def test_a_navigation_fault_in_batch_mode_is_handled_as_by_the_agent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("name", ["sabatini-20-camera-exact", "sabatini-20-camera-filter"], ids=["exact-rough", "render-ekf"])
+def test_a_navigation_fault_in_batch_mode_is_handled_as_by_the_agent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str) -> None:
     """A navigation exception: counted per spacecraft ("nav"), no neighbours that step, navigation
     restarted; the same counts and the same truth as the agents' (AgentNode.handle)."""
     from swarmhil.agent.perception import Perception
@@ -43,7 +44,7 @@ def test_a_navigation_fault_in_batch_mode_is_handled_as_by_the_agent(tmp_path: P
         return real(self, step, t_s, u_rad)
 
     monkeypatch.setattr(Perception, "_observation", flaky)
-    sc = load_scenario(SCENARIOS / "sabatini-20-camera-exact.toml").with_overrides(duration_s=300.0)
+    sc = load_scenario(SCENARIOS / f"{name}.toml").with_overrides(duration_s=300.0)
     full = run_in_process(sc, tmp_path / "all", "nf")
     batch = run_in_process(sc, tmp_path / "truth", "nf", record="truth")
     assert batch.summary["batch"]["used"]

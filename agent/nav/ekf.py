@@ -50,6 +50,7 @@ model that the per-track filter computed: the estimates are bit-identical to it
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +64,7 @@ from swarmhil.agent.nav.measure import (
     camera_position_matrix,
     noise_cov,
     noise_cov_many,
+    noise_cov_pairs,
     predict_many,
 )
 from swarmhil.agent.roe import input_matrix, lvlh_to_roe, roe_to_lvlh, state_matrix
@@ -148,25 +150,33 @@ def gated_distances(nu: np.ndarray, s: np.ndarray, depth_m: np.ndarray) -> tuple
 
     A track predicted behind the camera or nearer than MIN_DEPTH_M has no valid projection (the
     pinhole Jacobian goes as 1/z): its row is +inf, as is any (track, blob) whose S is singular or
-    non-finite. Such tracks coast on their prediction; none raises (a coasting track that drifted
-    behind the camera once made np.linalg.solve raise and stopped an agent's step)."""
+    non-finite; so is the row of a track with any non-finite S or innovation. Such tracks coast on
+    their prediction; none raises (a coasting track that drifted behind the camera once made
+    np.linalg.solve raise and stopped an agent's step). `pair_distances` over the (T * M) pairs."""
     t, m = nu.shape[:2]
-    d2 = np.full((t, m), np.inf)
-    logdet = np.zeros((t, m))
-    ok = (depth_m > MIN_DEPTH_M) & np.all(np.isfinite(s), axis=(2, 3)).all(axis=1) & np.all(np.isfinite(nu), axis=(1, 2))
+    ok = (depth_m > MIN_DEPTH_M) & np.isfinite(s).all(axis=(1, 2, 3)) & np.isfinite(nu).all(axis=(1, 2))
+    d2, logdet = pair_distances(nu.reshape(t * m, 3), s.reshape(t * m, 3, 3), np.repeat(ok, m))
+    return d2.reshape(t, m), logdet.reshape(t, m)
+
+
+def pair_distances(nu: np.ndarray, s: np.ndarray, ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """d2 = nu' S^-1 nu (P,) and ln det S (P,) of P pairs nu (P, 3), S (P, 3, 3); +inf and 0 where
+    not `ok` (P,) or S is not positive definite by its determinant's sign. One LAPACK solve and one
+    slogdet per pair whatever the pairs around it (the same values for a pair alone or among many)."""
+    d2 = np.full(len(nu), np.inf)
+    logdet = np.zeros(len(nu))
     if not ok.any():
         return d2, logdet
     if ok.all():  # the usual frame: no masking copies (the same solve per pair)
         sign, ld = np.linalg.slogdet(s)
         if (sign > 0).all():
-            return np.einsum("tmi,tmi->tm", nu, np.linalg.solve(s, nu[..., None])[..., 0]), ld
+            return np.einsum("pi,pi->p", nu, np.linalg.solve(s, nu[..., None])[..., 0]), ld
     sign, ld = np.linalg.slogdet(s[ok])
     good = sign > 0
     sol = np.zeros_like(nu[ok])
     if good.any():
         sol[good] = np.linalg.solve(s[ok][good], nu[ok][good][..., None])[..., 0]
-    d2_ok = np.where(good, np.einsum("tmi,tmi->tm", nu[ok], sol), np.inf)
-    d2[ok] = d2_ok
+    d2[ok] = np.where(good, np.einsum("pi,pi->p", nu[ok], sol), np.inf)
     logdet[ok] = np.where(good, ld, 0.0)
     return d2, logdet
 
@@ -189,7 +199,78 @@ def lvlh_to_roe_matrices(u_rad: float, n_radps: float) -> tuple[np.ndarray, np.n
     return mp, mv
 
 
+def imm_predict(xm: np.ndarray, pm: np.ndarray, mu: np.ndarray, phi: np.ndarray, qs: np.ndarray, shift: np.ndarray,
+                pi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """IMM interaction (mixing) then each model's prediction x+ = Phi x0 - Gamma a_j, P+ = Phi P0 Phi^T + Q
+    (module docstring; Bar-Shalom et al. 2001 sec. 11.6.6) of T tracks stacked: per-model means
+    xm (T, M, 6), covariances pm (T, M, 6, 6), mode probabilities mu (T, M); `shift` Gamma a_j is
+    (6,) for all or (T, 1, 6) per track. Returns the predicted xm, pm and mode probabilities
+    c = pi^T mu. Every product is the same 2-D product per track whatever T (tests/test_nav_ekf_batched.py)."""
+    c = np.matmul(pi.T, mu[:, :, None])[:, :, 0]  # predicted mode probabilities (T, M)
+    w = pi * mu[:, :, None] / np.maximum(c[:, None, :], 1e-300)  # w[t, i, j] = P(i before | j now)
+    x0 = np.matmul(w.transpose(0, 2, 1), xm)
+    d = xm[:, :, None, :] - x0[:, None, :, :]  # (t, i, j, 6)
+    p0 = np.einsum("tij,tikl->tjkl", w, pm) + np.einsum("tij,tijk,tijl->tjkl", w, d, d)
+    xm = x0 @ phi.T - shift
+    pm = phi @ p0 @ phi.T + qs
+    return xm, 0.5 * (pm + pm.transpose(0, 1, 3, 2)), c
+
+
+def mixture(xm: np.ndarray, pm: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Moment-matched mixture of each track's models: x = sum_m mu_m x_m (T, 6),
+    P = sum_m mu_m (P_m + (x_m - x)(x_m - x)^T) (T, 6, 6)."""
+    x = np.matmul(mu[:, None, :], xm)[:, 0]
+    d = xm - x[:, None, :]
+    return x, np.einsum("tm,tmij->tij", mu, pm) + np.einsum("tm,tmi,tmj->tij", mu, d, d)
+
+
+def imm_update(model: MeasurementModel, xm: np.ndarray, pm: np.ndarray, mu: np.ndarray, z: np.ndarray, r: np.ndarray,
+               t_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each model's EKF update (Joseph form) of K tracks xm (K, M, 6), pm (K, M, 6, 6) with
+    measurements z (K, 3) and noises R (K, 3, 3); mode probabilities from the innovation
+    likelihoods N(nu; 0, S) (IMM). Returns (xm, pm, mu) of the tracks whose S is regular in every
+    model, and ok (K,) marking them (a track with a singular S keeps its prediction: a fault)."""
+    k_, m_ = mu.shape
+    h, jac, _ = predict_many(model, xm.reshape(k_ * m_, 6), t_cam)
+    h, jac = h.reshape(k_, m_, 3), jac.reshape(k_, m_, 3, 6)
+    jt = jac.transpose(0, 1, 3, 2)
+    r = r[:, None]
+    sm = jac @ pm @ jt + r
+    nu = z[:, None, :] - h
+    ok = np.ones(k_, bool)
+    try:
+        sinv = np.linalg.inv(sm)
+    except np.linalg.LinAlgError:  # one singular S: invert one by one, skip the tracks concerned
+        sinv = np.zeros_like(sm)
+        for k in range(k_):
+            try:
+                sinv[k] = np.linalg.inv(sm[k])
+            except np.linalg.LinAlgError:
+                ok[k] = False
+        if not ok.any():
+            return xm[ok], pm[ok], mu[ok], ok
+        xm, pm, mu, jac, jt, r, sm, nu, sinv = (a[ok] for a in (xm, pm, mu, jac, jt, r, sm, nu, sinv))
+    gain = pm @ jt @ sinv
+    ikh = np.eye(6) - gain @ jac
+    xm = xm + np.matmul(gain, nu[..., None])[..., 0]
+    pm = ikh @ pm @ ikh.transpose(0, 1, 3, 2) + gain @ r @ gain.transpose(0, 1, 3, 2)
+    pm = 0.5 * (pm + pm.transpose(0, 1, 3, 2))  # round-off: P spans ~1e-5 to ~1e5 m^2 while the velocity prior is forgotten
+    if m_ > 1:
+        maha = np.matmul(np.matmul(nu[..., None, :], sinv), nu[..., :, None])[..., 0, 0]
+        loglik = -0.5 * (maha + np.linalg.slogdet(2.0 * np.pi * sm)[1])
+        w = np.log(np.maximum(mu, 1e-300)) + loglik
+        w = np.exp(w - w.max(axis=1, keepdims=True))
+        mu = w / w.sum(axis=1, keepdims=True)
+    return xm, pm, mu, ok
+
+
+def measurements(blobs: Blobs) -> np.ndarray:
+    """z = (u, v, sqrt(area)) (B, 3) of each blob."""
+    return np.stack((blobs.centroid_px[:, 0], blobs.centroid_px[:, 1], np.sqrt(np.maximum(blobs.area_px, 1e-12))), axis=1)
+
+
 _PREDICT_TERMS: dict[tuple, tuple[np.ndarray, ...]] = {}  # EkfNavigator._predict_terms's shared terms
+_BATCH_KEYS: dict[tuple, int] = {}  # EkfNavigator.batch_key: one number per distinct setting of the filter
 
 
 class EkfNavigator:
@@ -205,6 +286,10 @@ class EkfNavigator:
         self._u: float | None = None
         self._next_id = 0
         self.faults = 0  # updates skipped (singular or non-finite S) + tracks dropped as non-finite
+        mdl = self.model  # what `update_many` needs equal to step navigators together (all the arithmetic's inputs)
+        key = (type(self), float(a_m).hex(), float(n_radps).hex(), self.cfg, camera, mdl.camera,
+               tuple(float(a).hex() for a in mdl.areas_m2), mdl.extent_m, mdl.centroid_floor_px, mdl.area_rel_sigma)
+        self.batch_key = _BATCH_KEYS.setdefault(key, len(_BATCH_KEYS))  # (a small int: compared every frame)
 
     # -- filter steps (issue 16: every track, model and matched pair at once; numpy over the
     #    track axis, each product the same 2-D product per track as the per-track filter had) ---
@@ -215,9 +300,15 @@ class EkfNavigator:
 
     def _predict_terms(self, dt: float, u0: float, own_accel: np.ndarray | None):
         """Phi, the models' process noises Q (M, 6, 6), the own-thrust shift Gamma a_j and the
-        Markov switch matrix over dt (module docstring). All but the shift depend on (n, a, dt, u0)
-        and the config only: remembered (read-only) for the last few, which the navigators of a batch
-        run share (each computes the same values)."""
+        Markov switch matrix over dt (module docstring)."""
+        phi, gam, qs, pi = self._terms(dt, u0)
+        shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
+        return phi, qs, shift, pi
+
+    def _terms(self, dt: float, u0: float) -> tuple[np.ndarray, ...]:
+        """Phi, Gamma, Q and the switch matrix: they depend on (n, a, dt, u0) and the config only,
+        remembered (read-only) for the last few, which the navigators of a batch run share (each
+        computes the same values)."""
         key = (float(self.n).hex(), float(self.a_m).hex(), float(dt).hex(), float(u0).hex(), self.cfg)
         terms = _PREDICT_TERMS.get(key)
         if terms is None:
@@ -231,9 +322,7 @@ class EkfNavigator:
             if len(_PREDICT_TERMS) >= 8:
                 _PREDICT_TERMS.clear()
             terms = _PREDICT_TERMS[key] = (phi, gam, qs, pi)
-        phi, gam, qs, pi = terms
-        shift = np.zeros(6) if own_accel is None else gam @ np.asarray(own_accel, dtype=float)
-        return phi, qs, shift, pi
+        return terms
 
     def _predict(self, dt: float, u0: float, own_accel: np.ndarray | None) -> None:
         """IMM interaction (mixing) then each model's prediction, for all tracks at once; one model:
@@ -241,29 +330,19 @@ class EkfNavigator:
         if dt <= 0.0 or not self.tracks:
             return
         phi, qs, shift, pi = self._predict_terms(dt, u0, own_accel)
-        xm, pm, mu = self._stack()
-        c = np.matmul(pi.T, mu[:, :, None])[:, :, 0]  # predicted mode probabilities (T, M)
-        w = pi * mu[:, :, None] / np.maximum(c[:, None, :], 1e-300)  # w[t, i, j] = P(i before | j now)
-        x0 = np.matmul(w.transpose(0, 2, 1), xm)
-        d = xm[:, :, None, :] - x0[:, None, :, :]  # (t, i, j, 6)
-        p0 = np.einsum("tij,tikl->tjkl", w, pm) + np.einsum("tij,tijk,tijl->tjkl", w, d, d)
-        xm = x0 @ phi.T - shift
-        pm = phi @ p0 @ phi.T + qs
-        pm = 0.5 * (pm + pm.transpose(0, 1, 3, 2))
+        xm, pm, c = imm_predict(*self._stack(), phi, qs, shift, pi)
         self._store(range(len(self.tracks)), xm, pm, c)
 
     def _store(self, rows, xm: np.ndarray, pm: np.ndarray, mu: np.ndarray) -> None:
-        """Write per-model states back to the tracks `rows` and form each one's mixture (combine)."""
-        x = np.matmul(mu[:, None, :], xm)[:, 0]
-        d = xm - x[:, None, :]
-        p = np.einsum("tm,tmij->tij", mu, pm) + np.einsum("tm,tmi,tmj->tij", mu, d, d)
+        """Write per-model states back to the tracks `rows` and form each one's mixture."""
+        x, p = mixture(xm, pm, mu)
         for k, i in enumerate(rows):
             tr = self.tracks[i]
             tr.xm, tr.pm, tr.mu, tr.x, tr.p = xm[k], pm[k], mu[k], x[k], p[k]
 
     def _innovations(self, t_cam: np.ndarray, blobs: Blobs):
         """Per track: h, H, H P H^T and depth; per (track, blob): innovation nu (T, B, 3), S (T, B, 3, 3)."""
-        zs = np.stack((blobs.centroid_px[:, 0], blobs.centroid_px[:, 1], np.sqrt(np.maximum(blobs.area_px, 1e-12))), axis=1)
+        zs = measurements(blobs)
         x = np.stack([tr.x for tr in self.tracks])
         p = np.stack([tr.p for tr in self.tracks])
         hs, jacs, pcam = predict_many(self.model, x, t_cam)
@@ -274,45 +353,14 @@ class EkfNavigator:
         return zs, hph, depth, nu, s
 
     def _update(self, rows: list[int], z: np.ndarray, r: np.ndarray, t_cam: np.ndarray) -> None:
-        """Each model's EKF update (Joseph form) of the tracks `rows` with measurements z (K, 3),
-        noises R (K, 3, 3); mode probabilities from the innovation likelihoods N(nu; 0, S) (IMM);
-        then the mixture. A track whose S is singular in any model keeps its prediction (a fault)."""
+        """`imm_update` of the tracks `rows` with measurements z (K, 3), noises R (K, 3, 3), then the
+        mixture; a track whose S is singular in any model keeps its prediction (a fault)."""
         trs = [self.tracks[i] for i in rows]
         xm, pm, mu = np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
-        k_, m_ = mu.shape
-        h, jac, _ = predict_many(self.model, xm.reshape(k_ * m_, 6), t_cam)
-        h, jac = h.reshape(k_, m_, 3), jac.reshape(k_, m_, 3, 6)
-        jt = jac.transpose(0, 1, 3, 2)
-        r = r[:, None]
-        sm = jac @ pm @ jt + r
-        nu = z[:, None, :] - h
-        try:
-            sinv = np.linalg.inv(sm)
-            ok = np.ones(k_, bool)
-        except np.linalg.LinAlgError:  # one singular S: invert one by one, skip the tracks concerned
-            sinv, ok = np.zeros_like(sm), np.ones(k_, bool)
-            for k in range(k_):
-                try:
-                    sinv[k] = np.linalg.inv(sm[k])
-                except np.linalg.LinAlgError:
-                    ok[k] = False
-            self.faults += int((~ok).sum())
-            if not ok.any():
-                return
-            rows = [i for i, good in zip(rows, ok) if good]
-            xm, pm, mu, jac, jt, r, sm, nu, sinv = (a[ok] for a in (xm, pm, mu, jac, jt, r, sm, nu, sinv))
-        gain = pm @ jt @ sinv
-        ikh = np.eye(6) - gain @ jac
-        xm = xm + np.matmul(gain, nu[..., None])[..., 0]
-        pm = ikh @ pm @ ikh.transpose(0, 1, 3, 2) + gain @ r @ gain.transpose(0, 1, 3, 2)
-        pm = 0.5 * (pm + pm.transpose(0, 1, 3, 2))  # round-off: P spans ~1e-5 to ~1e5 m^2 while the velocity prior is forgotten
-        if m_ > 1:
-            maha = np.matmul(np.matmul(nu[..., None, :], sinv), nu[..., :, None])[..., 0, 0]
-            loglik = -0.5 * (maha + np.linalg.slogdet(2.0 * np.pi * sm)[1])
-            w = np.log(np.maximum(mu, 1e-300)) + loglik
-            w = np.exp(w - w.max(axis=1, keepdims=True))
-            mu = w / w.sum(axis=1, keepdims=True)
-        self._store(rows, xm, pm, mu)
+        xm, pm, mu, ok = imm_update(self.model, xm, pm, mu, z, r, t_cam)
+        self.faults += int((~ok).sum())
+        if ok.any():
+            self._store([i for i, good in zip(rows, ok.tolist()) if good], xm, pm, mu)
 
     def _new_track(self, u_rad: float, centroid: np.ndarray, area: float, area_sigma: float) -> _EkfTrack:
         cam, mdl, cfg = self.camera, self.model, self.cfg
@@ -355,34 +403,30 @@ class EkfNavigator:
             return t_s - tr.last_hit_t_s <= cfg.max_coast_s  # out of view, not gone: coast
         return tr.misses <= cfg.max_misses and self._in_view(tr, t_cam, cfg.fov_margin, cfg.range_margin)
 
-    # -- the Navigator interface --------------------------------------------------------------
-    def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
-        if self._t is not None:
-            self._predict(t_s - self._t, self._u, own_accel_mps2)
+    def _begin(self, t_s: float, u_rad: float) -> None:
+        """The frame's clock, and every track one frame older with no blob yet."""
         self._t, self._u = t_s, u_rad
         for tr in self.tracks:
             tr.age += 1
             tr.blob_index = -1
-        pairs: list[tuple[int, int]] = []
-        t_cam = camera_position_matrix(u_rad, self.n)
-        if self.tracks and len(blobs):
-            zs, hph, depth, nu, s = self._innovations(t_cam, blobs)
-            d2, logdet = gated_distances(nu, s, depth)
-            pairs = assign_likelihood(d2, logdet, self.cfg.gate_chi2)
-            if pairs:
-                rows, cols = [i for i, _ in pairs], [j for _, j in pairs]
-                self._update(rows, zs[cols], s[rows, cols] - hph[rows], t_cam)
-            for i, j in pairs:
-                tr = self.tracks[i]
-                tr.hits += 1
-                tr.misses = 0
-                tr.last_hit_t_s = t_s
-                tr.blob_index = j
+
+    def _settle(self, t_s: float, u_rad: float, blobs: Blobs, pairs: list[tuple[int, int]], t_cam: np.ndarray,
+                finite: list[bool] | None = None) -> list[_EkfTrack]:
+        """After the update of the matched tracks: hits and misses, non-finite and dead tracks dropped,
+        a tentative track started on every unmatched blob; returns the tracks to output (module
+        docstring). `finite`: per track, are its x and P finite (computed here when not given)."""
+        for i, j in pairs:
+            tr = self.tracks[i]
+            tr.hits += 1
+            tr.misses = 0
+            tr.last_hit_t_s = t_s
+            tr.blob_index = j
         matched_t = {i for i, _ in pairs}
         for i, tr in enumerate(self.tracks):
             if i not in matched_t:
                 tr.misses += 1
-        finite = [bool(np.isfinite(tr.x).all() and np.isfinite(tr.p).all()) for tr in self.tracks]
+        if finite is None:
+            finite = finite_tracks([tr.x for tr in self.tracks], [tr.p for tr in self.tracks])
         self.faults += finite.count(False)
         self.tracks = [tr for tr, ok in zip(self.tracks, finite) if ok and self._alive(tr, t_s, t_cam)]
         matched_b = {j for _, j in pairs}
@@ -394,9 +438,218 @@ class EkfNavigator:
                 self.tracks.append(tr)
         cfg = self.cfg
         out_misses = cfg.max_misses if cfg.output_max_misses < 0 else min(cfg.output_max_misses, cfg.max_misses)
-        out = [tr for tr in self.tracks if tr.hits >= cfg.confirm_hits and tr.misses <= out_misses]
-        if not out:
-            return []
-        pos, vel = roe_to_lvlh(np.stack([tr.x for tr in out]), u_rad, self.n)  # elementwise: per row as for one
-        return [Track(tr.track_id, tr.x.copy(), pos[k], vel[k], tr.p.copy(), tr.age, tr.hits, tr.blob_index)
-                for k, tr in enumerate(out)]
+        return [tr for tr in self.tracks if tr.hits >= cfg.confirm_hits and tr.misses <= out_misses]
+
+    # -- the Navigator interface --------------------------------------------------------------
+    def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None) -> list[Track]:
+        if self._t is not None:
+            self._predict(t_s - self._t, self._u, own_accel_mps2)
+        self._begin(t_s, u_rad)
+        pairs: list[tuple[int, int]] = []
+        t_cam = camera_position_matrix(u_rad, self.n)
+        if self.tracks and len(blobs):
+            zs, hph, depth, nu, s = self._innovations(t_cam, blobs)
+            d2, logdet = gated_distances(nu, s, depth)
+            pairs = assign_likelihood(d2, logdet, self.cfg.gate_chi2)
+            if pairs:
+                rows, cols = [i for i, _ in pairs], [j for _, j in pairs]
+                self._update(rows, zs[cols], s[rows, cols] - hph[rows], t_cam)
+        return tracks_out([self._settle(t_s, u_rad, blobs, pairs, t_cam)], u_rad, self.n)[0]
+
+
+def finite_tracks(xs: list[np.ndarray], ps: list[np.ndarray]) -> list[bool]:
+    """Per track: are all of its x (6,) and P (6, 6) finite."""
+    if not xs:
+        return []
+    return (np.isfinite(np.stack(xs)).all(axis=1) & np.isfinite(np.stack(ps)).all(axis=(1, 2))).tolist()
+
+
+def tracks_out(outs: list[list[_EkfTrack]], u_rad: float, n_radps: float) -> list[list[Track]]:
+    """The output `Track`s of several navigators' output tracks: one ROE -> LVLH for all (elementwise:
+    each row as for one)."""
+    flat = [tr for out in outs for tr in out]
+    if not flat:
+        return [[] for _ in outs]
+    pos, vel = roe_to_lvlh(np.stack([tr.x for tr in flat]), u_rad, n_radps)
+    res, k = [], 0
+    for out in outs:
+        res.append([Track(tr.track_id, tr.x.copy(), pos[k + i], vel[k + i], tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+                    for i, tr in enumerate(out)])
+        k += len(out)
+    return res
+
+
+def _guarded(fn, *args) -> Any:
+    """fn(*args), or the exception it raised."""
+    try:
+        return fn(*args)
+    except Exception as e:  # noqa: BLE001 - handed to the caller, which handles it per navigator
+        return e
+
+
+def update_many(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: list[Blobs],
+                own_accel_mps2: list[np.ndarray | None]) -> list[list[Track] | Exception]:
+    """`update` of several navigators for one frame (navs[k] sees blobs[k] with its own acceleration
+    own_accel_mps2[k]: the observers of a batch step), every observer's tracks stacked: one IMM
+    prediction, one pass over the (track, blob) pairs of every observer (innovations, S, gating),
+    the association per observer, one update of every matched track, one mixture. Each navigator
+    ends in the state its own `update` gives, bit for bit: every product is the same 2-D product per
+    track or pair as in `update` (`imm_predict`, `pair_distances`, `imm_update` over the rows of all
+    observers; tests/test_nav_ekf_batched.py). Navigators of different settings or classes
+    (`batch_key`) are updated one by one.
+
+    Returns each navigator's tracks, or the exception its own `update` would have raised (then, as
+    after that raise, its state is undefined: the caller resets it). Nothing is written before the
+    arithmetic of every observer is done: if it raises, each navigator runs its own `update`."""
+    if len({nav.batch_key for nav in navs}) > 1:
+        return [_guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
+    try:
+        plan = _frame_arrays(navs, t_s, u_rad, blobs, own_accel_mps2)
+    except Exception:  # noqa: BLE001 - nothing written yet: each its own update, which raises alone
+        return [_guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
+    return _commit_frame(navs, t_s, u_rad, blobs, plan)
+
+
+@dataclass
+class _FramePlan:
+    """What `update_many` computed for one frame, before anything is written (rows: every track of
+    every navigator, navigator by navigator, in their order)."""
+
+    start: np.ndarray  # (N + 1,) first row of each navigator
+    predicted: np.ndarray  # (G,) bool: the row was predicted
+    xm: np.ndarray  # (G, M, 6) per-model means after the prediction
+    pm: np.ndarray
+    mu: np.ndarray
+    x: np.ndarray  # (G, 6) mixture after the prediction (the track's own where not predicted)
+    p: np.ndarray
+    pairs: list[list[tuple[int, int]]]  # per navigator, its (track, blob) pairs
+    upd_rows: np.ndarray  # (K,) rows updated (the ok ones of the matched)
+    upd: tuple[np.ndarray, ...]  # their xm, pm, mu, x, p after the update
+    bad: np.ndarray  # (N,) per navigator, matched tracks whose update was skipped (singular S)
+
+
+def _frame_arrays(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: list[Blobs],
+                  own_accel_mps2: list[np.ndarray | None]) -> _FramePlan:
+    """The arithmetic of `update_many`: prediction, innovations, gating, association and update of
+    every navigator's tracks; no navigator is changed."""
+    counts = np.array([len(nav.tracks) for nav in navs], dtype=np.int64)
+    start = np.concatenate(([0], np.cumsum(counts)))
+    trs = [tr for nav in navs for tr in nav.tracks]
+    g_ = len(trs)
+    m_ = len(navs[0].cfg.sigmas_mps2())
+    if g_ == 0:
+        xm, pm, mu = np.zeros((0, m_, 6)), np.zeros((0, m_, 6, 6)), np.zeros((0, m_))
+    else:
+        xm, pm, mu = np.stack([t.xm for t in trs]), np.stack([t.pm for t in trs]), np.stack([t.mu for t in trs])
+    predicted = np.zeros(g_, bool)
+    # the prediction: the navigators that share Phi, Q and the switch matrix (a frame: all) together
+    groups: dict[tuple[str, str], list[tuple[int, np.ndarray]]] = {}
+    terms: dict[tuple[str, str], tuple[np.ndarray, ...]] = {}
+    for k, nav in enumerate(navs):  # as `update`: predicted when the navigator has a clock, tracks and dt > 0
+        if nav._t is None or not counts[k] or t_s - nav._t <= 0.0:
+            continue
+        key = (float(nav._t).hex(), float(nav._u).hex())  # (a frame: one) -> Phi, Gamma, Q, switch (exactly: -0.0 is not 0.0)
+        if key not in terms:
+            terms[key] = nav._terms(t_s - nav._t, nav._u)
+        gam, acc = terms[key][1], own_accel_mps2[k]
+        groups.setdefault(key, []).append((k, np.zeros(6) if acc is None else gam @ np.asarray(acc, dtype=float)))
+    x = np.zeros((g_, 6))
+    p = np.zeros((g_, 6, 6))
+    for key, members in groups.items():
+        phi, _, qs, pi = terms[key]
+        if sum(int(counts[k]) for k, _ in members) == g_:  # (the usual frame: every row, no copies)
+            rows = slice(None)
+        else:
+            rows = np.concatenate([np.arange(start[k], start[k + 1]) for k, _ in members])
+        shift = np.repeat(np.stack([sh for _, sh in members]), [int(counts[k]) for k, _ in members], axis=0)[:, None, :]
+        xm_p, pm_p, c = imm_predict(xm[rows], pm[rows], mu[rows], phi, qs, shift, pi)
+        xm[rows], pm[rows], mu[rows] = xm_p, pm_p, c
+        x[rows], p[rows] = mixture(xm_p, pm_p, c)
+        predicted[rows] = True
+    for g in np.flatnonzero(~predicted).tolist():
+        x[g], p[g] = trs[g].x, trs[g].p
+    # innovations of every observer's (track, blob) pairs
+    t_cam = camera_position_matrix(u_rad, navs[0].n)
+    model, cfg = navs[0].model, navs[0].cfg
+    seen = [k for k, nav in enumerate(navs) if counts[k] and len(blobs[k])]
+    pairs: list[list[tuple[int, int]]] = [[] for _ in navs]
+    upd_g: list[int] = []
+    upd_q: list[int] = []
+    upd_b: list[int] = []
+    if seen:
+        tcount = counts[seen]
+        nb = np.array([len(blobs[k]) for k in seen], dtype=np.int64)
+        is_seen = np.zeros(len(navs), bool)
+        is_seen[seen] = True
+        trows = np.flatnonzero(np.repeat(is_seen, counts))  # the seen navigators' rows, in order
+        bstart = np.concatenate(([0], np.cumsum(nb)))
+        npairs = tcount * nb
+        qstarts = np.concatenate(([0], np.cumsum(npairs)))
+        cen = np.concatenate([blobs[k].centroid_px for k in seen])
+        area = np.concatenate([blobs[k].area_px for k in seen])
+        sig = np.concatenate([blobs[k].area_sigma_px for k in seen])
+        zs = np.stack((cen[:, 0], cen[:, 1], np.sqrt(np.maximum(area, 1e-12))), axis=1)  # `measurements`
+        hs, jacs, pcam = predict_many(model, x[trows], t_cam)
+        depth = pcam[:, 2]
+        hph = jacs @ p[trows] @ jacs.transpose(0, 2, 1)
+        # pairs navigator by navigator, track-major: each track of navigator k with each of its blobs
+        ti = np.repeat(np.arange(len(trows)), np.repeat(nb, tcount))
+        owner = np.repeat(np.arange(len(seen)), npairs)
+        bj = bstart[owner] + (np.arange(int(qstarts[-1])) - qstarts[owner]) % nb[owner]
+        nu = zs[bj] - hs[ti]
+        s = hph[ti] + noise_cov_pairs(model, depth[ti], area[bj], sig[bj])
+        bad_pair = ~(np.isfinite(s).all(axis=(1, 2)) & np.isfinite(nu).all(axis=1))
+        ok = (depth > MIN_DEPTH_M) & ~(np.bincount(ti, weights=bad_pair, minlength=len(trows)) > 0)
+        d2, logdet = pair_distances(nu, s, ok[ti])
+        for i, k in enumerate(seen):
+            t_k, b_k, qstart = int(counts[k]), int(nb[i]), int(qstarts[i])
+            seg = slice(qstart, qstart + t_k * b_k)
+            pairs[k] = assign_likelihood(d2[seg].reshape(t_k, b_k), logdet[seg].reshape(t_k, b_k), cfg.gate_chi2)
+            for a, b in pairs[k]:
+                upd_g.append(int(start[k]) + a)
+                upd_q.append(qstart + a * b_k + b)
+                upd_b.append(int(bstart[i]) + b)
+    bad = np.zeros(len(navs), dtype=np.int64)
+    upd_rows = np.zeros(0, dtype=np.int64)
+    upd: tuple[np.ndarray, ...] = ()
+    if upd_g:
+        g_idx = np.array(upd_g)
+        # hph of the pair's track: its row among the seen navigators' rows (trows is increasing)
+        r = s[upd_q] - hph[np.searchsorted(trows, g_idx)]
+        xm_u, pm_u, mu_u, ok_u = imm_update(model, xm[g_idx], pm[g_idx], mu[g_idx], zs[upd_b], r, t_cam)
+        owner = np.searchsorted(start, g_idx, side="right") - 1
+        bad = np.bincount(owner[~ok_u], minlength=len(navs))
+        upd_rows = g_idx[ok_u]
+        if len(upd_rows):
+            upd = (xm_u, pm_u, mu_u, *mixture(xm_u, pm_u, mu_u))
+    return _FramePlan(start, predicted, xm, pm, mu, x, p, pairs, upd_rows, upd, bad)
+
+
+def _commit_frame(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: list[Blobs],
+                  plan: _FramePlan) -> list[list[Track] | Exception]:
+    """Write `_frame_arrays`' results into the navigators, in the order of their own `update`, and
+    finish each one's frame (`_settle`)."""
+    trs = [tr for nav in navs for tr in nav.tracks]
+    for g in np.flatnonzero(plan.predicted).tolist():
+        tr = trs[g]
+        tr.xm, tr.pm, tr.mu, tr.x, tr.p = plan.xm[g], plan.pm[g], plan.mu[g], plan.x[g], plan.p[g]
+    for nav in navs:
+        nav._begin(t_s, u_rad)
+    x, p = plan.x, plan.p
+    if len(plan.upd_rows):
+        xm_u, pm_u, mu_u, x_u, p_u = plan.upd
+        for k, g in enumerate(plan.upd_rows.tolist()):
+            tr = trs[g]
+            tr.xm, tr.pm, tr.mu, tr.x, tr.p = xm_u[k], pm_u[k], mu_u[k], x_u[k], p_u[k]
+        x, p = x.copy(), p.copy()
+        x[plan.upd_rows], p[plan.upd_rows] = x_u, p_u
+    finite = (np.isfinite(x).all(axis=1) & np.isfinite(p).all(axis=(1, 2))).tolist()
+    t_cam = camera_position_matrix(u_rad, navs[0].n)
+    outs: list[list[_EkfTrack] | Exception] = []
+    for k, nav in enumerate(navs):
+        nav.faults += int(plan.bad[k])
+        a, b = int(plan.start[k]), int(plan.start[k + 1])
+        outs.append(_guarded(nav._settle, t_s, u_rad, blobs[k], plan.pairs[k], t_cam, finite[a:b]))
+    good = [o for o in outs if not isinstance(o, Exception)]
+    tracks = iter(tracks_out(good, u_rad, navs[0].n))  # type: ignore[arg-type]
+    return [o if isinstance(o, Exception) else next(tracks) for o in outs]

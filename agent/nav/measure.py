@@ -149,16 +149,32 @@ def predict_many(model: MeasurementModel, roe_m: np.ndarray, t_cam: np.ndarray) 
     return h, jp @ t_cam, p
 
 
-def noise_cov_many(model: MeasurementModel, z_m: np.ndarray, area_px: np.ndarray, area_sigma_px: np.ndarray) -> np.ndarray:
-    """`noise_cov` for every (depth, blob) pair: z_m (T,), area_px and area_sigma_px (B,) -> R (T, B, 3, 3),
-    elementwise the same arithmetic as `noise_cov`."""
+def _noise_diag(model: MeasurementModel, z_m: np.ndarray, area_px: np.ndarray,
+                area_sigma_px: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The diagonal of `noise_cov` over arrays, elementwise the same arithmetic: sigma_u^2 and
+    sigma_v^2 (the shape of z_m), sigma_s^2 (the shape of area_px)."""
     f = model.camera.focal_px
     z = np.maximum(np.asarray(z_m, dtype=float), 1e-3)
     su2, sv2 = (_pow2(np.maximum(0.0, 1.0 - f * ext / z)) / 12.0 + model.centroid_floor_px**2 for ext in model.extent_m)
     s = np.sqrt(np.maximum(area_px, 1e-12))
-    ss2 = _pow2(area_sigma_px / (2.0 * s)) + _pow2(model.area_rel_sigma * s)
-    r = np.zeros((len(z), len(s), 3, 3))
+    return su2, sv2, _pow2(area_sigma_px / (2.0 * s)) + _pow2(model.area_rel_sigma * s)
+
+
+def noise_cov_many(model: MeasurementModel, z_m: np.ndarray, area_px: np.ndarray, area_sigma_px: np.ndarray) -> np.ndarray:
+    """`noise_cov` for every (depth, blob) pair: z_m (T,), area_px and area_sigma_px (B,) -> R (T, B, 3, 3),
+    elementwise the same arithmetic as `noise_cov`."""
+    su2, sv2, ss2 = _noise_diag(model, z_m, area_px, area_sigma_px)
+    r = np.zeros((len(su2), len(ss2), 3, 3))
     r[:, :, 0, 0] = su2[:, None]
     r[:, :, 1, 1] = sv2[:, None]
     r[:, :, 2, 2] = ss2[None, :]
+    return r
+
+
+def noise_cov_pairs(model: MeasurementModel, z_m: np.ndarray, area_px: np.ndarray, area_sigma_px: np.ndarray) -> np.ndarray:
+    """`noise_cov` of P (depth, blob) pairs given pair by pair: z_m, area_px, area_sigma_px (P,) ->
+    R (P, 3, 3), elementwise the same arithmetic (each pair's R equals `noise_cov_many`'s)."""
+    su2, sv2, ss2 = _noise_diag(model, z_m, area_px, area_sigma_px)
+    r = np.zeros((len(su2), 3, 3))
+    r[:, 0, 0], r[:, 1, 1], r[:, 2, 2] = su2, sv2, ss2
     return r

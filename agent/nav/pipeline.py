@@ -52,19 +52,28 @@ class VisionNav:
         own_accel_mps2: np.ndarray | None = None,
     ) -> list[Track]:
         """One camera frame: image the scene, extract blobs, update the navigator."""
+        blobs, stacks = self.image(pos_cam_m, rot_body_to_cam, frame)
+        return self.update(t_s, u_rad, blobs, own_accel_mps2, stacks)
+
+    def image(self, pos_cam_m: np.ndarray, rot_body_to_cam: np.ndarray, frame: int) -> tuple[Blobs, list[RoiStack] | None]:
+        """The imaging part of `step`: the frame's blobs, and the rendered ROI stacks (None in the exact mode)."""
         r = self.renderer
         pos = np.asarray(pos_cam_m, dtype=float).reshape(-1, 3)
         rot = np.asarray(rot_body_to_cam, dtype=float).reshape(-1, 3, 3)
         if self.imaging == "exact":
-            return self.update(t_s, u_rad, exact_blobs(pos, rot, r.camera, r.shape), own_accel_mps2)
+            return exact_blobs(pos, rot, r.camera, r.shape), None
         stacks = r.render_rois(pos, rot, frame=frame)
-        return self.update(t_s, u_rad, extract_blobs(stacks, r.detector, self.min_pixels, backend=r.backend),
-                           own_accel_mps2, stacks)
+        return extract_blobs(stacks, r.detector, self.min_pixels, backend=r.backend), stacks
 
     def update(self, t_s: float, u_rad: float, blobs: Blobs, own_accel_mps2: np.ndarray | None = None,
                stacks: list[RoiStack] | None = None) -> list[Track]:
         """The navigator's part of `step`, for a frame whose blobs are measured (the batch mode measures
         every spacecraft's exact blobs at once: agent/blob/blobs.py exact_blobs_many)."""
+        self.keep(blobs, stacks)
+        return self.navigator.update(t_s, u_rad, blobs, own_accel_mps2)
+
+    def keep(self, blobs: Blobs, stacks: list[RoiStack] | None = None) -> None:
+        """The frame's blobs and ROI stacks become the last ones (debug images), as `update` keeps them
+        (the batch mode updates the navigators of a step together: agent/nav/ekf.py update_many)."""
         self.last_stacks = [] if stacks is None else stacks
         self.last_blobs = blobs
-        return self.navigator.update(t_s, u_rad, blobs, own_accel_mps2)
