@@ -133,14 +133,16 @@ _SYSTEMS: dict[tuple[float, float, float, float], tuple[np.ndarray, np.ndarray, 
 
 
 def solve_frames(rhs: np.ndarray, dts: np.ndarray, u1_rad: float, a_m: float, n_radps: float,
-                 own_accel_mps2: np.ndarray | None) -> np.ndarray:
+                 own_accel_mps2: np.ndarray | None, same: bool | None = None) -> np.ndarray:
     """The solve of `two_frame_roe` for one observer's P pairs: rhs (P, 6) = [r_t, r_{t-dt}] rows
     (overwritten), dts (P,); one LAPACK solve per distinct interval, with that observer's thrust term.
     A column of LAPACK's solve depends on how many right-hand sides it is solved with (OpenBLAS's
     kernels: with 1 and with 5 columns, the last bit differs now and then), so the navigators of a
-    batch step each keep their own solve (`update_many`)."""
+    batch step each keep their own solve (`update_many`). `same`: whether dts.min() == dts.max(), if
+    the caller knows it."""
     out = np.empty((len(rhs), 6))
-    same = dts.min() == dts.max() if len(dts) else True
+    if same is None:
+        same = bool(dts.min() == dts.max()) if len(dts) else True
     groups = [(float(dts[0]), slice(None))] if same and len(dts) else \
         [(dt, np.flatnonzero(dts == dt)) for dt in np.unique(dts).tolist()]
     for dt, rows in groups:  # one system per interval (a frame's pairs share one)
@@ -178,8 +180,10 @@ def pair_states(t_s: float, u_rad: float, prev: RoughTracks, c_px: np.ndarray, p
     if velocity == "dynamics":
         rhs = np.concatenate((pos, prev.p_cam_m @ R_LVLH_FROM_CAM.T), axis=1)
         roe = np.empty((len(dt), 6))
-        for a, b, acc in spans:
-            roe[a:b] = solve_frames(rhs[a:b], dt[a:b], u_rad, a_m, n_radps, acc)
+        starts = [a for a, _, _ in spans]  # whether each observer's pairs share one interval, all at once
+        same = (np.minimum.reduceat(dt, starts) == np.maximum.reduceat(dt, starts)).tolist() if spans else []
+        for (a, b, acc), one in zip(spans, same):
+            roe[a:b] = solve_frames(rhs[a:b], dt[a:b], u_rad, a_m, n_radps, acc, one)
         pos, vel = roe_to_lvlh(roe, u_rad, n_radps)
     else:
         f, z = camera.focal_px, p_cam_m[:, 2]
