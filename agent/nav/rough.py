@@ -21,6 +21,12 @@
   finite difference, zdot = dz/dt, xdot = z/f du/dt + (u - cx)/f zdot, ydot likewise, then
   LVLH -> ROE with the paper's M (agent.roe.lvlh_to_roe).
 A track is output from its second frame on (it needs a velocity) and dropped at its first miss.
+
+The steps are pure functions over rows (`positions_cam` per blob, `predicted_px` per track,
+`pair_costs` per (track, blob) pair, `pair_states` per matched pair), so `update_many` runs them
+once over the rows of every observer of a batch step and each navigator's own `update` over its
+own rows, with the same values; what is per observer stays per observer (the association, and
+LAPACK's solve of the "dynamics" system: `solve_frames`).
 """
 from __future__ import annotations
 
