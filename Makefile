@@ -46,7 +46,8 @@ lint: setup
 KERNELS ?= OPENBLAS_CORETYPE=Sandybridge NPY_DISABLE_CPU_FEATURES=X86_V3
 KERNEL_SENSITIVE := tests/test_truth_checksums.py tests/missions/test_p000_stack.py tests/missions/test_p003_units.py \
 	tests/missions/test_p003_stack.py tests/missions/test_p000_units.py tests/test_batch_missions.py \
-	tests/missions/test_p000_batch_rewrites.py tests/missions/test_p001_lattice.py tests/test_nav_ekf_batched.py
+	tests/missions/test_p000_batch_rewrites.py tests/missions/test_p001_lattice.py tests/test_nav_ekf_batched.py \
+	tests/test_nav_rough_batched.py
 test-kernels: setup
 	env $(KERNELS) $(PY) -m pytest -q $(KERNEL_SENSITIVE) --durations=5
 

@@ -135,7 +135,7 @@ class BatchPerception:
     offsets[r]:offsets[r+1] with camera-frame positions (P, 3) and attitude quaternions w, x, y, z
     (P, 4), which become matrices as `Perception.observe` makes them (quat_to_matrix is elementwise:
     all rows at once give each row's own matrix), through agent/perception.py `observe_many` (every
-    observer's imaging, then the EKF navigators of all observers together, bit for bit each one's
+    observer's imaging, then the navigators of all observers together (EKF, rough), bit for bit each one's
     own update, then each one's observation). As AgentNode.handle: the own acceleration is the
     command in force before this step's decision; a navigation exception is logged (the first),
     counted in `faults[id]["nav"]`, the spacecraft observes nothing this step and its navigation

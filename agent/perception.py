@@ -31,6 +31,7 @@ from swarmhil.agent.nav.ekf import EkfConfig, EkfNavigator, update_many
 from swarmhil.agent.nav.pipeline import VisionNav
 from swarmhil.agent.nav.rough import CHOICES as ROUGH_CHOICES
 from swarmhil.agent.nav.rough import RoughNavigator
+from swarmhil.agent.nav.rough import update_many as rough_update_many
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.optional import require
 
@@ -204,8 +205,9 @@ def observe_many(perceptions: list[Perception], step: int, t_s: float, u_rad: fl
     camera-frame positions (P, 3) and attitude quaternions w, x, y, z (P, 4) (matrices as `observe`
     makes them: quat_to_matrix is elementwise, all rows at once give each row its own). Each one's
     imaging (`exact`: the paper's exact blobs of every scene at once, exact_blobs_many, when all share
-    one camera and shape), then the navigators (the EKF ones together, agent/nav/ekf.py update_many:
-    bit for bit each one's own update), then each one's observation. Returns per perception its
+    one camera and shape), then the navigators (the EKF ones together, agent/nav/ekf.py update_many,
+    the rough ones together, agent/nav/rough.py update_many: bit for bit each one's own update), then
+    each one's observation. Returns per perception its
     Observation, or the exception its own `observe_arrays` would have raised (its state is then
     undefined: reset it)."""
     rot = quat_to_matrix(attitude_wxyz).reshape(-1, 3, 3)
@@ -231,8 +233,13 @@ def observe_many(perceptions: list[Perception], step: int, t_s: float, u_rad: fl
             got.append(e)
     ok = [r for r, b in enumerate(got) if not isinstance(b, Exception)]
     navs = [perceptions[r].vision.navigator for r in ok]
+    many = None
     if navs and all(type(nav) is EkfNavigator for nav in navs):
-        for r, res in zip(ok, update_many(navs, t_s, u_rad, [got[r] for r in ok], [own_accel_mps2[r] for r in ok])):
+        many = update_many
+    elif navs and all(type(nav) is RoughNavigator for nav in navs):
+        many = rough_update_many
+    if many is not None:
+        for r, res in zip(ok, many(navs, t_s, u_rad, [got[r] for r in ok], [own_accel_mps2[r] for r in ok])):
             got[r] = res
     else:
         for r in ok:

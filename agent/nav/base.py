@@ -9,7 +9,7 @@ observer relative to the neighbour (NOTES-002): that is minus `roe_m`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
@@ -43,3 +43,28 @@ def observation_arrays(tracks: list[Track]) -> tuple[list[str], np.ndarray, np.n
     pos = np.array([t.position_m for t in tracks]).reshape(-1, 3)
     vel = np.array([t.velocity_mps for t in tracks]).reshape(-1, 3)
     return ids, pos, vel
+
+
+def guarded(fn: Callable[..., Any], *args: Any) -> Any:
+    """fn(*args), or the exception it raised (the batch updates of several navigators: each one's
+    fault is handed back in its place)."""
+    try:
+        return fn(*args)
+    except Exception as e:  # noqa: BLE001 - handed to the caller, which handles it per navigator
+        return e
+
+
+def update_together(navs: list[Any], t_s: float, u_rad: float, blobs: list[Blobs], own_accel_mps2: list[np.ndarray | None],
+                    frame_arrays: Callable[..., Any], commit: Callable[..., list[Any]]) -> list[Any]:
+    """The frame of several navigators of one class at once (their `update_many`): plan =
+    frame_arrays(navs, t_s, u_rad, blobs, own_accel_mps2) computes everything without writing, then
+    commit(navs, t_s, u_rad, blobs, plan) writes each navigator's part and returns its tracks or the
+    exception of its part. Navigators of different settings (`batch_key`), or a plan that raises,
+    run their own `update` one by one (each fault its navigator's)."""
+    if len({nav.batch_key for nav in navs}) > 1:
+        return [guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
+    try:
+        plan = frame_arrays(navs, t_s, u_rad, blobs, own_accel_mps2)
+    except Exception:  # noqa: BLE001 - nothing written yet: each its own update, which raises alone
+        return [guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
+    return commit(navs, t_s, u_rad, blobs, plan)

@@ -50,7 +50,6 @@ model that the per-track filter computed: the estimates are bit-identical to it
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -58,7 +57,7 @@ from swarmhil.agent.blob.blobs import Blobs
 from swarmhil.agent.camera.model import R_LVLH_FROM_CAM, Camera
 from swarmhil.agent.camera.shape import SpacecraftShape
 from swarmhil.agent.nav.associate import assign
-from swarmhil.agent.nav.base import Track
+from swarmhil.agent.nav.base import Track, guarded, update_together
 from swarmhil.agent.nav.measure import (
     MeasurementModel,
     camera_position_matrix,
@@ -479,14 +478,6 @@ def tracks_out(outs: list[list[_EkfTrack]], u_rad: float, n_radps: float) -> lis
     return res
 
 
-def _guarded(fn, *args) -> Any:
-    """fn(*args), or the exception it raised."""
-    try:
-        return fn(*args)
-    except Exception as e:  # noqa: BLE001 - handed to the caller, which handles it per navigator
-        return e
-
-
 def update_many(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: list[Blobs],
                 own_accel_mps2: list[np.ndarray | None]) -> list[list[Track] | Exception]:
     """`update` of several navigators for one frame (navs[k] sees blobs[k] with its own acceleration
@@ -501,13 +492,7 @@ def update_many(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: list[
     Returns each navigator's tracks, or the exception its own `update` would have raised (then, as
     after that raise, its state is undefined: the caller resets it). Nothing is written before the
     arithmetic of every observer is done: if it raises, each navigator runs its own `update`."""
-    if len({nav.batch_key for nav in navs}) > 1:
-        return [_guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
-    try:
-        plan = _frame_arrays(navs, t_s, u_rad, blobs, own_accel_mps2)
-    except Exception:  # noqa: BLE001 - nothing written yet: each its own update, which raises alone
-        return [_guarded(nav.update, t_s, u_rad, b, a) for nav, b, a in zip(navs, blobs, own_accel_mps2)]
-    return _commit_frame(navs, t_s, u_rad, blobs, plan)
+    return update_together(navs, t_s, u_rad, blobs, own_accel_mps2, _frame_arrays, _commit_frame)
 
 
 @dataclass
@@ -649,7 +634,7 @@ def _commit_frame(navs: list[EkfNavigator], t_s: float, u_rad: float, blobs: lis
     for k, nav in enumerate(navs):
         nav.faults += int(plan.bad[k])
         a, b = int(plan.start[k]), int(plan.start[k + 1])
-        outs.append(_guarded(nav._settle, t_s, u_rad, blobs[k], plan.pairs[k], t_cam, finite[a:b]))
+        outs.append(guarded(nav._settle, t_s, u_rad, blobs[k], plan.pairs[k], t_cam, finite[a:b]))
     good = [o for o in outs if not isinstance(o, Exception)]
     tracks = iter(tracks_out(good, u_rad, navs[0].n))  # type: ignore[arg-type]
     return [o if isinstance(o, Exception) else next(tracks) for o in outs]
