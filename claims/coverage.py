@@ -49,6 +49,8 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/performance.md", "Paper 000 in-process", "p000-speed"),
     Required("docs/reliability.md", "Lockstep does not depend on load", "reliability-lockstep"),
     Required("docs/camera-navigation.md", "The camera campaign against ideal sensing", "camera-campaign"),
+    Required("docs/camera-navigation.md", "Where the rendered camera's error comes from: the layers on one seed",
+             "camera-layers"),
 )
 
 NOT_YET = tuple(r for r in REQUIRED if r.table is None)
