@@ -30,8 +30,10 @@ setup-system: setup
 demo: setup
 	$(PY) -m swarmhil.deploy.cli demo --out runs/demo
 
+# The fast tests in two worker processes (pytest-xdist), each test file on one worker (`--dist loadfile`:
+# a module's shared runs are made once); plain `pytest -q` runs the same selection in one process.
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 
 # The linter (ruff; its rules are in pyproject.toml [tool.ruff]) and the type check of the interfaces
 # (mypy; the files it checks are in pyproject.toml [tool.mypy]), both clean on the tree. CI runs it.

@@ -277,6 +277,17 @@ def test_external_flight_computer_flies_bit_identical_to_the_built_in(tmp_path: 
     assert r.returncode == 0 and r.stdout.startswith("sc02: identical over 100 steps"), (r.stdout, r.stderr)
 
 
+WARM_START = """
+import runpy, sys
+import numpy, zenoh, google.protobuf.message  # fc.py's imports, before the test says join
+print("ready", flush=True)
+sys.stdin.readline()
+sys.argv = sys.argv[1:]
+runpy.run_path(sys.argv[0], run_name="__main__")
+"""
+"""`python -c WARM_START fc.py ARGS...`: the reference flight computer, run once a line comes on stdin."""
+
+
 def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: Path, fc_build: Path) -> None:
     """SIGKILL the external flight computer (its PID) mid-run: the plant marks sc02 dead, it coasts
     (no command, zero applied acceleration), the event is in the MCAP and the run completes. A new
@@ -284,14 +295,20 @@ def test_killed_external_flight_computer_coasts_and_the_run_completes(tmp_path: 
     import signal
 
     flight = Flight(tmp_path / "kill", "hil2", fc_build, fc_args=["--print-steps"])
+    # the second computer is started now and waits, its imports done, for the word to join: the
+    # 270 lockstep steps after the kill take a few seconds, and an interpreter starting only then
+    # could miss them all on a loaded machine (the run would end with sc02 dead)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    second = subprocess.Popen([sys.executable, "-c", WARM_START, str(FC / "fc.py"), str(flight.kit), "--build", str(fc_build)],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    assert second.stdout.readline() == "ready\n"
     for line in flight.fc.stdout:  # answered stimuli, one line each
         if line.startswith("step 30 "):
             break
     os.kill(flight.fc.pid, signal.SIGKILL)
     assert flight.fc.wait(30) == -signal.SIGKILL
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    second = subprocess.Popen([sys.executable, str(FC / "fc.py"), str(flight.kit), "--build", str(fc_build)],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    second.stdin.write("join\n")
+    second.stdin.flush()
     code, out, err, _fc = flight.finish()
     second_out, _ = second.communicate(timeout=60)
     assert code == 0, (out, err)

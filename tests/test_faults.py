@@ -286,7 +286,7 @@ def test_servicing_fault_scenario_reports_the_tracking_error_around_each_fault(t
     sc = load_scenario(SCENARIOS / "servicing-6-faults.toml").with_overrides(duration_s=100.0)
     out = tmp_path / "s6f"
     run_in_process(sc, out, "s6f", progress=False)
-    write_report(out)  # the site, with the mission sections
+    write_report(out, export=())  # the site, with the mission sections (PNG only)
     import json
 
     met = json.loads((out / "summary.json").read_text())["metrics"]["faults"]

@@ -201,7 +201,7 @@ def toy_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
                             "--no-progress", "--run-id", "toy-run", *extra], capture_output=True, text=True, cwd=d, env=env, timeout=300)
         assert r.returncode == 0, r.stderr + r.stdout
         outs.append(out)
-    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(outs[0])], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(outs[0]), "--no-vector"], capture_output=True,
                        text=True, cwd=d, env=env, timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
     return outs[0], outs[1]
@@ -306,7 +306,7 @@ def test_a_report_without_the_room_says_so_and_writes_the_rest(toy_runs: tuple[P
     run = tmp_path / "copy"
     shutil.copytree(toy_runs[1], run)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run)], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run), "--no-vector"], capture_output=True,
                        text=True, cwd=tmp_path, env=env, timeout=300)
     assert r.returncode == 0, r.stderr + r.stdout
     lines = [ln for ln in r.stderr.splitlines() if "toy_room" in ln]

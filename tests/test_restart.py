@@ -7,9 +7,9 @@ from __future__ import annotations
 import json
 import os
 import signal
-import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -53,6 +53,50 @@ def _run(scen: Path, out: Path, run: str):  # type: ignore[no-untyped-def]
     return MultiProcessRun(str(scen), sc, out, run, progress=False, overrides={"mode": "realtime", "speed": 10.0})
 
 
+SUPERVISED = '\n[supervision]\nrestart = "on-failure"\nmax_restarts = 2\n'
+
+
+def _pause_agent(out: Path, run: str, at_step: int = 3, pause_s: float = 8.0) -> None:
+    """SIGSTOP agent sc02 of the running run at `at_step` for `pause_s` (longer than its 5 s Zenoh
+    lease), then SIGCONT."""
+    from test_backbone_run import _Clock
+
+    t_end = time.monotonic() + 120
+    while not (out / "run.json").exists() and time.monotonic() < t_end:
+        time.sleep(0.05)
+    info = json.loads((out / "run.json").read_text())
+    clock = _Clock(info["router"], run, out)
+    try:
+        clock.wait_step(at_step, 240)
+        pid = info["pids"]["agent-sc02"]
+        os.kill(pid, signal.SIGSTOP)
+        time.sleep(pause_s)
+        os.kill(pid, signal.SIGCONT)
+    finally:
+        clock.close()
+
+
+@pytest.fixture(scope="module")
+def realtime_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, Any]]:
+    """The three real-time runs of the tests below, flown at the same time: {run: (out, RunResult)}.
+    Each is a run of its own (router on its own port, processes, recording); each takes about 30 s
+    of wall time at x10 and little CPU (it waits on the clock), so together they take about as long
+    as one. Every run has ended (and is joined) before a test reads it."""
+    from test_backbone_run import _join, _start
+
+    tmp = tmp_path_factory.mktemp("restart")
+    with pytest.MonkeyPatch.context() as mp:  # the plugins' folder on the children's path until every run has ended
+        scens = {"restart": _scenario(tmp, mp, "restart", CRASH_PLUGIN.format(when="int(stim.header.step) == 5"), SUPERVISED),
+                 "maxrs": _scenario(tmp, mp, "maxrs", CRASH_PLUGIN.format(when="int(stim.header.step) >= 5"), SUPERVISED),
+                 "pause": _scenario(tmp, None, "pause", None, "")}
+        threads = {run: _start(_run(scen, tmp / run, run)) for run, scen in scens.items()}
+        try:
+            _pause_agent(tmp / "pause", "pause")
+        finally:
+            results = {run: (tmp / run, _join(th, 300.0)) for run, th in threads.items()}
+    return results
+
+
 def _no_process_left(out: Path) -> None:
     pids = [p for ps in json.loads((out / "run.json").read_text())["all_pids"].values() for p in ps]
     t_end = time.monotonic() + 10
@@ -65,11 +109,9 @@ def _events(out: Path) -> list:
     return [m for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "event"]
 
 
-def test_a_crashed_agent_is_restarted_and_rejoins_cold(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    scen = _scenario(tmp_path, monkeypatch, "restart", CRASH_PLUGIN.format(when="int(stim.header.step) == 5"),
-                     '\n[supervision]\nrestart = "on-failure"\nmax_restarts = 2\n')
-    out = tmp_path / "run"
-    res = _run(scen, out, "restart").execute()
+def test_a_crashed_agent_is_restarted_and_rejoins_cold(realtime_runs: dict[str, tuple[Path, Any]]) -> None:
+    """sc02 crashes at step 5 (restart = "on-failure", max_restarts = 2)."""
+    out, res = realtime_runs["restart"]
     assert res.exit_code == 0, res.reason
     s = res.summary
     assert s["restarts"] == {"agent-sc02": 1} and len(s["all_pids"]["agent-sc02"]) == 2
@@ -93,11 +135,9 @@ def test_a_crashed_agent_is_restarted_and_rejoins_cold(tmp_path: Path, monkeypat
     _no_process_left(out)
 
 
-def test_restarts_stop_at_max_restarts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    scen = _scenario(tmp_path, monkeypatch, "maxrs", CRASH_PLUGIN.format(when="int(stim.header.step) >= 5"),
-                     '\n[supervision]\nrestart = "on-failure"\nmax_restarts = 2\n')
-    out = tmp_path / "run"
-    res = _run(scen, out, "maxrs").execute()
+def test_restarts_stop_at_max_restarts(realtime_runs: dict[str, tuple[Path, Any]]) -> None:
+    """sc02 crashes at every step from 5 on (restart = "on-failure", max_restarts = 2)."""
+    out, res = realtime_runs["maxrs"]
     assert res.exit_code == 0, res.reason
     assert res.summary["restarts"] == {"agent-sc02": 2} and len(res.summary["all_pids"]["agent-sc02"]) == 3
     assert list(res.summary["dead_agents"]) == ["sc02"]  # the third death is final
@@ -106,33 +146,12 @@ def test_restarts_stop_at_max_restarts(tmp_path: Path, monkeypatch: pytest.Monke
     _no_process_left(out)
 
 
-def test_a_paused_agent_rejoins_after_its_lease(tmp_path: Path) -> None:
-    """SIGSTOP an agent for 8 s (its Zenoh lease is 5 s: declared dead), then SIGCONT: its client
-    session reconnects, its liveliness token comes back, and the plant takes it back cold."""
-    from test_backbone_run import _Clock
-
-    scen = _scenario(tmp_path, None, "pause", None, "")
-    out = tmp_path / "run"
-    mp = _run(scen, out, "pause")
-    th = threading.Thread(target=lambda: setattr(th, "res", mp.execute()), daemon=True)
-    th.start()
-    t_end = time.monotonic() + 120
-    while not (out / "run.json").exists() and time.monotonic() < t_end:
-        time.sleep(0.05)
-    info = json.loads((out / "run.json").read_text())
-    clock = _Clock(info["router"], "pause", out)
-    try:
-        clock.wait_step(3, 240)
-        pid = info["pids"]["agent-sc02"]
-        os.kill(pid, signal.SIGSTOP)
-        time.sleep(8.0)
-        os.kill(pid, signal.SIGCONT)
-    finally:
-        clock.close()
-    th.join(300)
-    assert not th.is_alive()
-    s = th.res.summary
-    assert th.res.exit_code == 0, th.res.reason
+def test_a_paused_agent_rejoins_after_its_lease(realtime_runs: dict[str, tuple[Path, Any]]) -> None:
+    """SIGSTOP an agent for 8 s at step 3 (its Zenoh lease is 5 s: declared dead), then SIGCONT: its
+    client session reconnects, its liveliness token comes back, and the plant takes it back cold."""
+    out, res = realtime_runs["pause"]
+    s = res.summary
+    assert res.exit_code == 0, res.reason
     assert s["restarts"] == {} and s["dead_agents"] == {}, s
     assert len(s["rejoins"]) == 1 and "liveliness" in s["rejoins"][0]["dead_reason"]
     assert s["rejoins"][0]["step"] < 28

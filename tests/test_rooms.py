@@ -34,6 +34,7 @@ landmark kind through the hook its report registers.
 from __future__ import annotations
 
 import ast
+import functools
 import json
 import subprocess
 import sys
@@ -80,12 +81,18 @@ def imported(path: Path) -> Iterator[tuple[int, str]]:
         yield line, short(name)
 
 
+@functools.cache
+def parsed(path: Path) -> ast.Module:
+    """A source file's syntax tree, parsed once per session (the tests here only read the trees)."""
+    return ast.parse(path.read_text(), str(path))
+
+
 def imported_as_written(path: Path) -> Iterator[tuple[int, str]]:
     """(line, absolute module name) of every import in a file. `from M import a` yields M and M.a
     (a may be a submodule); relative imports are resolved against the file's package."""
     mod = module_name(path)
     package = mod if path.name == "__init__.py" else mod[:-1]
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(parsed(path)):
         if isinstance(node, ast.Import):
             for a in node.names:
                 yield node.lineno, a.name
@@ -274,7 +281,7 @@ def import_statements(path: Path) -> Iterator[tuple[ast.Import | ast.ImportFrom,
                 yield ch, loc, tc
             yield from visit(ch, loc, tc)
 
-    yield from visit(ast.parse(path.read_text(), str(path)), False, False)
+    yield from visit(parsed(path), False, False)
 
 
 def targets(path: Path, stmt: ast.Import | ast.ImportFrom, mods: dict[str, Path]) -> set[str]:
@@ -475,17 +482,20 @@ def test_the_viewer_draws_a_rooms_landmarks_through_its_hook() -> None:
 
 def absolute_imports(path: Path) -> Iterator[tuple[int, str]]:
     """(line, module) of every absolute import statement and literal `import_module` name of a file."""
+    levels = ast_levels(path)
     for line, name in imported_as_written(path):
-        if name.split(".")[0] not in set(FOLDERS) or ast_level(path, line) == 0:
+        if name.split(".")[0] not in set(FOLDERS) or levels.get(line, 0) == 0:
             yield line, name
 
 
-def ast_level(path: Path, line: int) -> int:
-    """The relative level of the import statement on `line` (0: absolute or not a statement)."""
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.ImportFrom) and node.lineno == line:
-            return node.level
-    return 0
+def ast_levels(path: Path) -> dict[int, int]:
+    """{line: the relative level of the first `from` import statement on it} of a file (a line not in
+    it: absolute or not a statement), from one walk of its tree."""
+    levels: dict[int, int] = {}
+    for node in ast.walk(parsed(path)):
+        if isinstance(node, ast.ImportFrom):
+            levels.setdefault(node.lineno, node.level)
+    return levels
 
 
 def test_the_project_imports_itself_through_the_namespace_only() -> None:

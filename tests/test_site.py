@@ -162,6 +162,11 @@ def test_site_links_every_page_and_writes_the_tables(site_run: Path) -> None:
         assert not re.search(r"<script[^>]+src=\"https?:", text), p  # nothing from a CDN
         for src in re.findall(r'(?:src|href)="([^"#:]+)"', text):
             assert (rep / src).is_file(), (p, src)  # every local link resolves
+    # `swarmhil report` (default --vector) saves every figure as SVG and PDF beside its PNG: the other
+    # report tests pass --no-vector, so this is where the vector copies are checked
+    pngs = sorted(rep.glob("*.png"))
+    assert len(pngs) >= 10 and not [p.name for p in pngs if not (p.with_suffix(".svg").stat().st_size > 1000
+                                                               and p.with_suffix(".pdf").stat().st_size > 1000)]
     assert index.count('<script src="plotly.min.js">') == 1 and (rep / "plotly.min.js").stat().st_size > 1_000_000
     assert index.count('class="plotly-graph-div"') >= 10
     for name in ("truth", "commands", "link", "link_totals", "events", "metrics_series", "metrics"):

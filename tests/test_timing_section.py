@@ -36,7 +36,7 @@ def run_and_report(tmp: Path, *args: str) -> tuple[dict, str]:
     res = CliRunner().invoke(main, ["run", str(SCENARIOS / "sabatini-2-collision.toml"), "--in-process",
                                     "--duration", "600", "--out", str(out), *args])
     assert res.exit_code == 0, res.output
-    res = CliRunner().invoke(main, ["report", str(out)])
+    res = CliRunner().invoke(main, ["report", str(out), "--no-vector"])
     assert res.exit_code == 0, res.output
     return json.loads((out / "summary.json").read_text()), (out / "report" / "index.html").read_text()
 

@@ -37,7 +37,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     _cli("run", str(SCENARIO), "--out", str(out), "--no-progress", "--in-process", "--run-id", "p001-report",
          "--duration", str(DURATION_S), "--set", f"controller.params.t_desire_s={T_DESIRE_S}",
          "--set", f"controller.params.t_natural_s={T_NATURAL_S}")
-    _cli("report", str(out))
+    _cli("report", str(out), "--no-vector")
     return out
 
 

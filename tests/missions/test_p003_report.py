@@ -73,7 +73,7 @@ def recompute(run: dict) -> dict:
 def test_report_has_the_surround_section(tmp_path: Path) -> None:
     run_dir = tmp_path / "s6"
     run = swarmhil_run(run_dir, "--duration", str(DURATION_S), "--in-process")
-    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run_dir)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(run_dir), "--no-vector"], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     got = json.loads((run_dir / "summary.json").read_text())["metrics"]["p003-surround"]
@@ -123,7 +123,7 @@ def test_faults_section_gives_the_funnel_ratio_around_a_leader_fault(tmp_path: P
                     'targets = ["lsat"]\nstart_s = 5.0\nend_s = 15.0\n')
     out = tmp_path / "run"
     run_in_process(load_scenario(path).with_overrides(duration_s=DURATION_S), out, "s6f", progress=False)
-    write_report(out)
+    write_report(out, export=())
     rec = json.loads((out / "summary.json").read_text())["metrics"]["faults"]["lead-off"]
     t, err = [], []
     from conftest import read_mcap

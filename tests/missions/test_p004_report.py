@@ -31,7 +31,7 @@ P002_KEYS = {"connectivity", "closest_visible_steady", "closest_visible_whole_ru
 def reported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
     out = tmp_path_factory.mktemp("p004report") / "run"
     run = swarmhil_run(out, "--in-process", "--set", f"run.duration_s={DURATION_S:g}")
-    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(out)], cwd=ROOT,
+    p = subprocess.run([sys.executable, "-m", "swarmhil.deploy.cli", "report", str(out), "--no-vector"], cwd=ROOT,
                        capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     return out, run
