@@ -1,44 +1,90 @@
 """Protobuf wire bytes of many messages at once from arrays: the batch mode's packets (every agent's
 stimulus, command and telemetry of a step) without a protobuf message per packet.
 
-A message of fixed field order is a row of *parts*; each part is at most `w` bytes, and a row keeps
-the first `lens[row]` bytes of each of its parts: a field that proto3's implicit presence omits
-(a double whose 64 bits are all zero, i.e. +0.0; an integer 0; an empty string) is a part of
-length 0. `Rows.encode` gathers every row's kept bytes in one numpy mask over the (rows, Σ w)
-matrix of all parts, so the bytes of R messages are one concatenated buffer and R + 1 offsets.
-Nested messages (`Rows.nested`) are the sub-rows' parts behind a head of tag + varint length (a
-sub-message that was assigned is present even when empty, as protobuf writes it); repeated
-sub-messages of variable count per row (a stimulus's neighbours, a telemetry's decisions) are
-encoded as their own rows first and enter the message as one `segments` part of each row.
-
 Wire format (protocol buffers encoding): a field is a tag byte (number << 3 | wire type) then,
 for wire type 1 (fixed64) 8 little-endian bytes, for wire type 2 a varint length then the
-bytes, for wire type 0 a varint. Packed repeated doubles: tag, varint 8 n, the n doubles. The
-bytes equal protobuf's `SerializeToString` of the same values (tests/test_bulk_wire.py checks
-them against the protobuf library on random values with zeros, -0.0, NaN and inf).
+bytes, for wire type 0 a varint; packed repeated doubles are tag, varint 8 n, the n doubles;
+fields in field-number order; proto3 implicit presence: a double whose 64 bits are all zero
+(+0.0), an integer 0 and an empty string are not written (-0.0 and NaN are), a sub-message that
+was assigned is (even when empty). The bytes equal protobuf's `SerializeToString` of the same
+values (tests/test_bulk_wire.py checks them against the protobuf library on random values with
++0.0, -0.0, NaN and inf, empty lists and long strings).
+
+How. The bytes of a step's messages of one type are a gather from an *area* (the step's values:
+its doubles' 8 bytes each, its varints' bytes) and a *pool* (bytes the layout fixes: tags,
+lengths, strings, constant fields): a *plan* says which byte of which goes where. The plan
+depends only on the layout (how many messages and sub-messages, which strings, which doubles are
++0.0, how long each varint is), and the layout of a swarm's messages changes seldom from one step
+to the next, so each encoder keeps the plans of the layouts it has seen (`MAX_PLANS`): a step whose
+layout is known is one gather. A new layout's plan is built by `Rows`: the fields of n messages
+of one layout in field order, each field a *part* of at most `w` byte ids per row of which row i
+keeps `lens[i]` (all `w` when `lens` is None); nested messages are the sub-rows' parts behind a
+head (tag, varint length); repeated sub-messages of variable count per row (a stimulus's
+neighbours, a telemetry's decisions) are planned as rows of their own first and enter each message
+as one `segments` part.
 """
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
-_VARINT_MAX = 10  # bytes of a 64-bit varint
+from swarmhil.bus.truth_wire import varint
+
+MAX_PLANS = 1024  # layouts an encoder keeps (the oldest half is dropped beyond)
 
 
 def varint_bytes(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Base-128 varints of non-negative integers (n,): bytes (n, 10) and each one's length (>= 1)."""
+    """Base-128 varints of non-negative integers (n,): bytes (n, w) (w the longest one's length)
+    and each one's length (>= 1)."""
     v = np.asarray(values, dtype=np.uint64)
-    n = len(v)
-    out = np.zeros((n, _VARINT_MAX), dtype=np.uint8)
-    shifts = (7 * np.arange(_VARINT_MAX)).astype(np.uint64)
+    top = int(v.max()) if len(v) else 0
+    if top < 0x80:  # (lengths, sequence numbers and steps of a run: one or two bytes, no loop)
+        return v.astype(np.uint8)[:, None], np.ones(len(v), dtype=np.int64)
+    if top < 0x4000:
+        out = np.empty((len(v), 2), dtype=np.uint8)
+        long = v >= 0x80
+        out[:, 0] = (v & np.uint64(0x7F)) | (long.astype(np.uint64) << np.uint64(7))
+        out[:, 1] = v >> np.uint64(7)
+        return out, long + 1
+    w = (top.bit_length() + 6) // 7
+    shifts = (7 * np.arange(w)).astype(np.uint64)
     groups = (v[:, None] >> shifts[None, :]) & np.uint64(0x7F)  # 7-bit groups, least significant first
-    # length: 1 + the index of the highest non-zero group (a zero is one byte)
-    nz = groups != 0
-    lens = np.where(nz.any(axis=1), _VARINT_MAX - np.argmax(nz[:, ::-1], axis=1), 1)
-    more = np.arange(_VARINT_MAX)[None, :] < (lens[:, None] - 1)  # continuation bit on all but the last
-    out[:] = groups.astype(np.uint8) | (more.astype(np.uint8) << 7)
-    return out, lens
+    nz = groups != 0  # length: 1 + the index of the highest non-zero group (a zero is one byte)
+    lens = np.where(nz.any(axis=1), w - np.argmax(nz[:, ::-1], axis=1), 1)
+    more = np.arange(w)[None, :] < (lens[:, None] - 1)  # continuation bit on all but the last
+    return groups.astype(np.uint8) | (more.astype(np.uint8) << 7), lens
+
+
+class Pool:
+    """Bytes the layouts fix, shared by the plans: ids -1 - offset (negative; the area's are >= 0)."""
+
+    def __init__(self) -> None:
+        self._buf = np.zeros(4096, dtype=np.uint8)  # grown by doubling: array() is a view
+        self._n = 0
+        self._ids: dict[bytes, np.ndarray] = {}
+
+    def ids(self, b: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
+        """The ids of bytes `b` (interned: the same bytes, the same ids), shaped `shape`."""
+        got = self._ids.get(b)
+        if got is None:
+            n, k = self._n, len(b)
+            if n + k > len(self._buf):
+                buf = np.zeros(max(2 * len(self._buf), n + k), dtype=np.uint8)
+                buf[:n] = self._buf[:n]
+                self._buf = buf
+            self._buf[n:n + k] = np.frombuffer(b, dtype=np.uint8)
+            self._n = n + k
+            got = self._ids[b] = -1 - (n + np.arange(k, dtype=np.int64))
+        return got if shape is None else got.reshape(shape)
+
+    def block(self, data: np.ndarray) -> np.ndarray:
+        """The ids of a uint8 array's bytes, in its shape."""
+        return self.ids(np.ascontiguousarray(data, dtype=np.uint8).tobytes(), data.shape)
+
+    def array(self) -> np.ndarray:
+        return self._buf[:self._n]
 
 
 class StringTable:
@@ -46,223 +92,425 @@ class StringTable:
     empty string is a field of length 0 (implicit presence)."""
 
     def __init__(self, tag: int, strings: Sequence[str]) -> None:
-        enc = []
-        for s in strings:
-            b = s.encode()
-            v, n = varint_bytes(np.array([len(b)]))
-            enc.append(bytes((tag,)) + v[0, :n[0]].tobytes() + b if b else b"")
+        self.tag = tag
+        self.strings = list(strings)
+        enc = [bytes((tag,)) + varint(len(b)) + b if b else b"" for b in (s.encode() for s in self.strings)]
         self.width = max([len(e) for e in enc] + [1])
         self.bytes = np.zeros((len(enc), self.width), dtype=np.uint8)
         for i, e in enumerate(enc):
             self.bytes[i, :len(e)] = np.frombuffer(e, dtype=np.uint8)
         self.lens = np.array([len(e) for e in enc], dtype=np.int64)
-        self.index = {s: i for i, s in enumerate(strings)}
+        self.uniform = bool(len(enc)) and bool((self.lens == self.width).all())  # every field of the table's width
+        self.index = {s: i for i, s in enumerate(self.strings)}
+
+    def indices(self, strings: Sequence[str]) -> np.ndarray:
+        """Each string's row, growing the table with the new ones."""
+        idx = self.index
+        if any(s not in idx for s in strings):
+            self.__init__(self.tag, self.strings + [s for s in dict.fromkeys(strings) if s not in idx])  # type: ignore[misc]
+            idx = self.index
+        return np.array([idx[s] for s in strings], dtype=np.int64)
 
 
 class Rows:
-    """The fields of n messages of one layout, in field order (module docstring)."""
+    """The plan of n messages of one layout, field by field (module docstring): parts of byte ids."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, pool: Pool) -> None:
         self.n = n
-        self.parts: list[tuple[np.ndarray, np.ndarray]] = []  # (n, w) uint8 bytes, (n,) kept lengths
+        self.pool = pool
+        self._parts: list[tuple[np.ndarray | _Segments, np.ndarray | None]] = []  # (n, w) ids, (n,) kept lengths or None: w
+        self._const = b""  # bytes of every row after the parts (until the next part)
 
-    def raw(self, data: np.ndarray, lens: np.ndarray) -> "Rows":
-        self.parts.append((data, np.asarray(lens, dtype=np.int64)))
+    def _flush(self) -> None:
+        if self._const:
+            b, self._const = self._const, b""
+            self._parts.append((np.broadcast_to(self.pool.ids(b), (self.n, len(b))), None))
+
+    def raw(self, ids: np.ndarray, lens: np.ndarray | None = None) -> "Rows":
+        """Row i keeps ids[i, :lens[i]] (None: all of them)."""
+        self._flush()
+        self._parts.append((ids, None if lens is None else np.asarray(lens, dtype=np.int64)))
         return self
 
     def const(self, b: bytes) -> "Rows":
         """The same bytes in every row."""
-        if b:
-            self.raw(np.broadcast_to(np.frombuffer(b, dtype=np.uint8), (self.n, len(b))),
-                     np.full(self.n, len(b), dtype=np.int64))
+        self._const += b
         return self
 
-    def doubles(self, tags: Sequence[int], values: np.ndarray) -> "Rows":
-        """Double fields (wire type 1) with tags `tags`, values (n, len(tags)): each written when
-        its bits are not all zero (-0.0 and NaN are written, +0.0 is not)."""
+    def _tagged(self, tag: int, ids: np.ndarray) -> np.ndarray:
+        out = np.empty((self.n, 1 + ids.shape[1]), dtype=np.int64)
+        out[:, 0] = self.pool.ids(bytes((tag,)))[0]
+        out[:, 1:] = ids
+        return out
+
+    def doubles(self, tags: Sequence[int], present: np.ndarray, ids: np.ndarray) -> "Rows":
+        """Double fields with tags `tags`: present (n, k) (bits not all zero), value byte ids (n, k, 8)."""
         k = len(tags)
-        v = np.ascontiguousarray(values, dtype=np.float64).reshape(self.n, k)
-        bits = v.view(np.uint64)
-        data = np.empty((self.n, k, 9), dtype=np.uint8)
-        data[:, :, 0] = np.asarray(tags, dtype=np.uint8)
-        data[:, :, 1:] = v.view(np.uint8).reshape(self.n, k, 8)
-        present = (bits != 0) * 9
+        data = np.empty((self.n, k, 9), dtype=np.int64)
+        data[:, :, 0] = self.pool.ids(bytes(tags))
+        data[:, :, 1:] = ids
+        if present.all():
+            return self.raw(data.reshape(self.n, 9 * k))
+        self._flush()
+        lens = present.astype(np.int64) * 9
         for i in range(k):
-            self.parts.append((data[:, i, :], present[:, i]))
+            self._parts.append((data[:, i, :], lens[:, i]))
         return self
 
-    def packed_doubles(self, tag: int, values: np.ndarray) -> "Rows":
-        """A packed repeated double field of the same count k in every row (written when k > 0)."""
-        v = np.ascontiguousarray(values, dtype=np.float64).reshape(self.n, -1)
-        k = v.shape[1]
-        if k == 0:
-            return self
-        head, hl = varint_bytes(np.array([8 * k]))
-        self.const(bytes((tag,)) + head[0, :hl[0]].tobytes())
-        return self.raw(v.view(np.uint8).reshape(self.n, 8 * k), np.full(self.n, 8 * k, dtype=np.int64))
+    def packed(self, tag: int, ids: np.ndarray) -> "Rows":
+        """A packed repeated field of the same byte count w > 0 in every row: value byte ids (n, w)."""
+        return self.const(bytes((tag,)) + varint(ids.shape[1])).raw(ids)
 
-    def uint(self, tag: int, values: np.ndarray) -> "Rows":
-        """An unsigned varint field (wire type 0), omitted where 0."""
-        v, lens = varint_bytes(np.broadcast_to(np.asarray(values, dtype=np.uint64), (self.n,)))
-        data = np.empty((self.n, 1 + _VARINT_MAX), dtype=np.uint8)
-        data[:, 0] = tag
-        data[:, 1:] = v
-        return self.raw(data, np.where(np.broadcast_to(values, (self.n,)) != 0, lens + 1, 0))
+    def varints(self, tag: int, ids: np.ndarray, lens: np.ndarray, present: np.ndarray) -> "Rows":
+        """A varint field (wire type 0): bytes ids (n, w) of lengths `lens`, written where `present`."""
+        if not present.any():
+            return self
+        if present.all() and (lens == ids.shape[1]).all():
+            return self.raw(self._tagged(tag, ids))
+        return self.raw(self._tagged(tag, ids), np.where(present, lens + 1, 0))
 
     def strings(self, table: StringTable, idx: np.ndarray) -> "Rows":
         """Row i's string field is table row idx[i]."""
         idx = np.broadcast_to(np.asarray(idx, dtype=np.int64), (self.n,))
-        return self.raw(table.bytes[idx], table.lens[idx])
+        return self.raw(self.pool.block(table.bytes)[idx], None if table.uniform else table.lens[idx])
 
-    def length(self) -> np.ndarray:
-        """Each row's encoded length."""
-        total = np.zeros(self.n, dtype=np.int64)
-        for _d, lens in self.parts:
-            total += lens
-        return total
+    def length(self) -> "int | np.ndarray":
+        """The rows' encoded length: an int when every row has the same, else (n,)."""
+        fixed = len(self._const)
+        var = None
+        for d, lens in self._parts:
+            if lens is None:
+                fixed += d.shape[1]
+            else:
+                var = lens.copy() if var is None else var + lens
+        return fixed if var is None else var + fixed
 
-    def head(self, tag: int, lengths: np.ndarray) -> "Rows":
+    def head(self, tag: int, lengths: "int | np.ndarray") -> "Rows":
         """The head of a length-delimited field: tag, varint length."""
+        if isinstance(lengths, int):
+            return self.const(bytes((tag,)) + varint(lengths))
         v, lens = varint_bytes(lengths)
-        data = np.empty((self.n, 1 + _VARINT_MAX), dtype=np.uint8)
-        data[:, 0] = tag
-        data[:, 1:] = v
-        return self.raw(data, lens + 1)
+        return self.raw(self._tagged(tag, self.pool.block(v)), lens + 1)
 
     def nested(self, tag: int, sub: "Rows") -> "Rows":
         """A sub-message field (present even when empty) whose fields are `sub`'s."""
         self.head(tag, sub.length())
-        self.parts.extend(sub.parts)
+        if sub._parts:
+            self._flush()
+            self._parts.extend(sub._parts)
+        self._const += sub._const
         return self
 
-    def segments(self, blob: bytes | np.ndarray, starts: np.ndarray, lens: np.ndarray) -> "Rows":
-        """Row i gets blob[starts[i]:starts[i] + lens[i]] (fields already encoded)."""
-        b = np.frombuffer(blob, dtype=np.uint8) if isinstance(blob, (bytes, bytearray)) else blob
-        lens = np.asarray(lens, dtype=np.int64)
-        w = int(lens.max()) if self.n else 0
-        if w == 0:
+    def segments(self, ids: np.ndarray, ends: np.ndarray, offsets: np.ndarray) -> "Rows":
+        """Row i gets rows offsets[i]:offsets[i + 1] of a plan (ids, ends) of sub-rows (repeated fields)."""
+        if self.n == 0 or len(ids) == 0:
             return self
-        cols = np.asarray(starts, dtype=np.int64)[:, None] + np.arange(w)[None, :]
-        return self.raw(b[np.minimum(cols, len(b) - 1)], lens)
+        off = np.asarray(offsets, dtype=np.int64)
+        a = ends[off[:-1]]
+        self._flush()
+        self._parts.append((_Segments(ids, a), ends[off[1:]] - a))
+        return self
+
+    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ids of every row's bytes, concatenated in row order, and the row offsets (n + 1,)."""
+        self._flush()
+        parts = [(d, lens) for d, lens in self._parts if d.shape[1]]
+        n = self.n
+        if not parts or n == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros(n + 1, dtype=np.int64)
+        if all(lens is None for _, lens in parts):  # every byte of every part: one concatenation
+            data = np.concatenate([d for d, _ in parts], axis=1)
+            return data.ravel(), np.arange(n + 1, dtype=np.int64) * data.shape[1]
+        sources, starts, sizes = [], [], []  # one gather: each row's piece of each part is a range of the sources
+        at = 0
+        for d, ln in parts:
+            if isinstance(d, _Segments):
+                sources.append(d.ids)
+                starts.append(d.starts + at)
+                at += len(d.ids)
+            else:
+                w = d.shape[1]
+                sources.append(d.reshape(-1))
+                starts.append(np.arange(at, at + n * w, w))
+                at += n * w
+            sizes.append(np.full(n, d.shape[1]) if ln is None else ln)
+        start = np.stack(starts, axis=1).ravel()
+        size = np.stack(sizes, axis=1)
+        ends = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(size.sum(axis=1), out=ends[1:])
+        size = size.ravel()
+        before = np.cumsum(size) - size  # where each piece lands
+        return np.concatenate(sources)[np.repeat(start - before, size) + np.arange(int(ends[-1]))], ends
+
+
+class _Segments:
+    """A `Rows.segments` part: ranges of a plan's ids (shape[1] 1 only says it is not empty)."""
+
+    shape = (0, 1)
+
+    def __init__(self, ids: np.ndarray, starts: np.ndarray) -> None:
+        self.ids, self.starts = ids, starts
+
+
+class Area:
+    """One step's values, the bytes its plans gather with the pool's: doubles (8 bytes each, ids
+    8 k ... 8 k + 7 in the order added), then varints."""
+
+    def __init__(self, doubles: np.ndarray) -> None:
+        self.doubles = np.ascontiguousarray(doubles, dtype=np.float64).ravel()
+        self.present = self.doubles.view(np.uint64) != 0  # implicit presence of each double
+        self._ints: list[np.ndarray] = []
+        self._n_ints = 0
+        self.key: list[bytes] = [self.present.tobytes()]  # what the values fix of the layout
+
+    def double_ids(self, start: int, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """(present, byte ids (*shape, 8)) of the doubles start ... start + prod(shape) - 1."""
+        k = int(np.prod(shape))
+        return (self.present[start:start + k].reshape(shape),
+                (8 * start + np.arange(8 * k, dtype=np.int64)).reshape(*shape, 8))
+
+    def varints(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Varints of (n,) integers added: (byte ids (n, w), lengths, present (value != 0)). One
+        value for all (a swarm whose spacecraft are all alive: their sequence numbers) is added once."""
+        v = np.asarray(values, dtype=np.uint64)
+        n = len(v)
+        lo = int(v.min()) if n else 0
+        base = 8 * len(self.doubles) + self._n_ints
+        if n and lo == int(v.max()):
+            b = varint(lo)
+            self._ints.append(np.frombuffer(b, dtype=np.uint8))
+            self._n_ints += len(b)
+            self.key.append(b"=%d%s" % (len(b), b"+" if lo else b"0"))
+            return (np.broadcast_to(base + np.arange(len(b), dtype=np.int64), (n, len(b))),
+                    np.full(n, len(b), dtype=np.int64), np.full(n, lo != 0))
+        data, lens = varint_bytes(v)
+        self._ints.append(data.ravel())
+        self._n_ints += data.size
+        present = v != 0
+        self.key += [lens.tobytes(), present.tobytes()]
+        return base + np.arange(data.size, dtype=np.int64).reshape(data.shape), lens, present
+
+    def bytes(self) -> np.ndarray:
+        return np.concatenate([self.doubles.view(np.uint8), *self._ints])
+
+
+class Gather:
+    """A plan made ready to gather: the bytes it takes from the pool (a template) and where the
+    area's go."""
+
+    def __init__(self, ids: np.ndarray, pool: Pool) -> None:
+        self.at = np.flatnonzero(ids >= 0)
+        self.src = ids[self.at]
+        self.template = np.zeros(len(ids), dtype=np.uint8)
+        neg = ids < 0
+        self.template[neg] = pool.array()[-1 - ids[neg]]
+
+    def __call__(self, area: np.ndarray) -> bytes:
+        out = self.template.copy()
+        out[self.at] = area[self.src]
+        return out.tobytes()
+
+
+class Plans:
+    """The plans of one encoder by layout key (the newest MAX_PLANS): ids and message offsets."""
+
+    def __init__(self, pool: Pool) -> None:
+        self.pool = pool
+        self._plans: dict[tuple[bytes, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._gathers: dict[tuple[bytes, ...], Gather] = {}
+        self.built = 0  # plans built (the other steps reused one)
+
+    def plan(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[np.ndarray, np.ndarray]:
+        got = self._plans.get(key)
+        if got is None:
+            if len(self._plans) >= MAX_PLANS:
+                for k in list(self._plans)[:MAX_PLANS // 2]:
+                    del self._plans[k]
+                    self._gathers.pop(k, None)
+            got = self._plans[key] = build()
+            self.built += 1
+        return got
+
+    def gather(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[Gather, np.ndarray]:
+        ids, ends = self.plan(key, build)
+        g = self._gathers.get(key)
+        if g is None:
+            g = self._gathers[key] = Gather(ids, self.pool)
+        return g, ends
+
+
+@dataclass
+class Prepared:
+    """One encoder's messages of a step, ready to be gathered: their layout key, the step's values
+    and how to plan a new layout."""
+
+    key: tuple[bytes, ...]
+    area: Area
+    plans: Plans
+    build: "Callable[[], tuple[np.ndarray, np.ndarray]]"
 
     def encode(self) -> tuple[bytes, np.ndarray]:
-        """Every row's bytes, concatenated in row order, and the row offsets (n + 1,)."""
-        ends = np.zeros(self.n + 1, dtype=np.int64)
-        parts = [(d, lens) for d, lens in self.parts if d.shape[1]]
-        if not parts or self.n == 0:
-            return b"", ends
-        data = np.concatenate([d for d, _ in parts], axis=1)
-        widths = np.array([d.shape[1] for d, _ in parts])
-        lens = np.stack([lens for _, lens in parts], axis=1)  # (n, parts)
-        col = np.arange(data.shape[1]) - np.repeat(np.cumsum(widths) - widths, widths)  # position within its part
-        keep = col[None, :] < np.repeat(lens, widths, axis=1)
-        np.cumsum(lens.sum(axis=1), out=ends[1:])
-        return data[keep].tobytes(), ends
+        """The messages' bytes, concatenated, and their offsets."""
+        g, ends = self.plans.gather(self.key, self.build)
+        return g(self.area.bytes()), ends
+
+    def plan(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.plans.plan(self.key, self.build)
 
 
-class StringCache:
-    """A StringTable that grows: `indices(strings)` gives each string's row (new strings are added)."""
-
-    def __init__(self, tag: int, strings: Sequence[str] = ()) -> None:
-        self.tag = tag
-        self.strings: list[str] = []
-        self.table = StringTable(tag, [])
-        self.indices(strings)
-
-    def indices(self, strings: Sequence[str]) -> np.ndarray:
-        idx = self.table.index
-        if any(s not in idx for s in strings):
-            self.strings += [s for s in dict.fromkeys(strings) if s not in idx]
-            self.table = StringTable(self.tag, self.strings)
-            idx = self.table.index
-        return np.array([idx[s] for s in strings], dtype=np.int64)
-
-    def rows(self, strings: Sequence[str]) -> tuple[StringTable, np.ndarray]:
-        """(the table, each string's row in it): a `Rows.strings` argument."""
-        idx = self.indices(strings)
-        return self.table, idx
+def ranges(starts: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """The indices start_i ... start_i + size_i - 1 of every range i, end to end."""
+    before = np.cumsum(sizes) - sizes
+    return np.repeat(np.asarray(starts, dtype=np.int64) - before, sizes) + np.arange(int(before[-1] + sizes[-1]) if len(sizes) else 0)
 
 
 _VEC3 = (0x09, 0x11, 0x19)  # Vector3 x, y, z
 
 
-def vector3(rows: Rows, tag: int, values: np.ndarray) -> Rows:
-    """A Vector3 field that was assigned (present), values (n, 3)."""
-    return rows.nested(tag, Rows(rows.n).doubles(_VEC3, values))
+def _vector3(rows: Rows, tag: int, present: np.ndarray, ids: np.ndarray) -> Rows:
+    """A Vector3 field that was assigned (present even when empty): x, y, z present (n, 3), ids (n, 3, 8)."""
+    return rows.nested(tag, Rows(rows.n, rows.pool).doubles(_VEC3, present, ids))
 
 
-def header_rows(n: int, run_source: bytes, step: int, t: float, seq: np.ndarray,
-                sources: tuple[StringTable, np.ndarray] | None = None) -> Rows:
-    """The fields of n `swarmhil.v1.Header`s: `run_source` the run (and source, when it is the same
-    for all) fields' bytes; `sources` (table, row index) the source of each row otherwise."""
-    h = Rows(n).const(run_source)
+def _header(n: int, pool: Pool, area: Area, prefix: bytes, sources: "tuple[StringTable, np.ndarray] | None",
+            step: tuple[np.ndarray, np.ndarray, np.ndarray], t_at: int, seq: tuple[np.ndarray, np.ndarray, np.ndarray]) -> Rows:
+    """n `swarmhil.v1.Header`s: `prefix` the run (and source, when it is one for all) fields, `sources`
+    (table, row) each row's source otherwise; step (one varint), t (the double at t_at), seq (n varints)."""
+    h = Rows(n, pool).const(prefix)
     if sources is not None:
         h.strings(*sources)
-    return h.uint(0x18, np.full(n, step, dtype=np.uint64)).doubles((0x21,), np.full((n, 1), t)).uint(0x28, seq)
+    s_ids, s_lens, s_present = step
+    h.varints(0x18, np.broadcast_to(s_ids, (n, s_ids.shape[1])), np.broadcast_to(s_lens, (n,)),
+              np.broadcast_to(s_present, (n,)))
+    present, ids = area.double_ids(t_at, (1, 1))
+    h.doubles((0x21,), np.broadcast_to(present, (n, 1)), np.broadcast_to(ids, (n, 1, 8)))
+    return h.varints(0x28, *seq)
+
+
+def _string(tag: int, s: str) -> bytes:
+    b = s.encode()
+    return bytes((tag,)) + varint(len(b)) + b if b else b""
+
+
+class RelStimuli:
+    """`swarmhil.v1.RelStimulus` of the observers of a step (plant/sensing/builtin.py RelKind.stimuli):
+    header (source `source`), u_rad, neighbours (RelativeState: id, position_m, velocity_mps, both assigned)."""
+
+    def __init__(self, pool: Pool, run: str, source: str, ids: Sequence[str]) -> None:
+        self.pool, self.plans = pool, Plans(pool)
+        self.prefix = _string(0x0A, run) + _string(0x12, source)
+        self.ids = StringTable(0x0A, ids)
+
+    def prepare(self, step: int, t: float, seq: np.ndarray, u_rad: float, offsets: np.ndarray, neighbour: np.ndarray,
+                rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray) -> Prepared:
+        """The stimuli of R observers: observer r's neighbours are rows offsets[r]:offsets[r + 1] of
+        `neighbour` (indices into the ids) and the (P, 3) relative states."""
+        off = np.asarray(offsets, dtype=np.int64)
+        nb = np.asarray(neighbour, dtype=np.int64)
+        r, p = len(off) - 1, len(nb)
+        d = np.empty(2 + 6 * p)
+        d[0], d[1] = t, u_rad
+        d[2:].reshape(p, 6)[:, :3] = rel_position_m
+        d[2:].reshape(p, 6)[:, 3:] = rel_velocity_mps
+        area = Area(d)
+        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        key = (off.tobytes(), nb.tobytes(), *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool = self.pool
+            present, ids = area.double_ids(2, (p, 6))
+            e = Rows(p, pool).strings(self.ids, nb)
+            _vector3(e, 0x12, present[:, :3], ids[:, :3])
+            _vector3(e, 0x1A, present[:, 3:], ids[:, 3:])
+            entries = Rows(p, pool).nested(0x1A, e).plan()
+            m = Rows(r, pool).nested(0x0A, _header(r, pool, area, self.prefix, None, step_v, 0, seq_v))
+            present, ids = area.double_ids(1, (1, 1))
+            m.doubles((0x11,), np.broadcast_to(present, (r, 1)), np.broadcast_to(ids, (r, 1, 8)))
+            return m.segments(*entries, off).plan()
+
+        return Prepared(key, area, self.plans, build)
+
+    def encode(self, *args: Any) -> tuple[bytes, np.ndarray]:
+        """`prepare` of the same arguments, encoded."""
+        return self.prepare(*args).encode()
+
+
+class AgentMessages:
+    """Each agent's `swarmhil.v1.ActuatorCommand` and `swarmhil.v1.Telemetry` of a step (agent/node.py
+    AgentNode.handle) for commands that are an acceleration, a mode and decisions (no transmission,
+    torque, extra arrays or tracks): ActuatorCommand(header, accel_mps2, controller),
+    Telemetry(header, mode, controller, decisions, accel_mps2, compute_s, rejected_packets = 0)."""
+
+    def __init__(self, pool: Pool, run: str, ids: Sequence[str], controllers: Sequence[str]) -> None:
+        self.pool = pool
+        self.act_plans, self.tm_plans = Plans(pool), Plans(pool)
+        self.prefix = _string(0x0A, run)
+        self.sources = StringTable(0x12, ids)  # Header.source
+        self.neighbours = StringTable(0x0A, ids)  # NeighbourDecision.neighbour
+        self.controllers = StringTable(0x1A, controllers)  # ActuatorCommand.controller, Telemetry.controller
+        self.modes = StringTable(0x12, [])  # Telemetry.mode
+        self.behaviours = StringTable(0x12, [])  # NeighbourDecision.behaviour
+
+    def commands(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, accel_mps2: np.ndarray) -> Prepared:
+        """The commands of the agents `rows` (indices into ids)."""
+        r = len(rows)
+        d = np.empty(1 + 3 * r)
+        d[0] = t
+        d[1:].reshape(r, 3)[:] = accel_mps2
+        area = Area(d)
+        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        rows = np.asarray(rows, dtype=np.int64)
+        key = (rows.tobytes(), *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            m = Rows(r, self.pool).nested(0x0A, _header(r, self.pool, area, self.prefix, (self.sources, rows), step_v, 0, seq_v))
+            _vector3(m, 0x12, *area.double_ids(1, (r, 3)))
+            return m.strings(self.controllers, rows).plan()
+
+        return Prepared(key, area, self.act_plans, build)
+
+    def telemetry(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, modes: Sequence[str],
+                  accel_mps2: np.ndarray, compute_s: float, offsets: np.ndarray, neighbour_ids: Sequence[str],
+                  behaviours: Sequence[str], d_min_m: np.ndarray, roe_rel_m: np.ndarray,
+                  decision_accel_mps2: np.ndarray) -> Prepared:
+        """The telemetry of the agents `rows`: modes, accelerations (R, 3), each one's share of the
+        compute time, and decisions offsets[i]:offsets[i + 1] (neighbour, behaviour, d_min, roe (P, 6),
+        acceleration (P, 3))."""
+        r, p = len(rows), len(neighbour_ids)
+        d = np.empty(2 + 3 * r + 10 * p)
+        d[0], d[1] = t, compute_s
+        d[2:2 + 3 * r].reshape(r, 3)[:] = accel_mps2
+        dec = d[2 + 3 * r:].reshape(p, 10)
+        dec[:, 0] = d_min_m
+        dec[:, 1:7] = roe_rel_m
+        dec[:, 7:] = decision_accel_mps2
+        area = Area(d)
+        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        rows = np.asarray(rows, dtype=np.int64)
+        off = np.asarray(offsets, dtype=np.int64)
+        mode = self.modes.indices(modes)
+        beh = self.behaviours.indices(behaviours)
+        nb = self.neighbours.indices(neighbour_ids)
+        key = (rows.tobytes(), off.tobytes(), mode.tobytes(), beh.tobytes(), nb.tobytes(), *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool, base = self.pool, 2 + 3 * r
+            e = Rows(p, pool).strings(self.neighbours, nb).strings(self.behaviours, beh)
+            present, ids = area.double_ids(base, (p, 10))
+            e.doubles((0x19,), present[:, :1], ids[:, :1])
+            e.packed(0x22, ids[:, 1:7].reshape(p, 48))
+            _vector3(e, 0x2A, present[:, 7:], ids[:, 7:])
+            entries = Rows(p, pool).nested(0x22, e).plan()
+            m = Rows(r, pool).nested(0x0A, _header(r, pool, area, self.prefix, (self.sources, rows), step_v, 0, seq_v))
+            m.strings(self.modes, mode).strings(self.controllers, rows).segments(*entries, off)
+            _vector3(m, 0x32, *area.double_ids(2, (r, 3)))
+            present, ids = area.double_ids(1, (1, 1))
+            return m.doubles((0x39,), np.broadcast_to(present, (r, 1)), np.broadcast_to(ids, (r, 1, 8))).plan()
+
+        return Prepared(key, area, self.tm_plans, build)
 
 
 def split(blob: bytes, ends: np.ndarray) -> list[bytes]:
-    """The rows of an `encode` result as separate bytes."""
+    """The messages of an encoder's result as separate bytes."""
     e = ends.tolist()
     return [blob[a:b] for a, b in zip(e[:-1], e[1:])]
-
-
-def rel_stimuli(headers: Rows, u_rad: float, offsets: np.ndarray, ids: StringTable, neighbour: np.ndarray,
-                rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray) -> tuple[bytes, np.ndarray]:
-    """`swarmhil.v1.RelStimulus` of R observers (plant/sensing/builtin.py RelKind.stimuli): header,
-    u_rad, then neighbours offsets[r]:offsets[r + 1] (RelativeState: id, position_m, velocity_mps,
-    both assigned). Returns the messages' bytes and offsets (R + 1,)."""
-    p = len(neighbour)
-    nb = Rows(p).strings(ids, neighbour)
-    vector3(nb, 0x12, rel_position_m)
-    vector3(nb, 0x1A, rel_velocity_mps)
-    entry = Rows(p).nested(0x1A, nb)
-    blob, ends = entry.encode()
-    off = np.asarray(offsets, dtype=np.int64)
-    msg = Rows(headers.n).nested(0x0A, headers).doubles((0x11,), np.full((headers.n, 1), u_rad))
-    msg.segments(blob, ends[off[:-1]], ends[off[1:]] - ends[off[:-1]])
-    return msg.encode()
-
-
-def actuator_commands(headers: Rows, accel_mps2: np.ndarray, controllers: tuple[StringTable, np.ndarray],
-                      isl_tx_count: np.ndarray, torque_nm: np.ndarray | None) -> tuple[bytes, np.ndarray]:
-    """`swarmhil.v1.ActuatorCommand` of R agents (agent/node.py AgentNode.handle): header,
-    accel_mps2 (assigned), controller, isl_tx_count, torque_nm (assigned where given: rows of NaN
-    in `torque_nm` mean none)."""
-    m = Rows(headers.n).nested(0x0A, headers)
-    vector3(m, 0x12, accel_mps2)
-    m.strings(*controllers).uint(0x20, isl_tx_count)
-    if torque_nm is not None:
-        has = ~np.isnan(torque_nm).all(axis=1)
-        t = Rows(headers.n)
-        vector3(t, 0x2A, np.where(has[:, None], torque_nm, 0.0))
-        t.parts = [(d, np.where(has, lens, 0)) for d, lens in t.parts]
-        m.parts += t.parts
-    return m.encode()
-
-
-def neighbour_decisions(neighbours: StringTable, neighbour: np.ndarray, behaviours: StringTable,
-                        behaviour: np.ndarray, d_min_m: np.ndarray, roe_rel_m: np.ndarray,
-                        accel_mps2: np.ndarray) -> tuple[bytes, np.ndarray]:
-    """Telemetry.decisions entries (field 4) of P decisions, each `NeighbourDecision(neighbour,
-    behaviour, d_min_m, roe_rel_m (packed), accel_mps2 (assigned))`: their bytes and offsets."""
-    p = len(neighbour)
-    d = Rows(p).strings(neighbours, neighbour).strings(behaviours, behaviour).doubles((0x19,), d_min_m[:, None])
-    d.packed_doubles(0x22, roe_rel_m)
-    vector3(d, 0x2A, accel_mps2)
-    return Rows(p).nested(0x22, d).encode()
-
-
-def telemetry(headers: Rows, modes: tuple[StringTable, np.ndarray], controllers: tuple[StringTable, np.ndarray],
-              decisions: tuple[bytes, np.ndarray, np.ndarray], accel_mps2: np.ndarray, compute_s: np.ndarray,
-              rejected_packets: np.ndarray) -> tuple[bytes, np.ndarray]:
-    """`swarmhil.v1.Telemetry` of R agents without tracks or items (agent/node.py AgentNode.handle):
-    header, mode, controller, decisions (`neighbour_decisions`' bytes and ends, and each row's
-    decisions offsets (R + 1,) into them), accel_mps2 (assigned), compute_s, rejected_packets."""
-    n = headers.n
-    m = Rows(n).nested(0x0A, headers).strings(*modes).strings(*controllers)
-    blob, ends, off = decisions
-    if len(ends) > 1:
-        m.segments(blob, ends[off[:-1]], ends[off[1:]] - ends[off[:-1]])
-    vector3(m, 0x32, accel_mps2)
-    return m.doubles((0x39,), compute_s[:, None]).uint(0x40, rejected_packets).encode()

@@ -47,7 +47,7 @@ from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.truth_wire import varint
+from swarmhil.bus.truth_wire import _double, _string, varint
 
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
@@ -204,6 +204,12 @@ class FoxgloveScene:
         if src and dst:
             self._links.add((src, dst))
 
+    def saw_modes(self, ids: list[str], modes: list[str]) -> None:
+        """The modes of the agents' telemetry (`derive` of each one's Telemetry: an empty mode is not kept)."""
+        for sid, mode in zip(ids, modes):
+            if mode:
+                self._modes[sid] = mode
+
     # the message classes `derive` looks at: a recorder need not decode a sample of any other class
     DERIVES_FROM: frozenset[type] = frozenset({pb.Truth, pb.Event, pb.IslPacket, pb.Telemetry})
 
@@ -223,14 +229,12 @@ class FoxgloveScene:
         if cls is pb.IslPacket and topic.startswith("isl/rx/"):
             self.saw_delivery(msg.src, topic[len("isl/rx/"):])
         elif cls is pb.Telemetry and msg.mode and topic.startswith("sc/") and topic.endswith("/tm"):
-            self._modes[topic[3:-3]] = msg.mode   # sc/<id>/tm: the sphere's colour from the next truth on
+            self.saw_modes([topic[3:-3]], [msg.mode])   # sc/<id>/tm: the sphere's colour from the next truth on
         return []
 
     def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:
         stamp = _timestamp(t_ns)
         n_radps, t_s = truth.mean_motion_radps, truth.header.t
-        tf = FrameTransforms()
-        add_transform = tf.transforms.add
         # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
         # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
         # body and state is reused; tests/test_foxglove_recording.py checks the bytes against the entities
@@ -238,13 +242,19 @@ class FoxgloveScene:
         stamped = SceneEntity()
         stamped.timestamp.CopyFrom(stamp)
         head = stamped.SerializeToString()
+        # FrameTransforms' transforms (field 1) as bytes too: each FrameTransform's fields in number
+        # order (timestamp, parent, child, translation, rotation), the same bytes as the message built
+        # field by field (tests/test_foxglove_recording.py)
+        tf_head = head + _PARENT_FIELD  # (SceneEntity's timestamp is its field 1 too)
+        transforms: list[bytes] = []
         entities: list[bytes] = []
-        pos: dict[str, Vector3] = {}
+        pos: dict[str, tuple[float, float, float]] = {}
         for b in truth.bodies:
             q = b.position_m
-            p = pos[b.id] = Vector3(x=q.x, y=q.y, z=q.z)
-            add_transform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id, translation=p,
-                          rotation=_rotation(b, n_radps, t_s))
+            x, y, z = pos[b.id] = (q.x, q.y, q.z)
+            tr = _double(0x09, x) + _double(0x11, y) + _double(0x19, z)
+            rot = _IDENTITY_FIELD if not b.HasField("attitude") else _field(0x2A, _rotation(b, n_radps, t_s).SerializeToString())
+            transforms.append(_field(0x0A, tf_head + _string(0x1A, b.id) + _field(0x22, tr) + rot))
             entities.append(_entity_field(head + self._serialized_template(b.id, b.kind, b.alive)))
         links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
@@ -252,18 +262,27 @@ class FoxgloveScene:
                                  scale_invariant=True, color=_GREEN)
             for src, dst in sorted(self._links):
                 if src in pos and dst in pos:
-                    for v in (pos[src], pos[dst]):
-                        line.points.append(Point3(x=v.x, y=v.y, z=v.z))
+                    for x, y, z in (pos[src], pos[dst]):
+                        line.points.append(Point3(x=x, y=y, z=z))
             if line.points:
                 links.lines.append(line)
             self._links.clear()
         entities.append(_entity_field(links.SerializeToString()))
-        return tf.SerializeToString(), b"".join(entities)
+        return b"".join(transforms), b"".join(entities)
 
 
 def _entity_field(entity: bytes) -> bytes:
     """One serialised SceneEntity as SceneUpdate's field 2 (`entities`): tag, varint length, bytes."""
     return b"\x12" + varint(len(entity)) + entity
+
+
+def _field(tag: int, data: bytes) -> bytes:
+    """A length-delimited field (a sub-message that is present, even when empty)."""
+    return bytes((tag,)) + varint(len(data)) + data
+
+
+_PARENT_FIELD = _string(0x12, ROOT_FRAME)  # FrameTransform.parent_frame_id
+_IDENTITY_FIELD = _field(0x2A, _IDENTITY.SerializeToString())  # FrameTransform.rotation
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

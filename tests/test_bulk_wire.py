@@ -3,22 +3,23 @@
 Each encoder is checked against `SerializeToString` of the message built field by field as the
 per-agent path builds it (plant/sensing/builtin.py RelKind.stimuli, agent/node.py AgentNode.handle),
 on random values that include +0.0 (omitted), -0.0, NaN and inf (written), empty neighbour lists,
-strings of every length class and varints of several bytes."""
+strings of every length class and varints of several bytes, through a new plan and a kept one."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.bulk_wire import (Rows, StringCache, StringTable, actuator_commands, header_rows, neighbour_decisions,
-                                    rel_stimuli, split, telemetry, varint_bytes)
-from swarmhil.bus.truth_wire import _string, varint
+from swarmhil.bus.bulk_wire import AgentMessages, Pool, RelStimuli, split, varint_bytes
+from swarmhil.bus.truth_wire import varint
 
 
-def _values(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+def _values(rng: np.random.Generator, shape: tuple[int, ...], dense: bool = False) -> np.ndarray:
+    """Random doubles; +0.0 (omitted) among them unless `dense` (every field written: the encoders'
+    paths without masks)."""
     v = rng.standard_normal(shape) * 10.0 ** rng.integers(-6, 6, shape)
     pick = rng.random(shape)
-    v[pick < 0.15] = 0.0
+    v[pick < 0.15] = 1.5 if dense else 0.0
     v[(pick >= 0.15) & (pick < 0.2)] = -0.0
     v[(pick >= 0.2) & (pick < 0.23)] = np.nan
     v[(pick >= 0.23) & (pick < 0.25)] = -np.inf
@@ -33,75 +34,73 @@ def test_varints_are_protobufs() -> None:
         assert pb.Header(seq=v).SerializeToString() == (b"\x28" + varint(v) if v else b"")
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_stimuli_commands_telemetry_as_protobuf(seed: int) -> None:
-    rng = np.random.default_rng(seed)
-    ids = [f"sc{i:02d}" for i in range(15)] + ["x" * 200, "", "é" * 70]
-    table = StringTable(0x0A, ids)
-    r = int(rng.integers(0, 12))
-    counts = rng.integers(0, 6, r)
-    counts[rng.random(r) < 0.3] = 0
-    off = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
-    p = int(off[-1])
-    nb = rng.integers(0, len(ids), p)
-    rp, rv = _values(rng, (p, 3)), _values(rng, (p, 3))
-    step = int(rng.choice([0, 1, 200, 2**40]))
-    t = float(rng.choice([0.0, -0.0, 10.0 * step, np.nan]))
-    u = float(_values(rng, (1,))[0])
-    seq = rng.choice([0, 5, 130, 2**33], r).astype(np.uint64)
-    src = rng.integers(0, len(ids), r)
-    run_src = _string(0x0A, "run-1") + _string(0x12, "plant")
-
-    blob, ends = rel_stimuli(header_rows(r, run_src, step, t, seq), u, off, table, nb, rp, rv)
-    for i, got in enumerate(split(blob, ends)):
+def _check_stimuli(enc: RelStimuli, ids: list[str], step: int, t: float, seq: np.ndarray, u: float, off: np.ndarray,
+                   nb: np.ndarray, rp: np.ndarray, rv: np.ndarray) -> None:
+    blob, ends = enc.encode(step, t, seq, u, off, nb, rp, rv)
+    got = split(blob, ends)
+    assert len(got) == len(off) - 1
+    for i, b in enumerate(got):
         m = pb.RelStimulus(header=pb.Header(run="run-1", source="plant", step=step, t=t, seq=int(seq[i])), u_rad=u)
         for k in range(off[i], off[i + 1]):
             e = m.neighbours.add(id=ids[nb[k]])
             e.position_m.x, e.position_m.y, e.position_m.z = rp[k].tolist()
             e.velocity_mps.x, e.velocity_mps.y, e.velocity_mps.z = rv[k].tolist()
-        assert got == m.SerializeToString()
+        assert b == m.SerializeToString()
 
-    run_only = _string(0x0A, "run-1")
-    ctrl = StringCache(0x1A)
-    names = [str(rng.choice(["sabatini", "", "c" * 150])) for _ in range(r)]
-    acc = _values(rng, (r, 3))
-    tq = _values(rng, (r, 3))
-    tq[rng.random(r) < 0.4] = np.nan  # no torque
-    tx = rng.choice([0, 1, 300], r)
-    for torque in (None, tq):
-        blob, ends = actuator_commands(header_rows(r, run_only, step, t, seq, (table_src := StringTable(0x12, ids), src)),
-                                       acc, ctrl.rows(names), tx, torque)
-        for i, got in enumerate(split(blob, ends)):
-            hdr = pb.Header(run="run-1", source=ids[src[i]], step=step, t=t, seq=int(seq[i]))
-            m = pb.ActuatorCommand(header=hdr, accel_mps2=pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2]),
-                                   controller=names[i], isl_tx_count=int(tx[i]))
-            if torque is not None and not np.isnan(torque[i]).all():
-                m.torque_nm.CopyFrom(pb.Vector3(x=tq[i, 0], y=tq[i, 1], z=tq[i, 2]))
-            assert got == m.SerializeToString()
 
-    behaviours = StringCache(0x12)
-    labels = [str(rng.choice(["collision_avoidance", "alignment", "", "b" * 140])) for _ in range(p)]
-    dmin, roe, dacc = _values(rng, (p,)), _values(rng, (p, 6)), _values(rng, (p, 3))
-    dec = neighbour_decisions(StringTable(0x0A, ids), nb, *behaviours.rows(labels), dmin, roe, dacc)
-    modes = StringCache(0x12)
-    mode_names = [str(rng.choice(["search", "alignment", "", "fault"])) for _ in range(r)]
-    cs, rej = np.abs(_values(rng, (r,))), rng.choice([0, 3, 2**20], r)
-    blob, ends = telemetry(header_rows(r, run_only, step, t, seq, (table_src, src)), modes.rows(mode_names),
-                           ctrl.rows(names),
-                           (*dec, off), acc, cs, rej)
-    for i, got in enumerate(split(blob, ends)):
-        hdr = pb.Header(run="run-1", source=ids[src[i]], step=step, t=t, seq=int(seq[i]))
-        m = pb.Telemetry(header=hdr, mode=mode_names[i], controller=names[i],
-                         accel_mps2=pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2]), compute_s=cs[i],
-                         rejected_packets=int(rej[i]))
+def _check_agents(enc: AgentMessages, ids: list[str], names: list[str], step: int, t: float, seq: np.ndarray,
+                  rows: np.ndarray, acc: np.ndarray, modes: list[str], cs: float, off: np.ndarray, dec: tuple) -> None:
+    nb, labels, dmin, roe, dacc = dec
+    blob, ends = enc.commands(step, t, seq, rows, acc).encode()
+    for i, b in enumerate(split(blob, ends)):
+        hdr = pb.Header(run="run-1", source=ids[rows[i]], step=step, t=t, seq=int(seq[i]))
+        m = pb.ActuatorCommand(header=hdr, accel_mps2=pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2]),
+                               controller=names[rows[i]])
+        assert b == m.SerializeToString()
+    blob, ends = enc.telemetry(step, t, seq, rows, modes, acc, cs, off, [ids[k] for k in nb], labels, dmin, roe, dacc).encode()
+    for i, b in enumerate(split(blob, ends)):
+        hdr = pb.Header(run="run-1", source=ids[rows[i]], step=step, t=t, seq=int(seq[i]))
+        m = pb.Telemetry(header=hdr, mode=modes[i], controller=names[rows[i]],
+                         accel_mps2=pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2]), compute_s=cs)
         for k in range(off[i], off[i + 1]):
             q = m.decisions.add(neighbour=ids[nb[k]], behaviour=labels[k], d_min_m=float(dmin[k]),
                                 roe_rel_m=roe[k].tolist()).accel_mps2
             q.x, q.y, q.z = dacc[k].tolist()
-        assert got == m.SerializeToString()
+        assert b == m.SerializeToString()
 
 
-def test_rows_of_nothing() -> None:
-    assert Rows(0).const(b"ab").encode()[0] == b""
-    blob, ends = Rows(3).encode()
-    assert blob == b"" and ends.tolist() == [0, 0, 0, 0]
+@pytest.mark.parametrize("dense", [False, True], ids=["zeros", "dense"])
+@pytest.mark.parametrize("seed", range(6))
+def test_stimuli_commands_telemetry_as_protobuf(seed: int, dense: bool) -> None:
+    """Random layouts, each encoded twice with new values (the second time from the kept plan when
+    the layout is the same) and once by fresh encoders (a new plan)."""
+    rng = np.random.default_rng(seed)
+    # ids of one length (string fields without masks) or of many
+    ids = [f"sc{i:02d}" for i in range(15)] + ([] if dense and seed % 2 else ["x" * 200, "", "é" * 70])
+    names = [str(rng.choice(["sabatini"] if dense else ["sabatini", "", "c" * 150])) for _ in ids]
+    shared = Pool()
+    stim, agents = RelStimuli(shared, "run-1", "plant", ids), AgentMessages(shared, "run-1", ids, names)
+    for _layout in range(3):
+        r = int(rng.integers(0, 12))
+        counts = rng.integers(0, 6, r)
+        counts[rng.random(r) < 0.3] = 0
+        off = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+        p = int(off[-1])
+        nb = rng.integers(0, len(ids), p)
+        rows = np.sort(rng.choice(len(ids), r, replace=False))
+        modes = [str(rng.choice(["search", "alignment", "", "m" * 130] if not dense else ["search", "alignment"])) for _ in range(r)]
+        labels = [str(rng.choice(["collision_avoidance", "alignment", "", "b" * 140])) for _ in range(p)]
+        for again in range(2):
+            step = int(rng.choice([0, 1, 200, 2**40] if not dense else [7 + again]))
+            t = float(rng.choice([0.0, -0.0, 10.0 * step, np.nan] if not dense else [10.0 * step]))
+            u = float(_values(rng, (1,), dense)[0])
+            seq = (rng.choice([5, 6], r) if dense else rng.choice([0, 5, 130, 2**33], r)).astype(np.uint64)
+            rp, rv = _values(rng, (p, 3), dense), _values(rng, (p, 3), dense)
+            acc = _values(rng, (r, 3), dense)
+            dec = (nb, labels, _values(rng, (p,), dense), _values(rng, (p, 6), dense), _values(rng, (p, 3), dense))
+            cs = float(abs(_values(rng, (1,), dense)[0]))
+            for s_enc, a_enc in ((stim, agents), (RelStimuli(Pool(), "run-1", "plant", ids), AgentMessages(Pool(), "run-1", ids, names))):
+                _check_stimuli(s_enc, ids, step, t, seq, u, off, nb, rp, rv)
+                _check_agents(a_enc, ids, names, step, t, seq, rows, acc, modes, cs, off, dec)
+    if dense:  # (the second encoding of a dense layout is often the same layout: a kept plan)
+        assert stim.plans.built < 6 or agents.tm_plans.built < 6
