@@ -106,10 +106,11 @@ class StringTable:
     def indices(self, strings: Sequence[str]) -> np.ndarray:
         """Each string's row, growing the table with the new ones."""
         idx = self.index
-        if any(s not in idx for s in strings):
+        try:
+            return np.array([idx[s] for s in strings], dtype=np.int64)
+        except KeyError:
             self.__init__(self.tag, self.strings + [s for s in dict.fromkeys(strings) if s not in idx])  # type: ignore[misc]
-            idx = self.index
-        return np.array([idx[s] for s in strings], dtype=np.int64)
+            return self.indices(strings)
 
 
 class Rows:
@@ -276,13 +277,19 @@ class Area:
         n = len(v)
         lo = int(v.min()) if n else 0
         base = 8 * len(self.doubles) + self._n_ints
-        if n and lo == int(v.max()):
+        if n and (n == 1 or lo == int(v.max())):
             b = varint(lo)
             self._ints.append(np.frombuffer(b, dtype=np.uint8))
             self._n_ints += len(b)
+            k = (n, base, len(b), lo != 0)
             self.key.append(b"=%d%s" % (len(b), b"+" if lo else b"0"))
-            return (np.broadcast_to(base + np.arange(len(b), dtype=np.int64), (n, len(b))),
-                    np.full(n, len(b), dtype=np.int64), np.full(n, lo != 0))
+            got = _SAME.get(k)
+            if got is None:
+                if len(_SAME) > 4096:
+                    _SAME.clear()
+                got = _SAME[k] = (np.broadcast_to(base + np.arange(len(b), dtype=np.int64), (n, len(b))),
+                                  np.full(n, len(b), dtype=np.int64), np.full(n, lo != 0))
+            return got
         data, lens = varint_bytes(v)
         self._ints.append(data.ravel())
         self._n_ints += data.size
@@ -309,6 +316,9 @@ class Gather:
         out = self.template.copy()
         out[self.at] = area[self.src]
         return out.tobytes()
+
+
+_SAME: dict[tuple[int, int, int, bool], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # Area.varints of one value for all
 
 
 class Plans:
@@ -470,13 +480,13 @@ class AgentMessages:
         return Prepared(key, area, self.act_plans, build)
 
     def telemetry(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, modes: Sequence[str],
-                  accel_mps2: np.ndarray, compute_s: float, offsets: np.ndarray, neighbour_ids: Sequence[str],
-                  behaviours: Sequence[str], d_min_m: np.ndarray, roe_rel_m: np.ndarray,
+                  accel_mps2: np.ndarray, compute_s: float, offsets: np.ndarray, neighbour: "np.ndarray | Sequence[str]",
+                  labels: Sequence[str], behaviour: np.ndarray, d_min_m: np.ndarray, roe_rel_m: np.ndarray,
                   decision_accel_mps2: np.ndarray) -> Prepared:
         """The telemetry of the agents `rows`: modes, accelerations (R, 3), each one's share of the
-        compute time, and decisions offsets[i]:offsets[i + 1] (neighbour, behaviour, d_min, roe (P, 6),
-        acceleration (P, 3))."""
-        r, p = len(rows), len(neighbour_ids)
+        compute time, and decisions offsets[i]:offsets[i + 1] (neighbour: names, or indices into the
+        ids; behaviour: indices into `labels`; d_min, roe (P, 6), acceleration (P, 3))."""
+        r, p = len(rows), len(neighbour)
         d = np.empty(2 + 3 * r + 10 * p)
         d[0], d[1] = t, compute_s
         d[2:2 + 3 * r].reshape(r, 3)[:] = accel_mps2
@@ -489,8 +499,8 @@ class AgentMessages:
         rows = np.asarray(rows, dtype=np.int64)
         off = np.asarray(offsets, dtype=np.int64)
         mode = self.modes.indices(modes)
-        beh = self.behaviours.indices(behaviours)
-        nb = self.neighbours.indices(neighbour_ids)
+        beh = self.behaviours.indices(labels)[np.asarray(behaviour, dtype=np.int64)] if p else np.zeros(0, dtype=np.int64)
+        nb = neighbour if isinstance(neighbour, np.ndarray) else self.neighbours.indices(neighbour)
         key = (rows.tobytes(), off.tobytes(), mode.tobytes(), beh.tobytes(), nb.tobytes(), *area.key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,7 @@ from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.bulk_wire import Area, Plans, Pool, Prepared, Rows, StringTable
 from swarmhil.bus.truth_wire import _double, _string, varint
 
 ROOT_FRAME = "lvlh"
@@ -158,6 +159,7 @@ class FoxgloveScene:
         self._faulty: dict[str, int] = {}  # spacecraft id -> [[fault]]s active on it (the `faults` topic)
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
         self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
+        self._tf = _Transforms()
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
         """The entity of a body without its timestamp (built once per body, state and mode)."""
@@ -233,8 +235,23 @@ class FoxgloveScene:
         return []
 
     def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:
+        """(FrameTransforms, SceneUpdate) of a decoded Truth."""
+        bodies = truth.bodies
+        ids, kinds, alive = [b.id for b in bodies], [b.kind for b in bodies], [b.alive for b in bodies]
+        pos = np.array([(q.x, q.y, q.z) for q in (b.position_m for b in bodies)], dtype=float).reshape(-1, 3)
+        rotations = None
+        if any(b.HasField("attitude") for b in bodies):  # the frame rotations (identity without attitude)
+            n_radps, t_s = truth.mean_motion_radps, truth.header.t
+            rotations = [_rotation(b, n_radps, t_s).SerializeToString() if b.HasField("attitude") else None for b in bodies]
+        return self.from_bodies(ids, kinds, alive, pos, t_ns, rotations)
+
+    def from_bodies(self, ids: list[str], kinds: list[str], alive: list[bool], position_m: np.ndarray, t_ns: int,
+                    rotations: list[bytes | None] | None = None) -> tuple[bytes, bytes]:
+        """(FrameTransforms, SceneUpdate) of the truth's bodies: ids, kinds, alive, positions (N, 3),
+        and each one's serialised frame rotation (None: the identity; `rotations` None: all). What
+        `from_truth` gives for the Truth that carries them (a batch run's recorder passes its
+        plant's arrays: bus/recorder.py `next_truth`)."""
         stamp = _timestamp(t_ns)
-        n_radps, t_s = truth.mean_motion_radps, truth.header.t
         # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
         # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
         # body and state is reused; tests/test_foxglove_recording.py checks the bytes against the entities
@@ -242,22 +259,10 @@ class FoxgloveScene:
         stamped = SceneEntity()
         stamped.timestamp.CopyFrom(stamp)
         head = stamped.SerializeToString()
-        # FrameTransforms' transforms (field 1) as bytes too: each FrameTransform's fields in number
-        # order (timestamp, parent, child, translation, rotation), the same bytes as the message built
-        # field by field (tests/test_foxglove_recording.py)
-        tf_head = head + _PARENT_FIELD  # (SceneEntity's timestamp is its field 1 too)
-        transforms: list[bytes] = []
-        entities: list[bytes] = []
-        pos: dict[str, tuple[float, float, float]] = {}
-        for b in truth.bodies:
-            q = b.position_m
-            x, y, z = pos[b.id] = (q.x, q.y, q.z)
-            tr = _double(0x09, x) + _double(0x11, y) + _double(0x19, z)
-            rot = _IDENTITY_FIELD if not b.HasField("attitude") else _field(0x2A, _rotation(b, n_radps, t_s).SerializeToString())
-            transforms.append(_field(0x0A, tf_head + _string(0x1A, b.id) + _field(0x22, tr) + rot))
-            entities.append(_entity_field(head + self._serialized_template(b.id, b.kind, b.alive)))
+        entities = [_entity_field(head + self._serialized_template(i, k, a)) for i, k, a in zip(ids, kinds, alive)]
         links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
+            pos = dict(zip(ids, position_m.tolist()))
             line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
                                  scale_invariant=True, color=_GREEN)
             for src, dst in sorted(self._links):
@@ -268,7 +273,58 @@ class FoxgloveScene:
                 links.lines.append(line)
             self._links.clear()
         entities.append(_entity_field(links.SerializeToString()))
-        return b"".join(transforms), b"".join(entities)
+        return self._transforms(ids, position_m, stamp, rotations), b"".join(entities)
+
+    def _transforms(self, ids: list[str], position_m: np.ndarray, stamp: Timestamp,
+                    rotations: list[bytes | None] | None) -> bytes:
+        """FrameTransforms' transforms (field 1) as bytes: each FrameTransform's fields in number order
+        (timestamp, parent, child, translation, rotation), the same bytes as the message built field
+        by field (tests/test_foxglove_recording.py); without rotations, from the layout's plan (bus/bulk_wire.py)."""
+        if rotations is None:
+            return self._tf.encode(ids, position_m, stamp.seconds, stamp.nanos)
+        tf_head = _field(0x0A, stamp.SerializeToString()) + _PARENT_FIELD
+        out = []
+        for sid, (x, y, z), rot in zip(ids, position_m.tolist(), rotations):
+            tr = _double(0x09, x) + _double(0x11, y) + _double(0x19, z)
+            out.append(_field(0x0A, tf_head + _string(0x1A, sid) + _field(0x22, tr)
+                              + (_IDENTITY_FIELD if rot is None else _field(0x2A, rot))))
+        return b"".join(out)
+
+
+class _Transforms:
+    """FrameTransforms of bodies with identity rotations from arrays, one plan per layout (the ids,
+    which coordinates are +0.0, the timestamp's varints' lengths: bus/bulk_wire.py)."""
+
+    def __init__(self) -> None:
+        self.pool = Pool()
+        self.plans = Plans(self.pool)
+        self._tables: dict[tuple[str, ...], tuple[StringTable, bytes]] = {}  # ids -> their table, key
+
+    def encode(self, ids: list[str], position_m: np.ndarray, seconds: int, nanos: int) -> bytes:
+        n = len(ids)
+        if n == 0:
+            return b""
+        key_ids = tuple(ids)
+        got = self._tables.get(key_ids)
+        if got is None:
+            got = self._tables[key_ids] = (StringTable(0x1A, ids), b"ids%d" % len(self._tables))
+        table, ids_key = got
+        area = Area(position_m)
+        sec, nan = area.varints(np.array([seconds])), area.varints(np.array([nanos]))
+        key = (ids_key, *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool = self.pool
+            ts = Rows(n, pool)
+            for tag, (v_ids, lens, present) in ((0x08, sec), (0x10, nan)):
+                ts.varints(tag, np.broadcast_to(v_ids, (n, v_ids.shape[1])), np.broadcast_to(lens, (n,)),
+                           np.broadcast_to(present, (n,)))
+            present, v = area.double_ids(0, (n, 3))
+            t = Rows(n, pool).nested(0x0A, ts).const(_PARENT_FIELD).strings(table, np.arange(n))
+            t.nested(0x22, Rows(n, pool).doubles((0x09, 0x11, 0x19), present, v)).const(_IDENTITY_FIELD)
+            return Rows(n, pool).nested(0x0A, t).plan()
+
+        return Prepared(key, area, self.plans, build).encode()[0]
 
 
 def _entity_field(entity: bytes) -> bytes:

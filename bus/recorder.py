@@ -28,14 +28,16 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.message import DecodeError, Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
-from swarmhil.bus.codec import message_type_of_topic, sim_time_ns
-from swarmhil.bus.foxglove_scene import FoxgloveScene
 from swarmhil.bus.bulk_wire import Prepared
+from swarmhil.bus.codec import message_type_of_topic, sim_time_ns
+from swarmhil.bus.foxglove_scene import SCENE_TOPIC, TF_TOPIC, FoxgloveScene
 from swarmhil.bus.mcap_writer import BulkRecords, RecorderWriter
 from swarmhil.bus.keys import Keys
 
@@ -109,6 +111,9 @@ class McapRecorder:
         self._closed = False
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
+        # the bodies (ids, kinds, alive, positions) of the next truth sample, from its publisher in this
+        # process (a batch run: deploy/batch_packets.py): the Foxglove scene from them, the truth not decoded
+        self.next_truth: tuple[list[str], list[str], list[bool], np.ndarray] | None = None
 
     def _schema_id(self, cls: type[Message]) -> int:
         name = cls.DESCRIPTOR.full_name
@@ -233,10 +238,12 @@ class McapRecorder:
         cls, topic, derives = self._key(key) if info is None else info
         t: int | None
         msg: Message | None
-        if t_ns is not None and cls is not None and not derives:
+        bodies, self.next_truth = self.next_truth, None
+        if t_ns is not None and cls is not None and (not derives or (bodies is not None and cls is pb.Truth)):
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)
+            bodies = None
         at_ns = self._last_t_ns if t is None else t
         if reason:
             self.undecodable += 1
@@ -253,6 +260,10 @@ class McapRecorder:
         if self._scene is not None and msg is not None:
             for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
                 self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
+        elif self._scene is not None and bodies is not None:  # the truth's bodies as arrays (`next_truth`)
+            tf, scene = self._scene.from_bodies(*bodies, self.epoch_ns + max(at_ns, 0))
+            self._add(TF_TOPIC, FrameTransforms, tf, at_ns, wall_ns)
+            self._add(SCENE_TOPIC, SceneUpdate, scene, at_ns, wall_ns)
 
     def describe_run(self, config: dict[str, Any], document: dict[str, Any] | None = None) -> None:
         """MCAP metadata "swarmhil.run" (run id, software version) and "swarmhil.config" (the fully

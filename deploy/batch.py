@@ -211,10 +211,11 @@ class BatchHook(LocalFlightSoftware):
         if packets is not None:  # every packet recorded: the stimuli whether or not a controller looks
             t0 = time.perf_counter()
             rel = sense()
-            acc = self.agents.step(rows, self._observe(ctx, rows, observers, lambda: rel))
+            obs = self._observe(ctx, rows, observers, lambda: rel)
+            acc = self.agents.step(rows, obs)
             decided = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
             compute_s = (time.perf_counter() - t0) / max(len(rows), 1)  # each spacecraft's share
-            packets.step(ctx.step, ctx.t_s, ctx.u_rad, rows, rel, self.agents, decided, compute_s)
+            packets.step(ctx.step, ctx.t_s, ctx.u_rad, rows, rel, self.agents, decided, compute_s, obs.neighbour_ids)
             return self._with_torques(acc) if self.attitude else acc
         if link is None:
             acc = self.agents.step(rows, self._observe(ctx, rows, observers, sense))

@@ -22,7 +22,7 @@ recorder's wall clock) is that of its step's buffer.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -75,10 +75,12 @@ class BatchPackets:
         self._tx_cids: dict[int, int] = {}
 
     def step(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, rel: Any, agents: BatchAgents,
-             decided: bool, compute_s: float) -> None:
+             decided: bool, compute_s: float, neighbour_ids: list[str] | None = None) -> None:
         """Step `step`'s packets of the observers `rows` (indices into ids, increasing): their
         stimuli `rel` (RelBatch), and the commands in force in `agents` after this step's decision
-        (`decided`: it was a decision step), each agent's telemetry reporting `compute_s`."""
+        (`decided`: it was a decision step), each agent's telemetry reporting `compute_s`.
+        `neighbour_ids`: the observation's list of the pairs' neighbour ids (the names of
+        `rel.neighbour`), which decisions that name them may carry as they are."""
         r = len(rows)
         if r == 0:
             return
@@ -96,9 +98,9 @@ class BatchPackets:
             d = cb.decision_rows
             parts = [stim,
                      self.agents.commands(step, t_s, seq, rows, acc),
-                     self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, d.offsets, d.neighbour_ids,
-                                           [d.labels[b] for b in d.behaviour.tolist()], d.d_min_m, d.roe_rel_m,
-                                           d.accel_mps2)]
+                     self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, d.offsets,
+                                           rel.neighbour if d.neighbour_ids is neighbour_ids else d.neighbour_ids,
+                                           d.labels, d.behaviour, d.d_min_m, d.roe_rel_m, d.accel_mps2)]
             # per spacecraft: stimulus, act, tm (the order of the per-agent run), one buffer of records
             cids = self._all_cids if r == len(self.ids) else self._cids[rows].ravel()
             self.rec.write_records(self.records, parts, cids, sim_time_ns(t_s))
@@ -112,6 +114,19 @@ class BatchPackets:
         scene = self.rec.scene
         if scene is not None:
             scene.saw_modes(self.ids if r == len(self.ids) else [self.ids[i] for i in rows.tolist()], modes)
+
+    def on_truth(self, ids: list[str], then: Callable[..., None] | None = None) -> Callable[..., None]:
+        """A plant's `on_truth` (plant/node.py) that hands the recorder the bodies of the truth it is
+        about to publish (`McapRecorder.next_truth`: the Foxglove scene from the arrays), then calls
+        `then` (a TruthLog) with the same arguments."""
+        kinds = ["spacecraft"] * len(ids)  # (the kind bus/truth_wire.py writes for every body)
+
+        def hook(step: int, t_s: float, u_rad: float, pos: np.ndarray, *rest: Any) -> None:
+            self.rec.next_truth = (ids, kinds, rest[2].tolist(), pos)  # rest: vel, delta_v, alive, accel, roe
+            if then is not None:
+                then(step, t_s, u_rad, pos, *rest)
+
+        return hook
 
     def _take_commands(self, rows: np.ndarray, agents: BatchAgents) -> None:
         """The Commands in force after a decision of `rows`: each one's own, zero (mode fault) where

@@ -150,6 +150,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
         from swarmhil.deploy.batch import TruthLog  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         log = plant.on_truth = TruthLog(plant.world.ids, sc.steps, plant.world.a_m, plant.world.n_radps)
+    if hook is not None and hook.packets is not None:  # the recorder's Foxglove scene from the truth's arrays
+        plant.on_truth = hook.packets.on_truth(list(plant.world.ids), plant.on_truth)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
     agents = [make_agent(bus, run, sc, sid) for sid in sc.ids] if hook is None else []
     plant.wait_ready(timeout_s=1.0)

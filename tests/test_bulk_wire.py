@@ -57,7 +57,10 @@ def _check_agents(enc: AgentMessages, ids: list[str], names: list[str], step: in
         m = pb.ActuatorCommand(header=hdr, accel_mps2=pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2]),
                                controller=names[rows[i]])
         assert b == m.SerializeToString()
-    blob, ends = enc.telemetry(step, t, seq, rows, modes, acc, cs, off, [ids[k] for k in nb], labels, dmin, roe, dacc).encode()
+    names_or_idx = nb if step % 2 else [ids[k] for k in nb]
+    table = sorted(set(labels))
+    blob, ends = enc.telemetry(step, t, seq, rows, modes, acc, cs, off, names_or_idx, table,
+                               np.array([table.index(b) for b in labels], dtype=np.int64), dmin, roe, dacc).encode()
     for i, b in enumerate(split(blob, ends)):
         hdr = pb.Header(run="run-1", source=ids[rows[i]], step=step, t=t, seq=int(seq[i]))
         m = pb.Telemetry(header=hdr, mode=modes[i], controller=names[rows[i]],
