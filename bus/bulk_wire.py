@@ -270,6 +270,22 @@ class Area:
         return (self.present[start:start + k].reshape(shape),
                 (8 * start + np.arange(8 * k, dtype=np.int64)).reshape(*shape, 8))
 
+    def varint(self, value: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`varints` of one value."""
+        b = varint(value)
+        base = 8 * len(self.doubles) + self._n_ints
+        self._ints.append(np.frombuffer(b, dtype=np.uint8))
+        self._n_ints += len(b)
+        k = (1, base, len(b), value != 0)
+        self.key.append(_ONE_KEY[k[2:]])
+        got = _SAME.get(k)
+        if got is None:
+            if len(_SAME) > 4096:
+                _SAME.clear()
+            got = _SAME[k] = (base + np.arange(len(b), dtype=np.int64)[None, :], np.full(1, len(b), dtype=np.int64),
+                              np.full(1, value != 0))
+        return got
+
     def varints(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Varints of (n,) integers added: (byte ids (n, w), lengths, present (value != 0)). One
         value for all (a swarm whose spacecraft are all alive: their sequence numbers) is added once."""
@@ -282,7 +298,7 @@ class Area:
             self._ints.append(np.frombuffer(b, dtype=np.uint8))
             self._n_ints += len(b)
             k = (n, base, len(b), lo != 0)
-            self.key.append(b"=%d%s" % (len(b), b"+" if lo else b"0"))
+            self.key.append(_ONE_KEY[k[2:]])
             got = _SAME.get(k)
             if got is None:
                 if len(_SAME) > 4096:
@@ -302,23 +318,22 @@ class Area:
 
 
 class Gather:
-    """A plan made ready to gather: the bytes it takes from the pool (a template) and where the
-    area's go."""
+    """A plan made ready to gather: the bytes it takes from the pool (a template) and, for each
+    byte of the output, where it comes from in the step's area followed by the template (one gather)."""
 
-    def __init__(self, ids: np.ndarray, pool: Pool) -> None:
-        self.at = np.flatnonzero(ids >= 0)
-        self.src = ids[self.at]
-        self.template = np.zeros(len(ids), dtype=np.uint8)
+    def __init__(self, ids: np.ndarray, pool: Pool, area_size: int) -> None:
         neg = ids < 0
-        self.template[neg] = pool.array()[-1 - ids[neg]]
+        self.template = pool.array()[-1 - ids[neg]]
+        self.idx = ids.copy()
+        self.idx[neg] = area_size + np.arange(int(neg.sum()))
+        self.area_size = area_size
 
     def __call__(self, area: np.ndarray) -> bytes:
-        out = self.template.copy()
-        out[self.at] = area[self.src]
-        return out.tobytes()
+        return np.concatenate((area, self.template))[self.idx].tobytes()
 
 
 _SAME: dict[tuple[int, int, int, bool], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # Area.varints of one value for all
+_ONE_KEY = {(n, z): b"=%d%s" % (n, b"+" if z else b"0") for n in range(1, 11) for z in (False, True)}
 
 
 class Plans:
@@ -341,11 +356,12 @@ class Plans:
             self.built += 1
         return got
 
-    def gather(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[Gather, np.ndarray]:
+    def gather(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]",
+               area_size: int) -> tuple[Gather, np.ndarray]:
         ids, ends = self.plan(key, build)
         g = self._gathers.get(key)
         if g is None:
-            g = self._gathers[key] = Gather(ids, self.pool)
+            g = self._gathers[key] = Gather(ids, self.pool, area_size)
         return g, ends
 
 
@@ -361,8 +377,9 @@ class Prepared:
 
     def encode(self) -> tuple[bytes, np.ndarray]:
         """The messages' bytes, concatenated, and their offsets."""
-        g, ends = self.plans.gather(self.key, self.build)
-        return g(self.area.bytes()), ends
+        area = self.area.bytes()
+        g, ends = self.plans.gather(self.key, self.build, len(area))
+        return g(area), ends
 
     def plan(self) -> tuple[np.ndarray, np.ndarray]:
         return self.plans.plan(self.key, self.build)
@@ -423,7 +440,7 @@ class RelStimuli:
         d[2:].reshape(p, 6)[:, :3] = rel_position_m
         d[2:].reshape(p, 6)[:, 3:] = rel_velocity_mps
         area = Area(d)
-        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        step_v, seq_v = area.varint(step), area.varints(seq)
         key = (off.tobytes(), nb.tobytes(), *area.key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
@@ -468,7 +485,7 @@ class AgentMessages:
         d[0] = t
         d[1:].reshape(r, 3)[:] = accel_mps2
         area = Area(d)
-        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        step_v, seq_v = area.varint(step), area.varints(seq)
         rows = np.asarray(rows, dtype=np.int64)
         key = (rows.tobytes(), *area.key)
 
@@ -495,7 +512,7 @@ class AgentMessages:
         dec[:, 1:7] = roe_rel_m
         dec[:, 7:] = decision_accel_mps2
         area = Area(d)
-        step_v, seq_v = area.varints(np.array([step])), area.varints(seq)
+        step_v, seq_v = area.varint(step), area.varints(seq)
         rows = np.asarray(rows, dtype=np.int64)
         off = np.asarray(offsets, dtype=np.int64)
         mode = self.modes.indices(modes)

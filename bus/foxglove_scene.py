@@ -160,6 +160,7 @@ class FoxgloveScene:
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
         self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
         self._tf = _Transforms()
+        self._body_templates: dict[tuple, list[bytes]] = {}  # ((ids, kinds, alive, modes, faults), timestamp length) -> pieces
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
         """The entity of a body without its timestamp (built once per body, state and mode)."""
@@ -208,6 +209,9 @@ class FoxgloveScene:
 
     def saw_modes(self, ids: list[str], modes: list[str]) -> None:
         """The modes of the agents' telemetry (`derive` of each one's Telemetry: an empty mode is not kept)."""
+        if "" not in modes:
+            self._modes.update(zip(ids, modes))
+            return
         for sid, mode in zip(ids, modes):
             if mode:
                 self._modes[sid] = mode
@@ -251,16 +255,29 @@ class FoxgloveScene:
         and each one's serialised frame rotation (None: the identity; `rotations` None: all). What
         `from_truth` gives for the Truth that carries them (a batch run's recorder passes its
         plant's arrays: bus/recorder.py `next_truth`)."""
-        stamp = _timestamp(t_ns)
+        seconds, nanos = divmod(t_ns, 1_000_000_000)
         # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
         # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
         # body and state is reused; tests/test_foxglove_recording.py checks the bytes against the entities
-        # built field by field
-        stamped = SceneEntity()
-        stamped.timestamp.CopyFrom(stamp)
-        head = stamped.SerializeToString()
-        entities = [_entity_field(head + self._serialized_template(i, k, a)) for i, k, a in zip(ids, kinds, alive)]
-        links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+        # built field by field. `head`: the timestamp field, Timestamp(seconds, nanos) (both >= 0 here)
+        head = _field(0x0A, (b"\x08" + varint(seconds) if seconds else b"") + (b"\x10" + varint(nanos) if nanos else b""))
+        modes, faulty = self._modes, self._faulty
+        state = (tuple(ids), tuple(kinds), tuple(alive), tuple([modes.get(i, "") for i in ids]),
+                 tuple([faulty.get(i, 0) > 0 for i in ids]) if faulty else ())
+        key = (state, len(head))
+        pieces = self._body_templates.get(key)
+        if pieces is None:  # (every body's entity in this state around the timestamp's place, kept: states recur)
+            if len(self._body_templates) > 4096:
+                self._body_templates.clear()
+            templates = [self._serialized_template(i, k, a) for i, k, a in zip(ids, kinds, alive)]
+            heads = [b"\x12" + varint(len(head) + len(t)) for t in templates]  # SceneUpdate.entities: tag, length
+            pieces = self._body_templates[key] = [a + b for a, b in zip([b""] + templates, heads + [b""])]
+        # entity i is heads[i] + head + templates[i]: the pieces joined by the timestamp
+        entities = [head.join(pieces)] if len(pieces) > 1 else []
+        if not self._links:  # SceneEntity(timestamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+            entities.append(_entity_field(head + _LINKS_FIELDS))
+            return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
+        links = SceneEntity(timestamp=_timestamp(t_ns), frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
             pos = dict(zip(ids, position_m.tolist()))
             line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
@@ -273,16 +290,16 @@ class FoxgloveScene:
                 links.lines.append(line)
             self._links.clear()
         entities.append(_entity_field(links.SerializeToString()))
-        return self._transforms(ids, position_m, stamp, rotations), b"".join(entities)
+        return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
 
-    def _transforms(self, ids: list[str], position_m: np.ndarray, stamp: Timestamp,
+    def _transforms(self, ids: list[str], position_m: np.ndarray, seconds: int, nanos: int, head: bytes,
                     rotations: list[bytes | None] | None) -> bytes:
         """FrameTransforms' transforms (field 1) as bytes: each FrameTransform's fields in number order
         (timestamp, parent, child, translation, rotation), the same bytes as the message built field
         by field (tests/test_foxglove_recording.py); without rotations, from the layout's plan (bus/bulk_wire.py)."""
         if rotations is None:
-            return self._tf.encode(ids, position_m, stamp.seconds, stamp.nanos)
-        tf_head = _field(0x0A, stamp.SerializeToString()) + _PARENT_FIELD
+            return self._tf.encode(ids, position_m, seconds, nanos)
+        tf_head = head + _PARENT_FIELD  # (the timestamp is FrameTransform's field 1 too)
         out = []
         for sid, (x, y, z), rot in zip(ids, position_m.tolist(), rotations):
             tr = _double(0x09, x) + _double(0x11, y) + _double(0x19, z)
@@ -310,7 +327,7 @@ class _Transforms:
             got = self._tables[key_ids] = (StringTable(0x1A, ids), b"ids%d" % len(self._tables))
         table, ids_key = got
         area = Area(position_m)
-        sec, nan = area.varints(np.array([seconds])), area.varints(np.array([nanos]))
+        sec, nan = area.varint(seconds), area.varint(nanos)
         key = (ids_key, *area.key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
@@ -339,6 +356,7 @@ def _field(tag: int, data: bytes) -> bytes:
 
 _PARENT_FIELD = _string(0x12, ROOT_FRAME)  # FrameTransform.parent_frame_id
 _IDENTITY_FIELD = _field(0x2A, _IDENTITY.SerializeToString())  # FrameTransform.rotation
+_LINKS_FIELDS = _string(0x12, ROOT_FRAME) + _string(0x1A, "links")  # the `links` entity's fields after its timestamp, without lines
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

@@ -79,6 +79,8 @@ class RecorderWriter(Writer):
         index = cb.message_indices.get(channel_id)  # here: the flat (log time, offset) list of the channel
         if index is None:
             index = cb.message_indices[channel_id] = []
+        elif isinstance(index, np.ndarray):  # (a channel `_fold` filled: entries of the bulk paths)
+            index = cb.message_indices[channel_id] = index.tolist()
         index += (log_time, buf.tell())
         cb.num_messages += 1
         buf.write(_MESSAGE.pack(_OP_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence, log_time, publish_time))
@@ -156,24 +158,24 @@ class RecorderWriter(Writer):
             return
         bulk, self._bulk = self._bulk, []
         cids = np.concatenate([c for c, _a, _t in bulk])
-        at = np.concatenate([a for _c, a, _t in bulk])
-        lt = np.concatenate([np.full(len(c), t, dtype=np.int64) for c, _a, t in bulk])
         order = np.argsort(cids, kind="stable")  # (each channel's entries in file order)
-        groups = np.split(order, np.flatnonzero(np.diff(cids[order])) + 1)
+        pairs = np.empty((len(cids), 2), dtype=np.int64)  # (log time, offset) of each, by channel
+        pairs[:, 0] = np.concatenate([np.full(len(c), t, dtype=np.int64) for c, _a, t in bulk])[order]
+        pairs[:, 1] = np.concatenate([a for _c, a, _t in bulk])[order]
+        flat = pairs.ravel()
+        cs = cids[order]
+        starts = np.flatnonzero(np.r_[True, cs[1:] != cs[:-1]]).tolist()
         indices, counts = self._chunk.message_indices, self._stats.channel_message_counts
-        for g in groups:
-            cid = int(cids[g[0]])
-            flat = np.empty(2 * len(g), dtype=np.int64)
-            flat[0::2], flat[1::2] = lt[g], at[g]
-            counts[cid] += len(g)
+        for a, b, cid in zip(starts, starts[1:] + [len(cs)], cs[starts].tolist()):
+            counts[cid] += b - a
             old = indices.get(cid)
-            if old:  # (a channel written both ways: its entries in file order)
-                pairs = sorted(zip(old[1::2], old[0::2], strict=True))
-                pairs += zip(flat[1::2].tolist(), flat[0::2].tolist())
-                pairs.sort()
-                indices[cid] = [x for off, t in pairs for x in (t, off)]
+            entries = flat[2 * a:2 * b]  # (an array: `_write_pending` packs it as it is)
+            if old is not None and len(old):  # (a channel written both ways: its entries in file order)
+                old, new = list(old), entries.tolist()
+                merged = sorted(zip(old[1::2] + new[1::2], old[0::2] + new[0::2]))
+                indices[cid] = [x for off, t in merged for x in (t, off)]
             else:
-                indices[cid] = flat.tolist()
+                indices[cid] = entries
 
     def _Writer__finalize_chunk(self) -> None:  # noqa: N802 - overrides mcap's private __finalize_chunk
         """mcap 1.6's `Writer.__finalize_chunk` (ZSTD, enable_crcs as given), compressing with this
@@ -229,7 +231,10 @@ class RecorderWriter(Writer):
             for cid, flat in indices.items():  # MessageIndex records (mcap's MessageIndex.write), one pack each
                 index.message_index_offsets[cid] = index_start + rb.count
                 n = len(flat)
-                rb.write(struct.pack(f"<BQHI{n}Q", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n, *flat))
+                if isinstance(flat, np.ndarray):  # (a channel of `add_messages` / `add_records`: `_fold`)
+                    rb.write(struct.pack("<BQHI", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n) + flat.astype("<u8").tobytes())
+                else:
+                    rb.write(struct.pack(f"<BQHI{n}Q", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n, *flat))
         index.message_index_length = rb.count
         Writer._Writer__flush(self)  # type: ignore[attr-defined]
         self._Writer__chunk_indices.append(index)
@@ -318,4 +323,4 @@ class BulkRecords:
         piece_size = np.stack((np.full(n, hs), m_size), axis=1).ravel()
         ids = np.concatenate((heads.ravel(), *sources))[ranges(piece_start, piece_size)]
         rec_size = hs + m_size
-        return Gather(ids, self.pool), np.cumsum(rec_size) - rec_size, m_size
+        return Gather(ids, self.pool, sum(area_sizes)), np.cumsum(rec_size) - rec_size, m_size

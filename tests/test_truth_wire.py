@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
+from swarmhil.bus.truth_wire import HeaderEncoder, TickEncoder, TruthEncoder, encode_header, varint
 
 
 def _protobuf(run, source, step, t, seq, u, a, n, ids, kinds, pos, vel, dv, alive, acc, roe) -> bytes:
@@ -228,3 +228,20 @@ def test_recorded_truths_with_a_target_equal_protobuf(tmp_path) -> None:
                                     [t.velocity_mps.x, t.velocity_mps.y, t.velocity_mps.z],
                                     [t.attitude.w, t.attitude.x, t.attitude.y, t.attitude.z],
                                     [t.angular_velocity_radps.x, t.angular_velocity_radps.y, t.angular_velocity_radps.z])]) == data
+
+
+def test_ticks_equal_protobuf() -> None:
+    """The plant's tick (plant/node.py) written by TickEncoder: protobuf's bytes, with the alive flags
+    changing, steps and sequence numbers of several varint lengths, +0.0 / -0.0 / NaN times, final."""
+    rng = np.random.default_rng(5)
+    ids = [f"sc{i:02d}" for i in range(12)] + ["", "x" * 140]
+    enc = TickEncoder("run-t", ids)
+    for k in range(200):
+        alive = rng.random(len(ids)) < (0.9 if k % 3 else 0.5)
+        step, seq = int(rng.choice([0, k, 300, 2**33])), int(rng.choice([0, k, 2**20]))
+        t = float(rng.choice([0.0, -0.0, 10.0 * k, np.nan]))
+        u, step_s = float(rng.choice([0.0, -0.0, rng.standard_normal()])), float(rng.choice([10.0, 0.0]))
+        final = bool(k % 7 == 0)
+        msg = pb.Tick(header=pb.Header(run="run-t", source="plant", step=step, t=t, seq=seq), step_s=step_s, u_rad=u,
+                      alive=[s for s, a in zip(ids, alive) if a], final=final)
+        assert enc.encode(step, t, seq, step_s, u, alive, final) == msg.SerializeToString()
