@@ -313,8 +313,12 @@ class Area:
         self.key += [lens.tobytes(), present.tobytes()]
         return base + np.arange(data.size, dtype=np.int64).reshape(data.shape), lens, present
 
+    def chunks(self) -> list[np.ndarray]:
+        """The area's bytes in pieces (the doubles', then each varint array's)."""
+        return [self.doubles.view(np.uint8), *self._ints]
+
     def bytes(self) -> np.ndarray:
-        return np.concatenate([self.doubles.view(np.uint8), *self._ints])
+        return np.concatenate(self.chunks())
 
 
 class Gather:

@@ -283,18 +283,19 @@ class BulkRecords:
         rec = np.empty(n + 4, dtype="<u4")  # the sequence numbers, then the log and publish times
         rec[:n] = np.arange(sequence, sequence + n)
         rec[n:].view("<u8")[:] = (log_time, publish_time)
-        areas = [p.area.bytes() for p in parts]
-        areas.append(rec.view(np.uint8))
+        chunks = [c for p in parts for c in p.area.chunks()]
+        chunks.append(rec.view(np.uint8))
         key = (*(p.key for p in parts), channel_ids.tobytes())
         plan = self._plans.get(key)
         if plan is None:
             if len(self._plans) >= MAX_PLANS:
                 for k in list(self._plans)[:MAX_PLANS // 2]:
                     del self._plans[k]
-            plan = self._plans[key] = self._plan(parts, [len(a) for a in areas], channel_ids)
+            area_sizes = [sum(len(c) for c in p.area.chunks()) for p in parts] + [4 * len(rec)]
+            plan = self._plans[key] = self._plan(parts, area_sizes, channel_ids)
             self.built += 1
         gather, starts, sizes = plan
-        return gather(np.concatenate(areas)), starts, sizes
+        return gather(np.concatenate(chunks)), starts, sizes
 
     def _plan(self, parts: list[Prepared], area_sizes: list[int], channel_ids: np.ndarray
               ) -> tuple[Gather, np.ndarray, np.ndarray]:
