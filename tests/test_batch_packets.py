@@ -84,3 +84,24 @@ def test_opts_batch_false_runs_the_agents(tmp_path: Path, record: str) -> None:
     sc = load_scenario(SCENARIOS / "sabatini-20.toml").with_overrides(duration_s=20.0)
     res = run_in_process(sc, tmp_path / record, "off", opts={"batch": False}, record=record)
     assert res.summary["batch"] == {"used": False, "why_not": "batch mode off (opts batch = false)"}
+
+
+def test_dead_and_paused_agents_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
+    """Six spacecraft: sc03's flight software crashes at 50 s, sc04's is paused over [100, 150) s:
+    the batch run writes no packet of theirs while they are out, and their sequence numbers go on
+    from where they stopped, as the per-agent run's."""
+    import tomllib
+
+    from swarmhil.deploy.scenario import parse_scenario
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
+    d["run"]["duration_s"] = 200.0
+    d["dispersion"]["count"] = 6
+    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
+                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
+    sc = parse_scenario(d, "six.toml")
+    per_agent = run_in_process(sc, tmp_path / "agents", "out", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "out")
+    assert batch.summary["batch"]["used"]
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    assert n["sc/sc03/act"] == 5 and n["sc/sc04/act"] == 15 and n["sc/sc05/act"] == 20
