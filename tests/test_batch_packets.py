@@ -90,17 +90,11 @@ def test_dead_and_paused_agents_packets_are_the_per_agent_packets(tmp_path: Path
     """Six spacecraft: sc03's flight software crashes at 50 s, sc04's is paused over [100, 150) s:
     the batch run writes no packet of theirs while they are out, and their sequence numbers go on
     from where they stopped, as the per-agent run's."""
-    import tomllib
-
+    from conftest import six_with_process_faults
     from swarmhil.deploy.scenario import parse_scenario
 
-    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
-    d["run"]["duration_s"] = 200.0
-    d["dispersion"]["count"] = 6
-    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
-                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
-    sc = parse_scenario(d, "six.toml")
-    per_agent = run_in_process(sc, tmp_path / "agents", "out", opts={"batch": False})
+    sc = parse_scenario(six_with_process_faults(), "six.toml")
+    run_in_process(sc, tmp_path / "agents", "out", opts={"batch": False})
     batch = run_in_process(sc, tmp_path / "batch", "out")
     assert batch.summary["batch"]["used"]
     n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
