@@ -425,7 +425,10 @@ def _string(tag: int, s: str) -> bytes:
 
 class RelStimuli:
     """`swarmhil.v1.RelStimulus` of the observers of a step (plant/sensing/builtin.py RelKind.stimuli):
-    header (source `source`), u_rad, neighbours (RelativeState: id, position_m, velocity_mps, both assigned)."""
+    header (source `source`), u_rad, neighbours (RelativeState: id, position_m, velocity_mps, both
+    assigned); or `swarmhil.v1.Measurements`, the same fields then `items`: named flat arrays of the
+    same length for every observer (bus/codec.py `add_measurement` of a 1-D array: name, values; no
+    subject, no shape), such as the `relative` kind's own state."""
 
     def __init__(self, pool: Pool, run: str, source: str, ids: Sequence[str]) -> None:
         self.pool, self.plans = pool, Plans(pool)
@@ -433,19 +436,26 @@ class RelStimuli:
         self.ids = StringTable(0x0A, ids)
 
     def prepare(self, step: int, t: float, seq: np.ndarray, u_rad: float, offsets: np.ndarray, neighbour: np.ndarray,
-                rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray) -> Prepared:
+                rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray,
+                items: "dict[str, np.ndarray] | None" = None) -> Prepared:
         """The stimuli of R observers: observer r's neighbours are rows offsets[r]:offsets[r + 1] of
-        `neighbour` (indices into the ids) and the (P, 3) relative states."""
+        `neighbour` (indices into the ids) and the (P, 3) relative states; `items` (Measurements):
+        name -> (R, k) values, observer r's row r."""
         off = np.asarray(offsets, dtype=np.int64)
         nb = np.asarray(neighbour, dtype=np.int64)
         r, p = len(off) - 1, len(nb)
-        d = np.empty(2 + 6 * p)
+        named = [(name, np.asarray(v, dtype=float).reshape(r, -1)) for name, v in (items or {}).items()]
+        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named))
         d[0], d[1] = t, u_rad
-        d[2:].reshape(p, 6)[:, :3] = rel_position_m
-        d[2:].reshape(p, 6)[:, 3:] = rel_velocity_mps
+        d[2:2 + 6 * p].reshape(p, 6)[:, :3] = rel_position_m
+        d[2:2 + 6 * p].reshape(p, 6)[:, 3:] = rel_velocity_mps
+        at = 2 + 6 * p
+        for _n, v in named:
+            d[at:at + v.size] = v.ravel()
+            at += v.size
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
-        key = (off.tobytes(), nb.tobytes(), *area.key)
+        key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named))
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             pool = self.pool
@@ -457,7 +467,16 @@ class RelStimuli:
             m = Rows(r, pool).nested(0x0A, _header(r, pool, area, self.prefix, None, step_v, 0, seq_v))
             present, ids = area.double_ids(1, (1, 1))
             m.doubles((0x11,), np.broadcast_to(present, (r, 1)), np.broadcast_to(ids, (r, 1, 8)))
-            return m.segments(*entries, off).plan()
+            m.segments(*entries, off)
+            at = 2 + 6 * p
+            for name, v in named:  # Measurements.items (field 4): Measurement(name, values packed)
+                k = v.shape[1]
+                item = Rows(r, pool).const(_string(0x0A, name))
+                if k:
+                    item.packed(0x1A, area.double_ids(at, (r, k))[1].reshape(r, 8 * k))
+                m.nested(0x22, item)
+                at += r * k
+            return m.plan()
 
         return Prepared(key, area, self.plans, build)
 

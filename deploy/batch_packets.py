@@ -4,8 +4,10 @@ A batch run (deploy/batch.py) has no message between the plant and the flight so
 `--record all` the recording still holds every packet the per-agent in-process run records, with
 the same bytes and in the same order: per step, after the plant's tick, truth (and the Foxglove
 transforms and scene the recorder derives from it) and events, for each live spacecraft in id
-order its stimulus (`sc/<id>/sense/rel`), then its `act` and its `tm`, as the in-memory bus
+order its stimulus (`sc/<id>/sense/<kind>`), then its `act` and its `tm`, as the in-memory bus
 delivers them when the plant publishes stimulus after stimulus and each agent answers at once.
+The sensing kinds: `rel` (RelStimulus) and `relative` (Measurements with its own-state items;
+with noise the kind hands its messages themselves, which are written as they are).
 
 The messages are written from arrays (bus/bulk_wire.py): the stimuli from the step's `RelBatch`,
 the commands and telemetry from the commands in force and, where the controllers give them
@@ -30,17 +32,21 @@ from swarmhil.agent.batch import BatchAgents
 from swarmhil.agent.controller import Command
 from swarmhil.agent.node import actuator_command, isl_packet, telemetry
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.bulk_wire import AgentMessages, Pool, RelStimuli
-from swarmhil.bus.codec import header, sim_time_ns
+from swarmhil.bus.bulk_wire import AgentMessages, Pool, Prepared, RelStimuli
+from swarmhil.bus.codec import NamedRows, header, sense_type, sim_time_ns
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.mcap_writer import BulkRecords
 from swarmhil.bus.recorder import McapRecorder
 from swarmhil.link.node import enabled as channel_enabled
+from swarmhil.plant.flight import StimulusMessages
+
+
+PACKET_KINDS = ("rel", "relative")  # sensing kinds whose stimuli a batch run writes (RelStimulus, Measurements)
 
 
 def why_not_packets(sc: Any) -> str | None:
     """None when a batch run can record every packet (this module), else why not (one phrase)."""
-    if sc.sensing["kind"] != "rel":
+    if sc.sensing["kind"] not in PACKET_KINDS:
         return f"every packet of sensing kind {sc.sensing['kind']!r} is recorded by the per-agent path"
     if channel_enabled(sc, {}):
         return "every packet of a [link] run is recorded by the per-agent path"
@@ -59,7 +65,7 @@ class BatchPackets:
         n = len(self.ids)
         sense = [keys.sense(s, sense_kind) for s in self.ids]
         act, tm = [keys.act(s) for s in self.ids], [keys.tm(s) for s in self.ids]
-        self._cids = np.array([rec.channels(sense, [pb.RelStimulus] * n), rec.channels(act, [pb.ActuatorCommand] * n),
+        self._cids = np.array([rec.channels(sense, [sense_type(sense_kind)] * n), rec.channels(act, [pb.ActuatorCommand] * n),
                                rec.channels(tm, [pb.Telemetry] * n)]).T  # (N, 3): stimulus, act, tm of each
         self._all_cids = self._cids.ravel()
         self._seq_sense = np.zeros(n, dtype=np.uint64)  # the plant's seq on each sense key
@@ -84,15 +90,21 @@ class BatchPackets:
         r = len(rows)
         if r == 0:
             return
-        stim = self.stimuli.prepare(step, t_s, self._seq_sense[rows], u_rad, rel.offsets, rel.neighbour,
-                                    rel.rel_position_m, rel.rel_velocity_mps)
-        self._seq_sense[rows] += np.uint64(1)
+        stim: Prepared | None = None
+        if isinstance(rel, StimulusMessages):  # the kind's messages themselves (built with the plant's sequence numbers)
+            stim_msgs = [m.SerializeToString() for m in rel.messages]
+        else:
+            extra = getattr(rel, "extra", None)
+            stim = self.stimuli.prepare(step, t_s, self._seq_sense[rows], u_rad, rel.offsets, rel.neighbour,
+                                        rel.rel_position_m, rel.rel_velocity_mps,
+                                        extra.rows if isinstance(extra, NamedRows) else None)
+            self._seq_sense[rows] += np.uint64(1)
         seq = self._seq_agent[rows]
         self._seq_agent[rows] += np.uint64(1)
         acc = agents.accel_mps2 if r == len(self.ids) else agents.accel_mps2[rows]
         modes = agents.modes if r == len(self.ids) else [agents.modes[i] for i in rows.tolist()]
         cb = agents.last
-        fast = (decided and cb is not None and cb.decision_rows is not None and not agents.replaced
+        fast = (stim is not None and decided and cb is not None and cb.decision_rows is not None and not agents.replaced
                 and agents.decision_period_steps == 1)
         if fast:
             d = cb.decision_rows
@@ -107,7 +119,7 @@ class BatchPackets:
         else:
             if decided:
                 self._take_commands(rows, agents)
-            blob, e = stim.encode()
+            blob, e = stim.encode() if stim is not None else _joined(stim_msgs)
             cids_l, msgs = self._messages(step, t_s, rows, seq, blob, e, decided, compute_s)
             blob, e = _joined(msgs)
             self.rec.write_many(cids_l, blob, e[:-1], e[1:] - e[:-1], sim_time_ns(t_s))

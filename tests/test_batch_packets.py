@@ -99,3 +99,16 @@ def test_dead_and_paused_agents_packets_are_the_per_agent_packets(tmp_path: Path
     assert batch.summary["batch"]["used"]
     n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
     assert n["sc/sc03/act"] == 5 and n["sc/sc04/act"] == 15 and n["sc/sc05/act"] == 20
+
+
+@pytest.mark.parametrize("sets", [(), ("sensing.params.position_noise_m=0.01",)], ids=["ideal", "noisy"])
+def test_tersoff_packets_are_the_per_agent_packets(tmp_path: Path, sets: tuple[str, ...]) -> None:
+    """Paper 001 (tersoff-6, the `relative` kind's Measurements with the own state; with noise the
+    kind hands its messages themselves): every packet of the batch run is the per-agent run's."""
+    sc = load_scenario(SCENARIOS / "tersoff-6.toml", list(sets)).with_overrides(duration_s=500.0)
+    per_agent = run_in_process(sc, tmp_path / "agents", "p001", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "p001")
+    assert batch.summary["batch"] == {"used": True, "why_not": None}
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    assert n["truth"] == 101 and all(n[f"sc/{s}/sense/relative"] == 100 for s in sc.ids)
+    assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0

@@ -107,3 +107,34 @@ def test_stimuli_commands_telemetry_as_protobuf(seed: int, dense: bool) -> None:
                 _check_agents(a_enc, ids, names, step, t, seq, rows, acc, modes, cs, off, dec)
     if dense:  # (the second encoding of a dense layout is often the same layout: a kept plan)
         assert stim.plans.built < 6 or agents.tm_plans.built < 6
+
+
+@pytest.mark.parametrize("dense", [False, True], ids=["zeros", "dense"])
+def test_measurements_with_items_as_protobuf(dense: bool) -> None:
+    """`Measurements` (neighbours, then named flat arrays: the `relative` kind's own state) as
+    plant/sensing/builtin.py RelativeKind.stimulus builds them with bus/codec.py add_measurement."""
+    from swarmhil.bus.codec import add_measurement
+
+    rng = np.random.default_rng(11)
+    ids = [f"sc{i:02d}" for i in range(6)]
+    enc = RelStimuli(Pool(), "run-m", "plant", ids)
+    for step in range(1, 12):
+        r = int(rng.integers(1, 6))
+        counts = rng.integers(0, 4, r)
+        off = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+        p = int(off[-1])
+        nb = rng.integers(0, len(ids), p)
+        rp, rv = _values(rng, (p, 3), dense), _values(rng, (p, 3), dense)
+        items = {"own_position_m": _values(rng, (r, 3), dense), "own_velocity_mps": _values(rng, (r, 3), dense),
+                 "none": np.zeros((r, 0))}
+        seq = np.full(r, step, dtype=np.uint64)
+        blob, ends = enc.prepare(step, 5.0 * step, seq, 0.25, off, nb, rp, rv, items).encode()
+        for i, b in enumerate(split(blob, ends)):
+            m = pb.Measurements(header=pb.Header(run="run-m", source="plant", step=step, t=5.0 * step, seq=step), u_rad=0.25)
+            for k in range(off[i], off[i + 1]):
+                e = m.neighbours.add(id=ids[nb[k]])
+                e.position_m.x, e.position_m.y, e.position_m.z = rp[k].tolist()
+                e.velocity_mps.x, e.velocity_mps.y, e.velocity_mps.z = rv[k].tolist()
+            for name, v in items.items():
+                add_measurement(m, name, v[i])
+            assert b == m.SerializeToString()
