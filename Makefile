@@ -67,10 +67,12 @@ test-browser: setup-system
 
 test-all: test test-system
 
-# Every speed ratio of the run modes (bench/bench_backbone.py), then papers 001, 003 and 004: batch run ÷ vectorised floor.
+# Every speed ratio of the run modes (bench/bench_backbone.py), then papers 001, 003 and 004: batch run ÷ vectorised floor,
+# then every packet against the truth only (sabatini-20, 24 h: truth-only batch, every-packet batch, per agent).
 bench: setup
 	$(PY) bench/bench_backbone.py
 	$(PY) bench/bench_batch_missions.py --floors
+	$(PY) bench/bench_record_all.py
 
 # The periodic soak check (issue 17): drift-20, 24 h in real time at x100 (about 15 min wall);
 # `bench/soak.py` alone runs it at x500. Deadline misses and memory slope per process.

@@ -41,6 +41,7 @@ class BatchAgents:
         self.faults: dict[str, dict[str, int]] = {}
         self.steps = 0
         self.last: CommandBatch | None = None  # the last decision's commands (full Commands on demand)
+        self.replaced: list[int] = []  # rows of the last decision whose command became zero (raised, non-finite)
         # does any controller read its observation (a class may declare `observes = False`)?
         self.observes = any(getattr(c, "observes", True) for c in self.controllers)
         kinds = {type(c) for c in self.controllers}
@@ -86,6 +87,7 @@ class BatchAgents:
             acc = np.asarray(cb.accel_mps2, dtype=float)
             tq = None if cb.torque_nm is None else np.asarray(cb.torque_nm, dtype=float)  # None: zeros
             modes = list(cb.modes)
+            self.replaced = list(cb.raised)
             # a finite sum means every entry is finite; otherwise find the rows (or the sum overflowed).
             # As AgentNode: a non-finite acceleration or torque commands zero (no torque) instead
             total = 0.0 if cb.finite else np.add.reduce(acc, axis=None) + (0.0 if tq is None else np.add.reduce(tq, axis=None))
@@ -101,6 +103,7 @@ class BatchAgents:
                               self.controllers[i].name, acc[r], tq[r])
                     acc[r] = tq[r] = 0.0
                     modes[r] = "fault"
+                    self.replaced.append(r)
             if len(rows) == len(self.ids):
                 self.accel_mps2[:] = acc
                 if tq is not None or self._torques:

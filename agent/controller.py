@@ -178,6 +178,23 @@ class ObservationBatch:
 
 
 @dataclass
+class DecisionRows:
+    """The decisions of every command of a CommandBatch as arrays: observer i's are rows
+    offsets[i]:offsets[i + 1], each a `Decision(neighbour_ids[r], labels[behaviour[r]], d_min_m[r],
+    roe_rel_m[r], accel_mps2[r])`. A CommandBatch that carries them says each of its commands is its
+    acceleration, mode and these decisions, nothing else (no transmissions, torque or extra arrays):
+    its telemetry can be written from the arrays (deploy/batch_packets.py)."""
+
+    offsets: np.ndarray  # (N + 1,)
+    neighbour_ids: list[str]  # (P,)
+    labels: tuple[str, ...]
+    behaviour: np.ndarray  # (P,) index into labels
+    d_min_m: np.ndarray  # (P,)
+    roe_rel_m: np.ndarray  # (P, 6)
+    accel_mps2: np.ndarray  # (P, 3)
+
+
+@dataclass
 class CommandBatch:
     """The commands of the N observers of an ObservationBatch: accelerations (N, 3) and modes, and
     each one's full `Command` (decisions, transmissions, torque) on demand (`command(i)`), which a
@@ -190,6 +207,7 @@ class CommandBatch:
     raised: tuple[int, ...] = ()  # observers whose software raised (a batch path that caught it: commanded zero, counted)
     finite: bool = False  # every acceleration (and torque) is finite: the batch path that made them checked it
     sent: Callable[[int], list[Transmission]] | None = None  # observer i -> command(i).transmissions, without the Command
+    decision_rows: "DecisionRows | None" = None  # every command's decisions as arrays, where they are all it holds besides accel and mode
 
     def command(self, i: int) -> Command:
         if self.build is not None:

@@ -102,9 +102,7 @@ class AgentNode:
         self.inbox.append(pkt)
 
     def _transmit(self, step: int, t: float, tx: Any) -> None:
-        pkt = pb.IslPacket(header=self._hdr(self._tx_key, step, t), src=self.id, dst=tx.dst, type=tx.type,
-                           payload=tx.payload, sent_t=t)
-        self.bus.publish(self._tx_key, pkt.SerializeToString())
+        self.bus.publish(self._tx_key, isl_packet(self._hdr(self._tx_key, step, t), self.id, tx, t).SerializeToString())
 
     def _publish_image(self, png: bytes, t: float) -> None:
         from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
@@ -156,26 +154,44 @@ class AgentNode:
             txs += self.beacon.emit(step, t, self.command)
         for tx in txs:
             self._transmit(step, t, tx)
-        accel = vec(self.command.accel_mps2)
         name = self.controller.name
-        act = pb.ActuatorCommand(header=self._hdr(self._act_key, step, t), accel_mps2=accel, controller=name,
-                                 isl_tx_count=len(txs))
-        if self.command.torque_nm is not None:
-            act.torque_nm.CopyFrom(vec(self.command.torque_nm))
+        act = actuator_command(self._hdr(self._act_key, step, t), self.command, name, len(txs))
         self.bus.publish(self._act_key, act.SerializeToString())
-        tm = pb.Telemetry(header=self._hdr(self._tm_key, step, t), mode=self.command.mode, controller=name,
-                          accel_mps2=accel, compute_s=compute_s, rejected_packets=self.rejections.total)
-        for name, values in self.command.extra.items():
-            add_measurement(tm, name, values)
+        tm = telemetry(self._hdr(self._tm_key, step, t), self.command, name, compute_s, self.rejections.total)
         if self.perception is not None:
             tm.tracks.extend(self.perception.track_messages())
             png = self.perception.debug_image(t)
             if png is not None:
                 self._publish_image(png, t)
-        add_decision = tm.decisions.add  # built in place (append would copy each message)
-        for d in self.command.decisions:
-            q = add_decision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
-                             roe_rel_m=np.asarray(d.roe_rel_m, dtype=float).tolist()).accel_mps2
-            q.x, q.y, q.z = np.asarray(d.accel_mps2, dtype=float).tolist()[:3]
         self.bus.publish(self._tm_key, tm.SerializeToString())
         self.steps += 1
+
+
+def isl_packet(hdr: pb.Header, src: str, tx: Any, t: float) -> pb.IslPacket:
+    """The IslPacket an agent publishes on its isl/tx key for a Transmission of its command."""
+    return pb.IslPacket(header=hdr, src=src, dst=tx.dst, type=tx.type, payload=tx.payload, sent_t=t)
+
+
+def actuator_command(hdr: pb.Header, cmd: Command, controller: str, isl_tx_count: int) -> pb.ActuatorCommand:
+    """The ActuatorCommand an agent publishes for the command in force (torque where it has one)."""
+    act = pb.ActuatorCommand(header=hdr, accel_mps2=vec(cmd.accel_mps2), controller=controller,
+                             isl_tx_count=isl_tx_count)
+    if cmd.torque_nm is not None:
+        act.torque_nm.CopyFrom(vec(cmd.torque_nm))
+    return act
+
+
+def telemetry(hdr: pb.Header, cmd: Command, controller: str, compute_s: float, rejected_packets: int) -> pb.Telemetry:
+    """The Telemetry an agent publishes for the command in force: mode, acceleration, its extra
+    arrays (items) and decisions (the tracks of a perception are added by the caller, before the
+    decisions: protobuf writes fields in number order)."""
+    tm = pb.Telemetry(header=hdr, mode=cmd.mode, controller=controller, accel_mps2=vec(cmd.accel_mps2),
+                      compute_s=compute_s, rejected_packets=rejected_packets)
+    for name, values in cmd.extra.items():
+        add_measurement(tm, name, values)
+    add_decision = tm.decisions.add  # built in place (append would copy each message)
+    for d in cmd.decisions:
+        q = add_decision(neighbour=d.neighbour, behaviour=d.behaviour, d_min_m=float(d.d_min_m),
+                         roe_rel_m=np.asarray(d.roe_rel_m, dtype=float).tolist()).accel_mps2
+        q.x, q.y, q.z = np.asarray(d.accel_mps2, dtype=float).tolist()[:3]
+    return tm

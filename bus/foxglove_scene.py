@@ -47,7 +47,8 @@ from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 from google.protobuf.timestamp_pb2 import Timestamp
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.truth_wire import varint
+from swarmhil.bus.bulk_wire import Area, Plans, Pool, Prepared, Rows, StringTable
+from swarmhil.bus.truth_wire import _double, _string, varint
 
 ROOT_FRAME = "lvlh"
 TF_TOPIC = "foxglove/tf"
@@ -158,6 +159,8 @@ class FoxgloveScene:
         self._faulty: dict[str, int] = {}  # spacecraft id -> [[fault]]s active on it (the `faults` topic)
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
         self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
+        self._tf = _Transforms()
+        self._body_templates: dict[tuple, list[bytes]] = {}  # ((ids, kinds, alive, modes, faults), timestamp length) -> pieces
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
         """The entity of a body without its timestamp (built once per body, state and mode)."""
@@ -204,6 +207,15 @@ class FoxgloveScene:
         if src and dst:
             self._links.add((src, dst))
 
+    def saw_modes(self, ids: list[str], modes: list[str]) -> None:
+        """The modes of the agents' telemetry (`derive` of each one's Telemetry: an empty mode is not kept)."""
+        if "" not in modes:
+            self._modes.update(zip(ids, modes))
+            return
+        for sid, mode in zip(ids, modes):
+            if mode:
+                self._modes[sid] = mode
+
     # the message classes `derive` looks at: a recorder need not decode a sample of any other class
     DERIVES_FROM: frozenset[type] = frozenset({pb.Truth, pb.Event, pb.IslPacket, pb.Telemetry})
 
@@ -223,47 +235,128 @@ class FoxgloveScene:
         if cls is pb.IslPacket and topic.startswith("isl/rx/"):
             self.saw_delivery(msg.src, topic[len("isl/rx/"):])
         elif cls is pb.Telemetry and msg.mode and topic.startswith("sc/") and topic.endswith("/tm"):
-            self._modes[topic[3:-3]] = msg.mode   # sc/<id>/tm: the sphere's colour from the next truth on
+            self.saw_modes([topic[3:-3]], [msg.mode])   # sc/<id>/tm: the sphere's colour from the next truth on
         return []
 
     def from_truth(self, truth: Any, t_ns: int) -> tuple[bytes, bytes]:
-        stamp = _timestamp(t_ns)
-        n_radps, t_s = truth.mean_motion_radps, truth.header.t
-        tf = FrameTransforms()
-        add_transform = tf.transforms.add
+        """(FrameTransforms, SceneUpdate) of a decoded Truth."""
+        bodies = truth.bodies
+        ids, kinds, alive = [b.id for b in bodies], [b.kind for b in bodies], [b.alive for b in bodies]
+        pos = np.array([(q.x, q.y, q.z) for q in (b.position_m for b in bodies)], dtype=float).reshape(-1, 3)
+        rotations = None
+        if any(b.HasField("attitude") for b in bodies):  # the frame rotations (identity without attitude)
+            n_radps, t_s = truth.mean_motion_radps, truth.header.t
+            rotations = [_rotation(b, n_radps, t_s).SerializeToString() if b.HasField("attitude") else None for b in bodies]
+        return self.from_bodies(ids, kinds, alive, pos, t_ns, rotations)
+
+    def from_bodies(self, ids: list[str], kinds: list[str], alive: list[bool], position_m: np.ndarray, t_ns: int,
+                    rotations: list[bytes | None] | None = None) -> tuple[bytes, bytes]:
+        """(FrameTransforms, SceneUpdate) of the truth's bodies: ids, kinds, alive, positions (N, 3),
+        and each one's serialised frame rotation (None: the identity; `rotations` None: all). What
+        `from_truth` gives for the Truth that carries them (a batch run's recorder passes its
+        plant's arrays: bus/recorder.py `next_truth`)."""
+        seconds, nanos = divmod(t_ns, 1_000_000_000)
         # SceneUpdate's entities (field 2) as bytes: each entity is its template's fields after its
         # timestamp (field 1; protobuf writes fields in number order), so one serialised template per
         # body and state is reused; tests/test_foxglove_recording.py checks the bytes against the entities
-        # built field by field
-        stamped = SceneEntity()
-        stamped.timestamp.CopyFrom(stamp)
-        head = stamped.SerializeToString()
-        entities: list[bytes] = []
-        pos: dict[str, Vector3] = {}
-        for b in truth.bodies:
-            q = b.position_m
-            p = pos[b.id] = Vector3(x=q.x, y=q.y, z=q.z)
-            add_transform(timestamp=stamp, parent_frame_id=ROOT_FRAME, child_frame_id=b.id, translation=p,
-                          rotation=_rotation(b, n_radps, t_s))
-            entities.append(_entity_field(head + self._serialized_template(b.id, b.kind, b.alive)))
-        links = SceneEntity(timestamp=stamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+        # built field by field. `head`: the timestamp field, Timestamp(seconds, nanos) (both >= 0 here)
+        head = _field(0x0A, (b"\x08" + varint(seconds) if seconds else b"") + (b"\x10" + varint(nanos) if nanos else b""))
+        modes, faulty = self._modes, self._faulty
+        state = (tuple(ids), tuple(kinds), tuple(alive), tuple([modes.get(i, "") for i in ids]),
+                 tuple([faulty.get(i, 0) > 0 for i in ids]) if faulty else ())
+        key = (state, len(head))
+        pieces = self._body_templates.get(key)
+        if pieces is None:  # (every body's entity in this state around the timestamp's place, kept: states recur)
+            if len(self._body_templates) > 4096:
+                self._body_templates.clear()
+            templates = [self._serialized_template(i, k, a) for i, k, a in zip(ids, kinds, alive)]
+            heads = [b"\x12" + varint(len(head) + len(t)) for t in templates]  # SceneUpdate.entities: tag, length
+            pieces = self._body_templates[key] = [a + b for a, b in zip([b""] + templates, heads + [b""])]
+        # entity i is heads[i] + head + templates[i]: the pieces joined by the timestamp
+        entities = [head.join(pieces)] if len(pieces) > 1 else []
+        if not self._links:  # SceneEntity(timestamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
+            entities.append(_entity_field(head + _LINKS_FIELDS))
+            return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
+        links = SceneEntity(timestamp=_timestamp(t_ns), frame_id=ROOT_FRAME, id="links", frame_locked=False)
         if self._links:
+            pos = dict(zip(ids, position_m.tolist()))
             line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
                                  scale_invariant=True, color=_GREEN)
             for src, dst in sorted(self._links):
                 if src in pos and dst in pos:
-                    for v in (pos[src], pos[dst]):
-                        line.points.append(Point3(x=v.x, y=v.y, z=v.z))
+                    for x, y, z in (pos[src], pos[dst]):
+                        line.points.append(Point3(x=x, y=y, z=z))
             if line.points:
                 links.lines.append(line)
             self._links.clear()
         entities.append(_entity_field(links.SerializeToString()))
-        return tf.SerializeToString(), b"".join(entities)
+        return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
+
+    def _transforms(self, ids: list[str], position_m: np.ndarray, seconds: int, nanos: int, head: bytes,
+                    rotations: list[bytes | None] | None) -> bytes:
+        """FrameTransforms' transforms (field 1) as bytes: each FrameTransform's fields in number order
+        (timestamp, parent, child, translation, rotation), the same bytes as the message built field
+        by field (tests/test_foxglove_recording.py); without rotations, from the layout's plan (bus/bulk_wire.py)."""
+        if rotations is None:
+            return self._tf.encode(ids, position_m, seconds, nanos)
+        tf_head = head + _PARENT_FIELD  # (the timestamp is FrameTransform's field 1 too)
+        out = []
+        for sid, (x, y, z), rot in zip(ids, position_m.tolist(), rotations):
+            tr = _double(0x09, x) + _double(0x11, y) + _double(0x19, z)
+            out.append(_field(0x0A, tf_head + _string(0x1A, sid) + _field(0x22, tr)
+                              + (_IDENTITY_FIELD if rot is None else _field(0x2A, rot))))
+        return b"".join(out)
+
+
+class _Transforms:
+    """FrameTransforms of bodies with identity rotations from arrays, one plan per layout (the ids,
+    which coordinates are +0.0, the timestamp's varints' lengths: bus/bulk_wire.py)."""
+
+    def __init__(self) -> None:
+        self.pool = Pool()
+        self.plans = Plans(self.pool)
+        self._tables: dict[tuple[str, ...], tuple[StringTable, bytes]] = {}  # ids -> their table, key
+
+    def encode(self, ids: list[str], position_m: np.ndarray, seconds: int, nanos: int) -> bytes:
+        n = len(ids)
+        if n == 0:
+            return b""
+        key_ids = tuple(ids)
+        got = self._tables.get(key_ids)
+        if got is None:
+            got = self._tables[key_ids] = (StringTable(0x1A, ids), b"ids%d" % len(self._tables))
+        table, ids_key = got
+        area = Area(position_m)
+        sec, nan = area.varint(seconds), area.varint(nanos)
+        key = (ids_key, *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool = self.pool
+            ts = Rows(n, pool)
+            for tag, (v_ids, lens, present) in ((0x08, sec), (0x10, nan)):
+                ts.varints(tag, np.broadcast_to(v_ids, (n, v_ids.shape[1])), np.broadcast_to(lens, (n,)),
+                           np.broadcast_to(present, (n,)))
+            present, v = area.double_ids(0, (n, 3))
+            t = Rows(n, pool).nested(0x0A, ts).const(_PARENT_FIELD).strings(table, np.arange(n))
+            t.nested(0x22, Rows(n, pool).doubles((0x09, 0x11, 0x19), present, v)).const(_IDENTITY_FIELD)
+            return Rows(n, pool).nested(0x0A, t).plan()
+
+        return Prepared(key, area, self.plans, build).encode()[0]
 
 
 def _entity_field(entity: bytes) -> bytes:
     """One serialised SceneEntity as SceneUpdate's field 2 (`entities`): tag, varint length, bytes."""
     return b"\x12" + varint(len(entity)) + entity
+
+
+def _field(tag: int, data: bytes) -> bytes:
+    """A length-delimited field (a sub-message that is present, even when empty)."""
+    return bytes((tag,)) + varint(len(data)) + data
+
+
+_PARENT_FIELD = _string(0x12, ROOT_FRAME)  # FrameTransform.parent_frame_id
+_IDENTITY_FIELD = _field(0x2A, _IDENTITY.SerializeToString())  # FrameTransform.rotation
+_LINKS_FIELDS = _string(0x12, ROOT_FRAME) + _string(0x1A, "links")  # the `links` entity's fields after its timestamp, without lines
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

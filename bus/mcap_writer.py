@@ -26,15 +26,20 @@ from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from typing import IO, Any
 
+import numpy as np
 import zstandard
 from mcap.records import Chunk, ChunkIndex
 from mcap.writer import CompressionType, IndexType, Writer
+
+from swarmhil.bus.bulk_wire import MAX_PLANS, Gather, Pool, Prepared, ranges
 
 ZSTD_LEVEL = 1
 _MESSAGE = struct.Struct("<BQHIQQ")  # opcode 0x05, record length, channel id, sequence, log time, publish time
 _OP_MESSAGE = 0x05
 _OP_MESSAGE_INDEX = 0x07
 _MESSAGE_FIXED = 2 + 4 + 8 + 8  # the record's bytes before its data
+_MESSAGE_DTYPE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"), ("sequence", "<u4"),
+                           ("log_time", "<u8"), ("publish_time", "<u8")])  # _MESSAGE as a packed record
 
 
 class RecorderWriter(Writer):
@@ -42,6 +47,7 @@ class RecorderWriter(Writer):
 
     def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL, background: bool = False) -> None:
         self._pending: deque[tuple] = deque()  # closed chunks, in order: (future, start, end, size, message indexes)
+        self._bulk: list[tuple[np.ndarray, np.ndarray, int]] = []  # add_messages of the open chunk: (channels, offsets, log time)
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-zstd") if background else None
         super().__init__(output, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
@@ -73,12 +79,103 @@ class RecorderWriter(Writer):
         index = cb.message_indices.get(channel_id)  # here: the flat (log time, offset) list of the channel
         if index is None:
             index = cb.message_indices[channel_id] = []
+        elif isinstance(index, np.ndarray):  # (a channel `_fold` filled: entries of the bulk paths)
+            index = cb.message_indices[channel_id] = index.tolist()
         index += (log_time, buf.tell())
         cb.num_messages += 1
         buf.write(_MESSAGE.pack(_OP_MESSAGE, _MESSAGE_FIXED + len(data), channel_id, sequence, log_time, publish_time))
         buf.write(data)
         if buf.tell() > self._fast_chunk_size:
             self._Writer__finalize_chunk()
+
+    def add_messages(self, channel_ids: list[int], log_time: int, blob: bytes, starts: np.ndarray, sizes: np.ndarray,
+                     publish_time: int, sequence: int) -> None:
+        """`add_message` of n messages of one log time at once: message i is
+        blob[starts[i]:starts[i] + sizes[i]] on channel_ids[i], with sequence `sequence + i`. The same
+        records; they go to the chunk as one buffer (the chunk is closed after them, not between), and
+        their message index entries and channel counts are added when the chunk is closed (`_fold`)."""
+        n = len(channel_ids)
+        if not self._fast:
+            for i, (a, m) in enumerate(zip(np.asarray(starts).tolist(), np.asarray(sizes).tolist())):
+                self.add_message(channel_ids[i], log_time, blob[a:a + m], publish_time, sequence + i)
+            return
+        if n == 0:
+            return
+        buf = self._count(n, log_time)
+        size = np.asarray(sizes, dtype=np.int64)
+        head = np.empty(n, dtype=_MESSAGE_DTYPE)
+        head["op"] = _OP_MESSAGE
+        head["length"] = _MESSAGE_FIXED + size
+        head["channel"] = channel_ids
+        head["sequence"] = np.arange(sequence, sequence + n)
+        head["log_time"] = log_time
+        head["publish_time"] = publish_time
+        # the records: each one's 31-byte head, then its data, gathered from the heads and the blob
+        hs = _MESSAGE.size
+        piece_start = np.empty((n, 2), dtype=np.int64)
+        piece_start[:, 0] = np.arange(0, n * hs, hs)
+        piece_start[:, 1] = np.asarray(starts, dtype=np.int64) + n * hs
+        pieces = np.empty((n, 2), dtype=np.int64)
+        pieces[:, 0] = hs
+        pieces[:, 1] = size
+        piece_size = pieces.ravel()
+        end = np.cumsum(piece_size)
+        src = np.concatenate((head.view(np.uint8), np.frombuffer(blob, dtype=np.uint8)))
+        at = buf.tell()
+        self._bulk.append((np.asarray(channel_ids, dtype=np.int64), at + end[0::2] - hs, log_time))
+        buf.write(src[np.repeat(piece_start.ravel() - (end - piece_size), piece_size) + np.arange(int(end[-1]))].tobytes())
+        if buf.tell() > self._fast_chunk_size:
+            self._Writer__finalize_chunk()
+
+    def _count(self, n: int, log_time: int) -> Any:
+        """The file's and the open chunk's statistics of n more messages at `log_time` (as
+        `add_message` keeps them); the chunk's buffer."""
+        st, cb = self._stats, self._chunk
+        for rec, empty in ((st, st.message_count == 0), (cb, cb.num_messages == 0)):
+            if empty or log_time < rec.message_start_time:
+                rec.message_start_time = log_time
+            if log_time > rec.message_end_time:
+                rec.message_end_time = log_time
+        st.message_count += n
+        cb.num_messages += n
+        return cb.record_writer._buffer
+
+    def add_records(self, channel_ids: np.ndarray, log_time: int, records: bytes, starts: np.ndarray) -> None:
+        """Message records already made (`BulkRecords`: their sequence numbers and publish time in
+        them), all of log time `log_time`, record i at records[starts[i]:] on channel_ids[i]."""
+        n = len(channel_ids)
+        if n == 0:
+            return
+        buf = self._count(n, log_time)
+        self._bulk.append((channel_ids, buf.tell() + starts, log_time))
+        buf.write(records)
+        if buf.tell() > self._fast_chunk_size:
+            self._Writer__finalize_chunk()
+
+    def _fold(self) -> None:
+        """The message index entries and channel counts of the open chunk's `add_messages`."""
+        if not self._bulk:
+            return
+        bulk, self._bulk = self._bulk, []
+        cids = np.concatenate([c for c, _a, _t in bulk])
+        order = np.argsort(cids, kind="stable")  # (each channel's entries in file order)
+        pairs = np.empty((len(cids), 2), dtype=np.int64)  # (log time, offset) of each, by channel
+        pairs[:, 0] = np.concatenate([np.full(len(c), t, dtype=np.int64) for c, _a, t in bulk])[order]
+        pairs[:, 1] = np.concatenate([a for _c, a, _t in bulk])[order]
+        flat = pairs.ravel()
+        cs = cids[order]
+        starts = np.flatnonzero(np.r_[True, cs[1:] != cs[:-1]]).tolist()
+        indices, counts = self._chunk.message_indices, self._stats.channel_message_counts
+        for a, b, cid in zip(starts, starts[1:] + [len(cs)], cs[starts].tolist()):
+            counts[cid] += b - a
+            old = indices.get(cid)
+            entries = flat[2 * a:2 * b]  # (an array: `_write_pending` packs it as it is)
+            if old is not None and len(old):  # (a channel written both ways: its entries in file order)
+                old, new = list(old), entries.tolist()
+                merged = sorted(zip(old[1::2] + new[1::2], old[0::2] + new[0::2]))
+                indices[cid] = [x for off, t in merged for x in (t, off)]
+            else:
+                indices[cid] = entries
 
     def _Writer__finalize_chunk(self) -> None:  # noqa: N802 - overrides mcap's private __finalize_chunk
         """mcap 1.6's `Writer.__finalize_chunk` (ZSTD, enable_crcs as given), compressing with this
@@ -92,6 +189,7 @@ class RecorderWriter(Writer):
         cb = self._chunk
         if cb.num_messages == 0:
             return
+        self._fold()
         if self._Writer__record_builder.count:  # records written since the last chunk go before this one
             self._Writer__flush()
         else:
@@ -133,7 +231,10 @@ class RecorderWriter(Writer):
             for cid, flat in indices.items():  # MessageIndex records (mcap's MessageIndex.write), one pack each
                 index.message_index_offsets[cid] = index_start + rb.count
                 n = len(flat)
-                rb.write(struct.pack(f"<BQHI{n}Q", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n, *flat))
+                if isinstance(flat, np.ndarray):  # (a channel of `add_messages` / `add_records`: `_fold`)
+                    rb.write(struct.pack("<BQHI", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n) + flat.astype("<u8").tobytes())
+                else:
+                    rb.write(struct.pack(f"<BQHI{n}Q", _OP_MESSAGE_INDEX, 6 + 8 * n, cid, 8 * n, *flat))
         index.message_index_length = rb.count
         Writer._Writer__flush(self)  # type: ignore[attr-defined]
         self._Writer__chunk_indices.append(index)
@@ -162,3 +263,65 @@ class _Done:
 
     def done(self) -> bool:
         return True
+
+
+class BulkRecords:
+    """The MCAP Message records of a step's messages from several bus/bulk_wire.py encoders,
+    interleaved (message r of each encoder in turn, r = 0, 1, ...), in one gather: each record's
+    head (opcode, length, channel, sequence, log time, publish time) and its message. The plan of a
+    layout (the encoders' layouts and the channels) is kept as theirs are."""
+
+    def __init__(self, pool: Pool) -> None:
+        self.pool = pool
+        self._plans: dict[tuple, tuple[Gather, np.ndarray, np.ndarray]] = {}
+        self.built = 0
+
+    def take(self, parts: list[Prepared], channel_ids: np.ndarray, sequence: int, log_time: int,
+             publish_time: int) -> tuple[bytes, np.ndarray, np.ndarray]:
+        """(records, each record's start in them, each message's size)."""
+        n = len(channel_ids)
+        rec = np.empty(n + 4, dtype="<u4")  # the sequence numbers, then the log and publish times
+        rec[:n] = np.arange(sequence, sequence + n)
+        rec[n:].view("<u8")[:] = (log_time, publish_time)
+        chunks = [c for p in parts for c in p.area.chunks()]
+        chunks.append(rec.view(np.uint8))
+        key = (*(p.key for p in parts), channel_ids.tobytes())
+        plan = self._plans.get(key)
+        if plan is None:
+            if len(self._plans) >= MAX_PLANS:
+                for k in list(self._plans)[:MAX_PLANS // 2]:
+                    del self._plans[k]
+            area_sizes = [sum(len(c) for c in p.area.chunks()) for p in parts] + [4 * len(rec)]
+            plan = self._plans[key] = self._plan(parts, area_sizes, channel_ids)
+            self.built += 1
+        gather, starts, sizes = plan
+        return gather(np.concatenate(chunks)), starts, sizes
+
+    def _plan(self, parts: list[Prepared], area_sizes: list[int], channel_ids: np.ndarray
+              ) -> tuple[Gather, np.ndarray, np.ndarray]:
+        subs = [p.plan() for p in parts]
+        n_rows = len(subs[0][1]) - 1
+        sources, starts, sizes = [], [], []
+        at = base = 0
+        for (ids, ends), size in zip(subs, area_sizes):
+            sources.append(np.where(ids >= 0, ids + base, ids))  # the part's area ids, in the step's area
+            starts.append(ends[:-1] + at)
+            sizes.append(ends[1:] - ends[:-1])
+            at += len(ids)
+            base += size
+        m_start = np.stack(starts, axis=1).ravel()  # message r of each part in turn
+        m_size = np.stack(sizes, axis=1).ravel()
+        n = len(m_size)
+        assert n == len(channel_ids) == n_rows * len(parts)
+        fixed = np.zeros(n, dtype=[("op", "u1"), ("length", "<u8"), ("channel", "<u2")])
+        fixed["op"], fixed["length"], fixed["channel"] = _OP_MESSAGE, _MESSAGE_FIXED + m_size, channel_ids
+        rec_base = base  # the sequence numbers' bytes, then the two times'
+        heads = np.concatenate((self.pool.block(fixed.view(np.uint8).reshape(n, 11)),
+                                rec_base + np.arange(4 * n).reshape(n, 4),
+                                np.broadcast_to(rec_base + 4 * n + np.arange(16), (n, 16))), axis=1)
+        hs = _MESSAGE.size
+        piece_start = np.stack((np.arange(0, n * hs, hs), n * hs + m_start), axis=1).ravel()
+        piece_size = np.stack((np.full(n, hs), m_size), axis=1).ravel()
+        ids = np.concatenate((heads.ravel(), *sources))[ranges(piece_start, piece_size)]
+        rec_size = hs + m_size
+        return Gather(ids, self.pool, sum(area_sizes)), np.cumsum(rec_size) - rec_size, m_size

@@ -30,14 +30,18 @@ import time
 from pathlib import Path
 from typing import Any, BinaryIO
 
+import numpy as np
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.message import DecodeError, Message
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
+from swarmhil.bus.bulk_wire import Prepared
 from swarmhil.bus.codec import command_rejection, message_type_of_topic, sim_time_ns
-from swarmhil.bus.foxglove_scene import FoxgloveScene
-from swarmhil.bus.mcap_writer import RecorderWriter
+from swarmhil.bus.foxglove_scene import SCENE_TOPIC, TF_TOPIC, FoxgloveScene
+from swarmhil.bus.mcap_writer import BulkRecords, RecorderWriter
 from swarmhil.bus.keys import Keys
 
 log = logging.getLogger("swarmhil.recorder")
@@ -106,10 +110,15 @@ class McapRecorder:
         self.rejected = 0          # commands written as RejectedSample (bus/codec.py command_rejection)
         self._last_step = 0        # the step of the last clock tick: the step an undecodable or rejected sample arrived in
         self._by_topic: dict[str, list[int]] = {}  # topic -> [messages, bytes]
+        self._cid_topic: dict[int, str] = {}  # channel -> topic, of the channels `write_many` writes
+        self._many: list[tuple[Any, Any]] = []  # write_many's and write_records' (channels, message sizes) not yet in _by_topic
         self._last_t_ns = 0
         self._closed = False
         self._flush_period_s = flush_period_s
         self._last_flush = time.monotonic()
+        # the bodies (ids, kinds, alive, positions) of the next truth sample, from its publisher in this
+        # process (a batch run: deploy/batch_packets.py): the Foxglove scene from them, the truth not decoded
+        self.next_truth: tuple[list[str], list[str], list[bool], np.ndarray] | None = None
 
     def _schema_id(self, cls: type[Message]) -> int:
         name = cls.DESCRIPTOR.full_name
@@ -140,14 +149,77 @@ class McapRecorder:
         tally[0] += 1
         tally[1] += len(payload)
 
+    def channels(self, keys: list[str], classes: list[type[Message]]) -> list[int]:
+        """The channel of each key (its topic) with its message class, registered on first use: what
+        `write_many` takes."""
+        out = []
+        for key, cls in zip(keys, classes):
+            topic = self.keys.topic(key)
+            cid = self._channel_id(topic, cls)
+            self._cid_topic[cid] = topic
+            out.append(cid)
+        return out
+
+    def write_many(self, channel_ids: list[int], blob: bytes, starts: np.ndarray, sizes: np.ndarray, t_ns: int | None,
+                   wall_time_ns: int | None = None) -> None:
+        """Already-serialised messages of one simulation time t_ns, in this order: message i is
+        blob[starts[i]:starts[i] + sizes[i]] on channel_ids[i] (`channels`). The records `write`
+        makes for them one by one (publisher-stamped samples of a class the Foxglove scene does not
+        derive from, or whose derivation the caller does: `scene`), as one buffer; t_ns None keeps the last time."""
+        if self._closed or not channel_ids:
+            return
+        wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
+        if t_ns is None:  # (a time that is not usable: the last, as `write`)
+            t_ns = self._last_t_ns
+        elif t_ns > self._last_t_ns:
+            self._last_t_ns = t_ns
+        self._w.add_messages(channel_ids, self.epoch_ns + max(t_ns, 0), blob, starts, sizes, wall_ns, self.count)
+        self.count += len(channel_ids)
+        self._many.append((channel_ids, sizes))
+
+    def write_records(self, records: BulkRecords, parts: list[Prepared], channel_ids: np.ndarray, t_ns: int | None,
+                      wall_time_ns: int | None = None) -> None:
+        """`write_many` of the messages of bus/bulk_wire.py encoders (`parts`, interleaved message by
+        message, on `channel_ids`), their records made by `records` in one gather."""
+        if self._closed or not len(channel_ids):
+            return
+        wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
+        if t_ns is None:
+            t_ns = self._last_t_ns
+        elif t_ns > self._last_t_ns:
+            self._last_t_ns = t_ns
+        log_time = self.epoch_ns + max(t_ns, 0)
+        data, starts, sizes = records.take(parts, channel_ids, self.count, log_time, wall_ns)
+        self._w.add_records(channel_ids, log_time, data, starts)
+        self.count += len(channel_ids)
+        self._many.append((channel_ids, sizes))
+
+    @property
+    def scene(self) -> FoxgloveScene | None:
+        """The Foxglove scene the recorder derives (None: not recorded)."""
+        return self._scene
+
+    def _tally_many(self) -> None:
+        """Fold the counts of `write_many` into the per-topic tallies."""
+        for cids, sizes in self._many:
+            for cid, b in zip(np.asarray(cids).tolist(), np.asarray(sizes).tolist()):
+                tally = self._by_topic.get(self._cid_topic[cid])
+                if tally is None:
+                    tally = self._by_topic[self._cid_topic[cid]] = [0, 0]
+                tally[0] += 1
+                tally[1] += b
+        self._many.clear()
+
     @property
     def by_topic(self) -> dict[str, int]:
         """Messages written per topic."""
+        self._tally_many()
         return {topic: n for topic, (n, _b) in self._by_topic.items()}
 
     @property
     def bytes_by_topic(self) -> dict[str, int]:
         """Payload bytes written per topic."""
+        self._tally_many()
         return {topic: b for topic, (_n, b) in self._by_topic.items()}
 
     def _key(self, key: str) -> tuple[type[Message] | None, str, bool]:
@@ -171,10 +243,12 @@ class McapRecorder:
         cls, topic, derives = self._key(key) if info is None else info
         t: int | None
         msg: Message | None
-        if t_ns is not None and cls is not None and not derives:
+        bodies, self.next_truth = self.next_truth, None
+        if t_ns is not None and cls is not None and (not derives or (bodies is not None and cls is pb.Truth)):
             msg, t, reason = None, t_ns, ""
         else:
             msg, t, reason = parse_sample(cls, payload)
+            bodies = None
         at_ns = self._last_t_ns if t is None else t
         rejected = command_rejection(msg, key.rsplit("/", 2)[-2], self.run) \
             if cls is pb.ActuatorCommand and msg is not None else None
@@ -202,6 +276,10 @@ class McapRecorder:
         if self._scene is not None and msg is not None:
             for d_topic, d_cls, d_payload in self._scene.derive(cls, msg, topic, self.epoch_ns + max(at_ns, 0)):
                 self._add(d_topic, d_cls, d_payload, at_ns, wall_ns)
+        elif self._scene is not None and bodies is not None:  # the truth's bodies as arrays (`next_truth`)
+            tf, scene = self._scene.from_bodies(*bodies, self.epoch_ns + max(at_ns, 0))
+            self._add(TF_TOPIC, FrameTransforms, tf, at_ns, wall_ns)
+            self._add(SCENE_TOPIC, SceneUpdate, scene, at_ns, wall_ns)
 
     def _arrival(self) -> Any:
         """The header of a sample the recorder wraps: the run, source "recorder", and the step and

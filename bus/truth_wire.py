@@ -272,3 +272,24 @@ class TruthEncoder:
         take[at[dbl][kept]] = src[kept]
         self._grow(np.concatenate((self._buf, fixed)))
         return take, np.cumsum(keep.sum(axis=1))
+
+
+class TickEncoder:
+    """The plant's `swarmhil.v1.Tick` (header, step_s, u_rad, alive, final) serialised without
+    building the message: `encode(...)` is `pb.Tick(header=Header(run, "plant", step, t, seq),
+    step_s=..., u_rad=..., alive=[the ids whose flag is set], final=...).SerializeToString()`
+    (tests/test_truth_wire.py); the alive field's bytes are kept while the flags stay the same."""
+
+    def __init__(self, run: str, ids: list[str], source: str = "plant") -> None:
+        self._header = HeaderEncoder(run, source)
+        self.ids = list(ids)
+        self._alive: tuple[bytes, bytes] = (b"", b"")  # (flags, their field's bytes)
+
+    def encode(self, step: int, t: float, seq: int, step_s: float, u_rad: float, alive: np.ndarray, final: bool) -> bytes:
+        flags = np.asarray(alive, dtype=bool).tobytes()
+        if flags != self._alive[0]:
+            self._alive = (flags, b"".join(_string(0x22, s) if s else b"\x22\x00"
+                                           for s, a in zip(self.ids, flags) if a))
+        h = self._header(step, t, seq)
+        return b"".join((b"\x0a", varint(len(h)), h, _double(0x11, step_s), _double(0x19, u_rad), self._alive[1],
+                         b"\x28\x01" if final else b""))

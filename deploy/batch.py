@@ -23,6 +23,7 @@ values of its message) and every spacecraft's own perception turns them into its
 """
 from __future__ import annotations
 
+import time
 from typing import Any, Callable
 
 import numpy as np
@@ -33,6 +34,7 @@ from swarmhil.agent.node import observation_from_rel
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import header
 from swarmhil.bus.keys import Keys
+from swarmhil.deploy.batch_packets import BatchPackets, why_not_packets
 from swarmhil.deploy.scenario import plant_config
 from swarmhil.link.faults import LinkFaults
 from swarmhil.link.model import LinkModel, check_tx, parse_link_config
@@ -41,8 +43,9 @@ from swarmhil.plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMe
 from swarmhil.plant.sensing.registry import SensingContext, sensing_message
 
 
-def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
-    """None when the scenario can run in batch mode, else the reason it cannot (one phrase)."""
+def why_not_batch(sc: Any, opts: dict[str, Any] | None = None, record: str = "truth") -> str | None:
+    """None when the scenario can run in batch mode recording `record` ("truth", or "all": every
+    packet, deploy/batch_packets.py), else the reason it cannot (one phrase)."""
     from swarmhil.agent.beacon import beacon_from_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.deploy.companions import enabled_companions  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.plant.sensing import has_batch_form  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -61,6 +64,8 @@ def why_not_batch(sc: Any, opts: dict[str, Any] | None = None) -> str | None:
     comps = [c for c in enabled_companions(sc, opts or {}) if c.name != "channel"]  # (the link: BatchLink)
     if comps:
         return f"companions {', '.join(c.name for c in comps)}"
+    if record == "all":
+        return why_not_packets(sc)
     return None
 
 
@@ -162,7 +167,8 @@ class BatchLink:
 class BatchHook(LocalFlightSoftware):
     """The plant's `local_agents` (plant/flight.py): arrays of stimuli in, the (N, 3) commands in force out."""
 
-    def __init__(self, bus: Any, run: str, sc: Any) -> None:
+    def __init__(self, bus: Any, run: str, sc: Any, recorder: Any = None) -> None:
+        """`recorder`: the run's McapRecorder when it records every packet (deploy/batch_packets.py)."""
         from swarmhil.deploy.agent_image import agent_config  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         # each spacecraft's flight software from the config its agent process would get
@@ -178,6 +184,9 @@ class BatchHook(LocalFlightSoftware):
         self._tokens = [bus.declare_liveliness(keys.alive(f"agent-{s}")) for s in self.ids]
         self._empty: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # observers -> (offsets, (0, 3))
         self.link = BatchLink(run, sc) if channel_enabled(sc, {}) else None  # the channel's own test of [link]
+        self.packets = None
+        if recorder is not None:
+            self.packets = BatchPackets(recorder, run, self.ids, [c.name for c in self.agents.controllers], sc.sensing["kind"])
         # spacecraft that fly attitude: the commands go back with their torques, (N, 6) (plant/flight.py)
         self.attitude = any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft)
         # the camera (`scene` stimulus, issue 36): each spacecraft's own perception, built as build_agent builds it
@@ -198,6 +207,16 @@ class BatchHook(LocalFlightSoftware):
         ids = self.ids
         observers = ids if len(rows) == len(ids) else [ids[i] for i in rows.tolist()]
         link = self.link
+        packets = self.packets
+        if packets is not None:  # every packet recorded: the stimuli whether or not a controller looks
+            t0 = time.perf_counter()
+            rel = sense()
+            obs = self._observe(ctx, rows, observers, lambda: rel)
+            acc = self.agents.step(rows, obs)
+            decided = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
+            compute_s = (time.perf_counter() - t0) / max(len(rows), 1)  # each spacecraft's share
+            packets.step(ctx.step, ctx.t_s, ctx.u_rad, rows, rel, self.agents, decided, compute_s, obs.neighbour_ids)
+            return self._with_torques(acc) if self.attitude else acc
         if link is None:
             acc = self.agents.step(rows, self._observe(ctx, rows, observers, sense))
             return self._with_torques(acc) if self.attitude else acc

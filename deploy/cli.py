@@ -130,8 +130,9 @@ def main(verbose: int) -> None:
 @click.option("--speed", type=float, help="Real-time factor in realtime mode.")
 @click.option("--in-process", is_flag=True, help="Plant, agents and recorder in one process over the in-memory bus.")
 @click.option("--record", type=click.Choice(["all", "truth"]), default="all", show_default=True,
-              help="In-process runs: all: every message; truth: the truth and events only, the flight software of "
-                   "all spacecraft run as one batch where the scenario allows (same truth, several times faster).")
+              help="In-process runs: all: every message; truth: the truth and events only. Either way the flight "
+                   "software of all spacecraft runs as one batch where the scenario allows (the same messages and "
+                   "truth, several times faster; summary.json batch.why_not says why not).")
 @click.option("--run-id", help="Run id (the <run> of swarm/<run>/**); default <scenario>-<time>-<hex>.")
 @click.option("--no-progress", is_flag=True, help="No progress bar.")
 @click.option("--overwrite", is_flag=True, help="Replace the run already in --out (refused otherwise).")

@@ -109,10 +109,12 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
                    opts: dict[str, Any] | None = None, record: str = "all", keep_truth: bool = False) -> RunResult:
     """Same plant, agents and recorder code in one process over the in-memory bus.
 
-    record="all": every message, one agent node per spacecraft (as the processes). record="truth"
-    (issue 16, campaigns): the recording holds the truth and the events only, and where the
-    scenario allows (deploy/batch.py) the flight software of all spacecraft runs as one batch, fed
-    with arrays instead of messages: the same truth, bit for bit, several times faster."""
+    record="all": every message; record="truth" (campaigns): the truth and the events only. Where
+    the scenario allows (deploy/batch.py `why_not_batch`), the flight software of all spacecraft
+    runs as one batch, fed with arrays instead of messages (the same truth, bit for bit, several
+    times faster), and with record="all" its packets are written from the batch's arrays
+    (deploy/batch_packets.py: the same messages, the same bytes); otherwise one agent node per
+    spacecraft, as the processes (opts {"batch": False} asks for that)."""
     from swarmhil.bus.memory import MemoryBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.bus.recorder import RecorderNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.plant.node import PlantNode  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -131,15 +133,14 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     rec = RecorderNode(bus, run, out / "run.mcap", config=sc.resolved(), document=resolved_document(sc), record=record,
                        background=True)  # chunks compressed on a worker thread while the run goes on
     comps = enabled_companions(sc, opts)
-    hook = None
-    if record == "truth":
-        from swarmhil.deploy.batch import BatchHook, why_not_batch  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    from swarmhil.deploy.batch import BatchHook, why_not_batch  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-        why = why_not_batch(sc, opts)
-        summary["batch"] = {"used": why is None, "why_not": why}
-        if why is None:
-            hook = BatchHook(bus, run, sc)
-            comps = []  # (the link channel, if any, is the hook's BatchLink)
+    hook = None
+    why = why_not_batch(sc, opts, record)
+    summary["batch"] = {"used": why is None, "why_not": why}
+    if why is None:
+        hook = BatchHook(bus, run, sc, recorder=rec.rec if record == "all" else None)
+        comps = []  # (the link channel, if any, is the hook's BatchLink)
     summary["record"] = record
     plant = PlantNode(bus, run, plant_config(sc), expect_processes=("recorder", *[c.name for c in comps]),
                       barriers=tuple(c.name for c in comps if c.barrier), progress=bar.update if progress else None,
@@ -149,6 +150,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
         from swarmhil.deploy.batch import TruthLog  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         log = plant.on_truth = TruthLog(plant.world.ids, sc.steps, plant.world.a_m, plant.world.n_radps)
+    if hook is not None and hook.packets is not None:  # the recorder's Foxglove scene from the truth's arrays
+        plant.on_truth = hook.packets.on_truth(list(plant.world.ids), plant.on_truth)
     started = {c.name: c.module.start(bus, run, sc, out, opts) for c in comps}
     agents = [make_agent(bus, run, sc, sid) for sid in sc.ids] if hook is None else []
     plant.wait_ready(timeout_s=1.0)

@@ -19,7 +19,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.base import Bus
 from swarmhil.bus.codec import RejectedPacket, Rejections, command_rejection, decode, header, sim_time_ns
 from swarmhil.bus.keys import Keys
-from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, body_entry
+from swarmhil.bus.truth_wire import HeaderEncoder, TickEncoder, TruthEncoder, body_entry
 from swarmhil.plant.config import PlantConfig
 from swarmhil.plant.contact import ContactMonitor
 from swarmhil.plant.faults import ActuationFaults, SensingFaults, body_faults, fault_summary, transitions
@@ -120,6 +120,7 @@ class PlantNode:
                               and bool(self.world.bodies))
         self._truth_wire = TruthEncoder(self.world.ids) if plain or self._truth_bodies else None
         self._truth_header = HeaderEncoder(run, "plant")
+        self._tick = TickEncoder(run, list(self.world.ids))  # (the same bytes as pb.Tick's)
         self._stamps = bool(getattr(bus, "stamps", False))
         self._wants = getattr(bus, "wants", None)
         bus.subscribe(self.keys.act_all, self._on_command)
@@ -294,9 +295,12 @@ class PlantNode:
         ids = self.world.ids
         alive = self.world.alive.tolist()
         if self._wants is None or self._wants(self._k_clock):
-            tick = pb.Tick(header=self._hdr(self.keys.clock), step_s=self.step_s, u_rad=u,
-                           alive=[s for s, a in zip(ids, alive) if a], final=final)
-            self.bus.publish(self.keys.clock, tick.SerializeToString())
+            t_tick = self.world.t_s
+            tick = self._tick.encode(k, t_tick, self._next_seq(self._k_clock), self.step_s, u, self.world.alive, final)
+            if self._stamps:
+                self.bus.publish(self._k_clock, tick, sim_time_ns(t_tick))
+            else:
+                self.bus.publish(self._k_clock, tick)
         # truth of step k goes out before the stimuli, so the link channel knows where everyone is
         # at the time agents transmit in step k
         t_s = self.world.t_s

@@ -127,3 +127,16 @@ def components_by_hand(n: int, edges) -> list[int]:
 def weakly_connected_by_hand(n: int, edges) -> bool:
     """Are n nodes one component when the directed edges (j, k) are taken undirected?"""
     return len(set(components_by_hand(n, edges))) == 1
+
+
+def six_with_process_faults() -> dict:
+    """sabatini-20 as a document with six spacecraft for 200 s, sc03's flight software crashing at
+    50 s and sc04's paused over [100, 150) s (tests of process faults)."""
+    import tomllib
+
+    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
+    d["run"]["duration_s"] = 200.0
+    d["dispersion"]["count"] = 6
+    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
+                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
+    return d

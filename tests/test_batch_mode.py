@@ -30,9 +30,9 @@ def _truth_sha(path: Path) -> tuple[str, int]:
 @pytest.mark.parametrize("sets", [(), ("sensing.roe_noise_fraction=0.1",)], ids=["ideal", "noisy"])
 def test_batch_truth_equals_the_message_path(tmp_path: Path, sets: tuple[str, ...]) -> None:
     sc = load_scenario(SCENARIOS / "sabatini-20.toml", list(sets)).with_overrides(duration_s=600.0)
-    full = run_in_process(sc, tmp_path / "all", "same")
+    full = run_in_process(sc, tmp_path / "all", "same", opts={"batch": False})
     batch = run_in_process(sc, tmp_path / "truth", "same", record="truth")
-    assert full.summary.get("batch") is None and batch.summary["batch"] == {"used": True, "why_not": None}
+    assert not full.summary["batch"]["used"] and batch.summary["batch"] == {"used": True, "why_not": None}
     sha_all, n_all = _truth_sha(tmp_path / "all" / "run.mcap")
     assert (sha_all, n_all) == _truth_sha(tmp_path / "truth" / "run.mcap") and n_all == 61
     assert batch.summary["delta_v_total_mps"] == full.summary["delta_v_total_mps"] > 0.0
@@ -53,6 +53,11 @@ def test_batch_mode_falls_back_where_it_would_drop_something(tmp_path: Path) -> 
 
 
 def test_a_faulty_controller_in_batch_mode_is_counted_and_commands_zero(tmp_path: Path) -> None:
+    """One controller raises on odd steps, one commands NaN, one -inf: their agents command zero
+    (mode "fault"), in batch mode as an agent node does; with every packet recorded, the batch
+    run's packets are the per-agent run's (tests/test_batch_packets.py)."""
+    from test_batch_packets import assert_same_packets
+
     from swarmhil.agent.controller import Command, register
 
     class Faulty:
@@ -66,15 +71,22 @@ def test_a_faulty_controller_in_batch_mode_is_counted_and_commands_zero(tmp_path
                 raise RuntimeError("broken on odd steps")
             if self.sid == "sc04":
                 return Command(accel_mps2=np.array([np.nan, 0.0, 0.0]))
-            return Command(accel_mps2=np.array([0.0, 1e-5, 0.0]), mode="push")
+            if self.sid == "sc06":
+                return Command(accel_mps2=np.array([0.0, -np.inf, 0.0]), mode="inf")
+            return Command(accel_mps2=np.array([0.0, 1e-5, -0.0]), mode="push")
 
     register("test-faulty-batch")(lambda sid, orbit, params: Faulty(sid))
     sc = load_scenario(SCENARIOS / "sabatini-20.toml", ['controller.name="test-faulty-batch"',
                                                         "controller.params={}"]).with_overrides(duration_s=60.0)
-    full = run_in_process(sc, tmp_path / "all", "f")
+    full = run_in_process(sc, tmp_path / "all", "f", opts={"batch": False})
     batch = run_in_process(sc, tmp_path / "truth", "f", record="truth")
-    assert batch.summary["batch"]["used"]
-    assert batch.summary["agent_faults"] == full.summary["agent_faults"] == {"sc03": {"controller": 3}}
+    packets = run_in_process(sc, tmp_path / "packets", "f")
+    assert batch.summary["batch"]["used"] and packets.summary["batch"]["used"] and not full.summary["batch"]["used"]
+    assert (batch.summary["agent_faults"] == full.summary["agent_faults"] == packets.summary["agent_faults"]
+            == {"sc03": {"controller": 3}})
     assert _truth_sha(tmp_path / "all" / "run.mcap") == _truth_sha(tmp_path / "truth" / "run.mcap")
     dv = batch.summary["delta_v_mps"]
-    assert dv["sc04"] == 0.0 and dv["sc05"] == pytest.approx(6e-4) and dv["sc03"] == pytest.approx(3e-4)
+    assert dv["sc04"] == dv["sc06"] == 0.0 and dv["sc05"] == pytest.approx(6e-4) and dv["sc03"] == pytest.approx(3e-4)
+    assert_same_packets(tmp_path / "all" / "run.mcap", tmp_path / "packets" / "run.mcap")
+    modes = {m.mode for t, _l, _p, m in read_mcap(tmp_path / "packets" / "run.mcap") if t in ("sc/sc03/tm", "sc/sc04/tm", "sc/sc06/tm")}
+    assert modes == {"fault", "push"}

@@ -54,7 +54,7 @@ def captured(tmp_path_factory) -> list[list[Observation]]:
 
     SabatiniController.step = spy
     try:
-        run_in_process(SC.with_overrides(duration_s=1200.0), tmp_path_factory.mktemp("cap") / "r", "cap")
+        run_in_process(SC.with_overrides(duration_s=1200.0), tmp_path_factory.mktemp("cap") / "r", "cap", opts={"batch": False})
     finally:
         SabatiniController.step = orig
     n = len(SC.ids)

@@ -638,16 +638,9 @@ def test_process_crash_and_pause_act_at_their_steps_and_rerun_bit_identical(tmp_
     restart never): the dead event at that step, no command after, the truth coasts, the launcher's
     SIGKILL in its exit code; sc04's is paused over [100, 150) s: out of the lockstep (no command,
     truth not alive) for steps 10-14, then it resumes and commands again. Run twice: the same truth."""
-    import tomllib
+    from conftest import six_with_process_faults
 
-    from conftest import SCENARIOS
-
-    d = tomllib.loads((SCENARIOS / "sabatini-20.toml").read_text())
-    d["run"]["duration_s"] = 200.0
-    d["dispersion"]["count"] = 6
-    d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
-                  {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
-    sc = parse_scenario(d, "six.toml")
+    sc = parse_scenario(six_with_process_faults(), "six.toml")
     truths = []
     for out, res in twice(sc, tmp_path, "sabatini-20.toml"):
         assert res.summary["exit_codes"]["agent-sc03"] == -9 and res.summary["exit_codes"]["agent-sc04"] == 0

@@ -215,7 +215,8 @@ def test_spacecraft_spheres_take_their_agents_mode_colour(tmp_path: Path) -> Non
 
 
 def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Path) -> None:
-    """FoxgloveScene.from_truth writes SceneUpdate's entities as bytes (a serialised template after
+    """FoxgloveScene.from_truth writes the frame transforms as bytes (each FrameTransform's fields
+    in number order) and SceneUpdate's entities as bytes (a serialised template after
     the timestamp): the bytes are exactly those protobuf gives the message built field by field (each
     body's template, then its timestamp; the `links` entity last), at time 0 (an empty timestamp) and
     later, with ISL links and agent modes."""
@@ -223,7 +224,10 @@ def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Pa
     from mcap.reader import make_reader
 
     from swarmhil.bus import swarmhil_pb2 as pb
-    from swarmhil.bus.foxglove_scene import FoxgloveScene, _timestamp
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+    from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+
+    from swarmhil.bus.foxglove_scene import FoxgloveScene, _rotation, _timestamp
 
     with open(surround, "rb") as f:
         reader = make_reader(f)
@@ -238,7 +242,14 @@ def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Pa
         if k % 2:
             scene.saw_delivery(ids[0], ids[1])
         scene._modes[ids[k % len(ids)]] = ("chase", "dock", "")[k % 3]
-        data = scene.from_truth(truth, t_ns)[1]
+        tf_data, data = scene.from_truth(truth, t_ns)
+        tf = FrameTransforms()  # the transforms built field by field
+        for b in truth.bodies:
+            q = b.position_m
+            tf.transforms.add(timestamp=_timestamp(t_ns), parent_frame_id="lvlh", child_frame_id=b.id,
+                              translation=Vector3(x=q.x, y=q.y, z=q.z),
+                              rotation=_rotation(b, truth.mean_motion_radps, truth.header.t))
+        assert tf_data == tf.SerializeToString()
         built = SceneUpdate()
         for b in truth.bodies:
             ent = built.entities.add()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.truth_wire import HeaderEncoder, TruthEncoder, encode_header, varint
+from swarmhil.bus.truth_wire import HeaderEncoder, TickEncoder, TruthEncoder, encode_header, varint
 
 
 def _protobuf(run, source, step, t, seq, u, a, n, ids, kinds, pos, vel, dv, alive, acc, roe) -> bytes:
@@ -257,3 +257,20 @@ def test_a_large_swarm_plans_only_its_new_bodies(monkeypatch) -> None:
         assert enc.encode(encode_header("r", "plant", step, 1.0, step), 0.5, 7e6, 1e-3, pos, vel, dv, alive, acc,
                           roe) == want, step
     assert planned[0] == n and len(planned) > 30 and max(planned[1:]) <= 4, planned
+
+
+def test_ticks_equal_protobuf() -> None:
+    """The plant's tick (plant/node.py) written by TickEncoder: protobuf's bytes, with the alive flags
+    changing, steps and sequence numbers of several varint lengths, +0.0 / -0.0 / NaN times, final."""
+    rng = np.random.default_rng(5)
+    ids = [f"sc{i:02d}" for i in range(12)] + ["", "x" * 140]
+    enc = TickEncoder("run-t", ids)
+    for k in range(200):
+        alive = rng.random(len(ids)) < (0.9 if k % 3 else 0.5)
+        step, seq = int(rng.choice([0, k, 300, 2**33])), int(rng.choice([0, k, 2**20]))
+        t = float(rng.choice([0.0, -0.0, 10.0 * k, np.nan]))
+        u, step_s = float(rng.choice([0.0, -0.0, rng.standard_normal()])), float(rng.choice([10.0, 0.0]))
+        final = bool(k % 7 == 0)
+        msg = pb.Tick(header=pb.Header(run="run-t", source="plant", step=step, t=t, seq=seq), step_s=step_s, u_rad=u,
+                      alive=[s for s, a in zip(ids, alive) if a], final=final)
+        assert enc.encode(step, t, seq, step_s, u, alive, final) == msg.SerializeToString()

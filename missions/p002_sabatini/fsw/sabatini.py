@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from swarmhil.agent.controller import Command, CommandBatch, Decision, Observation, ObservationBatch, OrbitInfo, register
+from swarmhil.agent.controller import Command, CommandBatch, Decision, DecisionRows, Observation, ObservationBatch, OrbitInfo, register
 from swarmhil.agent.roe import lvlh_to_roe, observer_roe_rows
 from swarmhil.missions.p002_sabatini.contract import CONTROLLER, D_MIN_M, D_MIN_TRANS_M, PARALLEL_MIN
 from swarmhil.missions.p002_sabatini.fsw.dre import GainTable, gain_table, interpolate_periodic, stacked_gains
@@ -144,6 +144,8 @@ class SabatiniController:
         self._enabled = {CA: params.enable_collision_avoidance, ALIGN: params.enable_alignment,
                          ATTRACT: params.enable_attraction}
         self._enabled_codes = np.array([self._enabled[b] for b in (CA, ALIGN, ATTRACT)])
+        # each decision's label by 2 (behaviour code) + (corrected): DecisionRows.labels
+        self._labels = tuple(_label(b, ok, self._enabled) for b in BEHAVIOURS for ok in (False, True))
         self._gain_stack = stacked_gains(tuple(self.gains[b] for b in (CA, ALIGN, ATTRACT)))
         self._d_att_m = params.attraction_fraction * params.d_max_m
         self._span_m = params.attraction_fraction * params.d_max_m - params.d_min_m
@@ -220,7 +222,9 @@ class SabatiniController:
         counts = off[1:] - off[:-1]
         n_pairs = int(off[-1]) if n_obs else 0
         if n_pairs == 0:
-            return CommandBatch(np.zeros((n_obs, 3)), ["search"] * n_obs, build=_searching)
+            return CommandBatch(np.zeros((n_obs, 3)), ["search"] * n_obs, build=_searching,
+                                decision_rows=DecisionRows(off, [], (), np.zeros(0, dtype=np.int64), np.zeros(0),
+                                                           np.zeros((0, 6)), np.zeros((0, 3))))
         owner = batch.owners()  # the observer of each pair
         rel_pos = np.asarray(batch.rel_position_m, float).reshape(n_pairs, 3)
         rel_vel = np.asarray(batch.rel_velocity_mps, float).reshape(n_pairs, 3)
@@ -268,16 +272,22 @@ class SabatiniController:
                 return _searching(i)
             decisions = []
             for r, c, ok in zip(range(a, b_), code[a:b_].tolist(), correct[a:b_].tolist()):
-                b = BEHAVIOURS[c]
-                label = b if enabled[b] else f"{b}_disabled"
-                if b == ALIGN and not ok and enabled[b]:
-                    label = ALIGN_DRIFT
-                decisions.append(Decision(neighbour=batch.neighbour_ids[r], behaviour=label,
+                decisions.append(Decision(neighbour=batch.neighbour_ids[r], behaviour=_label(BEHAVIOURS[c], ok, enabled),
                                           d_min_m=float(d_min_jk_m[r]), roe_rel_m=roe_jk_m[r].copy(),
                                           accel_mps2=contrib[r].copy()))
             return Command(accel_mps2=accel[i].copy(), mode=modes[i], decisions=decisions)
 
-        return CommandBatch(accel_mps2=accel, modes=modes, build=build)
+        # the labels of `build` as arrays: label 2 code + corrected
+        rows = DecisionRows(off, batch.neighbour_ids, self._labels, 2 * code + correct, d_min_jk_m, roe_jk_m, contrib)
+        return CommandBatch(accel_mps2=accel, modes=modes, build=build, decision_rows=rows)
+
+
+def _label(b: str, corrected: bool, enabled: dict[str, bool]) -> str:
+    """A decision's behaviour label: the behaviour, `_disabled` when it is off, alignment without
+    correction `alignment_drift`."""
+    if not enabled[b]:
+        return f"{b}_disabled"
+    return ALIGN_DRIFT if b == ALIGN and not corrected else b
 
 
 BEHAVIOURS = (CA, ALIGN, ATTRACT)

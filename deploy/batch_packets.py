@@ -1,0 +1,187 @@
+"""Every packet of a batch run, recorded: what the agents and the plant would have sent, from the batch's arrays.
+
+A batch run (deploy/batch.py) has no message between the plant and the flight software. With
+`--record all` the recording still holds every packet the per-agent in-process run records, with
+the same bytes and in the same order: per step, after the plant's tick, truth (and the Foxglove
+transforms and scene the recorder derives from it) and events, for each live spacecraft in id
+order its stimulus (`sc/<id>/sense/<kind>`), then its `act` and its `tm`, as the in-memory bus
+delivers them when the plant publishes stimulus after stimulus and each agent answers at once.
+The sensing kinds: `rel` (RelStimulus) and `relative` (Measurements with its own-state items;
+with noise the kind hands its messages themselves, which are written as they are).
+
+The messages are written from arrays (bus/bulk_wire.py): the stimuli from the step's `RelBatch`,
+the commands and telemetry from the commands in force and, where the controllers give them
+(`CommandBatch.decision_rows`), their decisions; a command that has more (transmissions, a torque,
+extra arrays) or a decision step where a spacecraft's command was replaced by zero (its software
+raised or commanded a non-finite value) is written through the agent's own message code
+(agent/node.py `actuator_command`, `telemetry`), the same bytes. The recorder writes each step's
+messages as one buffer (bus/recorder.py `write_many`) and learns the agents' modes for the Foxglove
+scene as from their telemetry.
+
+What differs from the per-agent run: `Telemetry.compute_s` is each spacecraft's share of the batch
+decision's wall time (the batch decides for all at once), and a message's MCAP publish time (the
+recorder's wall clock) is that of its step's buffer.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from swarmhil.agent.batch import BatchAgents
+from swarmhil.agent.controller import Command
+from swarmhil.agent.node import actuator_command, isl_packet, telemetry
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.bulk_wire import AgentMessages, Pool, Prepared, RelStimuli
+from swarmhil.bus.codec import NamedRows, header, sense_type, sim_time_ns
+from swarmhil.bus.keys import Keys
+from swarmhil.bus.mcap_writer import BulkRecords
+from swarmhil.bus.recorder import McapRecorder
+from swarmhil.link.node import enabled as channel_enabled
+from swarmhil.plant.flight import StimulusMessages
+
+
+PACKET_KINDS = ("rel", "relative")  # sensing kinds whose stimuli a batch run writes (RelStimulus, Measurements)
+
+
+def why_not_packets(sc: Any) -> str | None:
+    """None when a batch run can record every packet (this module), else why not (one phrase)."""
+    if sc.sensing["kind"] not in PACKET_KINDS:
+        return f"every packet of sensing kind {sc.sensing['kind']!r} is recorded by the per-agent path"
+    if channel_enabled(sc, {}):
+        return "every packet of a [link] run is recorded by the per-agent path"
+    return None
+
+
+class BatchPackets:
+    """The stimuli, commands and telemetry of a batch run's spacecraft, written to the recorder
+    step by step (module docstring)."""
+
+    def __init__(self, rec: McapRecorder, run: str, ids: list[str], controllers: list[str], sense_kind: str = "rel") -> None:
+        keys = Keys(run)
+        self.rec = rec
+        self.run = run
+        self.ids = list(ids)
+        n = len(self.ids)
+        sense = [keys.sense(s, sense_kind) for s in self.ids]
+        act, tm = [keys.act(s) for s in self.ids], [keys.tm(s) for s in self.ids]
+        self._cids = np.array([rec.channels(sense, [sense_type(sense_kind)] * n), rec.channels(act, [pb.ActuatorCommand] * n),
+                               rec.channels(tm, [pb.Telemetry] * n)]).T  # (N, 3): stimulus, act, tm of each
+        self._all_cids = self._cids.ravel()
+        self._seq_sense = np.zeros(n, dtype=np.uint64)  # the plant's seq on each sense key
+        self._seq_agent = np.zeros(n, dtype=np.uint64)  # each agent's seq on its act and tm keys (one each a step)
+        self._ctrl_names = list(controllers)
+        pool = Pool()
+        self.stimuli = RelStimuli(pool, run, "plant", self.ids)
+        self.agents = AgentMessages(pool, run, self.ids, self._ctrl_names)
+        self.records = BulkRecords(pool)
+        self._keys = keys
+        self._commands = [Command(accel_mps2=np.zeros(3)) for _ in self.ids]  # in force (the per-message path)
+        self._seq_tx = [0] * n  # each agent's seq on its isl/tx key
+        self._tx_cids: dict[int, int] = {}
+
+    def step(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, rel: Any, agents: BatchAgents,
+             decided: bool, compute_s: float, neighbour_ids: list[str] | None = None) -> None:
+        """Step `step`'s packets of the observers `rows` (indices into ids, increasing): their
+        stimuli `rel` (RelBatch), and the commands in force in `agents` after this step's decision
+        (`decided`: it was a decision step), each agent's telemetry reporting `compute_s`.
+        `neighbour_ids`: the observation's list of the pairs' neighbour ids (the names of
+        `rel.neighbour`), which decisions that name them may carry as they are."""
+        r = len(rows)
+        if r == 0:
+            return
+        stim: Prepared | None = None
+        if isinstance(rel, StimulusMessages):  # the kind's messages themselves (built with the plant's sequence numbers)
+            stim_msgs = [m.SerializeToString() for m in rel.messages]
+        else:
+            extra = getattr(rel, "extra", None)
+            stim = self.stimuli.prepare(step, t_s, self._seq_sense[rows], u_rad, rel.offsets, rel.neighbour,
+                                        rel.rel_position_m, rel.rel_velocity_mps,
+                                        extra.rows if isinstance(extra, NamedRows) else None)
+            self._seq_sense[rows] += np.uint64(1)
+        seq = self._seq_agent[rows]
+        self._seq_agent[rows] += np.uint64(1)
+        acc = agents.accel_mps2 if r == len(self.ids) else agents.accel_mps2[rows]
+        modes = agents.modes if r == len(self.ids) else [agents.modes[i] for i in rows.tolist()]
+        cb = agents.last
+        fast = (stim is not None and decided and cb is not None and cb.decision_rows is not None and not agents.replaced
+                and agents.decision_period_steps == 1)
+        if fast:
+            d = cb.decision_rows
+            parts = [stim,
+                     self.agents.commands(step, t_s, seq, rows, acc),
+                     self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, d.offsets,
+                                           rel.neighbour if d.neighbour_ids is neighbour_ids else d.neighbour_ids,
+                                           d.labels, d.behaviour, d.d_min_m, d.roe_rel_m, d.accel_mps2)]
+            # per spacecraft: stimulus, act, tm (the order of the per-agent run), one buffer of records
+            cids = self._all_cids if r == len(self.ids) else self._cids[rows].ravel()
+            self.rec.write_records(self.records, parts, cids, sim_time_ns(t_s))
+        else:
+            if decided:
+                self._take_commands(rows, agents)
+            blob, e = stim.encode() if stim is not None else _joined(stim_msgs)
+            cids_l, msgs = self._messages(step, t_s, rows, seq, blob, e, decided, compute_s)
+            blob, e = _joined(msgs)
+            self.rec.write_many(cids_l, blob, e[:-1], e[1:] - e[:-1], sim_time_ns(t_s))
+        scene = self.rec.scene
+        if scene is not None:
+            scene.saw_modes(self.ids if r == len(self.ids) else [self.ids[i] for i in rows.tolist()], modes)
+
+    def on_truth(self, ids: list[str], then: Callable[..., None] | None = None) -> Callable[..., None]:
+        """A plant's `on_truth` (plant/node.py) that hands the recorder the bodies of the truth it is
+        about to publish (`McapRecorder.next_truth`: the Foxglove scene from the arrays), then calls
+        `then` (a TruthLog) with the same arguments."""
+        kinds = ["spacecraft"] * len(ids)  # (the kind bus/truth_wire.py writes for every body)
+
+        def hook(step: int, t_s: float, u_rad: float, pos: np.ndarray, *rest: Any) -> None:
+            self.rec.next_truth = (ids, kinds, rest[2].tolist(), pos)  # rest: vel, delta_v, alive, accel, roe
+            if then is not None:
+                then(step, t_s, u_rad, pos, *rest)
+
+        return hook
+
+    def _take_commands(self, rows: np.ndarray, agents: BatchAgents) -> None:
+        """The Commands in force after a decision of `rows`: each one's own, zero (mode fault) where
+        the agent replaced it (agent/node.py AgentNode.handle)."""
+        cb = agents.last
+        assert cb is not None
+        replaced = set(agents.replaced)
+        for r, i in enumerate(rows.tolist()):
+            self._commands[i] = Command(accel_mps2=np.zeros(3), mode="fault") if r in replaced else cb.command(r)
+
+    def _messages(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray, stim: bytes, s_ends: np.ndarray,
+                  decided: bool, compute_s: float) -> tuple[list[int], list[bytes]]:
+        """Each spacecraft's stimulus, transmissions, command and telemetry through the agent's own
+        message code (agent/node.py), from its Command in force: (channels, messages) in order."""
+        cids: list[int] = []
+        msgs: list[bytes] = []
+        se = s_ends.tolist()
+        for r, (i, q) in enumerate(zip(rows.tolist(), seq.tolist())):
+            cmd, sid, name = self._commands[i], self.ids[i], self._ctrl_names[i]
+            cids.append(int(self._cids[i, 0]))
+            msgs.append(stim[se[r]:se[r + 1]])
+            txs = list(cmd.transmissions) if decided else []
+            if txs:
+                tx_cid = self._tx_channel(i)
+                for tx in txs:
+                    k = self._seq_tx[i]
+                    self._seq_tx[i] = k + 1
+                    cids.append(tx_cid)
+                    msgs.append(isl_packet(header(self.run, sid, step, t_s, k), sid, tx, t_s).SerializeToString())
+            hdr = header(self.run, sid, step, t_s, q)
+            cids += [int(self._cids[i, 1]), int(self._cids[i, 2])]
+            msgs.append(actuator_command(hdr, cmd, name, len(txs)).SerializeToString())
+            msgs.append(telemetry(hdr, cmd, name, compute_s, 0).SerializeToString())
+        return cids, msgs
+
+    def _tx_channel(self, i: int) -> int:
+        cid = self._tx_cids.get(i)
+        if cid is None:
+            cid = self._tx_cids[i] = self.rec.channels([self._keys.isl_tx(self.ids[i])], [pb.IslPacket])[0]
+        return cid
+
+
+def _joined(msgs: list[bytes]) -> tuple[bytes, np.ndarray]:
+    ends = np.zeros(len(msgs) + 1, dtype=np.int64)
+    np.cumsum([len(m) for m in msgs], out=ends[1:])
+    return b"".join(msgs), ends
