@@ -145,7 +145,7 @@ class SabatiniController:
                          ATTRACT: params.enable_attraction}
         self._enabled_codes = np.array([self._enabled[b] for b in (CA, ALIGN, ATTRACT)])
         # each decision's label by 2 (behaviour code) + (corrected): DecisionRows.labels
-        self._labels = tuple(_label(b, ok, self._enabled) for b in BEHAVIOURS for ok in (False, True))
+        self._decision_labels = tuple(_label(b, ok, self._enabled) for b in BEHAVIOURS for ok in (False, True))
         self._gain_stack = stacked_gains(tuple(self.gains[b] for b in (CA, ALIGN, ATTRACT)))
         self._d_att_m = params.attraction_fraction * params.d_max_m
         self._span_m = params.attraction_fraction * params.d_max_m - params.d_min_m
@@ -278,7 +278,7 @@ class SabatiniController:
             return Command(accel_mps2=accel[i].copy(), mode=modes[i], decisions=decisions)
 
         # the labels of `build` as arrays: label 2 code + corrected
-        rows = DecisionRows(off, batch.neighbour_ids, self._labels, 2 * code + correct, d_min_jk_m, roe_jk_m, contrib)
+        rows = DecisionRows(off, batch.neighbour_ids, self._decision_labels, 2 * code + correct, d_min_jk_m, roe_jk_m, contrib)
         return CommandBatch(accel_mps2=accel, modes=modes, build=build, decision_rows=rows)
 
 
