@@ -19,9 +19,12 @@ from __future__ import annotations
 import logging
 from typing import Any
 
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.message import Message
 
-from swarmhil.bus.foxglove_scene import FoxgloveScene
+from swarmhil.bus import swarmhil_pb2 as pb
+from swarmhil.bus.foxglove_scene import SCENE_TOPIC, TF_TOPIC, FoxgloveScene
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.optional import require
 from swarmhil.bus.recorder import epoch_ns, message_type_for_key, parse_sample
@@ -46,12 +49,18 @@ class FoxgloveLive:
         self.epoch_ns = epoch_ns(((config or {}).get("run") or {}).get("epoch_utc"))
         self.scene = FoxgloveScene(config)
         self.ctx = foxglove.Context()
-        self.server = foxglove.start_server(name=f"swarmhil {run}", host=LOOPBACK, port=int(port), context=self.ctx)
-        self.port = self.server.port
-        self.url = ws_url(self.port)
         self._key_info: dict[str, tuple[type[Message] | None, str]] = {}
         self._channels: dict[str, Any] = {}
         self._schemas: dict[str, Any] = {}
+        # The channels every run has exist before the server accepts a client, so its first
+        # advertisement holds them: a channel made while a client was connecting could be missing
+        # from both that client's first advertisement and the server's announcement of new channels
+        # (a live client once saw the scene and transforms of a run and no truth).
+        for topic, cls in (("truth", pb.Truth), (TF_TOPIC, FrameTransforms), (SCENE_TOPIC, SceneUpdate)):
+            self._channel(topic, cls)
+        self.server = foxglove.start_server(name=f"swarmhil {run}", host=LOOPBACK, port=int(port), context=self.ctx)
+        self.port = self.server.port
+        self.url = ws_url(self.port)
         self._last_t_ns = 0
         self.counts: dict[str, int] = {}
         self.rejected = 0
@@ -67,12 +76,15 @@ class FoxgloveLive:
                                                         data=build_file_descriptor_set(cls).SerializeToString())
         return sch
 
-    def _send(self, topic: str, cls: type[Message], payload: bytes, log_ns: int) -> None:
+    def _channel(self, topic: str, cls: type[Message]) -> Any:
         ch = self._channels.get(topic)
         if ch is None:
             ch = self._channels[topic] = self._fg.Channel(topic, message_encoding="protobuf", schema=self._schema(cls),
                                                          context=self.ctx)
-        ch.log(payload, log_time=log_ns)
+        return ch
+
+    def _send(self, topic: str, cls: type[Message], payload: bytes, log_ns: int) -> None:
+        self._channel(topic, cls).log(payload, log_time=log_ns)
         self.counts[topic] = self.counts.get(topic, 0) + 1
 
     def ingest(self, key: str, payload: bytes) -> bool:
