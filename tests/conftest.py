@@ -140,3 +140,28 @@ def six_with_process_faults() -> dict:
     d["fault"] = [{"kind": "process_crash", "targets": ["sc03"], "start_s": 50.0},
                   {"kind": "process_pause", "targets": ["sc04"], "start_s": 100.0, "end_s": 150.0}]
     return d
+
+
+def checked_against_own_updates(real, nav_state, tracks_bytes, seen: dict, tally):
+    """A stand-in for a navigators' `update_many` (`real`) that, at every frame, also runs a copy of
+    each navigator's own `update` on the same blobs and own acceleration, and asserts that the
+    navigator after the batch and its copy are the same (`nav_state`), as are their output tracks
+    (`tracks_bytes`). `tally(nav, out)` counts what the frame held into `seen`, with "born" (new track
+    ids) and "frames" counted here."""
+    import copy
+
+    def checked(navs, t_s, u_rad, blobs, accels):
+        own = [copy.deepcopy(nav) for nav in navs]
+        ids_before = [nav._next_id for nav in navs]
+        expect = [nav.update(t_s, u_rad, b, a) for nav, b, a in zip(own, blobs, accels)]
+        got = real(navs, t_s, u_rad, blobs, accels)
+        for nav, mine, out, want, k0 in zip(navs, own, got, expect, ids_before):
+            assert not isinstance(out, Exception)
+            assert nav_state(nav) == nav_state(mine), t_s
+            assert tracks_bytes(out) == tracks_bytes(want), t_s
+            tally(nav, out)
+            seen["born"] += nav._next_id - k0
+        seen["frames"] += 1
+        return got
+
+    return checked
