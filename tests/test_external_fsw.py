@@ -438,8 +438,15 @@ def test_external_flight_computer_over_mutual_tls_from_its_own_namespace(tmp_pat
         env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
         fc = subprocess.Popen([*hosts.prefix("a"), sys.executable, str(FC / "fc.py"), str(kit), "--build", str(fc_build)],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, cwd=tmp_path)
-        time.sleep(1.0)
-        in_a, in_r = hosts.pids("a"), hosts.pids("r")  # where each really runs
+        # Where each really runs, sampled while the launcher is certainly alive (it waits for the join):
+        # a fixed sleep once let a quick 100-step run end first, and r was then empty.
+        while True:
+            in_a, in_r = hosts.pids("a"), hosts.pids("r")
+            assert launcher.poll() is None or (fc.pid in in_a and launcher.pid in in_r), "the run ended before it was seen"
+            if fc.pid in in_a and launcher.pid in in_r:
+                break
+            assert time.monotonic() < t_end, (in_a, in_r)
+            time.sleep(0.05)
         code = launcher.wait(300)
         fc_out, _ = fc.communicate(timeout=60)
         l_out, l_err = launcher.communicate()

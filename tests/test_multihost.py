@@ -61,6 +61,7 @@ class Hosts:
 
     def pids(self, host: str) -> set[int]:
         r = subprocess.run(["ip", "netns", "pids", self.ns[host]], capture_output=True, text=True)
+        assert r.returncode == 0, f"ip netns pids {self.ns[host]}: {r.stderr}"
         return {int(x) for x in r.stdout.split()}
 
     def close(self) -> None:
