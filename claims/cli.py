@@ -25,6 +25,27 @@ def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]
     return chosen or ("quick",)
 
 
+def _prose(claims: dict, lower: bool) -> int:
+    """`swarmhil claims --prose`: one line per unmarked measured-looking number (`doc:line: text`), one
+    per stale claim reference and per doc above (or below) its baseline; the exit code."""
+    from swarmhil.claims import prose as p
+
+    found = p.unmarked()
+    for hits in found.values():
+        for h in hits:
+            click.echo(str(h))
+    if lower:
+        new = p.lower_baseline(found)
+        click.echo(f"baseline: {sum(new.values())} numbers in {len(new)} docs", err=True)
+    errors = p.ref_errors(claims) + p.baseline_errors(found, p.baseline())
+    for e in errors:
+        click.echo(f"PROSE {e}")
+    per_doc = ", ".join(f"{d} {len(h)}" for d, h in found.items())
+    click.echo(f"{sum(map(len, found.values()))} unmarked numbers in prose ({per_doc or 'none'}); "
+               f"{len(errors)} failures", err=True)
+    return 1 if errors else 0
+
+
 @click.command("claims")
 @click.option("--quick", "quick", is_flag=True, help="The claims that take seconds (the default; run by `make test`).")
 @click.option("--all", "all_", is_flag=True, help="Quick and minutes-long claims (the system tests).")
@@ -48,8 +69,14 @@ def _tiers(quick: bool, all_: bool, study: bool, bench: bool) -> tuple[str, ...]
 @click.option("--jobs", default=1, show_default=True, type=click.IntRange(1, 64),
               help="Run this many sources at a time, each in its own process (CI: 2, the machine's cores).")
 @click.option("--list", "list_", is_flag=True, help="List the claims (id, tier, tolerance, doc line) and exit.")
+@click.option("--prose", is_flag=True,
+              help="Only list the measured-looking numbers of the docs' prose that are neither claims nor marked "
+                   "(claims/prose.py); exit 1 when a doc holds more than its baseline or a claim reference is stale.")
+@click.option("--lower-baseline", is_flag=True,
+              help="With --prose: lower each doc's baseline (claims/prose_baseline.json) to its count now; never raises.")
 def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check_docs: bool, record_: bool,
-           nudges: int, json_out: str | None, cache: str | None, untested: bool, only: str, jobs: int, list_: bool) -> None:
+           nudges: int, json_out: str | None, cache: str | None, untested: bool, only: str, jobs: int, list_: bool,
+           prose: bool, lower_baseline: bool) -> None:
     """Rerun the numbers the docs state (claims/, docs/claims.md) and compare with the recorded ones.
 
     Exit 0 when every selected claim holds within its tolerance, every verdict computed from the
@@ -58,17 +85,23 @@ def claims(quick: bool, all_: bool, study: bool, bench: bool, write: bool, check
     from swarmhil.claims.render import doc_drift, write_docs
     from swarmhil.claims.runner import SourceCache, kernel_set, locate, nudged_values, rerun, verdict_changes
 
+    from swarmhil.claims import prose as prose_mod
+
+    if lower_baseline and not prose:
+        raise click.UsageError("--lower-baseline goes with --prose")
     reg = registry()
+    if prose:
+        sys.exit(_prose(reg.claims, lower_baseline))
     where = locate(reg.claims, reg.tables)
     if list_:
         for c in reg.claims.values():
             click.echo(f"{c.id}\t{reg.tier(c)}\t{c.tol.describe()}\t{where.get(c.id, '-')}\t{c.what}")
         return
     if write:
-        for doc in write_docs(reg.tables, reg.claims):
+        for doc in sorted(set(write_docs(reg.tables, reg.claims)) | set(prose_mod.write_refs(reg.claims))):
             click.echo(f"rewrote {doc}")
         return
-    drift = doc_drift(reg.tables, reg.claims)
+    drift = doc_drift(reg.tables, reg.claims) + prose_mod.ref_errors(reg.claims)
     for d in drift:
         click.echo(f"DOC  {d}")
     if check_docs:
