@@ -44,7 +44,7 @@ _UNITS = (
     # frequency, data, rates per second
     r"|kHz|MHz|GHz|Hz|KiB|MiB|GiB|kB|KB|MB|GB|TB|bytes?|B|[A-Za-z]+/s"
     # force, mass, angle, power
-    r"|mN|µN|uN|N|kg|g|mrad|µrad|rad|deg|degrees?|arcsec|arcmin|°|mW|W"
+    r"|mN|µN|uN|N|kg|mrad|µrad|rad|deg|degrees?|arcsec|arcmin|°|mW|W"
 )
 # a number, optionally a space, then a unit not followed by a word character (so "3 sc", "5 more"
 # are not units), or a ratio (4.5x, 4.5×, 3 times), or a percentage
@@ -52,7 +52,7 @@ _RANGE = r"(?:\s?[-–]\s?\d+(?:\.\d+)?)?"  # 23.7-30.0 s, 3-4 min: one number
 NUMBER = re.compile(
     rf"(?P<num>{_NUM}{_RANGE})(?:(?P<ratio>[x×](?![\w])| ?× ?(?=\D)| times\b)|(?P<pct> ?%)"
     rf"|[  ]?(?P<unit>(?:{_UNITS}))(?![\w²^/]))"
-    rf"|(?<![\w.])[x×](?P<factor>\d+(?:\.\d+)?)(?![\w.])"  # x1.57, ×2.58
+    rf"|(?<![\w.])(?:×\d+(?:\.\d+)?|x\d+\.\d+)(?![\w.*'])"  # ×2.58, x1.57 (x2 alone is a variable)
 )
 ANY_NUMBER = re.compile(_NUM)
 MARK = re.compile(r"<!--\s*(param|paper|def)\b[^>]*?-->")
