@@ -61,6 +61,8 @@ COMMENT = re.compile(r"<!--.*?-->")
 BLOCK_START = re.compile(r"^\s*<!-- claims:[a-z0-9\-]+ -->\s*$")
 BLOCK_END = re.compile(r"^\s*<!-- /claims -->\s*$")
 FENCE = re.compile(r"^\s*(```|~~~)")
+INDENTED = re.compile(r"^(?: {4}|\t)")
+LIST_ITEM = re.compile(r"^(?:[-*+]|\d+[.)])\s")
 INLINE_CODE = re.compile(r"(`+)(?:(?!\1).)+?\1")
 LINK_TARGET = re.compile(r"\]\([^)]*\)|<https?://[^>]*>|https?://\S+")
 
@@ -95,9 +97,13 @@ def _blank(s: str) -> str:
 
 def prose_lines(text: str) -> Iterator[tuple[int, str, bool]]:
     """(line number, the line with code, comments other than marks and link targets blanked, whether
-    a block mark covers it) for each line outside rendered tables and fenced code."""
+    a block mark covers it) for each line outside rendered tables, fenced code and indented code (a
+    block indented by four spaces after a blank line that does not continue a list)."""
     closing: re.Pattern[str] | None = None  # what ends the fenced code or rendered table the line is in
     covered = False  # inside the block after a mark that stands on its own line
+    blank_before = True  # the previous line is blank (or the text starts)
+    in_list = False  # the last block that started at the margin was a list item
+    in_indented = False  # inside an indented code block
     for n, line in enumerate(text.splitlines(), 1):
         if closing is not None:
             if closing.match(line):
@@ -108,6 +114,14 @@ def prose_lines(text: str) -> Iterator[tuple[int, str, bool]]:
             continue
         if not line.strip():
             covered = False
+            blank_before = True
+            continue
+        indented = INDENTED.match(line) is not None
+        in_indented = indented and (in_indented or (blank_before and not in_list))
+        blank_before = False
+        if not line[:1].isspace():
+            in_list = LIST_ITEM.match(line) is not None
+        if in_indented:
             continue
         stripped = COMMENT.sub("", line).strip()
         if not stripped and MARK.search(line):

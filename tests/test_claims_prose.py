@@ -31,6 +31,10 @@ def test_the_scan_leaves_names_counts_code_comments_tables_and_links_alone():
            "~~~\n5 km\n~~~\nafter 6 h\n")
     hits = prose.scan(doc, "x.md")[0]
     assert [(h.line, h.text) for h in hits] == [(1, "1 s"), (11, "6 h")]
+    # an indented code block is code; a list item's indented continuation is prose
+    doc = "para 1 s\n\n    code 2 s\n    more 3 s\n\n- item 4 s\n\n    continued 5 s\ntext 6 s\n    lazy 7 s\n"
+    assert [(h.line, h.text) for h in prose.scan(doc, "x.md")[0]] == [(1, "1 s"), (6, "4 s"), (8, "5 s"), (9, "6 s"),
+                                                                     (10, "7 s")]
 
 
 def test_a_mark_covers_the_numbers_before_it_on_its_line_and_a_mark_alone_covers_the_next_block():
