@@ -8,9 +8,11 @@ fenced code blocks, inline code, HTML comments and link targets.
 
 Marks (HTML comments, invisible in the rendered page):
 
-- `<!-- param -->`, `<!-- paper -->`, `<!-- def -->` (an optional reason after a colon) covers the
-  numbers of its line before it, back to the previous mark on that line; a mark on a line of its own
-  covers the block that follows it (up to the next blank line: a paragraph or a table);
+- `<!-- param -->`, `<!-- paper -->`, `<!-- def -->` (an optional reason after a colon) right after a
+  number (`20 h<!-- param -->`) covers that number; after anything else (a space, a word, a
+  bracket) it covers the numbers of its line before it, back to the previous mark on that line; a
+  mark on a line of its own covers the block that follows it (up to the next blank line: a
+  paragraph or a table);
 - `<!-- claim:ID -->` (or `<!-- claim:ID:SPEC -->`, SPEC a format of `Claim.render`) right after a
   number says that number is the registry's claim ID: the check fails when the number is not what the
   registry renders, and `swarmhil claims --write` rewrites it.
@@ -147,6 +149,9 @@ def scan(text: str, doc: str) -> tuple[list[Hit], list[Ref]]:
             seg = line[pos:start]
             marked = start < len(line) and ref is None
             found = list(NUMBER.finditer(seg))
+            if marked and found and found[-1].end() == len(seg):
+                # a mark right after a number covers that number alone
+                found, marked = found[:-1], False
             if ref is not None:
                 anyn = list(ANY_NUMBER.finditer(seg))
                 last = anyn[-1] if anyn else None

@@ -37,9 +37,11 @@ def test_the_scan_leaves_names_counts_code_comments_tables_and_links_alone():
                                                                      (10, "7 s")]
 
 
-def test_a_mark_covers_the_numbers_before_it_on_its_line_and_a_mark_alone_covers_the_next_block():
+def test_a_mark_covers_its_number_or_the_numbers_before_it_and_a_mark_alone_covers_the_next_block():
     assert texts("after 20 h<!-- param --> the error is 3.2 m") == ["3.2 m"]
     assert texts("after 20 h the error is 3.2 m <!-- paper -->") == []
+    assert texts("at 1 s steps to 300 s<!-- param -->") == ["1 s"]  # right after a number: that number only
+    assert texts("at 1 s steps to 300 s <!-- param -->") == []
     assert texts("a 5 s lease<!-- def: Zenoh --> and 2 s <!-- param -->, then 7 s") == ["7 s"]
     assert texts("<!-- param -->\n| a | 10 s |\n| b | 20 s |\n\nafter 30 s") == ["30 s"]
     assert texts("<!-- no mark -->\n10 s") == ["10 s"]  # any other comment is not a mark
