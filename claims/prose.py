@@ -4,7 +4,7 @@ either comes from the registry or is marked as a parameter, a paper's figure or 
 
 A *measured-looking* number is a number with a unit (12.3 s, 2.1 m/s, 54 MB, 37 %) or a ratio
 (4.5x, 4.5×, 3 times). Not scanned: the rendered tables (`<!-- claims:ID -->` ... `<!-- /claims -->`),
-fenced code blocks, inline code, HTML comments and link targets.
+fenced and indented code blocks, inline code, HTML comments and link targets.
 
 Marks (HTML comments, invisible in the rendered page):
 
@@ -60,8 +60,13 @@ ANY_NUMBER = re.compile(_NUM)
 MARK = re.compile(r"<!--\s*(param|paper|def)\b[^>]*?-->")
 CLAIM_REF = re.compile(r"<!--\s*claim:([a-z0-9][a-z0-9_.\-]*?)(?::([^\s>]+))?\s*-->")
 COMMENT = re.compile(r"<!--.*?-->")
-BLOCK_START = re.compile(r"^\s*<!-- claims:[a-z0-9\-]+ -->\s*$")
-BLOCK_END = re.compile(r"^\s*<!-- /claims -->\s*$")
+# rendered blocks, each with the pattern that ends it: the claims tables, and docs/determinism.md's
+# kernel-drift table (rendered from docs/data/kernel-drift by bench/kernel_drift.py, checked by
+# tests/test_determinism_doc.py)
+RENDERED = (
+    (re.compile(r"^\s*<!-- claims:[a-z0-9\-]+ -->\s*$"), re.compile(r"^\s*<!-- /claims -->\s*$")),
+    (re.compile(r"^\s*<!-- kernel-drift table[^>]*-->\s*$"), re.compile(r"^\s*<!-- /kernel-drift table -->\s*$")),
+)
 FENCE = re.compile(r"^\s*(```|~~~)")
 INDENTED = re.compile(r"^(?: {4}|\t)")
 LIST_ITEM = re.compile(r"^(?:[-*+]|\d+[.)])\s")
@@ -111,8 +116,9 @@ def prose_lines(text: str) -> Iterator[tuple[int, str, bool]]:
             if closing.match(line):
                 closing = None
             continue
-        if FENCE.match(line) or BLOCK_START.match(line):
-            closing = FENCE if FENCE.match(line) else BLOCK_END
+        opened = FENCE if FENCE.match(line) else next((end for start, end in RENDERED if start.match(line)), None)
+        if opened is not None:
+            closing = opened
             continue
         if not line.strip():
             covered = False

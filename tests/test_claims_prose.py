@@ -28,9 +28,9 @@ def test_the_scan_leaves_names_counts_code_comments_tables_and_links_alone():
          "<!-- 9 s -->, [the page](docs/5 s.md), https://example.org/3m")
     assert texts(s) == []
     doc = ("before 1 s\n```sh\nsleep 2 s  # 3 h\n```\n<!-- claims:t -->\n| 4 m |\n<!-- /claims -->\n"
-           "~~~\n5 km\n~~~\nafter 6 h\n")
+           "~~~\n5 km\n~~~\nafter 6 h\n<!-- kernel-drift table: rendered -->\n| 7 m |\n<!-- /kernel-drift table -->\n8 s\n")
     hits = prose.scan(doc, "x.md")[0]
-    assert [(h.line, h.text) for h in hits] == [(1, "1 s"), (11, "6 h")]
+    assert [(h.line, h.text) for h in hits] == [(1, "1 s"), (11, "6 h"), (15, "8 s")]
     # an indented code block is code; a list item's indented continuation is prose
     doc = "para 1 s\n\n    code 2 s\n    more 3 s\n\n- item 4 s\n\n    continued 5 s\ntext 6 s\n    lazy 7 s\n"
     assert [(h.line, h.text) for h in prose.scan(doc, "x.md")[0]] == [(1, "1 s"), (6, "4 s"), (8, "5 s"), (9, "6 s"),
