@@ -37,7 +37,7 @@ def _prose(claims: dict, lower: bool) -> int:
     if lower:
         new = p.lower_baseline(found)
         click.echo(f"baseline: {sum(new.values())} numbers in {len(new)} docs", err=True)
-    errors = p.ref_errors(claims) + p.baseline_errors(found, p.baseline())
+    errors = p.ref_errors(claims) + p.heading_marks() + p.baseline_errors(found, p.baseline())
     for e in errors:
         click.echo(f"PROSE {e}")
     per_doc = ", ".join(f"{d} {len(h)}" for d, h in found.items())

@@ -243,6 +243,18 @@ def write_refs(claims: Mapping[str, Claim], root: Path = ROOT) -> list[str]:
     return changed
 
 
+def heading_marks(root: Path = ROOT) -> list[str]:
+    """One line per mark or claim reference on a heading line: a heading's text is its anchor and
+    what claims/coverage.py looks for, so a mark goes on the line before it (a mark alone on a line
+    covers the block that follows: the heading)."""
+    out = []
+    for p in docs(root):
+        for n, line, _ in prose_lines(p.read_text()):
+            if line.startswith("#") and (MARK.search(line) or CLAIM_REF.search(line)):
+                out.append(f"{_rel(p, root)}:{n}: a mark on a heading line; put it on the line before")
+    return out
+
+
 def baseline(path: Path = BASELINE) -> dict[str, int]:
     """Per doc, how many unmarked numbers it may still hold (a count that may only go down)."""
     return json.loads(path.read_text()) if path.exists() else {}

@@ -83,9 +83,18 @@ def test_the_baseline_fails_a_doc_that_gains_a_number_and_asks_to_lower_one_that
     assert json.loads(path.read_text()) == {"a.md": 2}
 
 
+def test_a_mark_on_a_heading_line_is_refused(tmp_path: Path):
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "README.md").write_text("<!-- param -->\n## Over 550 s\n\ntext\n")
+    (tmp_path / "docs" / "a.md").write_text("# A\n\n### Case (i), 550 s <!-- param -->\n")
+    assert prose.heading_marks(tmp_path) == ["docs/a.md:3: a mark on a heading line; put it on the line before"]
+    assert prose.unmarked(tmp_path) == {}  # the mark before the heading covers it
+
+
 def test_every_doc_is_within_its_baseline_and_every_claim_reference_is_the_registrys():
     found = prose.unmarked()
-    errors = prose.baseline_errors(found, prose.baseline()) + prose.ref_errors(registry().claims)
+    errors = (prose.baseline_errors(found, prose.baseline()) + prose.ref_errors(registry().claims)
+              + prose.heading_marks())
     assert errors == [], "\n".join(errors)
 
 
