@@ -38,7 +38,12 @@ from typing import Any
 import zenoh
 
 PROG = "fc2"
-ROUTER_GONE_S = 2.0  # docs/hil.md "When to leave": a client that sees its router gone may leave
+ROUTER_GONE_S = 2.0
+TLS_KEYS = {  # the kit's `tls` roles -> the Zenoh settings that name those files
+    "ca": "transport/link/tls/root_ca_certificate",
+    "cert": "transport/link/tls/connect_certificate",
+    "key": "transport/link/tls/connect_private_key",
+}  # docs/hil.md "When to leave": a client that sees its router gone may leave
 
 
 class KitError(Exception):
@@ -211,13 +216,13 @@ def load_kit(kit_dir: str, connect: str | None) -> Kit:
     if tls:
         # A kit copied elsewhere: take each TLS file from its own directory (the `tls` block's
         # paths are relative to the kit), not the absolute path the launcher wrote.
-        for zkey, rel in tls.items():
-            if zkey in zcfg and isinstance(rel, str):
-                zcfg[zkey] = os.path.join(os.path.abspath(kit_dir), rel)
-    for zkey, value in zcfg.items():
-        if zkey.startswith("transport/link/tls/") and isinstance(value, str) and value.endswith((".pem", ".key")):
-            if not os.path.isfile(value):
-                raise KitError(f"{where}: TLS file {value} ({zkey}) does not exist")
+        for role, zkey in TLS_KEYS.items():
+            if role not in tls:
+                raise KitError(f"{where}: tls has no {role!r} file")
+            zcfg[zkey] = os.path.join(os.path.abspath(kit_dir), tls[role])
+    for zkey in TLS_KEYS.values():
+        if zkey in zcfg and not os.path.isfile(zcfg[zkey]):
+            raise KitError(f"{where}: TLS file {zcfg[zkey]} ({zkey}) does not exist")
     if connect:
         zcfg["connect/endpoints"] = [connect]
     if not os.path.isfile(kit.proto):
