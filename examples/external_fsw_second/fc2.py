@@ -335,7 +335,7 @@ def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
                 tm = pb.Telemetry()
                 stamp(tm.header, kit, stim.header, seq["tm"])
                 tm.mode = mode
-                tm.controller = kit.law.name
+                tm.controller = f"{kit.law.name}/fc2"  # the recording says who flew it
                 tm.accel_mps2.x, tm.accel_mps2.y, tm.accel_mps2.z = accel
                 tm.compute_s = compute_s
                 tm.rejected_packets = bad
