@@ -39,6 +39,8 @@ import zenoh
 
 PROG = "fc2"
 ROUTER_GONE_S = 2.0
+REJOIN_MARGIN_S = 5.0  # lockstep: no stimulus for stall_timeout_s + this after an answer = dropped
+COLD: tuple[tuple[float, float, float], str] = ((0.0, 0.0, 0.0), "idle")  # no decision yet: no thrust
 TLS_KEYS = {  # the kit's `tls` roles -> the Zenoh settings that name those files
     "ca": "transport/link/tls/root_ca_certificate",
     "cert": "transport/link/tls/connect_certificate",
@@ -174,6 +176,7 @@ class Kit:
     token: str
     zenoh: dict[str, Any]
     proto: str
+    mode: str
     steps: int
     decision_period_steps: int
     stall_timeout_s: float
@@ -202,6 +205,7 @@ def load_kit(kit_dir: str, connect: str | None) -> Kit:
             token=doc["liveliness_token"],
             zenoh=zcfg,
             proto=os.path.join(kit_dir, doc.get("proto") or "swarmhil.proto"),
+            mode=str(timing.get("mode") or "lockstep"),
             steps=int(timing["steps"]),
             decision_period_steps=max(1, int(timing.get("decision_period_steps") or 1)),
             stall_timeout_s=float((timing.get("deadline") or {}).get("stall_timeout_s") or 120.0),
@@ -268,6 +272,16 @@ def stamp(header: Any, kit: Kit, stimulus_header: Any, seq: int) -> None:
     header.seq = seq
 
 
+def router_gone_for(session: zenoh.Session, since: list[float | None]) -> float:
+    """Seconds this session has had no router (0 while it has one); since[0] keeps when it went."""
+    if session.info.routers_zid():
+        since[0] = None
+        return 0.0
+    if since[0] is None:
+        since[0] = time.monotonic()
+    return time.monotonic() - since[0]
+
+
 def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
     """Join, answer every stimulus until the last step, stay until the router is gone."""
     inbox: queue.Queue[tuple[str, bytes]] = queue.Queue()
@@ -285,21 +299,29 @@ def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
         print(f"{PROG}: {kit.spacecraft} joined run {kit.run} ({kit.law.name}); waiting for stimuli", flush=True)
 
         seq = {"act": 0, "tm": 0}
-        held: tuple[tuple[float, float, float], str] = ((0.0, 0.0, 0.0), "search")
+        held = COLD  # until the first decision step: what the built-in agent answers before its first decision
         answered = 0
         last_step = -1
         last_answer = time.monotonic()
         bad = 0
+        rejoin_after_s = kit.stall_timeout_s + REJOIN_MARGIN_S
+        gone: list[float | None] = [None]  # since when no router has been connected
         while last_step < kit.steps - 1:
             try:
                 key, payload = inbox.get(timeout=0.5)
             except queue.Empty:
-                if time.monotonic() - last_answer > kit.stall_timeout_s:
-                    # Dropped without being told: rejoin by declaring the token again.
-                    print(f"{PROG}: no stimulus for {kit.stall_timeout_s:g} s after step {last_step}: "
+                if router_gone_for(session, gone) >= ROUTER_GONE_S:
+                    print(f"{PROG}: {kit.spacecraft} answered {answered} stimuli (last step {last_step} of "
+                          f"{kit.steps - 1}); the run's router is gone, leaving", file=sys.stderr, flush=True)
+                    return 1
+                if kit.mode == "lockstep" and answered and time.monotonic() - last_answer > rejoin_after_s:
+                    # Dropped without being told (the plant waits no longer than stall_timeout_s for
+                    # anyone): rejoin by declaring the token again; the plant sends the next step.
+                    print(f"{PROG}: no stimulus for {rejoin_after_s:g} s after step {last_step}: "
                           "dropped; declaring the token again", file=sys.stderr, flush=True)
                     token.undeclare()
                     token = session.liveliness().declare_token(kit.token)
+                    held = COLD  # rejoined cold, as a restarted agent
                     last_answer = time.monotonic()
                 continue
             if key != "sense":
@@ -346,14 +368,7 @@ def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
             last_answer = time.monotonic()
 
         # The last command is out: stay until the launcher stops the router after run_end.
-        gone_since: float | None = None
-        while True:
-            if session.info.routers_zid():
-                gone_since = None
-            elif gone_since is None:
-                gone_since = time.monotonic()
-            elif time.monotonic() - gone_since >= ROUTER_GONE_S:
-                break
+        while router_gone_for(session, gone) < ROUTER_GONE_S:
             time.sleep(0.1)
         print(f"{PROG}: {kit.spacecraft} answered {answered} stimuli (last step {last_step}); "
               f"{bad} rejected; router gone, leaving", flush=True)
