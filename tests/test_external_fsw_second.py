@@ -16,6 +16,7 @@ from pathlib import Path
 from types import ModuleType
 
 import numpy as np
+import pytest
 
 from conftest import ROOT, SCENARIOS, read_mcap
 from swarmhil.deploy.scenario import load_scenario
@@ -210,3 +211,41 @@ def test_second_flight_computer_from_a_copied_kit_over_mutual_tls_with_a_decisio
     ref, ref_summary = _builtin(tmp_path, "hil2b", period)
     uy = _assert_same_flight(ext, ref, ref_summary)
     assert all(uy[k] == uy[k - k % 3] for k in range(100)) and len(set(uy)) == 34  # held between decisions
+
+
+@pytest.mark.system
+def test_second_flight_computer_frozen_past_the_stall_timeout_rejoins_and_flies_on(tmp_path: Path) -> None:
+    """Lockstep with a 2 s stall timeout: fc2 frozen (SIGSTOP, by its PID) for 3.2 s, less than its 5 s
+    lease, so its token stays up: the plant drops sc02 ("lockstep stall"), nobody tells fc2; thawed, it
+    sees no stimulus for stall_timeout_s + its margin, declares its token again and the plant takes it
+    back (one rejoin); sc02 is alive at the end and fc2 flew to the last step."""
+    import signal
+
+    out = tmp_path / "rejoin"
+    launcher = subprocess.Popen([*SWARMHIL, "run", str(SCENARIO), "--out", str(out), "--run-id", "hil2c", "--no-progress",
+                                 "--duration", "100000", "--set", "supervision.stall_timeout_s=2.0"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), cwd=ROOT)
+    fc = None
+    try:
+        kit = out / "external" / "sc02"
+        _wait_for_kit(launcher, kit)
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        fc = subprocess.Popen([sys.executable, str(FC2), str(kit), "--rejoin-margin-s", "1.0"], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+        assert fc.stdout.readline().startswith("fc2: sc02 joined run hil2c")
+        time.sleep(0.5)  # flying
+        os.kill(fc.pid, signal.SIGSTOP)
+        time.sleep(3.2)
+        os.kill(fc.pid, signal.SIGCONT)
+        fc_out, fc_err = fc.communicate(timeout=300)
+        l_out, l_err = launcher.communicate(timeout=120)
+    finally:
+        for p in (fc, launcher):
+            if p is not None and p.poll() is None:
+                p.kill()
+    assert fc.returncode == 0 and launcher.returncode == 0, (fc_out, fc_err, l_out, l_err)
+    assert "dropped; declaring the token again" in fc_err and "(last step 9999)" in fc_out, (fc_out, fc_err)
+    s = json.loads((out / "summary.json").read_text())
+    (rejoin,) = s["rejoins"]
+    assert rejoin["id"] == "sc02" and rejoin["dead_reason"].startswith("lockstep stall") and rejoin["step"] > rejoin["dead_step"]
+    assert s["steps"] == 10000 and s["dead_agents"] == {} and s["rejected_packets"] == 0, s

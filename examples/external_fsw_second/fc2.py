@@ -9,7 +9,7 @@ command. The protobuf code is generated at start-up from the kit's own ``swarmhi
 
 Usage::
 
-    python fc2.py KIT_DIR [--connect ENDPOINT] [--delay-s S] [--no-telemetry]
+    python fc2.py KIT_DIR [--connect ENDPOINT] [--delay-s S] [--no-telemetry] [--rejoin-margin-s S]
 
 The laws (docs/hil.md "The built-in laws, to the bit"), IEEE double precision, in this order:
 
@@ -282,7 +282,7 @@ def router_gone_for(session: zenoh.Session, since: list[float | None]) -> float:
     return time.monotonic() - since[0]
 
 
-def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
+def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool, rejoin_margin_s: float = REJOIN_MARGIN_S) -> int:
     """Join, answer every stimulus until the last step, stay until the router is gone."""
     inbox: queue.Queue[tuple[str, bytes]] = queue.Queue()
     enc = {t: zenoh.Encoding(f"application/protobuf;swarmhil.v1.{t}") for t in ("ActuatorCommand", "Telemetry")}
@@ -304,7 +304,7 @@ def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
         last_step = -1
         last_answer = time.monotonic()
         bad = 0
-        rejoin_after_s = kit.stall_timeout_s + REJOIN_MARGIN_S
+        rejoin_after_s = kit.stall_timeout_s + rejoin_margin_s
         gone: list[float | None] = [None]  # since when no router has been connected
         while last_step < kit.steps - 1:
             try:
@@ -382,18 +382,20 @@ def fly(kit: Kit, pb: Any, delay_s: float, telemetry: bool) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Command line: fc2.py KIT_DIR [--connect ENDPOINT] [--delay-s S] [--no-telemetry]."""
+    """Command line: fc2.py KIT_DIR [--connect ENDPOINT] [--delay-s S] [--no-telemetry] [--rejoin-margin-s S]."""
     ap = argparse.ArgumentParser(prog="fc2.py", description="A second external flight computer (drift-null, null).")
     ap.add_argument("kit", help="the join kit directory the launcher wrote (DIR/external/<id>)")
     ap.add_argument("--connect", help="connect here instead of the kit's router endpoint (e.g. an SSH tunnel)")
     ap.add_argument("--delay-s", type=float, default=0.0, help="sleep this long before each command (a slow computer)")
     ap.add_argument("--no-telemetry", action="store_true", help="publish no Telemetry")
+    ap.add_argument("--rejoin-margin-s", type=float, default=REJOIN_MARGIN_S,
+                    help="lockstep: declare the token again after stall_timeout_s + this without a stimulus")
     args = ap.parse_args(argv)
     out = None
     try:
         kit = load_kit(args.kit, args.connect)
         pb, out = generate_messages(kit.proto)
-        return fly(kit, pb, args.delay_s, not args.no_telemetry)
+        return fly(kit, pb, args.delay_s, not args.no_telemetry, args.rejoin_margin_s)
     except KitError as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
