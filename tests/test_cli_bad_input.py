@@ -180,6 +180,7 @@ CASES = [
      "--wheelhouse", 2),
     ("image build without docker", lambda f: ["image", "build", "--docker", str(f["d"] / "no-docker")], "no-docker", 1),
     ("claims unwritable json", lambda f: ["claims", "--check-docs", "--json", "/proc/swarmhil-no/such"], "--json", 2),
+    ("claims lower-baseline without prose", lambda f: ["claims", "--lower-baseline"], "--lower-baseline goes with --prose", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
 ]
 
