@@ -12,6 +12,7 @@ import click
 
 from swarmhil.bus.optional import MissingExtra
 from swarmhil.deploy.cli_viz import viz_option
+from swarmhil.deploy.mesh import scenario_placement
 
 
 def _bad_file_errors() -> tuple[type[BaseException], ...]:
@@ -179,8 +180,6 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         click.echo("error: --hosts needs a multi-process run: drop --in-process", err=True)
         sys.exit(2)
     if not in_process:
-        from swarmhil.deploy.mesh import scenario_placement  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
         try:
             scenario_placement(sc, hosts)
         except ValueError as exc:

@@ -28,6 +28,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.keys import Keys
 from swarmhil.deploy.companions import enabled_companions
 from swarmhil.deploy.external import JoinTimeout, external_ids, join_hosts, start_external
+from swarmhil.deploy.mesh import new_router_zid, process_hosts, router_name, router_users, scenario_placement
 from swarmhil.deploy.scenario import Scenario, plant_config, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
@@ -258,8 +259,6 @@ class MultiProcessRun:
         self.cpu_budgets: dict[str, Any] = {}  # agent -> deploy.cpu_budget.CpuBudget
         self._paused: set[str] = set()  # agents a process_pause fault has SIGSTOPped
         # several hosts (deploy/mesh.py): one router per host, each agent on its host's router
-        from swarmhil.deploy.mesh import scenario_placement  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
         self.hosts = int(self.opts.get("hosts", 1))
         self.agent_hosts = scenario_placement(sc, self.hosts)  # ValueError: a [[spacecraft]] host outside 0 .. K-1
         self.router_eps: list[str] = []   # host -> its router's endpoint
@@ -322,8 +321,6 @@ class MultiProcessRun:
                                                        "all_pids": self.all_pids, **self._placement()}, indent=1))
 
     def _placement(self) -> dict[str, Any]:
-        from swarmhil.deploy.mesh import process_hosts, router_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
         hosts = [{"host": h, "router": ep, "router_process": router_name(h),
                   **({"zid": self.router_zids[h]} if self.router_zids else {})} for h, ep in enumerate(self.router_eps)]
         ground = [n for n in self.procs if not n.startswith(("agent-", "router"))]
@@ -405,7 +402,6 @@ class MultiProcessRun:
         import socket
 
         from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-        from swarmhil.deploy.mesh import router_name  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         name = router_name(host)
         for _attempt in range(attempts):
@@ -553,8 +549,6 @@ class MultiProcessRun:
 
             users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
             if self.hosts > 1:
-                from swarmhil.deploy.mesh import new_router_zid, router_users  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
                 self.router_zids = [new_router_zid() for _ in range(self.hosts)]
                 users += router_users(self.hosts)
             self.security = make_run_security(self.out, self.run, users, tls=self.tls,

@@ -21,6 +21,7 @@ import signal
 import sys
 import threading
 
+from swarmhil.bus.acl import read_credential
 from swarmhil.deploy.stopping import Stop, stop_on_signals
 
 
@@ -66,8 +67,6 @@ def mesh_overrides(zid: str | None, credentials: str | None = None, tls: str | N
             raise ValueError(f"--zid {zid}: not a Zenoh id (1 to 32 lowercase hex digits, no leading zero)")
         ov["id"] = z
     if credentials:
-        from swarmhil.bus.acl import read_credential  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
         try:
             cred = read_credential(credentials)
         except OSError as exc:

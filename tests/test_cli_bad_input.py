@@ -179,6 +179,12 @@ CASES = [
     ("image build missing wheelhouse", lambda f: ["image", "build", "--wheelhouse", str(f["d"] / "no-wheels")],
      "--wheelhouse", 2),
     ("image build without docker", lambda f: ["image", "build", "--docker", str(f["d"] / "no-docker")], "no-docker", 1),
+    ("hosts in-process", lambda f: ["run", DEMO, "--in-process", "--hosts", "2", "--out", str(f["d"] / "x11")],
+     "--hosts needs a multi-process run", 2),
+    ("hosts zero", lambda f: ["run", DEMO, "--hosts", "0", "--out", str(f["d"] / "x12")], "--hosts", 2),
+    ("spacecraft on an unknown host", lambda f: ["run", str(SCENARIOS / "sabatini-20-explicit.toml"), "--hosts", "2", "--set",
+                                                 "spacecraft.1.host=2", "--out", str(f["d"] / "x13")],
+     "sc02: host = 2, but the run has 2 hosts", 2),
     ("claims unwritable json", lambda f: ["claims", "--check-docs", "--json", "/proc/swarmhil-no/such"], "--json", 2),
     *_scenario_cases(), *_recording_cases(), *_run_dir_cases(),
 ]
