@@ -1,0 +1,129 @@
+"""One run over four hosts through a mesh of Zenoh routers (`swarmhil run --hosts 4`, deploy/mesh.py),
+on loopback: the same truth, bit for bit, and the same messages on every topic of run.mcap as the
+single-router run with the same run id and seed; lockstep with no dead agent and no missed step; every
+agent a client of its own host's router only, every router linked to the routers before it."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import psutil
+import pytest
+
+from conftest import ROOT, SCENARIOS, read_mcap, topics
+
+pytestmark = pytest.mark.system
+
+RUN = "mesh4"
+DURATION_S = "400"  # 40 steps of sabatini-20
+
+
+def _launch(out: Path, hosts: int) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20.toml"),
+                             "--duration", DURATION_S, "--run-id", RUN, "--out", str(out), "--no-progress",
+                             "--hosts", str(hosts)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _port(ep: str) -> int:
+    return int(ep.rpartition(":")[2])
+
+
+def _remote_ports(pid: int) -> set[int]:
+    try:
+        return {c.raddr.port for c in psutil.Process(pid).net_connections(kind="tcp")
+                if c.raddr and c.status == psutil.CONN_ESTABLISHED}
+    except psutil.NoSuchProcess:
+        return set()
+
+
+def _connections_while_running(p: subprocess.Popen, out: Path) -> tuple[dict, dict[str, set[int]]]:
+    """run.json once every process is started, and the TCP peers (remote ports) of every agent and
+    router, sampled while the run goes on (until every agent has one)."""
+    t_end = time.monotonic() + 300
+    info = None
+    while time.monotonic() < t_end and p.poll() is None:
+        try:
+            info = json.loads((out / "run.json").read_text())
+            if "plant" in info["pids"]:
+                break
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+    assert info is not None and p.poll() is None, "the run ended before run.json named its processes"
+    seen: dict[str, set[int]] = defaultdict(set)
+    names = [n for n in info["pids"] if n.startswith(("agent-", "router"))]
+    while time.monotonic() < t_end and p.poll() is None:
+        for n in names:
+            seen[n] |= _remote_ports(info["pids"][n])
+        if all(seen[n] for n in names if n.startswith("agent-")) and all(seen[n] for n in names if n.startswith("router-")):
+            break
+        time.sleep(0.1)
+    return info, seen
+
+
+def _by_topic(path: Path) -> dict[str, list[bytes]]:
+    """Every message of the recording, serialized, by topic (in recorded order); the telemetry's
+    `compute_s` (wall time the flight software spent) zeroed, the one field a run's timing sets."""
+    d: dict[str, list[bytes]] = defaultdict(list)
+    for topic, _log, _pub, msg in read_mcap(path):
+        if topic.endswith("/tm"):
+            msg.compute_s = 0.0
+        d[topic].append(msg.SerializeToString())
+    return d
+
+
+def test_four_hosts_equal_one_router(tmp_path: Path) -> None:
+    mesh_out, single_out = tmp_path / "hosts4", tmp_path / "hosts1"
+    p = _launch(mesh_out, 4)
+    try:
+        info, seen = _connections_while_running(p, mesh_out)
+        stdout, stderr = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, stderr[-2000:]
+
+    # placement: round-robin, the ground processes on host 0, one router per host, in run.json
+    hosts = info["hosts"]
+    assert [h["host"] for h in hosts] == [0, 1, 2, 3]
+    assert [h["router_process"] for h in hosts] == ["router", "router-1", "router-2", "router-3"]
+    assert len({h["router"] for h in hosts}) == 4 and len({h["zid"] for h in hosts}) == 4
+    ph = info["process_hosts"]
+    assert all(ph[f"agent-sc{i + 1:02d}"] == i % 4 for i in range(20)), ph
+    assert ph["plant"] == ph["recorder"] == 0 and ph["router-3"] == 3
+    port_of_host = [_port(h["router"]) for h in hosts]
+    # each agent talks to its own host's router and to nothing else
+    for i in range(20):
+        name = f"agent-sc{i + 1:02d}"
+        assert seen[name] == {port_of_host[i % 4]}, (name, seen[name], port_of_host)
+    # router i links to every router before it (a full mesh: router 3 to routers 0, 1, 2)
+    for h in range(1, 4):
+        assert set(port_of_host[:h]) <= seen[f"router-{h}"], (h, seen[f"router-{h}"], port_of_host)
+
+    s = json.loads((mesh_out / "summary.json").read_text())
+    assert s["steps"] == 40 and s["dead_agents"] == {} and s["missed_deadlines"] == {} and s["late_commands"] == 0, s
+    assert s["rejected_packets"] == 0 and s["recorder_confirmed"]
+    assert s["hosts"] == hosts
+
+    p1 = _launch(single_out, 1)
+    _out1, err1 = p1.communicate(timeout=600)
+    assert p1.returncode == 0, err1[-2000:]
+    one = json.loads((single_out / "run.json").read_text())
+    assert len(one["hosts"]) == 1 and set(one["process_hosts"].values()) == {0}
+
+    truth = topics(mesh_out / "run.mcap", "truth")
+    assert len(truth) == 41 and truth == topics(single_out / "run.mcap", "truth")
+    mesh, single = _by_topic(mesh_out / "run.mcap"), _by_topic(single_out / "run.mcap")
+    assert sorted(mesh) == sorted(single)
+    assert {t: len(v) for t, v in mesh.items()} == {t: len(v) for t, v in single.items()}
+    # every topic the processes publish holds the same messages; the recorder's own Foxglove scene
+    # colours each spacecraft by the last telemetry it had when a truth arrived, so it depends on
+    # the arrival order of the two at the recorder (timing, not content): compared in number only
+    differ = [t for t in single if t != "foxglove/scene" and sorted(mesh[t]) != sorted(single[t])]
+    assert not differ, differ
+    assert s["delta_v_mps"] == json.loads((single_out / "summary.json").read_text())["delta_v_mps"]
