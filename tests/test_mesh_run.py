@@ -5,8 +5,10 @@ agent a client of its own host's router only, every router linked to the routers
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
+import threading
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -127,3 +129,62 @@ def test_four_hosts_equal_one_router(tmp_path: Path) -> None:
     differ = [t for t in single if t != "foxglove/scene" and sorted(mesh[t]) != sorted(single[t])]
     assert not differ, differ
     assert s["delta_v_mps"] == json.loads((single_out / "summary.json").read_text())["delta_v_mps"]
+
+
+def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -> None:
+    """SIGKILL of host 2's router mid-run (3 hosts, 6 agents, real time x20): its agents (sc03, sc06)
+    are marked dead and their spacecraft coast, the other agents fly on to the end, the run completes
+    (exit 0) and the launcher's Event `router_lost` is in the recording."""
+    import signal
+
+    from swarmhil.bus import swarmhil_pb2 as pb
+    from swarmhil.bus.acl import read_credential
+    from swarmhil.bus.zenoh_bus import ZenohBus
+
+    out = tmp_path / "kr"
+    p = subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20.toml"),
+                          "--set", "dispersion.count=6", "--duration", "400", "--mode", "realtime", "--speed", "20",
+                          "--run-id", "kr", "--out", str(out), "--no-progress", "--hosts", "3"],
+                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t_end = time.monotonic() + 300
+        info = None
+        while time.monotonic() < t_end and p.poll() is None:
+            try:
+                info = json.loads((out / "run.json").read_text())
+                if "plant" in info["pids"]:
+                    break
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.05)
+        assert info is not None and p.poll() is None
+        assert info["process_hosts"]["agent-sc03"] == info["process_hosts"]["agent-sc06"] == 2
+        step = threading.Event()
+        bus = ZenohBus(info["router"], credential=read_credential(out / "secrets" / "launcher.cred"))
+        bus.subscribe("swarm/kr/clock", lambda _k, b: pb.Tick.FromString(b).header.step >= 8 and step.set())
+        try:
+            assert step.wait(120), "the run did not reach step 8"
+        finally:
+            bus.close()
+        os.kill(info["pids"]["router-2"], signal.SIGKILL)
+        _out, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err[-2000:]
+    s = json.loads((out / "summary.json").read_text())
+    assert sorted(s["dead_agents"]) == ["sc03", "sc06"], s["dead_agents"]
+    assert s["steps"] == 40 and s["exit_codes"]["router-2"] == -signal.SIGKILL
+    events = [m for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "event"]
+    lost = [e for e in events if e.kind == "router_lost"]
+    assert len(lost) == 1 and lost[0].subject == "router-2" and "sc03, sc06" in lost[0].detail, lost
+    dead = {e.subject for e in events if e.kind == "agent_dead"}
+    assert dead == {"sc03", "sc06"}, dead
+    # the agents of the other hosts commanded every step to the end; the lost ones stopped early
+    acts = defaultdict(int)
+    for t, _l, _p, _m in read_mcap(out / "run.mcap"):
+        if t.endswith("/act"):
+            acts[t.split("/")[1]] += 1
+    assert all(acts[f"sc0{i}"] == 40 for i in (1, 2, 4, 5)), acts
+    assert all(8 <= acts[f"sc0{i}"] < 40 for i in (3, 6)), acts
