@@ -42,20 +42,25 @@ def _remote_ports(pid: int) -> set[int]:
         return set()
 
 
-def _connections_while_running(p: subprocess.Popen, out: Path) -> tuple[dict, dict[str, set[int]]]:
-    """run.json once every process is started, and the TCP peers (remote ports) of every agent and
-    router, sampled while the run goes on (until every agent has one)."""
-    t_end = time.monotonic() + 300
-    info = None
+def _run_json(p: subprocess.Popen, out: Path, timeout_s: float = 300.0) -> dict:
+    """run.json once the launcher has started every process (the plant last)."""
+    t_end = time.monotonic() + timeout_s
     while time.monotonic() < t_end and p.poll() is None:
         try:
             info = json.loads((out / "run.json").read_text())
             if "plant" in info["pids"]:
-                break
+                return info
         except (OSError, ValueError, KeyError):
             pass
         time.sleep(0.05)
-    assert info is not None and p.poll() is None, "the run ended before run.json named its processes"
+    raise AssertionError(f"the run ended (code {p.poll()}) or took {timeout_s:.0f} s before run.json named its processes")
+
+
+def _connections_while_running(p: subprocess.Popen, out: Path) -> tuple[dict, dict[str, set[int]]]:
+    """run.json once every process is started, and the TCP peers (remote ports) of every agent and
+    router, sampled while the run goes on (until every agent has one)."""
+    t_end = time.monotonic() + 300
+    info = _run_json(p, out)
     seen: dict[str, set[int]] = defaultdict(set)
     names = [n for n in info["pids"] if n.startswith(("agent-", "router"))]
     while time.monotonic() < t_end and p.poll() is None:
@@ -147,17 +152,7 @@ def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -
                           "--run-id", "kr", "--out", str(out), "--no-progress", "--hosts", "3"],
                          cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        t_end = time.monotonic() + 300
-        info = None
-        while time.monotonic() < t_end and p.poll() is None:
-            try:
-                info = json.loads((out / "run.json").read_text())
-                if "plant" in info["pids"]:
-                    break
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.05)
-        assert info is not None and p.poll() is None
+        info = _run_json(p, out)
         assert info["process_hosts"]["agent-sc03"] == info["process_hosts"]["agent-sc06"] == 2
         step = threading.Event()
         bus = ZenohBus(info["router"], credential=read_credential(out / "secrets" / "launcher.cred"))
