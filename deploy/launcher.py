@@ -263,11 +263,16 @@ class MultiProcessRun:
         self.agent_hosts = scenario_placement(sc, self.hosts)  # ValueError: a [[spacecraft]] host outside 0 .. K-1
         self.router_eps: list[str] = []   # host -> its router's endpoint
         self.router_zids: list[str] = []  # host -> its router's Zenoh id (hosts > 1)
+        self.netns: Any = None  # deploy.netns.Hosts: with opts["netns"], each host a network namespace
+
+    def _host_of(self, name: str) -> int:
+        if name.startswith("router-"):
+            return int(name[len("router-"):])
+        return self.agent_hosts.get(name[len("agent-"):], 0) if name.startswith("agent-") else 0
 
     def _router_of(self, name: str) -> str:
         """The endpoint of the router a process is a client of (its host's)."""
-        host = self.agent_hosts.get(name[len("agent-"):], 0) if name.startswith("agent-") else 0
-        return self.router_eps[host]
+        return self.router_eps[self._host_of(name)]
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "swarmhil.deploy.proc", role, "--router", router, "--run", self.run,
@@ -306,6 +311,8 @@ class MultiProcessRun:
         # in order); die with the launcher (no orphans); SWARMHIL_PARENT_PID for the child's own watchdog
         env = _child_env()
         env["SWARMHIL_PARENT_PID"] = str(os.getpid())
+        if self.netns is not None:  # a process of another host runs in its network namespace (deploy/netns.py)
+            cmd = [*self.netns.prefix(self._host_of(name)), *cmd]
         self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
                                             stdin=subprocess.DEVNULL, process_group=0,
                                             preexec_fn=_die_with_parent(os.getpid()))
@@ -322,7 +329,8 @@ class MultiProcessRun:
 
     def _placement(self) -> dict[str, Any]:
         hosts = [{"host": h, "router": ep, "router_process": router_name(h),
-                  **({"zid": self.router_zids[h]} if self.router_zids else {})} for h, ep in enumerate(self.router_eps)]
+                  **({"zid": self.router_zids[h]} if self.router_zids else {}),
+                  **(self.netns.describe()[h] if self.netns is not None else {})} for h, ep in enumerate(self.router_eps)]
         ground = [n for n in self.procs if not n.startswith(("agent-", "router"))]
         procs = process_hosts(self.agent_hosts, ground)
         procs.update({router_name(h): h for h in range(len(self.router_eps))})
@@ -404,9 +412,10 @@ class MultiProcessRun:
         from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         name = router_name(host)
+        address = "127.0.0.1" if self.netns is None else self.netns.addresses[host]
         for _attempt in range(attempts):
-            port = free_loopback_port()
-            ep = endpoint(port, proto="tls" if self.tls else "tcp")
+            port = free_loopback_port() if self.netns is None else self.netns.free_port(host)
+            ep = endpoint(port, host=address, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "swarmhil.deploy.router", "--listen", ep]
             if self.opts.get("join_listen") and host == 0:  # external flight software on another host (deploy/external.py)
                 cmd += ["--also-listen", self.opts["join_listen"]]
@@ -425,7 +434,7 @@ class MultiProcessRun:
             t_end = time.monotonic() + timeout_s
             while p.poll() is None and time.monotonic() < t_end:
                 try:
-                    with socket.create_connection(("127.0.0.1", port), timeout=0.5):
+                    with socket.create_connection((address, port), timeout=0.5):
                         if host == 0 or self._linked(name):
                             return ep
                 except OSError:
@@ -526,6 +535,25 @@ class MultiProcessRun:
         except OSError:
             return ""
 
+    def _make_security(self) -> Any:
+        """The run's credentials, ACL and certificates (bus/acl.py, bus/tls.py): the launcher's own
+        credential, or None for an open run."""
+        if not self.secure:
+            if self.tls:
+                raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
+            return None
+        from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+        users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
+        if self.hosts > 1:
+            self.router_zids = [new_router_zid() for _ in range(self.hosts)]
+            users += router_users(self.hosts)
+        self.security = make_run_security(self.out, self.run, users, tls=self.tls,
+                                          tls_hosts=[*join_hosts(self.opts.get("join_listen")),
+                                                     *(self.netns.addresses if self.netns is not None else [])],
+                                          router_zids=self.router_zids)
+        return self.security.credential("launcher")
+
     def execute(self) -> RunResult:
         from swarmhil.bus.recorder import ack_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
         from swarmhil.bus.zenoh_bus import ZenohBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -543,20 +571,19 @@ class MultiProcessRun:
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
-        launcher_cred = None
-        if self.secure:
-            from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+        if self.opts.get("netns"):
+            from swarmhil.deploy.netns import Hosts, NetnsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-            users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            if self.hosts > 1:
-                self.router_zids = [new_router_zid() for _ in range(self.hosts)]
-                users += router_users(self.hosts)
-            self.security = make_run_security(self.out, self.run, users, tls=self.tls,
-                                              tls_hosts=join_hosts(self.opts.get("join_listen")),
-                                              router_zids=self.router_zids)
-            launcher_cred = self.security.credential("launcher")
-        elif self.tls:
-            raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
+            try:
+                self.netns = Hosts(self.hosts)
+            except NetnsError as exc:
+                raise RunFailed(str(exc)) from None
+        try:
+            launcher_cred = self._make_security()
+        except BaseException:
+            if self.netns is not None:
+                self.netns.close()
+            raise
         try:
             router_ep = self._start_routers()
             watch = ZenohBus(router_ep, credential=launcher_cred)
@@ -564,6 +591,8 @@ class MultiProcessRun:
             self._stop(self._router_names())
             for f in self.logs.values():
                 f.close()
+            if self.netns is not None:
+                self.netns.close()
             raise
         summary["router"] = router_ep
         summary.update(self._placement())
@@ -687,6 +716,8 @@ class MultiProcessRun:
             self._stop(self._router_names())
             for f in self.logs.values():
                 f.close()
+            if self.netns is not None:
+                self.netns.close()
             if old_term is not None:
                 signal.signal(signal.SIGTERM, old_term)
         summary["wall_s"] = time.monotonic() - wall0
