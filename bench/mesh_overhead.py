@@ -2,7 +2,7 @@
 per-step wall and CPU of the same scenario with one router and with K routers on loopback, alternated
 in one invocation so the machine's load drifts over both alike.
 
-    python bench/mesh_overhead.py deploy/scenarios/sabatini-20.toml --duration 3600 --hosts 4 --rounds 3
+    python bench/mesh_overhead.py deploy/scenarios/sabatini-20.toml --duration 3600 --hosts 4 --rounds 3 [--netns]
 
 Each round runs `--hosts 1` then `--hosts K` (same run id and seed) with bench/mp_cpu.py's
 `run_with_cpu` (every process's CPU from /proc over the plant's loop, start-up and shutdown left
@@ -34,8 +34,9 @@ def truth_bytes(mcap: Path) -> list[bytes]:
         return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
 
 
-def one_run(scenario: str, sc, out: Path, run: str, duration: float, hosts: int) -> dict:
-    m = run_with_cpu(scenario, sc, out, run, duration, opts={"hosts": hosts} if hosts > 1 else {})
+def one_run(scenario: str, sc, out: Path, run: str, duration: float, hosts: int, netns: bool = False) -> dict:
+    opts = {"hosts": hosts, "netns": netns} if hosts > 1 else {}
+    m = run_with_cpu(scenario, sc, out, run, duration, opts=opts)
     cpu = m["cpu_ms_per_step"]
     timing = m["summary"].get("plant_timing_s", {})
     steps_all = max(1, int(m["summary"].get("steps", 1)))
@@ -56,6 +57,7 @@ def main() -> None:
     ap.add_argument("--hosts", type=int, default=4, help="K: the mesh's number of hosts (routers)")
     ap.add_argument("--rounds", type=int, default=3, help="pairs of runs (1 router, then K)")
     ap.add_argument("--out", help="directory for the runs (default: a temporary one)")
+    ap.add_argument("--netns", action="store_true", help="the K hosts' runs with --netns (network namespaces; root)")
     a = ap.parse_args()
     from swarmhil.deploy.scenario import load_scenario
 
@@ -65,7 +67,8 @@ def main() -> None:
     rows: list[dict] = []
     cols = ("wall_ms_per_step", "wait_ms_per_step", "router_cpu_ms_per_step", "agent_cpu_ms_per_step",
             "total_cpu_ms_per_step")
-    print(f"{sc.name}: {len(sc.ids)} agents, {sc.steps} steps of {sc.step_s:g} s; 1 router vs {a.hosts} routers, "
+    print(f"{sc.name}: {len(sc.ids)} agents, {sc.steps} steps of {sc.step_s:g} s; 1 router vs {a.hosts} routers"
+          f"{' in network namespaces' if a.netns else ''}, "
           f"{a.rounds} rounds; load {load0}")
     print(f"{'round':>5s} {'hosts':>5s} {'wall ms/step':>12s} {'wait ms/step':>12s} {'routers CPU':>11s} "
           f"{'agents CPU':>10s} {'total CPU':>9s}  (CPU ms/step)  dead missed late")
@@ -74,7 +77,7 @@ def main() -> None:
         for hosts in (1, a.hosts):
             out = base / f"r{r}-h{hosts}"
             try:
-                row = one_run(a.scenario, sc, out, f"meshbench{r}", a.duration, hosts)
+                row = one_run(a.scenario, sc, out, f"meshbench{r}", a.duration, hosts, a.netns and hosts > 1)
             except RuntimeError as exc:
                 sys.exit(f"error: round {r}, --hosts {hosts}: {exc}")
             row["round"] = r
@@ -89,7 +92,7 @@ def main() -> None:
         print(f"{'med':>5s} {h:5d} " + " ".join(f"{med[h][c]:{w}.2f}" for c, w in zip(cols, (12, 12, 11, 10, 9))))
     diff = {c: med[a.hosts][c] - med[1][c] for c in cols}
     print(f"{'diff':>5s} {'':5s} " + " ".join(f"{diff[c]:+{w}.2f}" for c, w in zip(cols, (12, 12, 11, 10, 9))))
-    print(json.dumps({"scenario": sc.name, "agents": len(sc.ids), "steps": sc.steps, "hosts": a.hosts,
+    print(json.dumps({"scenario": sc.name, "agents": len(sc.ids), "steps": sc.steps, "hosts": a.hosts, "netns": a.netns,
                       "rounds": a.rounds, "load_start": load0, "median": {str(h): v for h, v in med.items()},
                       "mesh_minus_one_router": diff, "runs": rows, "out": str(base)}))
 

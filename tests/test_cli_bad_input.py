@@ -182,6 +182,7 @@ CASES = [
     ("hosts in-process", lambda f: ["run", DEMO, "--in-process", "--hosts", "2", "--out", str(f["d"] / "x11")],
      "--hosts needs a multi-process run", 2),
     ("hosts zero", lambda f: ["run", DEMO, "--hosts", "0", "--out", str(f["d"] / "x12")], "--hosts", 2),
+    ("netns on one host", lambda f: ["run", DEMO, "--netns", "--out", str(f["d"] / "x14")], "--netns needs --hosts 2", 2),
     ("spacecraft on an unknown host", lambda f: ["run", str(SCENARIOS / "sabatini-20-explicit.toml"), "--hosts", "2", "--set",
                                                  "spacecraft.1.host=2", "--out", str(f["d"] / "x13")],
      "sc02: host = 2, but the run has 2 hosts", 2),

@@ -24,10 +24,41 @@ RUN = "mesh4"
 DURATION_S = "400"  # 40 steps of sabatini-20
 
 
-def _launch(out: Path, hosts: int) -> subprocess.Popen:
+def _launch(out: Path, hosts: int, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20.toml"),
                              "--duration", DURATION_S, "--run-id", RUN, "--out", str(out), "--no-progress",
-                             "--hosts", str(hosts)], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--hosts", str(hosts), *extra], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+@pytest.fixture(scope="module")
+def single_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The single-router run the mesh runs are compared with (same scenario, run id and seed)."""
+    out = tmp_path_factory.mktemp("single") / "hosts1"
+    p = _launch(out, 1)
+    _out, err = p.communicate(timeout=600)
+    assert p.returncode == 0, err[-2000:]
+    one = json.loads((out / "run.json").read_text())
+    assert len(one["hosts"]) == 1 and set(one["process_hosts"].values()) == {0}
+    return out
+
+
+def _assert_same_recording(mesh_out: Path, single_out: Path) -> None:
+    """The same truth bit for bit and the same messages on every topic (see `_by_topic`)."""
+    truth = topics(mesh_out / "run.mcap", "truth")
+    assert len(truth) == 41 and truth == topics(single_out / "run.mcap", "truth")
+    mesh, single = _by_topic(mesh_out / "run.mcap"), _by_topic(single_out / "run.mcap")
+    assert sorted(mesh) == sorted(single)
+    assert {t: len(v) for t, v in mesh.items()} == {t: len(v) for t, v in single.items()}
+    # every topic the processes publish holds the same messages; the recorder's own Foxglove scene
+    # colours each spacecraft by the last telemetry it had when a truth arrived, so it depends on
+    # the arrival order of the two at the recorder (timing, not content): compared in number only
+    differ = [t for t in single if t != "foxglove/scene" and sorted(mesh[t]) != sorted(single[t])]
+    assert not differ, differ
+    s = json.loads((mesh_out / "summary.json").read_text())
+    assert s["steps"] == 40 and s["dead_agents"] == {} and s["missed_deadlines"] == {} and s["late_commands"] == 0, s
+    assert s["rejected_packets"] == 0 and s["recorder_confirmed"]
+    assert s["delta_v_mps"] == json.loads((single_out / "summary.json").read_text())["delta_v_mps"]
 
 
 def _port(ep: str) -> int:
@@ -83,8 +114,8 @@ def _by_topic(path: Path) -> dict[str, list[bytes]]:
     return d
 
 
-def test_four_hosts_equal_one_router(tmp_path: Path) -> None:
-    mesh_out, single_out = tmp_path / "hosts4", tmp_path / "hosts1"
+def test_four_hosts_equal_one_router(tmp_path: Path, single_run: Path) -> None:
+    mesh_out = tmp_path / "hosts4"
     p = _launch(mesh_out, 4)
     try:
         info, seen = _connections_while_running(p, mesh_out)
@@ -112,28 +143,53 @@ def test_four_hosts_equal_one_router(tmp_path: Path) -> None:
     for h in range(1, 4):
         assert set(port_of_host[:h]) <= seen[f"router-{h}"], (h, seen[f"router-{h}"], port_of_host)
 
-    s = json.loads((mesh_out / "summary.json").read_text())
-    assert s["steps"] == 40 and s["dead_agents"] == {} and s["missed_deadlines"] == {} and s["late_commands"] == 0, s
-    assert s["rejected_packets"] == 0 and s["recorder_confirmed"]
-    assert s["hosts"] == hosts
+    assert json.loads((mesh_out / "summary.json").read_text())["hosts"] == hosts
+    _assert_same_recording(mesh_out, single_run)
 
-    p1 = _launch(single_out, 1)
-    _out1, err1 = p1.communicate(timeout=600)
-    assert p1.returncode == 0, err1[-2000:]
-    one = json.loads((single_out / "run.json").read_text())
-    assert len(one["hosts"]) == 1 and set(one["process_hosts"].values()) == {0}
 
-    truth = topics(mesh_out / "run.mcap", "truth")
-    assert len(truth) == 41 and truth == topics(single_out / "run.mcap", "truth")
-    mesh, single = _by_topic(mesh_out / "run.mcap"), _by_topic(single_out / "run.mcap")
-    assert sorted(mesh) == sorted(single)
-    assert {t: len(v) for t, v in mesh.items()} == {t: len(v) for t, v in single.items()}
-    # every topic the processes publish holds the same messages; the recorder's own Foxglove scene
-    # colours each spacecraft by the last telemetry it had when a truth arrived, so it depends on
-    # the arrival order of the two at the recorder (timing, not content): compared in number only
-    differ = [t for t in single if t != "foxglove/scene" and sorted(mesh[t]) != sorted(single[t])]
-    assert not differ, differ
-    assert s["delta_v_mps"] == json.loads((single_out / "summary.json").read_text())["delta_v_mps"]
+def test_four_namespaced_hosts_on_tls_equal_one_router(tmp_path: Path, single_run: Path) -> None:
+    """`--hosts 4 --netns --tls`: hosts 1..3 network namespaces with their own addresses, mutual TLS
+    on every link (router to router included), the run's ACL on every router: every process runs in
+    its host's namespace, and the recording is the single-router run's."""
+    from system_tools import require_command, require_root
+
+    require_root("network namespaces")
+    require_command("ip", "iproute2")
+    require_command("openssl", "openssl")
+    out = tmp_path / "ns4"
+    p = _launch(out, 4, "--netns", "--tls")
+    placed: dict[int, set[int]] = {}
+    try:
+        info = _run_json(p, out)
+        want = {h: {info["pids"][n] for n, hh in info["process_hosts"].items() if hh == h} for h in range(1, 4)}
+        t_end = time.monotonic() + 60  # (a process enters its namespace just after it is started)
+        while time.monotonic() < t_end and p.poll() is None:
+            for h in range(1, 4):
+                r = subprocess.run(["ip", "netns", "pids", info["hosts"][h]["netns"]], capture_output=True, text=True)
+                assert r.returncode == 0, r.stderr
+                placed[h] = {int(x) for x in r.stdout.split()}
+            if all(want[h] <= placed[h] for h in want):
+                break
+            time.sleep(0.1)
+        _stdout, err = p.communicate(timeout=600)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 0, err[-2000:]
+    hosts = info["hosts"]
+    addresses = [h["address"] for h in hosts]
+    assert len(set(addresses)) == 4 and hosts[0]["netns"] is None
+    assert all(h["router"] == f"tls/{h['address']}:{_port(h['router'])}" for h in hosts), hosts
+    for name, host in info["process_hosts"].items():
+        pid = info["pids"][name]
+        if host:
+            assert pid in placed[host], (name, host, placed)
+        assert all(pid not in placed[h] for h in placed if h != host), (name, host)
+    assert all(info["process_hosts"][f"agent-sc{i + 1:02d}"] == i % 4 for i in range(20))
+    left = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    assert not any(h["netns"] and h["netns"] in left for h in hosts), left  # the run removed them
+    _assert_same_recording(out, single_run)
 
 
 def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -> None:
