@@ -13,6 +13,7 @@ import click
 from swarmhil.bus.optional import MissingExtra
 from swarmhil.deploy.cli_viz import viz_option
 from swarmhil.deploy.mesh import scenario_placement
+from swarmhil.deploy.netns import NetnsError, check_netns_possible
 
 
 def _bad_file_errors() -> tuple[type[BaseException], ...]:
@@ -187,8 +188,6 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         click.echo("error: --netns needs --hosts 2 or more (host 0 is this namespace)", err=True)
         sys.exit(2)
     if netns:
-        from swarmhil.deploy.netns import NetnsError, check_netns_possible  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
         try:
             check_netns_possible()
         except NetnsError as exc:

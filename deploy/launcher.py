@@ -29,6 +29,7 @@ from swarmhil.bus.keys import Keys
 from swarmhil.deploy.companions import enabled_companions
 from swarmhil.deploy.external import JoinTimeout, external_ids, join_hosts, start_external
 from swarmhil.deploy.mesh import new_router_zid, process_hosts, router_name, router_users, scenario_placement
+from swarmhil.deploy.netns import Hosts, NetnsError
 from swarmhil.deploy.scenario import Scenario, plant_config, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
@@ -572,8 +573,6 @@ class MultiProcessRun:
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
         if self.opts.get("netns"):
-            from swarmhil.deploy.netns import Hosts, NetnsError  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
             try:
                 self.netns = Hosts(self.hosts)
             except NetnsError as exc:
