@@ -239,3 +239,21 @@ def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -
             acts[t.split("/")[1]] += 1
     assert all(acts[f"sc0{i}"] == 40 for i in (1, 2, 4, 5)), acts
     assert all(8 <= acts[f"sc0{i}"] < 40 for i in (3, 6)), acts
+
+
+def test_a_crashed_agent_of_another_host_restarts_and_rejoins(tmp_path: Path) -> None:
+    """`restart = "on-failure"` over 3 hosts: sc03 (host 2) crashed by a process fault is started again
+    on its own host's router and rejoins; nobody is dead at the end."""
+    from swarmhil.deploy.launcher import MultiProcessRun
+    from swarmhil.deploy.scenario import load_scenario
+
+    scen = tmp_path / "crash.toml"
+    scen.write_text((SCENARIOS / "sabatini-20.toml").read_text()
+                    + '\n[[fault]]\nkind = "process_crash"\ntargets = ["sc03"]\nstart_s = 50.0\n')
+    sc = load_scenario(scen, ("dispersion.count=6", 'supervision.restart="on-failure"', "run.duration_s=3000"))
+    res = MultiProcessRun(str(scen), sc, tmp_path / "out", "crash3", progress=False, opts={"hosts": 3}).execute()
+    assert res.exit_code == 0, res.reason
+    s = res.summary
+    assert s["process_hosts"]["agent-sc03"] == 2
+    assert s["restarts"] == {"agent-sc03": 1} and [r["id"] for r in s["rejoins"]] == ["sc03"], (s["restarts"], s["rejoins"])
+    assert s["dead_agents"] == {} and len(s["all_pids"]["agent-sc03"]) == 2
