@@ -403,19 +403,22 @@ class MultiProcessRun:
             self.router_eps.append(self._start_router(host))
         return self.router_eps[0]
 
-    def _start_router(self, host: int = 0, attempts: int = 8, timeout_s: float = 120.0) -> str:
+    def _start_router(self, host: int = 0, attempts: int = 8, timeout_s: float = 120.0, port: int | None = None) -> str:
         """A host's router as its own process (`python -m swarmhil.deploy.router`, deploy/router.py), on a free loopback
         port: the launcher is not the router. A port taken before the router bound it (exit code 4)
-        draws another one. Returns the endpoint once the router accepts connections (and, in a mesh,
-        has linked to the routers of the hosts before it)."""
+        draws another one (`port` given, a restart on the same endpoint: it fails instead). Returns the
+        endpoint once the router accepts connections (and, in a mesh, has linked to the routers of the
+        hosts before it)."""
         import socket
 
         from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
         name = router_name(host)
         address = "127.0.0.1" if self.netns is None else self.netns.addresses[host]
-        for _attempt in range(attempts):
-            port = free_loopback_port() if self.netns is None else self.netns.free_port(host)
+        fixed = port
+        starts = self._linked_lines(name) + 1  # a restart appends to its log: this start's "linked" line
+        for _attempt in range(1 if fixed else attempts):
+            port = fixed or (free_loopback_port() if self.netns is None else self.netns.free_port(host))
             ep = endpoint(port, host=address, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "swarmhil.deploy.router", "--listen", ep]
             if self.opts.get("join_listen") and host == 0:  # external flight software on another host (deploy/external.py)
@@ -436,7 +439,7 @@ class MultiProcessRun:
             while p.poll() is None and time.monotonic() < t_end:
                 try:
                     with socket.create_connection((address, port), timeout=0.5):
-                        if host == 0 or self._linked(name):
+                        if host == 0 or self._linked_lines(name) >= starts:
                             return ep
                 except OSError:
                     pass
@@ -450,16 +453,45 @@ class MultiProcessRun:
             log.warning("router port %s was taken before it bound it; trying another", ep)
         raise RunFailed(f"no free loopback port for {name} after {attempts} attempts")
 
-    def _linked(self, name: str) -> bool:
-        """A mesh router has printed that it linked to every router it connects to (deploy/router.py)."""
+    def _linked_lines(self, name: str) -> int:
+        """How many times a mesh router has printed that it linked to every router it connects to
+        (deploy/router.py): once per start, its log appended to on a restart."""
         try:
-            return "router mesh: linked to" in (self.out / "logs" / f"{name}.log").read_text(errors="replace")
+            return (self.out / "logs" / f"{name}.log").read_text(errors="replace").count("router mesh: linked to")
         except OSError:
-            return False
+            return 0
 
     def _router_names(self) -> list[str]:
         """The routers started, host 0's last (the order to stop them in)."""
         return [n for n in self.procs if n.startswith("router-")][::-1] + (["router"] if "router" in self.procs else [])
+
+    def _restart_router(self, name: str, p: subprocess.Popen, watch: Any, step: int) -> bool:
+        """[supervision] restart = "on-failure": start a non-first host's router again on its endpoint
+        (its Zenoh id and links as before); the host's agents' sessions reconnect to it (within
+        deploy/proc.py ROUTER_GRACE_S, or they exit and are restarted as crashed agents) and the plant
+        takes them back at its next step. Event `router_restart`. False when the policy says no or the
+        router does not come back (then `_router_lost`)."""
+        if self.sc.restart != "on-failure":
+            return False
+        done = self.restarts.get(name, 0)
+        if done >= self.sc.max_restarts:
+            log.warning("%s exited with code %s; not restarted (max_restarts = %d reached)", name, p.returncode,
+                        self.sc.max_restarts)
+            return False
+        host = int(name[len("router-"):])
+        try:
+            self._start_router(host, timeout_s=60.0, port=int(self.router_eps[host].rpartition(":")[2]))
+        except RunFailed as exc:
+            log.error("%s could not be restarted: %s", name, exc)
+            return False
+        finally:
+            self.restarts[name] = done + 1
+        self.exited.pop(name, None)
+        self._write_run_json(self.router_eps[0])
+        self._supervision_event(watch, "router_restart", name,
+                                f"pid {p.pid} exited with code {p.returncode}; restart {done + 1} of "
+                                f"{self.sc.max_restarts} as pid {self.procs[name].pid} on {self.router_eps[host]}", step)
+        return True
 
     def _router_lost(self, name: str, p: subprocess.Popen, watch: Any, step: int) -> None:
         """A non-first host's router exited: its agents' liveliness tokens go with it, so the plant
@@ -657,8 +689,9 @@ class MultiProcessRun:
                         if n == "router":
                             raise RunFailed(f"the router (pid {p.pid}) exited with code {p.returncode}; every "
                                             f"process stops:\n{self._tail(n)}")
-                        if n.startswith("router-"):  # another host's router: its agents lose the run
-                            self._router_lost(n, p, watch, bar.last)
+                        if n.startswith("router-"):  # another host's router: its agents lose the run, or rejoin
+                            if not (stepping.is_set() and self._restart_router(n, p, watch, bar.last)):
+                                self._router_lost(n, p, watch, bar.last)
                             continue
                         if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
                             raise RunFailed(f"{n} exited with code {p.returncode}; the run cannot go on:\n{self._tail(n)}")

@@ -192,21 +192,19 @@ def test_four_namespaced_hosts_on_tls_equal_one_router(tmp_path: Path, single_ru
     _assert_same_recording(out, single_run)
 
 
-def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -> None:
-    """SIGKILL of host 2's router mid-run (3 hosts, 6 agents, real time x20): its agents (sc03, sc06)
-    are marked dead and their spacecraft coast, the other agents fly on to the end, the run completes
-    (exit 0) and the launcher's Event `router_lost` is in the recording."""
+def _kill_router_2(out: Path, *sets: str) -> tuple[dict, list, dict[str, int]]:
+    """sabatini-20 with 6 agents over 3 hosts (real time x20, 40 steps), host 2's router SIGKILLed at
+    step 8: (summary.json, the recorded events, commands recorded per spacecraft)."""
     import signal
 
     from swarmhil.bus import swarmhil_pb2 as pb
     from swarmhil.bus.acl import read_credential
     from swarmhil.bus.zenoh_bus import ZenohBus
 
-    out = tmp_path / "kr"
     p = subprocess.Popen([sys.executable, "-m", "swarmhil.deploy.cli", "run", str(SCENARIOS / "sabatini-20.toml"),
-                          "--set", "dispersion.count=6", "--duration", "400", "--mode", "realtime", "--speed", "20",
-                          "--run-id", "kr", "--out", str(out), "--no-progress", "--hosts", "3"],
-                         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                          "--set", "dispersion.count=6", *[x for kv in sets for x in ("--set", kv)], "--duration", "400",
+                          "--mode", "realtime", "--speed", "20", "--run-id", "kr", "--out", str(out), "--no-progress",
+                          "--hosts", "3"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         info = _run_json(p, out)
         assert info["process_hosts"]["agent-sc03"] == info["process_hosts"]["agent-sc06"] == 2
@@ -225,20 +223,45 @@ def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -
             p.wait()
     assert p.returncode == 0, err[-2000:]
     s = json.loads((out / "summary.json").read_text())
+    assert s["steps"] == 40
+    events, acts = [], defaultdict(int)
+    for t, _l, _p, m in read_mcap(out / "run.mcap"):
+        if t == "event":
+            events.append(m)
+        elif t.endswith("/act"):
+            acts[t.split("/")[1]] += 1
+    # the agents of the other hosts commanded every step to the end
+    assert all(acts[f"sc0{i}"] == 40 for i in (1, 2, 4, 5)), acts
+    return s, events, acts
+
+
+def test_a_killed_router_of_another_host_marks_its_agents_dead(tmp_path: Path) -> None:
+    """SIGKILL of host 2's router mid-run (3 hosts, 6 agents): its agents (sc03, sc06) are marked dead
+    and their spacecraft coast, the other agents fly on to the end, the run completes (exit 0) and
+    the launcher's Event `router_lost` is in the recording."""
+    s, events, acts = _kill_router_2(tmp_path / "kr")
     assert sorted(s["dead_agents"]) == ["sc03", "sc06"], s["dead_agents"]
-    assert s["steps"] == 40 and s["exit_codes"]["router-2"] == -signal.SIGKILL
-    events = [m for t, _l, _p, m in read_mcap(out / "run.mcap") if t == "event"]
+    assert s["exit_codes"]["router-2"] == -9
     lost = [e for e in events if e.kind == "router_lost"]
     assert len(lost) == 1 and lost[0].subject == "router-2" and "sc03, sc06" in lost[0].detail, lost
-    dead = {e.subject for e in events if e.kind == "agent_dead"}
-    assert dead == {"sc03", "sc06"}, dead
-    # the agents of the other hosts commanded every step to the end; the lost ones stopped early
-    acts = defaultdict(int)
-    for t, _l, _p, _m in read_mcap(out / "run.mcap"):
-        if t.endswith("/act"):
-            acts[t.split("/")[1]] += 1
-    assert all(acts[f"sc0{i}"] == 40 for i in (1, 2, 4, 5)), acts
-    assert all(8 <= acts[f"sc0{i}"] < 40 for i in (3, 6)), acts
+    assert {e.subject for e in events if e.kind == "agent_dead"} == {"sc03", "sc06"}
+    assert all(8 <= acts[f"sc0{i}"] < 40 for i in (3, 6)), acts  # the lost ones stopped early
+
+
+def test_a_killed_router_of_another_host_restarts_and_its_agents_rejoin(tmp_path: Path) -> None:
+    """The same with `restart = "on-failure"`: the launcher starts host 2's router again on its
+    endpoint (Event `router_restart`), its agents' sessions reconnect and the plant takes them back
+    (`agent_rejoin`); nobody is dead at the end."""
+    s, events, acts = _kill_router_2(tmp_path / "kr", 'supervision.restart="on-failure"')
+    assert s["restarts"].get("router-2") == 1 and len(s["all_pids"]["router-2"]) == 2, s["restarts"]
+    assert [e.subject for e in events if e.kind == "router_restart"] == ["router-2"]
+    assert not [e for e in events if e.kind == "router_lost"]
+    assert {e.subject for e in events if e.kind == "agent_dead"} == {"sc03", "sc06"}
+    assert {r["id"] for r in s["rejoins"]} == {"sc03", "sc06"}, s["rejoins"]
+    assert s["dead_agents"] == {}, s["dead_agents"]
+    back = {r["id"]: r["step"] for r in s["rejoins"]}
+    # commanded before the kill (steps 0 .. 7 at least) and again from the step they rejoined at
+    assert all(7 + (40 - back[sid]) <= acts[sid] < 40 for sid in ("sc03", "sc06")), (acts, back)
 
 
 def test_a_crashed_agent_of_another_host_restarts_and_rejoins(tmp_path: Path) -> None:
