@@ -378,15 +378,23 @@ class MultiProcessRun:
         stats = merge(segs, self.out / "run.mcap")
         return {"files": [x.name for x in segs], "merged_into": "run.mcap", **stats}
 
-    def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
-        """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
-        rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
+    def _restarts_allowed(self, name: str, p: subprocess.Popen) -> int | None:
+        """The restarts of `name` so far when [supervision] lets it restart after this exit (restart =
+        "on-failure", a non-zero exit code, fewer than max_restarts); None otherwise."""
         if self.sc.restart != "on-failure" or p.returncode == 0:
-            return False
+            return None
         done = self.restarts.get(name, 0)
         if done >= self.sc.max_restarts:
             log.warning("%s exited with code %s; not restarted (max_restarts = %d reached)", name, p.returncode,
                         self.sc.max_restarts)
+            return None
+        return done
+
+    def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
+        """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
+        rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
+        done = self._restarts_allowed(name, p)
+        if done is None:
             return False
         self.restarts[name] = done + 1
         self._spawn(name, "agent", self._router_of(name), ["--id", name[len("agent-"):]])
@@ -471,12 +479,8 @@ class MultiProcessRun:
         deploy/proc.py ROUTER_GRACE_S, or they exit and are restarted as crashed agents) and the plant
         takes them back at its next step. Event `router_restart`. False when the policy says no or the
         router does not come back (then `_router_lost`)."""
-        if self.sc.restart != "on-failure":
-            return False
-        done = self.restarts.get(name, 0)
-        if done >= self.sc.max_restarts:
-            log.warning("%s exited with code %s; not restarted (max_restarts = %d reached)", name, p.returncode,
-                        self.sc.max_restarts)
+        done = self._restarts_allowed(name, p)
+        if done is None:
             return False
         host = int(name[len("router-"):])
         try:
