@@ -46,6 +46,8 @@ def test_router_ids_are_zenoh_ids() -> None:
 
 def _router(tmp: Path, name: str, ep: str, zid: str, sec, connect: list[str]) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "swarmhil.deploy.router", "--listen", ep, "--acl-dir", str(sec.dir), "--zid", zid]
+    if sec.tls is not None:
+        cmd += ["--tls", str(sec.tls.dir)]
     for other in connect:
         cmd += ["--connect", other]
     if connect:
@@ -159,3 +161,68 @@ def test_router_that_cannot_link_exits_6(tmp_path: Path) -> None:
                         "--link-timeout", "1"], capture_output=True, text=True, timeout=60)
     assert r.returncode == 6, r.stderr
     assert f"linked to 0 of the 1 routers at {nobody}" in r.stderr
+
+
+class _PosingAs:
+    """A process's credential, presenting a chosen Zenoh id (a router's) on its session."""
+
+    def __init__(self, cred, zid: str) -> None:
+        self.cred, self.zid = cred, zid
+
+    def zenoh_overrides(self) -> dict:
+        return {**self.cred.zenoh_overrides(), "id": self.zid}
+
+
+@pytest.mark.parametrize("tls", [False, True], ids=["tcp", "tls"])
+def test_a_client_cannot_pass_for_a_router(tmp_path: Path, tls: bool) -> None:
+    """The ACL names the mesh's routers by Zenoh id (a client picks its own): a client presenting the id
+    of a router linked to its router is refused outright; with --tls, one presenting the id of a
+    router that is not linked (not started here) gets in but is still only itself (the router subject
+    also needs the router certificate): its put on another agent's key is dropped. (Without TLS that
+    second case is a gap: docs/scaling.md.)"""
+    import zenoh
+
+    from swarmhil.bus import zenoh_bus
+
+    zids = [new_router_zid() for _ in range(3)]  # the third router is never started
+    sec = make_run_security(tmp_path, RUN, ["plant", "agent-a", "agent-b", *router_users(3)], router_zids=zids, tls=tls)
+    k = Keys(RUN)
+    eps = [endpoint(free_loopback_port(), proto="tls" if tls else "tcp") for _ in range(2)]
+    procs: list[subprocess.Popen] = []
+    buses: list[ZenohBus] = []
+    old = zenoh_bus.CONNECT_TIMEOUT_MS
+    try:
+        for i, name in enumerate(["router", "router-1"]):
+            procs.append(_router(tmp_path, name, eps[i], zids[i], sec, eps[:i]))
+            _wait_line(tmp_path / f"{name}.log", "router mesh: linked to" if i else "router listening", procs[i])
+        cred = sec.credential("agent-a")
+        zenoh_bus.CONNECT_TIMEOUT_MS = 3000
+        for z in zids[:2]:  # router 0's id (linked to router 1) and router 1's own
+            with pytest.raises(zenoh.ZError):
+                ZenohBus(eps[1], credential=_PosingAs(cred, z))
+        zenoh_bus.CONNECT_TIMEOUT_MS = old
+        buses.append(ZenohBus(eps[1], credential=_PosingAs(cred, new_router_zid())))  # control: its own id is fine
+        if not tls:
+            return
+        plant = ZenohBus(eps[0], credential=sec.credential("plant"))
+        posing = ZenohBus(eps[1], credential=_PosingAs(cred, zids[2]))
+        buses += [plant, posing]
+        got: list[bytes] = []
+        plant.subscribe(k.act_all, lambda _key, payload: got.append(payload))
+        time.sleep(1.0)
+        for _ in range(3):
+            posing.publish(k.act("b"), b"forged")
+            posing.publish(k.act("a"), b"own")
+        t_end = time.monotonic() + 10
+        while time.monotonic() < t_end and len(got) < 3:
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert got == [b"own"] * 3, got
+    finally:
+        zenoh_bus.CONNECT_TIMEOUT_MS = old
+        for bus in buses:
+            bus.close()
+        for p in procs:
+            p.terminate()
+        for p in procs:
+            p.wait(10)
