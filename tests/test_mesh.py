@@ -55,6 +55,15 @@ def _router(tmp: Path, name: str, ep: str, zid: str, sec, connect: list[str]) ->
     return subprocess.Popen(cmd, stdout=open(tmp / f"{name}.log", "wb"), stderr=subprocess.STDOUT)
 
 
+def _stop_all(buses: list[ZenohBus], procs: list[subprocess.Popen]) -> None:
+    for bus in buses:
+        bus.close()
+    for p in procs:
+        p.terminate()
+    for p in procs:
+        p.wait(10)
+
+
 def _wait_line(path: Path, text: str, p: subprocess.Popen, timeout_s: float = 60.0) -> None:
     t_end = time.monotonic() + timeout_s
     while time.monotonic() < t_end:
@@ -131,12 +140,7 @@ def test_acl_holds_on_every_router_of_the_mesh(tmp_path: Path) -> None:
         finally:
             zenoh_bus.CONNECT_TIMEOUT_MS = old
     finally:
-        for bus in buses:
-            bus.close()
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            p.wait(10)
+        _stop_all(buses, procs)
 
 
 def test_router_refuses_bad_mesh_arguments(tmp_path: Path) -> None:
@@ -220,9 +224,4 @@ def test_a_client_cannot_pass_for_a_router(tmp_path: Path, tls: bool) -> None:
         assert got == [b"own"] * 3, got
     finally:
         zenoh_bus.CONNECT_TIMEOUT_MS = old
-        for bus in buses:
-            bus.close()
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            p.wait(10)
+        _stop_all(buses, procs)
