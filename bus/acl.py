@@ -22,7 +22,16 @@ one may publish only on its own keys and receive only what it subscribes to:
 | `launcher` | `swarmctl/<run>/recorder/flush`, `event` | none | `clock` (the progress bar), `swarmctl/<run>/recorder/ack`, `event` (stalls), `faults` (process faults), liveliness `alive/*` (external flight software joining) |
 | other companion | `event`, `sync/<name>` | `alive/<name>` | `**`, liveliness `alive/*` |
 
-(keys under `swarm/<run>/` unless written in full). Zenoh ACL semantics used here (checked against eclipse-zenoh
+(keys under `swarm/<run>/` unless written in full).
+
+Several hosts (deploy/mesh.py): one router per host, the routers linked to each other. Every router
+reads the same `users.txt` and `acl.json`, so each applies the run's ACL to its own clients; a
+router that connects to another authenticates as `router-<i>` (user/password, and with TLS the
+router certificate). A link between two routers carries any key of the run (`swarm/<run>/**`,
+`swarmctl/<run>/**`) both ways: what a router forwards was already checked at the edge, by the
+router of the process that sent it. Zenoh's user/password authentication names only the side that
+opened a link, so the routers are matched by their Zenoh ids (set by the launcher, fresh for each
+run) and, with TLS, by the router certificate's common name as well. Zenoh ACL semantics used here (checked against eclipse-zenoh
 1.10.2, tests/test_security.py): the router checks `ingress` messages a client sends it (`put`,
 `liveliness_token`, `declare_subscriber`, ...) and `egress` messages it forwards to a client; a
 message is allowed when a rule's key expression includes the message's key; a denied put is dropped
@@ -45,6 +54,11 @@ from swarmhil.bus.keys import Keys, check_token
 from swarmhil.bus.tls import client_tls, make_run_tls
 
 SUB_INGRESS = ["declare_subscriber"]
+# what one router forwards to another (a mesh of routers, deploy/mesh.py)
+MESH_MESSAGES = ["put", "delete", "declare_subscriber", "declare_queryable", "query", "reply", "liveliness_token",
+                 "declare_liveliness_subscriber", "liveliness_query"]
+ROUTER_USER_PREFIX = "router-"  # router-<i>: the user a router on host i > 0 connects to the others as
+ROUTER_CN = "router"            # the common name of the run's router certificate (bus/tls.py)
 LIVE_SUB_INGRESS = ["declare_liveliness_subscriber", "liveliness_query"]
 
 
@@ -120,8 +134,15 @@ def grants(keys: Keys, user: str) -> Grants:
     return Grants(put=[keys.event, keys.sync(name)], token=[keys.alive(name)], sub=[keys.all], live_sub=[keys.alive_all])
 
 
-def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
-    """The router's `access_control` block: default deny, one subject and policy per user."""
+def is_router_user(user: str) -> bool:
+    return user.startswith(ROUTER_USER_PREFIX)
+
+
+def acl_config(run: str, users: Iterable[str], router_zids: Iterable[str] = (), tls: bool = False) -> dict[str, Any]:
+    """The router's `access_control` block: default deny, one subject and policy per user; with
+    `router_zids` (a mesh of routers), one more subject, the routers by Zenoh id (and, with `tls`,
+    by the router certificate's common name too), allowed every message on the run's keys both
+    ways. `router-<i>` users only authenticate a router's link: they get no policy of their own."""
     keys = Keys(run)
     rules: list[dict[str, Any]] = []
     subjects: list[dict[str, Any]] = []
@@ -135,6 +156,8 @@ def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
         return rid
 
     for user in users:
+        if is_router_user(user):
+            continue
         g = grants(keys, user)
         ids = [rule(user, "put", "ingress", ["put"], g.put),
                # a declared publisher learns of matching subscribers through the router and drops puts
@@ -149,6 +172,12 @@ def acl_config(run: str, users: Iterable[str]) -> dict[str, Any]:
                rule(user, "live-recv", "egress", ["liveliness_token"], g.live_sub)]
         subjects.append({"id": user, "usernames": [user]})
         policies.append({"id": user, "rules": [r for r in ids if r], "subjects": [user]})
+    zids = sorted(router_zids)
+    if zids:
+        rules.append({"id": "mesh", "permission": "allow", "flows": ["ingress", "egress"], "messages": MESH_MESSAGES,
+                      "key_exprs": [keys.all, keys.control_all]})
+        subjects.append({"id": "mesh-routers", "zids": zids, **({"cert_common_names": [ROUTER_CN]} if tls else {})})
+        policies.append({"id": "mesh-routers", "rules": ["mesh"], "subjects": ["mesh-routers"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 
@@ -192,10 +221,11 @@ def router_settings(dictionary: str | Path, acl_file: str | Path) -> dict[str, A
 
 
 def make_run_security(out: Path, run: str, users: Iterable[str], *, tls: bool = False,
-                      tls_hosts: Iterable[str] = ()) -> RunSecurity:
+                      tls_hosts: Iterable[str] = (), router_zids: Iterable[str] = ()) -> RunSecurity:
     """Fresh random passwords for every process of this run, written readable by the user only;
     also `acl.json` (the router's access control) and, with tls, the run's certificates
-    (bus/tls.py; tls_hosts: the router's addresses on other hosts)."""
+    (bus/tls.py; tls_hosts: the router's addresses on other hosts). `router_zids`: the Zenoh ids
+    of the run's routers when there are several (a mesh; `router-<i>` users authenticate them)."""
     users = list(users)
     d = out / "secrets"
     d.mkdir(mode=0o700, exist_ok=True)
@@ -203,13 +233,13 @@ def make_run_security(out: Path, run: str, users: Iterable[str], *, tls: bool = 
     creds = {u: Credential(check_token(u, "process name"), secrets.token_urlsafe(24)) for u in users}
     dictionary = d / USERS_FILE
     _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
-    acl = acl_config(run, users)
+    acl = acl_config(run, users, router_zids, tls)
     _write_private(d / ACL_FILE, json.dumps(acl, indent=1))
     paths = {}
     for u, c in creds.items():
         paths[u] = d / f"{u}.cred"
         _write_private(paths[u], f"{c.user}:{c.password}\n")
     run_tls = None
-    if tls:
-        run_tls = make_run_tls(d, users, tls_hosts)
+    if tls:  # (a router's links to other routers present the router certificate)
+        run_tls = make_run_tls(d, [u for u in users if not is_router_user(u)], tls_hosts)
     return RunSecurity(d, dictionary, acl, paths, run_tls)

@@ -74,12 +74,15 @@ def zenoh_config(mode: str, listen: list[str], connect: list[str], overrides: di
     return cfg
 
 
-def open_router(listen: str, overrides: dict[str, Any] | None = None, also: Sequence[str] = ()) -> zenoh.Session:
+def open_router(listen: str, overrides: dict[str, Any] | None = None, also: Sequence[str] = (),
+                connect: Sequence[str] = ()) -> zenoh.Session:
     """A Python session in router mode: the run's router (no zenohd binary needed).
 
     `overrides` carries the run's authentication dictionary and access control (bus/acl.py); `also`:
-    more endpoints to listen on (external flight software on another host, deploy/external.py)."""
-    return zenoh.open(zenoh_config("router", [listen, *also], [], overrides))
+    more endpoints to listen on (external flight software on another host, deploy/external.py);
+    `connect`: other routers of the run to link to (a mesh of routers, deploy/mesh.py), which a
+    router keeps retrying in the background until they answer."""
+    return zenoh.open(zenoh_config("router", [listen, *also], list(connect), overrides))
 
 
 def _address_in_use(exc: BaseException) -> bool:

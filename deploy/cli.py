@@ -12,6 +12,8 @@ import click
 
 from swarmhil.bus.optional import MissingExtra
 from swarmhil.deploy.cli_viz import viz_option
+from swarmhil.deploy.mesh import scenario_placement
+from swarmhil.deploy.netns import NetnsError, check_netns_possible
 
 
 def _bad_file_errors() -> tuple[type[BaseException], ...]:
@@ -145,10 +147,18 @@ def main(verbose: int) -> None:
 @click.option("--join-listen", metavar="ENDPOINT",
               help="Multi-process runs with external flight software: the router also listens here (an address of "
                    "another network, e.g. tls/10.0.0.1:7447) and the join kits point here (docs/hil.md).")
+@click.option("--hosts", type=click.IntRange(min=1), default=1, show_default=True, metavar="K",
+              help="Multi-process runs: spread the run over K hosts, one Zenoh router each, the routers linked as a "
+                   "mesh; agents round-robin over the hosts or on their [[spacecraft]] host; plant, clock and "
+                   "recorder on host 0 (docs/scaling.md).")
+@click.option("--netns", is_flag=True,
+              help="With --hosts K: hosts 1..K-1 each a network namespace with its own address, all on one bridge "
+                   "with the launcher's host, made and removed by the run (needs root and iproute2).")
 @viz_option
 def run(scenario: str, out: str | None, duration: float | None, seed: int | None, mode: str | None,
         speed: float | None, in_process: bool, record: str, run_id: str | None, no_progress: bool, overwrite: bool,
-        insecure: bool, tls: bool, sets: tuple[str, ...], join_listen: str | None, **viz: Any) -> None:
+        insecure: bool, tls: bool, sets: tuple[str, ...], join_listen: str | None, hosts: int, netns: bool,
+        **viz: Any) -> None:
     """Run SCENARIO.toml: writes DIR/run.mcap and DIR/summary.json."""
     from swarmhil.deploy.cli_viz import viz_opts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.deploy.launcher import MultiProcessRun, new_run_id, run_in_process  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -170,6 +180,24 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         if external_ids(sc):
             click.echo(f"error: {scenario}: {', '.join(external_ids(sc))} fly external flight software "
                        "(fsw = \"external\"); that needs a multi-process run: drop --in-process", err=True)
+            sys.exit(2)
+    if hosts > 1 and in_process:
+        click.echo("error: --hosts needs a multi-process run: drop --in-process", err=True)
+        sys.exit(2)
+    if netns and hosts < 2:
+        click.echo("error: --netns needs --hosts 2 or more (host 0 is this namespace)", err=True)
+        sys.exit(2)
+    if netns:
+        try:
+            check_netns_possible()
+        except NetnsError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(2)
+    if not in_process:
+        try:
+            scenario_placement(sc, hosts)
+        except ValueError as exc:
+            click.echo(f"error: {scenario}: {exc}", err=True)
             sys.exit(2)
     if tls and (insecure or in_process):
         click.echo(f"error: --tls cannot be combined with {'--insecure' if insecure else '--in-process'}", err=True)
@@ -203,6 +231,10 @@ def run(scenario: str, out: str | None, duration: float | None, seed: int | None
         opts["secure"] = False
     if tls:
         opts["tls"] = True
+    if hosts > 1:
+        opts["hosts"] = hosts
+    if netns:
+        opts["netns"] = True
     if join_listen:
         from swarmhil.deploy.external import check_join_listen  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 

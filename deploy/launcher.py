@@ -1,7 +1,8 @@
 """`swarmhil run`: start, supervise and stop one run, multi-process over Zenoh or in-process.
 
 Multi-process: a Zenoh router (a Python session in router mode on a free loopback port), the
-recorder, one agent process per spacecraft and the plant, each its own PID. The launcher watches
+recorder, one agent process per spacecraft and the plant, each its own PID. With `hosts` > 1
+(deploy/mesh.py) one router per host, linked as a full mesh, each agent a client of its host's. The launcher watches
 them; at the end (or on Ctrl-C) it stops the plant, then the agents, then the recorder (so the
 recording holds everything), by PID only, and writes DIR/summary.json.
 """
@@ -27,6 +28,8 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.keys import Keys
 from swarmhil.deploy.companions import enabled_companions
 from swarmhil.deploy.external import JoinTimeout, external_ids, join_hosts, start_external
+from swarmhil.deploy.mesh import new_router_zid, process_hosts, router_name, router_users, scenario_placement
+from swarmhil.deploy.netns import Hosts, NetnsError
 from swarmhil.deploy.scenario import Scenario, plant_config, resolved_document
 
 log = logging.getLogger("swarmhil.launcher")
@@ -256,6 +259,21 @@ class MultiProcessRun:
         self._event_seq = 0
         self.cpu_budgets: dict[str, Any] = {}  # agent -> deploy.cpu_budget.CpuBudget
         self._paused: set[str] = set()  # agents a process_pause fault has SIGSTOPped
+        # several hosts (deploy/mesh.py): one router per host, each agent on its host's router
+        self.hosts = int(self.opts.get("hosts", 1))
+        self.agent_hosts = scenario_placement(sc, self.hosts)  # ValueError: a [[spacecraft]] host outside 0 .. K-1
+        self.router_eps: list[str] = []   # host -> its router's endpoint
+        self.router_zids: list[str] = []  # host -> its router's Zenoh id (hosts > 1)
+        self.netns: Any = None  # deploy.netns.Hosts: with opts["netns"], each host a network namespace
+
+    def _host_of(self, name: str) -> int:
+        if name.startswith("router-"):
+            return int(name[len("router-"):])
+        return self.agent_hosts.get(name[len("agent-"):], 0) if name.startswith("agent-") else 0
+
+    def _router_of(self, name: str) -> str:
+        """The endpoint of the router a process is a client of (its host's)."""
+        return self.router_eps[self._host_of(name)]
 
     def _spawn(self, name: str, role: str, router: str, extra: list[str] = ()) -> None:
         cmd = [sys.executable, "-m", "swarmhil.deploy.proc", role, "--router", router, "--run", self.run,
@@ -294,6 +312,8 @@ class MultiProcessRun:
         # in order); die with the launcher (no orphans); SWARMHIL_PARENT_PID for the child's own watchdog
         env = _child_env()
         env["SWARMHIL_PARENT_PID"] = str(os.getpid())
+        if self.netns is not None:  # a process of another host runs in its network namespace (deploy/netns.py)
+            cmd = [*self.netns.prefix(self._host_of(name)), *cmd]
         self.procs[name] = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, env=env,
                                             stdin=subprocess.DEVNULL, process_group=0,
                                             preexec_fn=_die_with_parent(os.getpid()))
@@ -301,10 +321,21 @@ class MultiProcessRun:
         return self.procs[name]
 
     def _write_run_json(self, router_ep: str) -> None:
-        """run.json: the router and the PIDs, current (`pids`) and every one started (`all_pids`)."""
+        """run.json: the router and the PIDs, current (`pids`) and every one started (`all_pids`),
+        and the placement: `hosts` (host -> its router's endpoint and process) and `process_hosts`
+        (process -> host)."""
         pids = {n: p.pid for n, p in self.procs.items()}
         (self.out / "run.json").write_text(json.dumps({"run": self.run, "router": router_ep, "pids": pids,
-                                                       "all_pids": self.all_pids}, indent=1))
+                                                       "all_pids": self.all_pids, **self._placement()}, indent=1))
+
+    def _placement(self) -> dict[str, Any]:
+        hosts = [{"host": h, "router": ep, "router_process": router_name(h),
+                  **({"zid": self.router_zids[h]} if self.router_zids else {}),
+                  **(self.netns.describe()[h] if self.netns is not None else {})} for h, ep in enumerate(self.router_eps)]
+        ground = [n for n in self.procs if not n.startswith(("agent-", "router"))]
+        procs = process_hosts(self.agent_hosts, ground)
+        procs.update({router_name(h): h for h in range(len(self.router_eps))})
+        return {"hosts": hosts, "process_hosts": dict(sorted(procs.items()))}
 
     def _supervision_event(self, watch: Any, kind: str, subject: str, detail: str, step: int) -> None:
         """An Event from the launcher (agent_restart, recorder_restart), recorded like the plant's."""
@@ -347,57 +378,134 @@ class MultiProcessRun:
         stats = merge(segs, self.out / "run.mcap")
         return {"files": [x.name for x in segs], "merged_into": "run.mcap", **stats}
 
-    def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
-        """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
-        rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
+    def _restarts_allowed(self, name: str, p: subprocess.Popen) -> int | None:
+        """The restarts of `name` so far when [supervision] lets it restart after this exit (restart =
+        "on-failure", a non-zero exit code, fewer than max_restarts); None otherwise."""
         if self.sc.restart != "on-failure" or p.returncode == 0:
-            return False
+            return None
         done = self.restarts.get(name, 0)
         if done >= self.sc.max_restarts:
             log.warning("%s exited with code %s; not restarted (max_restarts = %d reached)", name, p.returncode,
                         self.sc.max_restarts)
+            return None
+        return done
+
+    def _restart_agent(self, name: str, p: subprocess.Popen, router_ep: str, watch: Any, step: int) -> bool:
+        """[supervision] restart = "on-failure": start a dead agent again (up to max_restarts); it
+        rejoins cold at the plant's next step (plant/node.py). False when the policy says no."""
+        done = self._restarts_allowed(name, p)
+        if done is None:
             return False
         self.restarts[name] = done + 1
-        self._spawn(name, "agent", router_ep, ["--id", name[len("agent-"):]])
+        self._spawn(name, "agent", self._router_of(name), ["--id", name[len("agent-"):]])
         self._write_run_json(router_ep)
         self._supervision_event(watch, "agent_restart", name[len("agent-"):],
                                 f"pid {p.pid} exited with code {p.returncode}; restart {done + 1} of "
                                 f"{self.sc.max_restarts} as pid {self.procs[name].pid}", step)
         return True
 
-    def _start_router(self, attempts: int = 8, timeout_s: float = 120.0) -> str:
-        """The run's router as its own process (`python -m swarmhil.deploy.router`, deploy/router.py), on a free loopback
+    def _start_routers(self) -> str:
+        """Every host's router, host 0 first; router i links to routers 0 .. i-1 (a full mesh,
+        deploy/mesh.py) and is up once it has a link to each. Returns host 0's endpoint."""
+        for host in range(self.hosts):
+            self.router_eps.append(self._start_router(host))
+        return self.router_eps[0]
+
+    def _start_router(self, host: int = 0, attempts: int = 8, timeout_s: float = 120.0, port: int | None = None) -> str:
+        """A host's router as its own process (`python -m swarmhil.deploy.router`, deploy/router.py), on a free loopback
         port: the launcher is not the router. A port taken before the router bound it (exit code 4)
-        draws another one. Returns the endpoint once the router accepts connections."""
+        draws another one (`port` given, a restart on the same endpoint: it fails instead). Returns the
+        endpoint once the router accepts connections (and, in a mesh, has linked to the routers of the
+        hosts before it)."""
         import socket
 
         from swarmhil.bus.zenoh_bus import endpoint, free_loopback_port  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
-        for _attempt in range(attempts):
-            port = free_loopback_port()
-            ep = endpoint(port, proto="tls" if self.tls else "tcp")
+        name = router_name(host)
+        address = "127.0.0.1" if self.netns is None else self.netns.addresses[host]
+        fixed = port
+        starts = self._linked_lines(name) + 1  # a restart appends to its log: this start's "linked" line
+        for _attempt in range(1 if fixed else attempts):
+            port = fixed or (free_loopback_port() if self.netns is None else self.netns.free_port(host))
+            ep = endpoint(port, host=address, proto="tls" if self.tls else "tcp")
             cmd = [sys.executable, "-m", "swarmhil.deploy.router", "--listen", ep]
-            if self.opts.get("join_listen"):  # external flight software on another host (deploy/external.py)
+            if self.opts.get("join_listen") and host == 0:  # external flight software on another host (deploy/external.py)
                 cmd += ["--also-listen", self.opts["join_listen"]]
             if self.security is not None:
                 cmd += ["--acl-dir", str(self.security.dir)]
                 if self.security.tls is not None:
                     cmd += ["--tls", str(self.security.tls.dir)]
-            p = self._popen("router", cmd)
+            if self.router_zids:
+                cmd += ["--zid", self.router_zids[host]]
+            if host > 0:
+                cmd += [x for other in self.router_eps[:host] for x in ("--connect", other)]
+                cmd += ["--link-timeout", f"{timeout_s:g}"]
+                if self.security is not None:
+                    cmd += ["--credentials", str(self.security.credentials[name])]
+            p = self._popen(name, cmd)
             t_end = time.monotonic() + timeout_s
             while p.poll() is None and time.monotonic() < t_end:
                 try:
-                    with socket.create_connection(("127.0.0.1", port), timeout=0.5):
-                        return ep
+                    with socket.create_connection((address, port), timeout=0.5):
+                        if host == 0 or self._linked_lines(name) >= starts:
+                            return ep
                 except OSError:
-                    time.sleep(0.05)
+                    pass
+                time.sleep(0.05)
             if p.poll() is None:
-                self._stop(["router"])
-                raise RunFailed(f"the router did not listen on {ep} within {timeout_s:.0f} s:\n{self._tail('router')}")
+                self._stop([name])
+                raise RunFailed(f"{name} did not listen on {ep}{' and link to the other routers' if host else ''} "
+                                f"within {timeout_s:.0f} s:\n{self._tail(name)}")
             if p.returncode != 4:
-                raise RunFailed(f"the router exited with code {p.returncode}:\n{self._tail('router')}")
+                raise RunFailed(f"{name} exited with code {p.returncode}:\n{self._tail(name)}")
             log.warning("router port %s was taken before it bound it; trying another", ep)
-        raise RunFailed(f"no free loopback port for the router after {attempts} attempts")
+        raise RunFailed(f"no free loopback port for {name} after {attempts} attempts")
+
+    def _linked_lines(self, name: str) -> int:
+        """How many times a mesh router has printed that it linked to every router it connects to
+        (deploy/router.py): once per start, its log appended to on a restart."""
+        try:
+            return (self.out / "logs" / f"{name}.log").read_text(errors="replace").count("router mesh: linked to")
+        except OSError:
+            return 0
+
+    def _router_names(self) -> list[str]:
+        """The routers started, host 0's last (the order to stop them in)."""
+        return [n for n in self.procs if n.startswith("router-")][::-1] + (["router"] if "router" in self.procs else [])
+
+    def _restart_router(self, name: str, p: subprocess.Popen, watch: Any, step: int) -> bool:
+        """[supervision] restart = "on-failure": start a non-first host's router again on its endpoint
+        (its Zenoh id and links as before); the host's agents' sessions reconnect to it (within
+        deploy/proc.py ROUTER_GRACE_S, or they exit and are restarted as crashed agents) and the plant
+        takes them back at its next step. Event `router_restart`. False when the policy says no or the
+        router does not come back (then `_router_lost`)."""
+        done = self._restarts_allowed(name, p)
+        if done is None:
+            return False
+        host = int(name[len("router-"):])
+        try:
+            self._start_router(host, timeout_s=60.0, port=int(self.router_eps[host].rpartition(":")[2]))
+        except RunFailed as exc:
+            log.error("%s could not be restarted: %s", name, exc)
+            return False
+        finally:
+            self.restarts[name] = done + 1
+        self.exited.pop(name, None)
+        self._write_run_json(self.router_eps[0])
+        self._supervision_event(watch, "router_restart", name,
+                                f"pid {p.pid} exited with code {p.returncode}; restart {done + 1} of "
+                                f"{self.sc.max_restarts} as pid {self.procs[name].pid} on {self.router_eps[host]}", step)
+        return True
+
+    def _router_lost(self, name: str, p: subprocess.Popen, watch: Any, step: int) -> None:
+        """A non-first host's router exited: its agents' liveliness tokens go with it, so the plant
+        marks them dead (their spacecraft coast) and the run goes on; recorded as an Event
+        `router_lost` from the launcher."""
+        host = int(name[len("router-"):])
+        lost = sorted(sid for sid, h in self.agent_hosts.items() if h == host)
+        self._supervision_event(watch, "router_lost", name,
+                                f"pid {p.pid} exited with code {p.returncode} near step {step}; host {host}'s agents "
+                                f"{', '.join(lost) or '(none)'} lose the run", step)
 
     def _signal(self, name: str, sig: int) -> None:
         p = self.procs.get(name)
@@ -464,6 +572,25 @@ class MultiProcessRun:
         except OSError:
             return ""
 
+    def _make_security(self) -> Any:
+        """The run's credentials, ACL and certificates (bus/acl.py, bus/tls.py): the launcher's own
+        credential, or None for an open run."""
+        if not self.secure:
+            if self.tls:
+                raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
+            return None
+        from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+
+        users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
+        if self.hosts > 1:
+            self.router_zids = [new_router_zid() for _ in range(self.hosts)]
+            users += router_users(self.hosts)
+        self.security = make_run_security(self.out, self.run, users, tls=self.tls,
+                                          tls_hosts=[*join_hosts(self.opts.get("join_listen")),
+                                                     *(self.netns.addresses if self.netns is not None else [])],
+                                          router_zids=self.router_zids)
+        return self.security.credential("launcher")
+
     def execute(self) -> RunResult:
         from swarmhil.bus.recorder import ack_key  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
         from swarmhil.bus.zenoh_bus import ZenohBus  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
@@ -481,26 +608,29 @@ class MultiProcessRun:
         self.scenario_path = str((self.out / "scenario.json").resolve())
         summary = _base_summary(self.sc, self.run, "multi-process")
         wall0 = time.monotonic()
-        launcher_cred = None
-        if self.secure:
-            from swarmhil.bus.acl import make_run_security  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
-
-            users = ["launcher", "plant", "recorder", *[c.name for c in self.companions], *[f"agent-{s}" for s in self.sc.ids]]
-            self.security = make_run_security(self.out, self.run, users, tls=self.tls,
-                                              tls_hosts=join_hosts(self.opts.get("join_listen")))
-            launcher_cred = self.security.credential("launcher")
-        elif self.tls:
-            raise RunFailed("TLS needs the run's credentials: --tls cannot be combined with --insecure")
+        if self.opts.get("netns"):
+            try:
+                self.netns = Hosts(self.hosts)
+            except NetnsError as exc:
+                raise RunFailed(str(exc)) from None
         try:
-            router_ep = self._start_router()
+            launcher_cred = self._make_security()
+        except BaseException:
+            if self.netns is not None:
+                self.netns.close()
+            raise
+        try:
+            router_ep = self._start_routers()
             watch = ZenohBus(router_ep, credential=launcher_cred)
         except BaseException:
-            if "router" in self.procs:
-                self._stop(["router"])
+            self._stop(self._router_names())
             for f in self.logs.values():
                 f.close()
+            if self.netns is not None:
+                self.netns.close()
             raise
         summary["router"] = router_ep
+        summary.update(self._placement())
         summary["secure"] = self.secure
         summary["tls"] = self.tls
         bar = _Progress(self.sc, self.progress)
@@ -534,7 +664,7 @@ class MultiProcessRun:
             external = set(external_ids(self.sc))  # flight software the launcher does not start (docs/hil.md)
             for sid in self.sc.ids:
                 if sid not in external:
-                    self._spawn(f"agent-{sid}", "agent", router_ep, ["--id", sid])
+                    self._spawn(f"agent-{sid}", "agent", self._router_of(f"agent-{sid}"), ["--id", sid])
             self._spawn("plant", "plant", router_ep,
                         ["--companions", ",".join(c.name for c in self.companions),
                          "--barriers", ",".join(c.name for c in self.companions if c.barrier)])
@@ -563,6 +693,10 @@ class MultiProcessRun:
                         if n == "router":
                             raise RunFailed(f"the router (pid {p.pid}) exited with code {p.returncode}; every "
                                             f"process stops:\n{self._tail(n)}")
+                        if n.startswith("router-"):  # another host's router: its agents lose the run, or rejoin
+                            if not (stepping.is_set() and self._restart_router(n, p, watch, bar.last)):
+                                self._router_lost(n, p, watch, bar.last)
+                            continue
                         if n == "recorder" or any(c.name == n and c.barrier for c in self.companions):
                             raise RunFailed(f"{n} exited with code {p.returncode}; the run cannot go on:\n{self._tail(n)}")
                         if not stepping.is_set():  # the plant would wait for it in vain
@@ -615,9 +749,11 @@ class MultiProcessRun:
             self._stop(["recorder"], timeout_s=30.0)
             bar.close()
             watch.close()
-            self._stop(["router"])
+            self._stop(self._router_names())
             for f in self.logs.values():
                 f.close()
+            if self.netns is not None:
+                self.netns.close()
             if old_term is not None:
                 signal.signal(signal.SIGTERM, old_term)
         summary["wall_s"] = time.monotonic() - wall0

@@ -1,0 +1,64 @@
+"""One run over several hosts: a mesh of Zenoh routers (`swarmhil run SCENARIO --hosts K`).
+
+Each host has its own router process (deploy/router.py); router i connects to every router j < i,
+so the K routers form a full mesh (Zenoh's router-to-router routing carries every key between
+them). Each agent is a client of its own host's router only; the plant (and so the clock), the
+recorder, the companions and the launcher are on host 0. External flight software joins host 0's
+router. Every router applies the run's authentication and access control (bus/acl.py) to its own
+clients; the routers identify each other by the Zenoh ids set here, fresh for each run.
+
+Placement rule (`placement`): `[[spacecraft]] host = N` where given, else round-robin over the hosts
+in the scenario's order of spacecraft (the i-th spacecraft on host i mod K).
+"""
+from __future__ import annotations
+
+import secrets
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
+
+GROUND_HOST = 0  # plant, clock, recorder, companions, launcher, external flight software
+
+
+def router_name(host: int) -> str:
+    """The process (and, for host > 0, the user) name of a host's router: `router`, `router-1`, ..."""
+    return "router" if host == GROUND_HOST else f"router-{host}"
+
+
+def new_router_zid() -> str:
+    """A fresh 128-bit Zenoh id in Zenoh's form (lowercase hex, no leading zero)."""
+    return f"{secrets.randbits(128) | (1 << 127):032x}"
+
+
+def placement(ids: Sequence[str], hosts: int, pinned: Mapping[str, int | None]) -> dict[str, int]:
+    """Host of each spacecraft's agent: `pinned[id]` where not None, else round-robin (i mod hosts).
+
+    ValueError (one line) for hosts < 1 or a pinned host outside 0 .. hosts-1."""
+    if hosts < 1:
+        raise ValueError(f"--hosts {hosts}: needs at least one host")
+    out: dict[str, int] = {}
+    for i, sid in enumerate(ids):
+        h = pinned.get(sid)
+        if h is None:
+            h = i % hosts
+        elif not 0 <= h < hosts:
+            raise ValueError(f"[[spacecraft]] {sid}: host = {h}, but the run has {hosts} host"
+                             f"{'s' if hosts != 1 else ''} (0 .. {hosts - 1}; give --hosts {h + 1} or more)")
+        out[sid] = int(h)
+    return out
+
+
+def scenario_placement(sc: Any, hosts: int) -> dict[str, int]:
+    """`placement` for a loaded scenario (its `[[spacecraft]] host` fields)."""
+    return placement(list(sc.ids), hosts, {s.id: getattr(s, "host", None) for s in sc.spacecraft})
+
+
+def router_users(hosts: int) -> list[str]:
+    """The users routers on hosts 1 .. K-1 authenticate as when they connect to the others."""
+    return [router_name(h) for h in range(1, hosts)]
+
+
+def process_hosts(agent_hosts: Mapping[str, int], ground: Iterable[str]) -> dict[str, int]:
+    """process name -> host: the ground processes on host 0, `agent-<id>` on its placement."""
+    out = {n: GROUND_HOST for n in ground}
+    out.update({f"agent-{sid}": h for sid, h in agent_hosts.items()})
+    return out
