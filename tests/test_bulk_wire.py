@@ -138,3 +138,36 @@ def test_measurements_with_items_as_protobuf(dense: bool) -> None:
             for name, v in items.items():
                 add_measurement(m, name, v[i])
             assert b == m.SerializeToString()
+
+
+@pytest.mark.parametrize("dense", [False, True], ids=["zeros", "dense"])
+def test_measurements_with_each_observers_items_as_protobuf(dense: bool) -> None:
+    """`Measurements` whose items differ from observer to observer, with subjects (papers 003 and
+    004: a mission kind's batch form, RelBatch.named's `name/subject` dicts), as the kinds'
+    `stimulus` builds them with bus/codec.py add_measurement: items of several lengths (empty too),
+    observers without any, layouts that come back."""
+    from swarmhil.bus.codec import add_measurement
+
+    rng = np.random.default_rng(12)
+    ids = ["lsat", "ssat1", "ssat2", "ssat3"]
+    names = [("p003.target_rel.position_m", "tsat"), ("p004.d_m", "ssat2"), ("p004.y_m", "defunct"), ("own", "")]
+    enc = RelStimuli(Pool(), "run-n", "plant", ids)
+    for step in range(1, 16):
+        r = int(rng.integers(1, 5))
+        named = []
+        for _i in range(r):
+            chosen = [names[j] for j in sorted(rng.choice(len(names), int(rng.integers(0, 4)), replace=False))]
+            named.append({f"{n}/{s}" if s else n: _values(rng, (int(rng.integers(0, 4)),), dense) for n, s in chosen})
+        off = np.zeros(r + 1, dtype=np.int64)
+        seq = rng.integers(0, 300, r).astype(np.uint64)
+        blob, ends = enc.prepare(step, 0.1 * step, seq, -0.5, off, np.zeros(0, dtype=np.int64), np.zeros((0, 3)),
+                                 np.zeros((0, 3)), named).encode()
+        got = split(blob, ends)
+        assert len(got) == r
+        for i, b in enumerate(got):
+            m = pb.Measurements(header=pb.Header(run="run-n", source="plant", step=step, t=0.1 * step, seq=int(seq[i])),
+                                u_rad=-0.5)
+            for key, v in named[i].items():
+                name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+                add_measurement(m, name, v, subject)
+            assert b == m.SerializeToString()
