@@ -427,7 +427,7 @@ class RelStimuli:
     """`swarmhil.v1.RelStimulus` of the observers of a step (plant/sensing/builtin.py RelKind.stimuli):
     header (source `source`), u_rad, neighbours (RelativeState: id, position_m, velocity_mps, both
     assigned); or `swarmhil.v1.Measurements`, the same fields then `items` (bus/codec.py
-    `add_measurement` of 1-D arrays: name, subject, values; no shape): either named arrays of the
+    `add_measurement`: name, subject, values, shape): either named flat arrays of the
     same length for every observer, without a subject (the `relative` kind's own state), or each
     observer's own named arrays, keyed `name/subject` as a mission kind's batch form gives them
     (plant/sensing/builtin.py RelBatch.named: papers 003 and 004)."""
@@ -442,22 +442,23 @@ class RelStimuli:
                 items: "dict[str, np.ndarray] | Sequence[dict[str, np.ndarray]] | None" = None) -> Prepared:
         """The stimuli of R observers: observer r's neighbours are rows offsets[r]:offsets[r + 1] of
         `neighbour` (indices into the ids) and the (P, 3) relative states; `items` (Measurements):
-        name -> (R, k) values, observer r's row r; or R dicts `name/subject` -> 1-D values, observer
-        r's the r-th (a key without "/": no subject)."""
+        name -> (R, k) values, observer r's row r; or R dicts `name/subject` -> values of any shape,
+        observer r's the r-th (a key without "/": no subject)."""
         off = np.asarray(offsets, dtype=np.int64)
         nb = np.asarray(neighbour, dtype=np.int64)
         r, p = len(off) - 1, len(nb)
-        own: list[tuple[str, str, np.ndarray]] = []  # each observer's items in order, observer by observer
+        own: list[tuple[str, str, np.ndarray, tuple[int, ...]]] = []  # each observer's items (name, subject, values, shape)
         own_off = np.zeros(r + 1, dtype=np.int64)
         if items is not None and not isinstance(items, dict):
             for i, named_i in enumerate(items):
                 for key_, v in named_i.items():
                     name, _, subject = key_.rpartition("/") if "/" in key_ else (key_, "", "")
-                    own.append((name, subject, np.asarray(v, dtype=float).ravel()))
+                    a = np.asarray(v, dtype=float)
+                    own.append((name, subject, a.ravel(), a.shape if a.ndim != 1 else ()))
                 own_off[i + 1] = len(own)
             items = None
         named = [(name, np.asarray(v, dtype=float).reshape(r, -1)) for name, v in (items or {}).items()]
-        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named) + sum(v.size for _n, _s, v in own))
+        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named) + sum(v.size for _n, _s, v, _h in own))
         d[0], d[1] = t, u_rad
         d[2:2 + 6 * p].reshape(p, 6)[:, :3] = rel_position_m
         d[2:2 + 6 * p].reshape(p, 6)[:, 3:] = rel_velocity_mps
@@ -465,13 +466,13 @@ class RelStimuli:
         for _n, v in named:
             d[at:at + v.size] = v.ravel()
             at += v.size
-        for _n, _s, v in own:
+        for _n, _s, v, _h in own:
             d[at:at + v.size] = v
             at += v.size
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
         key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named),
-               own_off.tobytes(), *(f"{n}/{s_}:{v.size}".encode() for n, s_, v in own))
+               own_off.tobytes(), *(f"{n}/{s_}:{v.size}:{h}".encode() for n, s_, v, h in own))
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             pool = self.pool
@@ -494,10 +495,13 @@ class RelStimuli:
                 at += r * k
             if own:  # each observer's own items: one sub-row each, of its own length, then segments
                 parts, ends = [], [0]
-                for name, subject, v in own:
+                for name, subject, v, shape in own:
                     item = Rows(1, pool).const(_string(0x0A, name) + _string(0x12, subject))
                     if v.size:
                         item.packed(0x1A, area.double_ids(at, (1, v.size))[1].reshape(1, 8 * v.size))
+                    if shape:  # Measurement.shape (packed uint32) of an array that is not flat
+                        dims = b"".join(varint(int(x)) for x in shape)
+                        item.const(bytes((0x22,)) + varint(len(dims)) + dims)
                     ids_, _e = Rows(1, pool).nested(0x22, item).plan()
                     parts.append(ids_)
                     ends.append(ends[-1] + len(ids_))

@@ -144,8 +144,8 @@ def test_measurements_with_items_as_protobuf(dense: bool) -> None:
 def test_measurements_with_each_observers_items_as_protobuf(dense: bool) -> None:
     """`Measurements` whose items differ from observer to observer, with subjects (papers 003 and
     004: a mission kind's batch form, RelBatch.named's `name/subject` dicts), as the kinds'
-    `stimulus` builds them with bus/codec.py add_measurement: items of several lengths (empty too),
-    observers without any, layouts that come back."""
+    `stimulus` builds them with bus/codec.py add_measurement: items of several lengths and shapes
+    (empty too; paper 000's landmarks are (K, 3)), observers without any, layouts that come back."""
     from swarmhil.bus.codec import add_measurement
 
     rng = np.random.default_rng(12)
@@ -157,7 +157,8 @@ def test_measurements_with_each_observers_items_as_protobuf(dense: bool) -> None
         named = []
         for _i in range(r):
             chosen = [names[j] for j in sorted(rng.choice(len(names), int(rng.integers(0, 4)), replace=False))]
-            named.append({f"{n}/{s}" if s else n: _values(rng, (int(rng.integers(0, 4)),), dense) for n, s in chosen})
+            shapes = [(int(rng.integers(0, 4)),), (int(rng.integers(0, 3)), 3), (1, 2, 2)]
+            named.append({f"{n}/{s}" if s else n: _values(rng, shapes[int(rng.integers(0, 3))], dense) for n, s in chosen})
         off = np.zeros(r + 1, dtype=np.int64)
         seq = rng.integers(0, 300, r).astype(np.uint64)
         blob, ends = enc.prepare(step, 0.1 * step, seq, -0.5, off, np.zeros(0, dtype=np.int64), np.zeros((0, 3)),
