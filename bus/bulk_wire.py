@@ -313,6 +313,14 @@ class Area:
         self.key += [lens.tobytes(), present.tobytes()]
         return base + np.arange(data.size, dtype=np.int64).reshape(data.shape), lens, present
 
+    def raw(self, data: bytes) -> int:
+        """Bytes added as they are (a `bytes` field's content): the id of the first. Their length is
+        the caller's to put in the layout key."""
+        base = 8 * len(self.doubles) + self._n_ints
+        self._ints.append(np.frombuffer(data, dtype=np.uint8))
+        self._n_ints += len(data)
+        return base
+
     def chunks(self) -> list[np.ndarray]:
         """The area's bytes in pieces (the doubles', then each varint array's)."""
         return [self.doubles.view(np.uint8), *self._ints]
@@ -532,21 +540,28 @@ class AgentMessages:
         self.modes = StringTable(0x12, [])  # Telemetry.mode
         self.behaviours = StringTable(0x12, [])  # NeighbourDecision.behaviour
 
-    def commands(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, accel_mps2: np.ndarray) -> Prepared:
-        """The commands of the agents `rows` (indices into ids)."""
+    def commands(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, accel_mps2: np.ndarray,
+                 isl_tx_count: "np.ndarray | None" = None) -> Prepared:
+        """The commands of the agents `rows` (indices into ids); `isl_tx_count`: each one's packets
+        of the step (None: none)."""
         r = len(rows)
         d = np.empty(1 + 3 * r)
         d[0] = t
         d[1:].reshape(r, 3)[:] = accel_mps2
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
+        tx_v = area.varints(isl_tx_count) if isl_tx_count is not None and len(isl_tx_count) else None
         rows = np.asarray(rows, dtype=np.int64)
         key = (rows.tobytes(), *area.key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             m = Rows(r, self.pool).nested(0x0A, _header(r, self.pool, area, self.prefix, (self.sources, rows), step_v, 0, seq_v))
             _vector3(m, 0x12, *area.double_ids(1, (r, 3)))
-            return m.strings(self.controllers, rows).plan()
+            m.strings(self.controllers, rows)
+            if tx_v is not None:
+                m.varints(0x20, np.broadcast_to(tx_v[0], (r, tx_v[0].shape[1])), np.broadcast_to(tx_v[1], (r,)),
+                          np.broadcast_to(tx_v[2], (r,)))
+            return m.plan()
 
         return Prepared(key, area, self.act_plans, build)
 
@@ -589,6 +604,54 @@ class AgentMessages:
             return m.doubles((0x39,), np.broadcast_to(present, (r, 1)), np.broadcast_to(ids, (r, 1, 8))).plan()
 
         return Prepared(key, area, self.tm_plans, build)
+
+
+class IslPackets:
+    """`swarmhil.v1.IslPacket`s: header (source per packet, one step and time, seq per packet), src,
+    dst, type, payload, sent_t: an agent's transmissions on its isl/tx key (agent/node.py
+    `isl_packet`) or the link channel's deliveries on the receivers' isl/rx keys (link/node.py
+    `_publish`)."""
+
+    def __init__(self, pool: Pool, run: str) -> None:
+        self.pool, self.plans = pool, Plans(pool)
+        self.prefix = _string(0x0A, run)
+        self.sources = StringTable(0x12, [])  # Header.source
+        self.srcs = StringTable(0x12, [])  # src
+        self.dsts = StringTable(0x1A, [])  # dst
+        self.types = StringTable(0x22, [])  # type
+
+    def prepare(self, step: int, t: float, seq: Sequence[int], sources: Sequence[str], srcs: Sequence[str],
+                dsts: Sequence[str], types: Sequence[str], payloads: Sequence[bytes], sent_t: Sequence[float]) -> Prepared:
+        """n packets of one step and time (the header's), each with its own seq, source, fields."""
+        n = len(payloads)
+        d = np.empty(1 + n)
+        d[0] = t
+        d[1:] = sent_t
+        area = Area(d)
+        step_v, seq_v = area.varint(step), area.varints(np.asarray(seq, dtype=np.uint64))
+        lens = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
+        base = area.raw(b"".join(payloads))
+        so, sr, ds, ty = (table.indices(v) for table, v in
+                          ((self.sources, sources), (self.srcs, srcs), (self.dsts, dsts), (self.types, types)))
+        key = (so.tobytes(), sr.tobytes(), ds.tobytes(), ty.tobytes(), lens.tobytes(), *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool = self.pool
+            m = Rows(n, pool).nested(0x0A, _header(n, pool, area, self.prefix, (self.sources, so), step_v, 0, seq_v))
+            m.strings(self.srcs, sr).strings(self.dsts, ds).strings(self.types, ty)
+            heads = [pool.ids(bytes((0x2A,)) + varint(k)) if k else np.zeros(0, dtype=np.int64) for k in lens.tolist()]
+            kept = np.array([len(h) + k for h, k in zip(heads, lens.tolist())], dtype=np.int64)
+            ids = np.zeros((n, int(kept.max()) if n else 0), dtype=np.int64)
+            at = base
+            for i, (h, k) in enumerate(zip(heads, lens.tolist())):  # payload (field 5): absent when empty
+                ids[i, :len(h)] = h
+                ids[i, len(h):len(h) + k] = at + np.arange(k)
+                at += k
+            m.raw(ids, kept)
+            present, ids_t = area.double_ids(1, (n, 1))
+            return m.doubles((0x31,), present, ids_t).plan()
+
+        return Prepared(key, area, self.plans, build)
 
 
 def split(blob: bytes, ends: np.ndarray) -> list[bytes]:

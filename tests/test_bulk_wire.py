@@ -172,3 +172,42 @@ def test_measurements_with_each_observers_items_as_protobuf(dense: bool) -> None
                 name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
                 add_measurement(m, name, v, subject)
             assert b == m.SerializeToString()
+
+
+def test_isl_packets_and_commands_with_transmissions_as_protobuf() -> None:
+    """`IslPacket`s as agent/node.py `isl_packet` and link/node.py `_publish` build them (broadcast
+    and addressed, empty and long payloads, sent_t 0), and `ActuatorCommand.isl_tx_count`."""
+    from swarmhil.bus.bulk_wire import IslPackets
+
+    rng = np.random.default_rng(13)
+    ids = ["lsat", "ssat1", "ssat2"]
+    pool = Pool()
+    enc, agents = IslPackets(pool, "run-i"), AgentMessages(pool, "run-i", ids, ["p003-leader", "p003-servicer", "p003-servicer"])
+    for step in list(range(0, 6)) + [200, 70000]:
+        n = int(rng.integers(0, 6))
+        seq = rng.integers(0, 2 ** int(rng.integers(1, 20)), n).tolist()
+        sources = [str(rng.choice(ids + ["channel"])) for _ in range(n)]
+        srcs = [str(rng.choice(ids)) for _ in range(n)]
+        dsts = [str(rng.choice(ids + [""])) for _ in range(n)]
+        types = [str(rng.choice(["p003.tt", "p003.ct", ""])) for _ in range(n)]
+        payloads = [rng.bytes(int(rng.choice([0, 1, 41, 454]))) for _ in range(n)]
+        t = 0.1 * step
+        sent = [t if rng.random() < 0.7 else 0.0 for _ in range(n)]
+        for _again in range(2):  # a new plan, then the kept one
+            blob, ends = enc.prepare(step, t, seq, sources, srcs, dsts, types, payloads, sent).encode()
+            got = split(blob, ends)
+            assert len(got) == n
+            for i, b in enumerate(got):
+                want = pb.IslPacket(header=pb.Header(run="run-i", source=sources[i], step=step, t=t, seq=seq[i]),
+                                    src=srcs[i], dst=dsts[i], type=types[i], payload=payloads[i], sent_t=sent[i])
+                assert b == want.SerializeToString()
+        rows = np.flatnonzero(rng.random(3) < 0.8)
+        acc, count = _values(rng, (len(rows), 3)), rng.integers(0, 3, len(rows))
+        q = np.full(len(rows), step, dtype=np.uint64)
+        blob, ends = agents.commands(step, t, q, rows, acc, count).encode()
+        for i, b in enumerate(split(blob, ends)):
+            a = pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2])
+            want = pb.ActuatorCommand(header=pb.Header(run="run-i", source=ids[rows[i]], step=step, t=t, seq=step),
+                                      accel_mps2=a, controller=agents.controllers.strings[rows[i]],
+                                      isl_tx_count=int(count[i]))
+            assert b == want.SerializeToString()
