@@ -33,7 +33,7 @@ from swarmhil.agent.batch import BatchAgents
 from swarmhil.agent.controller import Command
 from swarmhil.agent.node import actuator_command, isl_packet, telemetry
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.bulk_wire import AgentMessages, Pool, Prepared, RelStimuli
+from swarmhil.bus.bulk_wire import AgentMessages, IslPackets, Pool, Prepared, RelStimuli
 from swarmhil.bus.codec import NamedRows, header, sense_type, sim_time_ns
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.mcap_writer import BulkRecords
@@ -42,6 +42,10 @@ from swarmhil.plant.flight import StimulusMessages
 
 
 PACKET_KINDS = ("rel", "relative")  # sensing kinds whose stimuli a batch run writes (RelStimulus, Measurements)
+
+
+_NO_ROWS = np.zeros(0, dtype=np.int64)  # a telemetry without decisions: its empty arrays
+_NO_VALUES, _NO_ROE, _NO_VEC = np.zeros(0), np.zeros((0, 6)), np.zeros((0, 3))
 
 
 def why_not_packets(sc: Any) -> str | None:
@@ -78,6 +82,7 @@ class BatchPackets:
         pool = Pool()
         self.stimuli = RelStimuli(pool, run, "plant", self.ids)
         self.agents = AgentMessages(pool, run, self.ids, self._ctrl_names)
+        self.tx = IslPackets(pool, run)
         self.records = BulkRecords(pool)
         self._keys = keys
         self._commands = [Command(accel_mps2=np.zeros(3)) for _ in self.ids]  # in force (the per-message path)
@@ -128,10 +133,15 @@ class BatchPackets:
             if decided:
                 self._take_commands(rows, agents)
             blob, e = stim.encode() if stim is not None else _joined(stim_msgs)
+            cmds = [self._commands[i] for i in rows.tolist()]
+            if not rejected and all(c.torque_nm is None and not c.extra and not c.decisions for c in cmds):
+                self._write_arrays(step, t_s, rows, seq, blob, e, cmds, decided, compute_s)
+                cmds = []
             by_sender: dict[int, list[str]] = {}
             for i, reason in rejected or ():
                 by_sender.setdefault(i, []).append(reason)
-            self._write_messages(step, t_s, rows, seq, blob, e, decided, compute_s, by_sender)
+            if cmds:
+                self._write_messages(step, t_s, rows, seq, blob, e, decided, compute_s, by_sender)
         scene = self.rec.scene
         if scene is not None:
             scene.saw_modes(self.ids if r == len(self.ids) else [self.ids[i] for i in rows.tolist()], modes)
@@ -157,6 +167,57 @@ class BatchPackets:
         replaced = set(agents.replaced)
         for r, i in enumerate(rows.tolist()):
             self._commands[i] = Command(accel_mps2=np.zeros(3), mode="fault") if r in replaced else cb.command(r)
+
+    def _write_arrays(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray, stim: bytes, s_ends: np.ndarray,
+                      cmds: list[Command], decided: bool, compute_s: float) -> None:
+        """`_write_messages` of Commands in force that hold an acceleration, a mode and transmissions
+        only (no torque, extra arrays or decisions: papers 003 and 004), from arrays: the
+        transmissions (bus/bulk_wire.py IslPackets), commands and telemetry each one encoder's
+        gather, then one buffer in the per-agent order."""
+        r = len(rows)
+        acc = np.array([c.accel_mps2 for c in cmds], dtype=float).reshape(r, 3)
+        modes = [c.mode for c in cmds]
+        txs = [list(c.transmissions) for c in cmds] if decided else [[] for _ in cmds]
+        counts = [len(x) for x in txs]
+        n_tx = sum(counts)
+        act_b, act_e = self.agents.commands(step, t_s, seq, rows, acc, np.array(counts) if n_tx else None).encode()
+        tm_b, tm_e = self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, np.zeros(r + 1, dtype=np.int64),
+                                           _NO_ROWS, (), _NO_ROWS, _NO_VALUES, _NO_ROE, _NO_VEC).encode()
+        se, ae, me = s_ends.tolist(), act_e.tolist(), tm_e.tolist()
+        tx_b, te = b"", [0]
+        if n_tx:
+            srcs, seqs, flat = [], [], []
+            for i, x in zip(rows.tolist(), txs):
+                if x:
+                    k = self._seq_tx[i]
+                    self._seq_tx[i] = k + len(x)
+                    srcs += [self.ids[i]] * len(x)
+                    seqs += range(k, k + len(x))
+                    flat += x
+            tx_b, tx_e = self.tx.prepare(step, t_s, seqs, srcs, srcs, [x.dst for x in flat], [x.type for x in flat],
+                                         [x.payload for x in flat], [t_s] * n_tx).encode()
+            te = tx_e.tolist()
+        t0, a0 = len(stim), len(stim) + len(tx_b)
+        m0 = a0 + len(act_b)
+        starts: list[int] = []
+        ends: list[int] = []
+        cids: list[int] = []
+        k = 0
+        for j, (i, c) in enumerate(zip(rows.tolist(), counts)):  # per spacecraft: stimulus, transmissions, act, tm
+            starts.append(se[j])
+            ends.append(se[j + 1])
+            cids.append(int(self._cids[i, 0]))
+            if c:
+                tx_cid = self._tx_channel(i)
+                starts += [t0 + x for x in te[k:k + c]]
+                ends += [t0 + x for x in te[k + 1:k + c + 1]]
+                cids += [tx_cid] * c
+                k += c
+            starts += [a0 + ae[j], m0 + me[j]]
+            ends += [a0 + ae[j + 1], m0 + me[j + 1]]
+            cids += [int(self._cids[i, 1]), int(self._cids[i, 2])]
+        a_s, a_e = np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64)
+        self.rec.write_many(cids, b"".join((stim, tx_b, act_b, tm_b)), a_s, a_e - a_s, sim_time_ns(t_s))
 
     def _write_messages(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray, stim: bytes,
                         s_ends: np.ndarray, decided: bool, compute_s: float, rejected: dict[int, list[str]]) -> None:
@@ -235,6 +296,7 @@ class LinkPackets:
         self.step, self.t = -1, 0.0  # the channel's step and time: the last clock tick's
         self.started = self.finished = False
         self._rejected = 0  # rejections so far (the channel's Rejections.total)
+        self.rx = IslPackets(Pool(), run)
 
     def tick(self, step: int, t: float, final: bool) -> None:
         """The plant's clock tick of `step` (written just before): the channel's `_on_tick`."""
@@ -278,8 +340,13 @@ class LinkPackets:
     def _deliveries(self, delivered: list[tuple[int, Any]]) -> None:
         """The IslPackets of one window (all of one receiving step: link/model.py `_take`)."""
         if delivered:
-            self._write([self._rx_cids[j] for j, _p in delivered], [p.message().SerializeToString() for _j, p in delivered],
-                        delivered[0][1].header.t)
+            step = delivered[0][1]._rx_step
+            t = step * self.link.step_s  # (RxPacket.header's time)
+            pk = [p for _j, p in delivered]
+            blob, e = self.rx.prepare(step, t, [p._seq for p in pk], [self.NAME] * len(pk), [p.src for p in pk],
+                                      [p.dst for p in pk], [p.type for p in pk], [p.payload for p in pk],
+                                      [p.sent_t for p in pk]).encode()
+            self.rec.write_many([self._rx_cids[j] for j, _p in delivered], blob, e[:-1], e[1:] - e[:-1], sim_time_ns(t))
             scene = self.rec.scene
             if scene is not None:  # (the links the next truth's scene draws, as the recorder learns them from isl/rx)
                 ids = self.link.ids
