@@ -217,7 +217,11 @@ class BatchPackets:
             ends += [a0 + ae[j + 1], m0 + me[j + 1]]
             cids += [int(self._cids[i, 1]), int(self._cids[i, 2])]
         a_s, a_e = np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64)
-        self.rec.write_many(cids, b"".join((stim, tx_b, act_b, tm_b)), a_s, a_e - a_s, sim_time_ns(t_s))
+        blob = b"".join((stim, tx_b, act_b, tm_b))
+        if self.link is not None:  # (written with the link's window: one write a step)
+            self.link.hold(cids, blob, a_s, a_e - a_s, t_s)
+        else:
+            self.rec.write_many(cids, blob, a_s, a_e - a_s, sim_time_ns(t_s))
 
     def _write_messages(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray, stim: bytes,
                         s_ends: np.ndarray, decided: bool, compute_s: float, rejected: dict[int, list[str]]) -> None:
@@ -297,6 +301,7 @@ class LinkPackets:
         self.started = self.finished = False
         self._rejected = 0  # rejections so far (the channel's Rejections.total)
         self.rx = IslPackets(Pool(), run)
+        self._parts: list[tuple[list[int], bytes, np.ndarray, np.ndarray, float]] = []  # the step's, not yet written
 
     def tick(self, step: int, t: float, final: bool) -> None:
         """The plant's clock tick of `step` (written just before): the channel's `_on_tick`."""
@@ -312,10 +317,16 @@ class LinkPackets:
             self.finished = True
             self._deliveries(self.link.finish(step))
             self._stats(step, t)
+            self._flush()
+
+    def hold(self, cids: list[int], blob: bytes, starts: np.ndarray, sizes: np.ndarray, t: float) -> None:
+        """The agents' messages of the step (BatchPackets), written with the window's (`window`): one
+        write of the step's messages."""
+        self._parts.append((cids, blob, starts, sizes, t))
 
     def window(self, step: int, delivered: list[tuple[int, Any]]) -> None:
         """Step `step`'s window closed with `delivered` (BatchLink.window): deliveries, statistics when
-        due, barrier (ChannelNode._close_window)."""
+        due, barrier (ChannelNode._close_window), written after what the step `hold`s."""
         self._deliveries(delivered)
         t = self.t
         if t + 1e-9 >= self._next_stats_t:
@@ -324,7 +335,8 @@ class LinkPackets:
                 self._next_stats_t += self.link.cfg.stats_period_s
         sync = pb.Tick(header=header(self.run, self.NAME, step, t, self._seq_sync), step_s=self.link.step_s)
         self._seq_sync += 1
-        self._write([self._sync_cid], [sync.SerializeToString()], t)
+        self._add([self._sync_cid], [sync.SerializeToString()], t)
+        self._flush()
 
     def rejected(self, key: str, subject: str, reason: str) -> None:
         """A transmission `check_tx` rejected on `key` (ChannelNode._reject; BatchLink counts it)."""
@@ -336,6 +348,7 @@ class LinkPackets:
         """After the run: the statistics once more if they changed since the last (ChannelNode.close)."""
         if self._last_stats != (self.link.model.counters.totals(), self.link.rejected):
             self._stats(max(self.step, 0), self.t)
+            self._flush()
 
     def _deliveries(self, delivered: list[tuple[int, Any]]) -> None:
         """The IslPackets of one window (all of one receiving step: link/model.py `_take`)."""
@@ -346,7 +359,7 @@ class LinkPackets:
             blob, e = self.rx.prepare(step, t, [p._seq for p in pk], [self.NAME] * len(pk), [p.src for p in pk],
                                       [p.dst for p in pk], [p.type for p in pk], [p.payload for p in pk],
                                       [p.sent_t for p in pk]).encode()
-            self.rec.write_many([self._rx_cids[j] for j, _p in delivered], blob, e[:-1], e[1:] - e[:-1], sim_time_ns(t))
+            self._parts.append(([self._rx_cids[j] for j, _p in delivered], blob, e[:-1], e[1:] - e[:-1], t))
             scene = self.rec.scene
             if scene is not None:  # (the links the next truth's scene draws, as the recorder learns them from isl/rx)
                 ids = self.link.ids
@@ -359,15 +372,34 @@ class LinkPackets:
         st = pb.LinkStats(header=header(self.run, self.NAME, step, t, self._seq_stats), links=model.counters.to_pb(),
                           rejected_packets=self.link.rejected, tx_messages=tot["tx_messages"], rx_messages=tot["rx_messages"])
         self._seq_stats += 1
-        self._write([self._stats_cid], [st.SerializeToString()], t)
+        self._add([self._stats_cid], [st.SerializeToString()], t)
         self._last_stats = (tot, self.link.rejected)
+
+    def _add(self, cids: list[int], msgs: list[bytes], t: float) -> None:
+        blob, e = _joined(msgs)
+        self._parts.append((cids, blob, e[:-1], e[1:] - e[:-1], t))
+
+    def _flush(self) -> None:
+        """The parts so far, in order, as one write (each message at its own part's time)."""
+        parts, self._parts = self._parts, []
+        if not parts:
+            return
+        if len(parts) == 1:
+            cids, blob, starts, sizes, t = parts[0]
+            self.rec.write_many(cids, blob, starts, sizes, sim_time_ns(t))
+            return
+        at, cids, starts, times = 0, [], [], []
+        for c, b, a, _z, t in parts:
+            cids += c
+            starts.append(np.asarray(a, dtype=np.int64) + at)
+            times.append(np.full(len(c), sim_time_ns(t), dtype=np.int64))
+            at += len(b)
+        self.rec.write_many(cids, b"".join([b for _c, b, _a, _z, _t in parts]), np.concatenate(starts),
+                            np.concatenate([np.asarray(z, dtype=np.int64) for _c, _b, _a, z, _t in parts]),
+                            np.concatenate(times))
 
     def _event(self, kind: str, subject: str, detail: str) -> None:
         ev = pb.Event(header=header(self.run, self.NAME, max(self.step, 0), self.t, self._seq_event), kind=kind,
                       subject=subject, detail=detail)
         self._seq_event += 1
         self.rec.write(self._k_event, ev.SerializeToString())  # (decoded: the recorder writes its Foxglove log)
-
-    def _write(self, cids: list[int], msgs: list[bytes], t: float) -> None:
-        blob, e = _joined(msgs)
-        self.rec.write_many(cids, blob, e[:-1], e[1:] - e[:-1], sim_time_ns(t))
