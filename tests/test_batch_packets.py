@@ -141,3 +141,21 @@ def test_link_missions_packets_are_the_per_agent_packets(tmp_path: Path, name: s
     if sets:
         assert drops["dropped_lost"] > 0 and drops["dropped_range"] > 0
     assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
+
+
+def test_capture_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
+    """Paper 000 (capture-20: the landmarks kind's Measurements with (K, 3) items, commands with
+    torques, a [link] whose range lets only some pairs talk): every packet of the batch run is the
+    per-agent run's."""
+    sc = load_scenario(SCENARIOS / "capture-20.toml").with_overrides(duration_s=3.0)
+    per_agent = run_in_process(sc, tmp_path / "agents", "p000", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "p000")
+    assert batch.summary["batch"] == {"used": True, "why_not": None}
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    assert n["truth"] == 61 and all(n[f"sc/{s}/act"] == 60 for s in sc.ids)
+    rx = {s: n.get(f"isl/rx/{s}", 0) for s in sc.ids}
+    assert sum(rx.values()) == per_agent.summary["channel"]["totals"]["rx_messages"] > 0 and min(rx.values()) < max(rx.values())
+    stims = [pb.Measurements.FromString(d) for t, _s, _l, d in _messages(tmp_path / "batch" / "run.mcap")
+             if t.endswith("/sense/p000-landmarks")]
+    assert any(len(it.shape) == 2 for s in stims for it in s.items)
+    assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
