@@ -102,12 +102,22 @@ class StringTable:
         self.lens = np.array([len(e) for e in enc], dtype=np.int64)
         self.uniform = bool(len(enc)) and bool((self.lens == self.width).all())  # every field of the table's width
         self.index = {s: i for i, s in enumerate(self.strings)}
+        self._seen: dict[tuple[str, ...], np.ndarray] = {}  # lists of strings asked for -> their rows (they recur)
 
     def indices(self, strings: Sequence[str]) -> np.ndarray:
         """Each string's row, growing the table with the new ones."""
+        key = tuple(strings)
+        got = self._seen.get(key)
+        if got is not None:
+            return got
         idx = self.index
         try:
-            return np.array([idx[s] for s in strings], dtype=np.int64)
+            got = np.array([idx[s] for s in strings], dtype=np.int64)
+            got.setflags(write=False)  # (shared by the calls that ask for the same strings)
+            if len(self._seen) >= 4096:
+                self._seen.clear()
+            self._seen[key] = got
+            return got
         except KeyError:
             self.__init__(self.tag, self.strings + [s for s in dict.fromkeys(strings) if s not in idx])  # type: ignore[misc]
             return self.indices(strings)

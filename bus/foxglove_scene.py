@@ -160,6 +160,7 @@ class FoxgloveScene:
         self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
         self._tf = _Transforms()
         self._lines = _Lines()
+        self._link_rows: dict[tuple[frozenset[tuple[str, str]], tuple[str, ...]], np.ndarray] = {}
         self._body_templates: dict[tuple, list[bytes]] = {}  # ((ids, kinds, alive, modes, faults), timestamp length) -> pieces
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
@@ -280,12 +281,18 @@ class FoxgloveScene:
         # SceneEntity(timestamp, frame_id=ROOT_FRAME, id="links", frame_locked=False, lines=[LINE_LIST of the
         # deliveries' ends, src then dst, in sorted order]) as bytes: the line's fields around its points
         # (field 5, Point3 each, from a plan: `_Lines`); tests/test_foxglove_recording.py checks them
-        index = {sid: i for i, sid in enumerate(ids)}
-        ends = [(index[a], index[b]) for a, b in sorted(self._links) if a in index and b in index]
+        key_l = (frozenset(self._links), tuple(ids))
+        rows = self._link_rows.get(key_l)
+        if rows is None:  # (the bodies' rows of the links' ends, src then dst, in sorted order: kept, they recur)
+            index = {sid: i for i, sid in enumerate(ids)}
+            ends = [(index[a], index[b]) for a, b in sorted(self._links) if a in index and b in index]
+            if len(self._link_rows) >= 1024:
+                self._link_rows.clear()
+            rows = self._link_rows[key_l] = np.array(ends, dtype=np.int64).reshape(-1)
         self._links.clear()
         links = head + _LINKS_FIELDS
-        if ends:
-            points = self._lines.encode(position_m[np.array(ends, dtype=np.int64).ravel()])
+        if len(rows):
+            points = self._lines.encode(position_m[rows])
             links += _field(0x5A, _LINE_HEAD + points + _LINE_TAIL)  # SceneEntity.lines (field 11)
         entities.append(_entity_field(links))
         return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
