@@ -47,7 +47,7 @@ class RecorderWriter(Writer):
 
     def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL, background: bool = False) -> None:
         self._pending: deque[tuple] = deque()  # closed chunks, in order: (future, start, end, size, message indexes)
-        self._bulk: list[tuple[np.ndarray, np.ndarray, int]] = []  # add_messages of the open chunk: (channels, offsets, log time)
+        self._bulk: list[tuple[np.ndarray, np.ndarray, "int | np.ndarray"]] = []  # add_messages of the open chunk: (channels, offsets, log time: one or each's)
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-zstd") if background else None
         super().__init__(output, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
