@@ -454,6 +454,7 @@ class RelStimuli:
         self.pool, self.plans = pool, Plans(pool)
         self.prefix = _string(0x0A, run) + _string(0x12, source)
         self.ids = StringTable(0x0A, ids)
+        self._own: dict[tuple, tuple[tuple[tuple[str, str, int, tuple[int, ...]], ...], np.ndarray]] = {}  # `_own_items`
 
     def prepare(self, step: int, t: float, seq: np.ndarray, u_rad: float, offsets: np.ndarray, neighbour: np.ndarray,
                 rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray,
@@ -465,18 +466,26 @@ class RelStimuli:
         off = np.asarray(offsets, dtype=np.int64)
         nb = np.asarray(neighbour, dtype=np.int64)
         r, p = len(off) - 1, len(nb)
-        own: list[tuple[str, str, np.ndarray, tuple[int, ...]]] = []  # each observer's items (name, subject, values, shape)
-        own_off = np.zeros(r + 1, dtype=np.int64)
+        own: "tuple[tuple[str, str, int, tuple[int, ...]], ...]" = ()  # each observer's items (name, subject, size, shape)
+        own_off = _NO_OFFSETS
+        own_values: list[np.ndarray] = []
+        own_key: tuple = ()
         if items is not None and not isinstance(items, dict):
-            for i, named_i in enumerate(items):
-                for key_, v in named_i.items():
-                    name, _, subject = key_.rpartition("/") if "/" in key_ else (key_, "", "")
-                    a = np.asarray(v, dtype=float)
-                    own.append((name, subject, a.ravel(), a.shape if a.ndim != 1 else ()))
-                own_off[i + 1] = len(own)
+            layout, own_values = [], []
+            for named_i in items:  # (the keys and shapes: the layout, parsed once per layout)
+                layout.append(tuple([(k, np.shape(v)) for k, v in named_i.items()]))
+                own_values += named_i.values()
+            own_key = tuple(layout)
+            got = self._own.get(own_key)
+            if got is None:
+                if len(self._own) >= MAX_PLANS:
+                    self._own.clear()
+                got = self._own[own_key] = _own_items(own_key)
+            own, own_off = got
             items = None
         named = [(name, np.asarray(v, dtype=float).reshape(r, -1)) for name, v in (items or {}).items()]
-        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named) + sum(v.size for _n, _s, v, _h in own))
+        n_own = sum([o[2] for o in own])
+        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named) + n_own)
         d[0], d[1] = t, u_rad
         d[2:2 + 6 * p].reshape(p, 6)[:, :3] = rel_position_m
         d[2:2 + 6 * p].reshape(p, 6)[:, 3:] = rel_velocity_mps
@@ -484,13 +493,11 @@ class RelStimuli:
         for _n, v in named:
             d[at:at + v.size] = v.ravel()
             at += v.size
-        for _n, _s, v, _h in own:
-            d[at:at + v.size] = v
-            at += v.size
+        if n_own:
+            d[at:] = np.concatenate([np.ravel(v) for v in own_values])
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
-        key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named),
-               own_off.tobytes(), *(f"{n}/{s_}:{v.size}:{h}".encode() for n, s_, v, h in own))
+        key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named), own_key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             pool = self.pool
@@ -513,17 +520,17 @@ class RelStimuli:
                 at += r * k
             if own:  # each observer's own items: one sub-row each, of its own length, then segments
                 parts, ends = [], [0]
-                for name, subject, v, shape in own:
+                for name, subject, size, shape in own:
                     item = Rows(1, pool).const(_string(0x0A, name) + _string(0x12, subject))
-                    if v.size:
-                        item.packed(0x1A, area.double_ids(at, (1, v.size))[1].reshape(1, 8 * v.size))
+                    if size:
+                        item.packed(0x1A, area.double_ids(at, (1, size))[1].reshape(1, 8 * size))
                     if shape:  # Measurement.shape (packed uint32) of an array that is not flat
                         dims = b"".join(varint(int(x)) for x in shape)
                         item.const(bytes((0x22,)) + varint(len(dims)) + dims)
                     ids_, _e = Rows(1, pool).nested(0x22, item).plan()
                     parts.append(ids_)
                     ends.append(ends[-1] + len(ids_))
-                    at += v.size
+                    at += size
                 m.segments(np.concatenate(parts), np.array(ends, dtype=np.int64), own_off)
             return m.plan()
 
@@ -532,6 +539,23 @@ class RelStimuli:
     def encode(self, *args: Any) -> tuple[bytes, np.ndarray]:
         """`prepare` of the same arguments, encoded."""
         return self.prepare(*args).encode()
+
+
+_NO_OFFSETS = np.zeros(1, dtype=np.int64)
+
+
+def _own_items(layout: tuple) -> tuple[tuple[tuple[str, str, int, tuple[int, ...]], ...], np.ndarray]:
+    """Each observer's items of a layout (per observer: its (`name/subject` key, shape) pairs):
+    (name, subject, size, the shape written: () for a flat array) of each, in order, and the
+    observers' offsets into them."""
+    own = []
+    off = np.zeros(len(layout) + 1, dtype=np.int64)
+    for i, pairs in enumerate(layout):
+        for key, shape in pairs:
+            name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+            own.append((name, subject, int(np.prod(shape, dtype=np.int64)), tuple(shape) if len(shape) != 1 else ()))
+        off[i + 1] = len(own)
+    return tuple(own), off
 
 
 class AgentMessages:
