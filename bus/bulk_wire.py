@@ -363,11 +363,11 @@ class Plans:
 
     def __init__(self, pool: Pool) -> None:
         self.pool = pool
-        self._plans: dict[tuple[bytes, ...], tuple[np.ndarray, np.ndarray]] = {}
-        self._gathers: dict[tuple[bytes, ...], Gather] = {}
+        self._plans: dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._gathers: dict[tuple[Any, ...], Gather] = {}
         self.built = 0  # plans built (the other steps reused one)
 
-    def plan(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[np.ndarray, np.ndarray]:
+    def plan(self, key: tuple[Any, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[np.ndarray, np.ndarray]:
         got = self._plans.get(key)
         if got is None:
             if len(self._plans) >= MAX_PLANS:
@@ -378,7 +378,7 @@ class Plans:
             self.built += 1
         return got
 
-    def gather(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]",
+    def gather(self, key: tuple[Any, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]",
                area_size: int) -> tuple[Gather, np.ndarray]:
         ids, ends = self.plan(key, build)
         g = self._gathers.get(key)
@@ -392,7 +392,7 @@ class Prepared:
     """One encoder's messages of a step, ready to be gathered: their layout key, the step's values
     and how to plan a new layout."""
 
-    key: tuple[bytes, ...]
+    key: tuple[Any, ...]
     area: Area
     plans: Plans
     build: "Callable[[], tuple[np.ndarray, np.ndarray]]"

@@ -89,6 +89,7 @@ class BatchPackets:
         self._seq_tx = [0] * n  # each agent's seq on its isl/tx key
         self._tx_cids: dict[int, int] = {}
         self.link: LinkPackets | None = None  # the link channel's messages, with a [link] (BatchHook sets it)
+        self._rec_cids: dict[tuple[bytes, bool], np.ndarray] = {}  # `_record_channels`
 
     def step(self, step: int, t_s: float, u_rad: float, rows: np.ndarray, rel: Any, agents: BatchAgents,
              decided: bool, compute_s: float, neighbour_ids: list[str] | None = None,
@@ -132,11 +133,13 @@ class BatchPackets:
         else:
             if decided:
                 self._take_commands(rows, agents)
-            blob, e = stim.encode() if stim is not None else _joined(stim_msgs)
             cmds = [self._commands[i] for i in rows.tolist()]
             if not rejected and all(c.torque_nm is None and not c.extra and not c.decisions for c in cmds):
-                self._write_arrays(step, t_s, rows, seq, blob, e, cmds, decided, compute_s)
+                self._write_arrays(step, t_s, rows, seq, stim if stim is not None else _joined(stim_msgs), cmds,
+                                   decided, compute_s)
                 cmds = []
+            else:
+                blob, e = stim.encode() if stim is not None else _joined(stim_msgs)
             by_sender: dict[int, list[str]] = {}
             for i, reason in rejected or ():
                 by_sender.setdefault(i, []).append(reason)
@@ -168,23 +171,24 @@ class BatchPackets:
         for r, i in enumerate(rows.tolist()):
             self._commands[i] = Command(accel_mps2=np.zeros(3), mode="fault") if r in replaced else cb.command(r)
 
-    def _write_arrays(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray, stim: bytes, s_ends: np.ndarray,
-                      cmds: list[Command], decided: bool, compute_s: float) -> None:
+    def _write_arrays(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray,
+                      stim: "Prepared | tuple[bytes, np.ndarray]", cmds: list[Command], decided: bool,
+                      compute_s: float) -> None:
         """`_write_messages` of Commands in force that hold an acceleration, a mode and transmissions
-        only (no torque, extra arrays or decisions: papers 003 and 004), from arrays: the
+        only (no torque, extra arrays or decisions: papers 001, 003 and 004), from arrays: the
         transmissions (bus/bulk_wire.py IslPackets), commands and telemetry each one encoder's
-        gather, then one buffer in the per-agent order."""
+        gather, then one buffer in the per-agent order; where each spacecraft sent one packet (or
+        none) and the stimuli are encoded too, the records of all in one gather (`BulkRecords`)."""
         r = len(rows)
         acc = np.array([c.accel_mps2 for c in cmds], dtype=float).reshape(r, 3)
         modes = [c.mode for c in cmds]
         txs = [list(c.transmissions) for c in cmds] if decided else [[] for _ in cmds]
         counts = [len(x) for x in txs]
         n_tx = sum(counts)
-        act_b, act_e = self.agents.commands(step, t_s, seq, rows, acc, np.array(counts) if n_tx else None).encode()
-        tm_b, tm_e = self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, np.zeros(r + 1, dtype=np.int64),
-                                           _NO_ROWS, (), _NO_ROWS, _NO_VALUES, _NO_ROE, _NO_VEC).encode()
-        se, ae, me = s_ends.tolist(), act_e.tolist(), tm_e.tolist()
-        tx_b, te = b"", [0]
+        act = self.agents.commands(step, t_s, seq, rows, acc, np.array(counts) if n_tx else None)
+        tm = self.agents.telemetry(step, t_s, seq, rows, modes, acc, compute_s, np.zeros(r + 1, dtype=np.int64),
+                                   _NO_ROWS, (), _NO_ROWS, _NO_VALUES, _NO_ROE, _NO_VEC)
+        tx: Prepared | None = None
         if n_tx:
             srcs, seqs, flat = [], [], []
             for i, x in zip(rows.tolist(), txs):
@@ -194,10 +198,21 @@ class BatchPackets:
                     srcs += [self.ids[i]] * len(x)
                     seqs += range(k, k + len(x))
                     flat += x
-            tx_b, tx_e = self.tx.prepare(step, t_s, seqs, srcs, srcs, [x.dst for x in flat], [x.type for x in flat],
-                                         [x.payload for x in flat], [t_s] * n_tx).encode()
+            tx = self.tx.prepare(step, t_s, seqs, srcs, srcs, [x.dst for x in flat], [x.type for x in flat],
+                                 [x.payload for x in flat], [t_s] * n_tx)
+        if isinstance(stim, Prepared) and n_tx in (0, r):  # one gather of the records: stimulus, [packet,] act, tm
+            parts = [stim, act, tm] if tx is None else [stim, tx, act, tm]
+            self.rec.write_records(self.records, parts, self._record_channels(rows, tx is not None), sim_time_ns(t_s))
+            return
+        stim_b, s_ends = stim.encode() if isinstance(stim, Prepared) else stim
+        act_b, act_e = act.encode()
+        tm_b, tm_e = tm.encode()
+        se, ae, me = s_ends.tolist(), act_e.tolist(), tm_e.tolist()
+        tx_b, te = b"", [0]
+        if tx is not None:
+            tx_b, tx_e = tx.encode()
             te = tx_e.tolist()
-        t0, a0 = len(stim), len(stim) + len(tx_b)
+        t0, a0 = len(stim_b), len(stim_b) + len(tx_b)
         m0 = a0 + len(act_b)
         starts: list[int] = []
         ends: list[int] = []
@@ -217,7 +232,7 @@ class BatchPackets:
             ends += [a0 + ae[j + 1], m0 + me[j + 1]]
             cids += [int(self._cids[i, 1]), int(self._cids[i, 2])]
         a_s, a_e = np.array(starts, dtype=np.int64), np.array(ends, dtype=np.int64)
-        blob = b"".join((stim, tx_b, act_b, tm_b))
+        blob = b"".join((stim_b, tx_b, act_b, tm_b))
         if self.link is not None:  # (written with the link's window: one write a step)
             self.link.hold(cids, blob, a_s, a_e - a_s, t_s)
         else:
@@ -259,6 +274,19 @@ class BatchPackets:
         if cids:
             blob, e = _joined(msgs)
             self.rec.write_many(cids, blob, e[:-1], e[1:] - e[:-1], t_ns)
+
+    def _record_channels(self, rows: np.ndarray, with_tx: bool) -> np.ndarray:
+        """The channels of `rows`' records, per spacecraft: stimulus, [isl/tx,] act, tm."""
+        key = (rows.tobytes(), with_tx)
+        got = self._rec_cids.get(key)
+        if got is None:
+            c = self._cids[rows]
+            if with_tx:
+                c = np.stack([c[:, 0], [self._tx_channel(i) for i in rows.tolist()], c[:, 1], c[:, 2]], axis=1)
+            if len(self._rec_cids) >= 1024:
+                self._rec_cids.clear()
+            got = self._rec_cids[key] = np.ascontiguousarray(c).ravel()
+        return got
 
     def _tx_channel(self, i: int) -> int:
         cid = self._tx_cids.get(i)
