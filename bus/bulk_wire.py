@@ -458,7 +458,7 @@ class RelStimuli:
 
     def prepare(self, step: int, t: float, seq: np.ndarray, u_rad: float, offsets: np.ndarray, neighbour: np.ndarray,
                 rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray,
-                items: "dict[str, np.ndarray] | Sequence[dict[str, np.ndarray]] | None" = None) -> Prepared:
+                items: "dict[str, np.ndarray] | Sequence[dict[str, np.ndarray]] | None" = None) -> "Prepared | Appended":
         """The stimuli of R observers: observer r's neighbours are rows offsets[r]:offsets[r + 1] of
         `neighbour` (indices into the ids) and the (P, 3) relative states; `items` (Measurements):
         name -> (R, k) values, observer r's row r; or R dicts `name/subject` -> values of any shape,
@@ -470,6 +470,14 @@ class RelStimuli:
         own_off = _NO_OFFSETS
         own_values: list[np.ndarray] = []
         own_key: tuple = ()
+        if items is not None and not isinstance(items, dict) and any(
+                np.ndim(v) != 1 for named_i in items for v in named_i.values()):
+            # arrays of rows (paper 000's visible landmarks, (K, 3)): their count changes from step to step, so
+            # a plan would rarely be seen twice; each observer's items are written as they are after its message
+            tails = [b"".join([_item_field(k, v) for k, v in named_i.items()]) for named_i in items]
+            base = self.prepare(step, t, seq, u_rad, offsets, neighbour, rel_position_m, rel_velocity_mps)
+            assert isinstance(base, Prepared)  # (without items)
+            return Appended(base, tails)
         if items is not None and not isinstance(items, dict):
             layout, own_values = [], []
             for named_i in items:  # (the keys and shapes: the layout, parsed once per layout)
@@ -542,6 +550,37 @@ class RelStimuli:
 
 
 _NO_OFFSETS = np.zeros(1, dtype=np.int64)
+
+
+class Appended:
+    """Messages of an encoder (`base`) each followed by bytes of its own (`tails`: fields that
+    come last in the message, protobuf's field order): `encode` as Prepared's."""
+
+    def __init__(self, base: Prepared, tails: list[bytes]) -> None:
+        self.base, self.tails = base, tails
+
+    def encode(self) -> tuple[bytes, np.ndarray]:
+        blob, ends = self.base.encode()
+        e = ends.tolist()
+        out = b"".join([blob[a:b] + tail for a, b, tail in zip(e[:-1], e[1:], self.tails)])
+        sizes = np.diff(ends) + np.fromiter(map(len, self.tails), dtype=np.int64, count=len(self.tails))
+        new = np.zeros(len(ends), dtype=np.int64)
+        np.cumsum(sizes, out=new[1:])
+        return out, new
+
+
+def _item_field(key: str, v: Any) -> bytes:
+    """Measurements.items (field 4) of one named array, keyed `name/subject` (or `name`): bus/codec.py
+    `add_measurement`'s Measurement (name, subject, values packed float64, shape packed unless flat)."""
+    a = np.asarray(v, dtype=float)
+    name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+    body = _string(0x0A, name) + _string(0x12, subject)
+    if a.size:
+        body += b"\x1a" + varint(8 * a.size) + a.astype("<f8").tobytes()
+    if a.ndim > 1:  # (a flat or 0-d array: no shape)
+        dims = b"".join(varint(int(x)) for x in a.shape)
+        body += b"\x22" + varint(len(dims)) + dims
+    return b"\x22" + varint(len(body)) + body
 
 
 def _own_items(layout: tuple) -> tuple[tuple[tuple[str, str, int, tuple[int, ...]], ...], np.ndarray]:

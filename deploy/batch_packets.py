@@ -33,7 +33,7 @@ from swarmhil.agent.batch import BatchAgents
 from swarmhil.agent.controller import Command
 from swarmhil.agent.node import actuator_command, isl_packet, telemetry
 from swarmhil.bus import swarmhil_pb2 as pb
-from swarmhil.bus.bulk_wire import AgentMessages, IslPackets, Pool, Prepared, RelStimuli
+from swarmhil.bus.bulk_wire import AgentMessages, Appended, IslPackets, Pool, Prepared, RelStimuli
 from swarmhil.bus.codec import NamedRows, header, sense_type, sim_time_ns
 from swarmhil.bus.keys import Keys
 from swarmhil.bus.mcap_writer import BulkRecords
@@ -104,7 +104,7 @@ class BatchPackets:
         r = len(rows)
         if r == 0:
             return
-        stim: Prepared | None = None
+        stim: Prepared | Appended | None = None
         if isinstance(rel, StimulusMessages):  # the kind's messages themselves (built with the plant's sequence numbers)
             stim_msgs = [m.SerializeToString() for m in rel.messages]
         else:
@@ -172,7 +172,7 @@ class BatchPackets:
             self._commands[i] = Command(accel_mps2=np.zeros(3), mode="fault") if r in replaced else cb.command(r)
 
     def _write_arrays(self, step: int, t_s: float, rows: np.ndarray, seq: np.ndarray,
-                      stim: "Prepared | tuple[bytes, np.ndarray]", cmds: list[Command], decided: bool,
+                      stim: "Prepared | Appended | tuple[bytes, np.ndarray]", cmds: list[Command], decided: bool,
                       compute_s: float) -> None:
         """`_write_messages` of Commands in force that hold an acceleration, a mode and transmissions
         only (no torque, extra arrays or decisions: papers 001, 003 and 004), from arrays: the
@@ -204,7 +204,7 @@ class BatchPackets:
             parts = [stim, act, tm] if tx is None else [stim, tx, act, tm]
             self.rec.write_records(self.records, parts, self._record_channels(rows, tx is not None), sim_time_ns(t_s))
             return
-        stim_b, s_ends = stim.encode() if isinstance(stim, Prepared) else stim
+        stim_b, s_ends = stim if isinstance(stim, tuple) else stim.encode()
         act_b, act_e = act.encode()
         tm_b, tm_e = tm.encode()
         se, ae, me = s_ends.tolist(), act_e.tolist(), tm_e.tolist()
