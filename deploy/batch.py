@@ -37,7 +37,7 @@ from swarmhil.bus.keys import Keys
 from swarmhil.deploy.batch_packets import BatchPackets, LinkPackets, why_not_packets
 from swarmhil.deploy.scenario import plant_config
 from swarmhil.link.faults import LinkFaults
-from swarmhil.link.model import LinkModel, check_tx, parse_link_config
+from swarmhil.link.model import COUNTER_FIELDS, LinkModel, check_tx, parse_link_config
 from swarmhil.link.node import enabled as channel_enabled
 from swarmhil.plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMessages
 from swarmhil.plant.sensing.registry import SensingContext, sensing_message
@@ -178,7 +178,10 @@ class BatchLink:
     def summary(self) -> dict[str, Any]:
         tot = self.model.counters.totals()
         return {"config": self.cfg.to_dict(), "totals": {**tot, "rejected_packets": self.rejected},
-                "pending_at_end": self.model.pending(), "deliveries": self.deliveries, "batch": True}
+                "pending_at_end": self.model.pending(), "deliveries": self.deliveries, "batch": True,
+                # the counters per (src, dst, type), as the channel's summary has them (link/node.py)
+                "link_columns": ["src", "dst", "type", *COUNTER_FIELDS],
+                "links": [[s, d, t, *r] for s, d, t, r in self.model.counters.sorted_rows()]}
 
 
 class BatchHook(LocalFlightSoftware):

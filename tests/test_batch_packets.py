@@ -138,6 +138,8 @@ def test_link_missions_packets_are_the_per_agent_packets(tmp_path: Path, name: s
     rx = sum(n.get(f"isl/rx/{s}", 0) for s in sc.ids)
     drops = per_agent.summary["channel"]["totals"]
     assert rx == drops["rx_messages"] > 0 and batch.summary["channel"]["totals"] == drops
+    for k in ("links", "link_columns", "pending_at_end"):  # (what the reports read of the channel's summary)
+        assert batch.summary["channel"][k] == per_agent.summary["channel"][k], k
     if sets:
         assert drops["dropped_lost"] > 0 and drops["dropped_range"] > 0
     assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
