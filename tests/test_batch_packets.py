@@ -161,3 +161,21 @@ def test_capture_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
              if t.endswith("/sense/p000-landmarks")]
     assert any(len(it.shape) == 2 for s in stims for it in s.items)
     assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
+
+
+def test_rejected_transmissions_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
+    """surround-6 with a payload limit below the servicers' 50 B packets (the leader's 41 B pass): the
+    channel rejects every servicer packet and records a `rejected_packet` event for each of the first
+    `max_events`, after the sender's telemetry; the batch run writes the same events in the same places."""
+    sets = ["link.max_payload_bytes=45", "link.max_events=20"]
+    sc = load_scenario(SCENARIOS / "surround-6.toml", sets).with_overrides(duration_s=2.0)
+    per_agent = run_in_process(sc, tmp_path / "agents", "rej", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "rej")
+    assert batch.summary["batch"]["used"]
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    events = [pb.Event.FromString(d) for t, _s, _l, d in _messages(tmp_path / "batch" / "run.mcap") if t == "event"]
+    rejected = [e for e in events if e.kind == "rejected_packet"]
+    assert len(rejected) == 20 and all("oversized payload" in e.detail for e in rejected)
+    assert n["foxglove/log"] == n["event"] and n["isl/rx/ssat1"] == 20 and "isl/rx/lsat" not in n
+    assert batch.summary["channel"]["totals"] == per_agent.summary["channel"]["totals"]
+    assert per_agent.summary["channel"]["totals"]["rejected_packets"] == 6 * 20
