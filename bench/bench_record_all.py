@@ -1,6 +1,6 @@
 """Every packet against the truth only, in-process, side by side in one invocation.
 
-    python bench/bench_record_all.py [--hours 24] [--repeats 2] [--zstd] [SCENARIO ...]
+    python bench/bench_record_all.py [--hours 24] [--repeats 2] [--zstd] [--no-per-agent] [SCENARIO ...]
 
 For each scenario (default sabatini-20) runs `run_in_process` three ways, each in a fresh Python
 process, interleaved repeat by repeat: the batch mode recording the truth only (`--record truth`),
@@ -14,6 +14,8 @@ steps whose layout was new). `--zstd`: the every-packet recording's chunks compr
 several zstd levels (CPU and size), what the recorder's level is chosen by.
 The machine is shared: only ratios measured in one invocation mean anything; the load average is
 printed with them. The three runs must give the same total dV (printed and checked).
+`--no-per-agent`: the two batch runs only (a long scenario whose per-agent run would take most of
+the invocation).
 """
 from __future__ import annotations
 
@@ -87,25 +89,29 @@ def main() -> None:
     ap.add_argument("--hours", type=float, default=24.0, help="simulated hours (0: the scenario's own duration)")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--zstd", action="store_true", help="also: the every-packet recording's chunks at several zstd levels")
+    ap.add_argument("--no-per-agent", action="store_true", help="the two batch runs only")
     a = ap.parse_args()
+    modes = MODES[:2] if a.no_per_agent else MODES
     load0 = Path("/proc/loadavg").read_text().split()[:3]
     with tempfile.TemporaryDirectory() as d:
         for scenario in a.scenarios:
             name = Path(scenario).stem
-            res: dict[str, list[dict]] = {m: [] for m, *_ in MODES}
+            res: dict[str, list[dict]] = {m: [] for m, *_ in modes}
             for r in range(a.repeats):
-                for label, record, path in MODES:
+                for label, record, path in modes:
                     x = one(str(Path(scenario).resolve()), a.hours * 3600.0, Path(d) / f"{name}-{r}-{record}-{path}",
                             record, path)
                     res[label].append(x)
                     print(f"{name} #{r} {label}: CPU {x['cpu_s']:.2f} s, wall {x['wall_s']:.2f} s, {x['messages']} messages, "
                           f"{x['bytes'] / 1e6:.1f} MB, batch {x['batch']['used']}, dV {x['dv']!r}", flush=True)
             cpu = {k: statistics.median(x["cpu_s"] for x in v) for k, v in res.items()}
-            t, b, p = (cpu[m] for m, *_ in MODES)
+            t, b = cpu[MODES[0][0]], cpu[MODES[1][0]]
+            p = cpu.get(MODES[2][0])
             same = len({x["dv"] for v in res.values() for x in v}) == 1
-            print(f"{name} median CPU: truth-only batch {t:.2f} s, every-packet batch {b:.2f} s, every-packet per-agent "
-                  f"{p:.2f} s; every-packet batch / truth-only batch = {b / t:.2f}x, per-agent / every-packet batch = "
-                  f"{p / b:.2f}x; total dV identical: {same}", flush=True)
+            agents = "" if p is None else f", every-packet per-agent {p:.2f} s"
+            ratio = "" if p is None else f", per-agent / every-packet batch = {p / b:.2f}x"
+            print(f"{name} median CPU: truth-only batch {t:.2f} s, every-packet batch {b:.2f} s{agents}; every-packet "
+                  f"batch / truth-only batch = {b / t:.2f}x{ratio}; total dV identical: {same}", flush=True)
             x = res["every-packet batch"][0]
             print(f"{name} every-packet batch: {x['plans']} record plans built for {x['steps']} steps", flush=True)
             if a.zstd:

@@ -102,12 +102,22 @@ class StringTable:
         self.lens = np.array([len(e) for e in enc], dtype=np.int64)
         self.uniform = bool(len(enc)) and bool((self.lens == self.width).all())  # every field of the table's width
         self.index = {s: i for i, s in enumerate(self.strings)}
+        self._seen: dict[tuple[str, ...], np.ndarray] = {}  # lists of strings asked for -> their rows (they recur)
 
     def indices(self, strings: Sequence[str]) -> np.ndarray:
         """Each string's row, growing the table with the new ones."""
+        key = tuple(strings)
+        got = self._seen.get(key)
+        if got is not None:
+            return got
         idx = self.index
         try:
-            return np.array([idx[s] for s in strings], dtype=np.int64)
+            got = np.array([idx[s] for s in strings], dtype=np.int64)
+            got.setflags(write=False)  # (shared by the calls that ask for the same strings)
+            if len(self._seen) >= 4096:
+                self._seen.clear()
+            self._seen[key] = got
+            return got
         except KeyError:
             self.__init__(self.tag, self.strings + [s for s in dict.fromkeys(strings) if s not in idx])  # type: ignore[misc]
             return self.indices(strings)
@@ -313,6 +323,14 @@ class Area:
         self.key += [lens.tobytes(), present.tobytes()]
         return base + np.arange(data.size, dtype=np.int64).reshape(data.shape), lens, present
 
+    def raw(self, data: bytes) -> int:
+        """Bytes added as they are (a `bytes` field's content): the id of the first. Their length is
+        the caller's to put in the layout key."""
+        base = 8 * len(self.doubles) + self._n_ints
+        self._ints.append(np.frombuffer(data, dtype=np.uint8))
+        self._n_ints += len(data)
+        return base
+
     def chunks(self) -> list[np.ndarray]:
         """The area's bytes in pieces (the doubles', then each varint array's)."""
         return [self.doubles.view(np.uint8), *self._ints]
@@ -345,11 +363,11 @@ class Plans:
 
     def __init__(self, pool: Pool) -> None:
         self.pool = pool
-        self._plans: dict[tuple[bytes, ...], tuple[np.ndarray, np.ndarray]] = {}
-        self._gathers: dict[tuple[bytes, ...], Gather] = {}
+        self._plans: dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._gathers: dict[tuple[Any, ...], Gather] = {}
         self.built = 0  # plans built (the other steps reused one)
 
-    def plan(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[np.ndarray, np.ndarray]:
+    def plan(self, key: tuple[Any, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]") -> tuple[np.ndarray, np.ndarray]:
         got = self._plans.get(key)
         if got is None:
             if len(self._plans) >= MAX_PLANS:
@@ -360,7 +378,7 @@ class Plans:
             self.built += 1
         return got
 
-    def gather(self, key: tuple[bytes, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]",
+    def gather(self, key: tuple[Any, ...], build: "Callable[[], tuple[np.ndarray, np.ndarray]]",
                area_size: int) -> tuple[Gather, np.ndarray]:
         ids, ends = self.plan(key, build)
         g = self._gathers.get(key)
@@ -374,7 +392,7 @@ class Prepared:
     """One encoder's messages of a step, ready to be gathered: their layout key, the step's values
     and how to plan a new layout."""
 
-    key: tuple[bytes, ...]
+    key: tuple[Any, ...]
     area: Area
     plans: Plans
     build: "Callable[[], tuple[np.ndarray, np.ndarray]]"
@@ -426,26 +444,56 @@ def _string(tag: int, s: str) -> bytes:
 class RelStimuli:
     """`swarmhil.v1.RelStimulus` of the observers of a step (plant/sensing/builtin.py RelKind.stimuli):
     header (source `source`), u_rad, neighbours (RelativeState: id, position_m, velocity_mps, both
-    assigned); or `swarmhil.v1.Measurements`, the same fields then `items`: named flat arrays of the
-    same length for every observer (bus/codec.py `add_measurement` of a 1-D array: name, values; no
-    subject, no shape), such as the `relative` kind's own state."""
+    assigned); or `swarmhil.v1.Measurements`, the same fields then `items` (bus/codec.py
+    `add_measurement`: name, subject, values, shape): either named flat arrays of the
+    same length for every observer, without a subject (the `relative` kind's own state), or each
+    observer's own named arrays, keyed `name/subject` as a mission kind's batch form gives them
+    (plant/sensing/builtin.py RelBatch.named: papers 003 and 004)."""
 
     def __init__(self, pool: Pool, run: str, source: str, ids: Sequence[str]) -> None:
         self.pool, self.plans = pool, Plans(pool)
         self.prefix = _string(0x0A, run) + _string(0x12, source)
         self.ids = StringTable(0x0A, ids)
+        self._own: dict[tuple, tuple[tuple[tuple[str, str, int, tuple[int, ...]], ...], np.ndarray]] = {}  # `_own_items`
 
     def prepare(self, step: int, t: float, seq: np.ndarray, u_rad: float, offsets: np.ndarray, neighbour: np.ndarray,
                 rel_position_m: np.ndarray, rel_velocity_mps: np.ndarray,
-                items: "dict[str, np.ndarray] | None" = None) -> Prepared:
+                items: "dict[str, np.ndarray] | Sequence[dict[str, np.ndarray]] | None" = None) -> "Prepared | Appended":
         """The stimuli of R observers: observer r's neighbours are rows offsets[r]:offsets[r + 1] of
         `neighbour` (indices into the ids) and the (P, 3) relative states; `items` (Measurements):
-        name -> (R, k) values, observer r's row r."""
+        name -> (R, k) values, observer r's row r; or R dicts `name/subject` -> values of any shape,
+        observer r's the r-th (a key without "/": no subject)."""
         off = np.asarray(offsets, dtype=np.int64)
         nb = np.asarray(neighbour, dtype=np.int64)
         r, p = len(off) - 1, len(nb)
+        own: "tuple[tuple[str, str, int, tuple[int, ...]], ...]" = ()  # each observer's items (name, subject, size, shape)
+        own_off = _NO_OFFSETS
+        own_values: list[np.ndarray] = []
+        own_key: tuple = ()
+        if items is not None and not isinstance(items, dict) and any(
+                np.ndim(v) != 1 for named_i in items for v in named_i.values()):
+            # arrays of rows (paper 000's visible landmarks, (K, 3)): their count changes from step to step, so
+            # a plan would rarely be seen twice; each observer's items are written as they are after its message
+            tails = [b"".join([_item_field(k, v) for k, v in named_i.items()]) for named_i in items]
+            base = self.prepare(step, t, seq, u_rad, offsets, neighbour, rel_position_m, rel_velocity_mps)
+            assert isinstance(base, Prepared)  # (without items)
+            return Appended(base, tails)
+        if items is not None and not isinstance(items, dict):
+            layout, own_values = [], []
+            for named_i in items:  # (the keys and shapes: the layout, parsed once per layout)
+                layout.append(tuple([(k, np.shape(v)) for k, v in named_i.items()]))
+                own_values += named_i.values()
+            own_key = tuple(layout)
+            got = self._own.get(own_key)
+            if got is None:
+                if len(self._own) >= MAX_PLANS:
+                    self._own.clear()
+                got = self._own[own_key] = _own_items(own_key)
+            own, own_off = got
+            items = None
         named = [(name, np.asarray(v, dtype=float).reshape(r, -1)) for name, v in (items or {}).items()]
-        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named))
+        n_own = sum([o[2] for o in own])
+        d = np.empty(2 + 6 * p + sum(v.size for _n, v in named) + n_own)
         d[0], d[1] = t, u_rad
         d[2:2 + 6 * p].reshape(p, 6)[:, :3] = rel_position_m
         d[2:2 + 6 * p].reshape(p, 6)[:, 3:] = rel_velocity_mps
@@ -453,9 +501,11 @@ class RelStimuli:
         for _n, v in named:
             d[at:at + v.size] = v.ravel()
             at += v.size
+        if n_own:
+            d[at:] = np.concatenate([np.ravel(v) for v in own_values])
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
-        key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named))
+        key = (off.tobytes(), nb.tobytes(), *area.key, *(f"{n}:{v.shape[1]}".encode() for n, v in named), own_key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             pool = self.pool
@@ -476,6 +526,20 @@ class RelStimuli:
                     item.packed(0x1A, area.double_ids(at, (r, k))[1].reshape(r, 8 * k))
                 m.nested(0x22, item)
                 at += r * k
+            if own:  # each observer's own items: one sub-row each, of its own length, then segments
+                parts, ends = [], [0]
+                for name, subject, size, shape in own:
+                    item = Rows(1, pool).const(_string(0x0A, name) + _string(0x12, subject))
+                    if size:
+                        item.packed(0x1A, area.double_ids(at, (1, size))[1].reshape(1, 8 * size))
+                    if shape:  # Measurement.shape (packed uint32) of an array that is not flat
+                        dims = b"".join(varint(int(x)) for x in shape)
+                        item.const(bytes((0x22,)) + varint(len(dims)) + dims)
+                    ids_, _e = Rows(1, pool).nested(0x22, item).plan()
+                    parts.append(ids_)
+                    ends.append(ends[-1] + len(ids_))
+                    at += size
+                m.segments(np.concatenate(parts), np.array(ends, dtype=np.int64), own_off)
             return m.plan()
 
         return Prepared(key, area, self.plans, build)
@@ -483,6 +547,54 @@ class RelStimuli:
     def encode(self, *args: Any) -> tuple[bytes, np.ndarray]:
         """`prepare` of the same arguments, encoded."""
         return self.prepare(*args).encode()
+
+
+_NO_OFFSETS = np.zeros(1, dtype=np.int64)
+
+
+class Appended:
+    """Messages of an encoder (`base`) each followed by bytes of its own (`tails`: fields that
+    come last in the message, protobuf's field order): `encode` as Prepared's."""
+
+    def __init__(self, base: Prepared, tails: list[bytes]) -> None:
+        self.base, self.tails = base, tails
+
+    def encode(self) -> tuple[bytes, np.ndarray]:
+        blob, ends = self.base.encode()
+        e = ends.tolist()
+        out = b"".join([blob[a:b] + tail for a, b, tail in zip(e[:-1], e[1:], self.tails)])
+        sizes = np.diff(ends) + np.fromiter(map(len, self.tails), dtype=np.int64, count=len(self.tails))
+        new = np.zeros(len(ends), dtype=np.int64)
+        np.cumsum(sizes, out=new[1:])
+        return out, new
+
+
+def _item_field(key: str, v: Any) -> bytes:
+    """Measurements.items (field 4) of one named array, keyed `name/subject` (or `name`): bus/codec.py
+    `add_measurement`'s Measurement (name, subject, values packed float64, shape packed unless flat)."""
+    a = np.asarray(v, dtype=float)
+    name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+    body = _string(0x0A, name) + _string(0x12, subject)
+    if a.size:
+        body += b"\x1a" + varint(8 * a.size) + a.astype("<f8").tobytes()
+    if a.ndim > 1:  # (a flat or 0-d array: no shape)
+        dims = b"".join(varint(int(x)) for x in a.shape)
+        body += b"\x22" + varint(len(dims)) + dims
+    return b"\x22" + varint(len(body)) + body
+
+
+def _own_items(layout: tuple) -> tuple[tuple[tuple[str, str, int, tuple[int, ...]], ...], np.ndarray]:
+    """Each observer's items of a layout (per observer: its (`name/subject` key, shape) pairs):
+    (name, subject, size, the shape written: () for a flat array) of each, in order, and the
+    observers' offsets into them."""
+    own = []
+    off = np.zeros(len(layout) + 1, dtype=np.int64)
+    for i, pairs in enumerate(layout):
+        for key, shape in pairs:
+            name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+            own.append((name, subject, int(np.prod(shape, dtype=np.int64)), tuple(shape) if len(shape) != 1 else ()))
+        off[i + 1] = len(own)
+    return tuple(own), off
 
 
 class AgentMessages:
@@ -501,21 +613,28 @@ class AgentMessages:
         self.modes = StringTable(0x12, [])  # Telemetry.mode
         self.behaviours = StringTable(0x12, [])  # NeighbourDecision.behaviour
 
-    def commands(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, accel_mps2: np.ndarray) -> Prepared:
-        """The commands of the agents `rows` (indices into ids)."""
+    def commands(self, step: int, t: float, seq: np.ndarray, rows: np.ndarray, accel_mps2: np.ndarray,
+                 isl_tx_count: "np.ndarray | None" = None) -> Prepared:
+        """The commands of the agents `rows` (indices into ids); `isl_tx_count`: each one's packets
+        of the step (None: none)."""
         r = len(rows)
         d = np.empty(1 + 3 * r)
         d[0] = t
         d[1:].reshape(r, 3)[:] = accel_mps2
         area = Area(d)
         step_v, seq_v = area.varint(step), area.varints(seq)
+        tx_v = area.varints(isl_tx_count) if isl_tx_count is not None and len(isl_tx_count) else None
         rows = np.asarray(rows, dtype=np.int64)
         key = (rows.tobytes(), *area.key)
 
         def build() -> tuple[np.ndarray, np.ndarray]:
             m = Rows(r, self.pool).nested(0x0A, _header(r, self.pool, area, self.prefix, (self.sources, rows), step_v, 0, seq_v))
             _vector3(m, 0x12, *area.double_ids(1, (r, 3)))
-            return m.strings(self.controllers, rows).plan()
+            m.strings(self.controllers, rows)
+            if tx_v is not None:
+                m.varints(0x20, np.broadcast_to(tx_v[0], (r, tx_v[0].shape[1])), np.broadcast_to(tx_v[1], (r,)),
+                          np.broadcast_to(tx_v[2], (r,)))
+            return m.plan()
 
         return Prepared(key, area, self.act_plans, build)
 
@@ -558,6 +677,54 @@ class AgentMessages:
             return m.doubles((0x39,), np.broadcast_to(present, (r, 1)), np.broadcast_to(ids, (r, 1, 8))).plan()
 
         return Prepared(key, area, self.tm_plans, build)
+
+
+class IslPackets:
+    """`swarmhil.v1.IslPacket`s: header (source per packet, one step and time, seq per packet), src,
+    dst, type, payload, sent_t: an agent's transmissions on its isl/tx key (agent/node.py
+    `isl_packet`) or the link channel's deliveries on the receivers' isl/rx keys (link/node.py
+    `_publish`)."""
+
+    def __init__(self, pool: Pool, run: str) -> None:
+        self.pool, self.plans = pool, Plans(pool)
+        self.prefix = _string(0x0A, run)
+        self.sources = StringTable(0x12, [])  # Header.source
+        self.srcs = StringTable(0x12, [])  # src
+        self.dsts = StringTable(0x1A, [])  # dst
+        self.types = StringTable(0x22, [])  # type
+
+    def prepare(self, step: int, t: float, seq: Sequence[int], sources: Sequence[str], srcs: Sequence[str],
+                dsts: Sequence[str], types: Sequence[str], payloads: Sequence[bytes], sent_t: Sequence[float]) -> Prepared:
+        """n packets of one step and time (the header's), each with its own seq, source, fields."""
+        n = len(payloads)
+        d = np.empty(1 + n)
+        d[0] = t
+        d[1:] = sent_t
+        area = Area(d)
+        step_v, seq_v = area.varint(step), area.varints(np.asarray(seq, dtype=np.uint64))
+        lens = np.fromiter(map(len, payloads), dtype=np.int64, count=n)
+        base = area.raw(b"".join(payloads))
+        so, sr, ds, ty = (table.indices(v) for table, v in
+                          ((self.sources, sources), (self.srcs, srcs), (self.dsts, dsts), (self.types, types)))
+        key = (so.tobytes(), sr.tobytes(), ds.tobytes(), ty.tobytes(), lens.tobytes(), *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            pool = self.pool
+            m = Rows(n, pool).nested(0x0A, _header(n, pool, area, self.prefix, (self.sources, so), step_v, 0, seq_v))
+            m.strings(self.srcs, sr).strings(self.dsts, ds).strings(self.types, ty)
+            heads = [pool.ids(bytes((0x2A,)) + varint(k)) if k else np.zeros(0, dtype=np.int64) for k in lens.tolist()]
+            kept = np.array([len(h) + k for h, k in zip(heads, lens.tolist())], dtype=np.int64)
+            ids = np.zeros((n, int(kept.max()) if n else 0), dtype=np.int64)
+            at = base
+            for i, (h, k) in enumerate(zip(heads, lens.tolist())):  # payload (field 5): absent when empty
+                ids[i, :len(h)] = h
+                ids[i, len(h):len(h) + k] = at + np.arange(k)
+                at += k
+            m.raw(ids, kept)
+            present, ids_t = area.double_ids(1, (n, 1))
+            return m.doubles((0x31,), present, ids_t).plan()
+
+        return Prepared(key, area, self.plans, build)
 
 
 def split(blob: bytes, ends: np.ndarray) -> list[bytes]:

@@ -36,7 +36,6 @@ from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.Log_pb2 import Log
-from foxglove_schemas_protobuf.Point3_pb2 import Point3
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
 from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
@@ -160,6 +159,8 @@ class FoxgloveScene:
         self._templates: dict[tuple[str, str, bool, str], SceneEntity] = {}
         self._template_bytes: dict[int, bytes] = {}  # id of a template (kept in _templates) -> its bytes
         self._tf = _Transforms()
+        self._lines = _Lines()
+        self._link_rows: dict[tuple[frozenset[tuple[str, str]], tuple[str, ...]], np.ndarray] = {}
         self._body_templates: dict[tuple, list[bytes]] = {}  # ((ids, kinds, alive, modes, faults), timestamp length) -> pieces
 
     def _template(self, body_id: str, kind: str, alive: bool) -> SceneEntity:
@@ -277,19 +278,23 @@ class FoxgloveScene:
         if not self._links:  # SceneEntity(timestamp, frame_id=ROOT_FRAME, id="links", frame_locked=False)
             entities.append(_entity_field(head + _LINKS_FIELDS))
             return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
-        links = SceneEntity(timestamp=_timestamp(t_ns), frame_id=ROOT_FRAME, id="links", frame_locked=False)
-        if self._links:
-            pos = dict(zip(ids, position_m.tolist()))
-            line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
-                                 scale_invariant=True, color=_GREEN)
-            for src, dst in sorted(self._links):
-                if src in pos and dst in pos:
-                    for x, y, z in (pos[src], pos[dst]):
-                        line.points.append(Point3(x=x, y=y, z=z))
-            if line.points:
-                links.lines.append(line)
-            self._links.clear()
-        entities.append(_entity_field(links.SerializeToString()))
+        # SceneEntity(timestamp, frame_id=ROOT_FRAME, id="links", frame_locked=False, lines=[LINE_LIST of the
+        # deliveries' ends, src then dst, in sorted order]) as bytes: the line's fields around its points
+        # (field 5, Point3 each, from a plan: `_Lines`); tests/test_foxglove_recording.py checks them
+        key_l = (frozenset(self._links), tuple(ids))
+        rows = self._link_rows.get(key_l)
+        if rows is None:  # (the bodies' rows of the links' ends, src then dst, in sorted order: kept, they recur)
+            index = {sid: i for i, sid in enumerate(ids)}
+            ends = [(index[a], index[b]) for a, b in sorted(self._links) if a in index and b in index]
+            if len(self._link_rows) >= 1024:
+                self._link_rows.clear()
+            rows = self._link_rows[key_l] = np.array(ends, dtype=np.int64).reshape(-1)
+        self._links.clear()
+        links = head + _LINKS_FIELDS
+        if len(rows):
+            points = self._lines.encode(position_m[rows])
+            links += _field(0x5A, _LINE_HEAD + points + _LINE_TAIL)  # SceneEntity.lines (field 11)
+        entities.append(_entity_field(links))
         return self._transforms(ids, position_m, seconds, nanos, head, rotations), b"".join(entities)
 
     def _transforms(self, ids: list[str], position_m: np.ndarray, seconds: int, nanos: int, head: bytes,
@@ -344,6 +349,26 @@ class _Transforms:
         return Prepared(key, area, self.plans, build).encode()[0]
 
 
+class _Lines:
+    """LinePrimitive.points (field 5: Point3 x, y, z, +0.0 omitted) of (P, 3) points, one plan per
+    layout (the count and which coordinates are +0.0: bus/bulk_wire.py)."""
+
+    def __init__(self) -> None:
+        self.pool = Pool()
+        self.plans = Plans(self.pool)
+
+    def encode(self, points: np.ndarray) -> bytes:
+        n = len(points)
+        area = Area(points)
+        key = (b"%d" % n, *area.key)
+
+        def build() -> tuple[np.ndarray, np.ndarray]:
+            present, v = area.double_ids(0, (n, 3))
+            return Rows(n, self.pool).nested(0x2A, Rows(n, self.pool).doubles((0x09, 0x11, 0x19), present, v)).plan()
+
+        return Prepared(key, area, self.plans, build).encode()[0]
+
+
 def _entity_field(entity: bytes) -> bytes:
     """One serialised SceneEntity as SceneUpdate's field 2 (`entities`): tag, varint length, bytes."""
     return b"\x12" + varint(len(entity)) + entity
@@ -357,6 +382,10 @@ def _field(tag: int, data: bytes) -> bytes:
 _PARENT_FIELD = _string(0x12, ROOT_FRAME)  # FrameTransform.parent_frame_id
 _IDENTITY_FIELD = _field(0x2A, _IDENTITY.SerializeToString())  # FrameTransform.rotation
 _LINKS_FIELDS = _string(0x12, ROOT_FRAME) + _string(0x1A, "links")  # the `links` entity's fields after its timestamp, without lines
+# the links' LinePrimitive: its fields before the points (type, pose, thickness, scale_invariant) and after them (color)
+_LINE_HEAD = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=_IDENTITY), thickness=1.5,
+                           scale_invariant=True).SerializeToString()
+_LINE_TAIL = LinePrimitive(color=_GREEN).SerializeToString()
 
 
 def event_log(event: Any, t_ns: int) -> bytes:

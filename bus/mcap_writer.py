@@ -47,7 +47,7 @@ class RecorderWriter(Writer):
 
     def __init__(self, output: IO[Any], chunk_size: int, zstd_level: int = ZSTD_LEVEL, background: bool = False) -> None:
         self._pending: deque[tuple] = deque()  # closed chunks, in order: (future, start, end, size, message indexes)
-        self._bulk: list[tuple[np.ndarray, np.ndarray, int]] = []  # add_messages of the open chunk: (channels, offsets, log time)
+        self._bulk: list[tuple[np.ndarray, np.ndarray, "int | np.ndarray"]] = []  # add_messages of the open chunk: (channels, offsets, log time: one or each's)
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="mcap-zstd") if background else None
         super().__init__(output, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._zstd = zstandard.ZstdCompressor(level=zstd_level)
@@ -88,20 +88,25 @@ class RecorderWriter(Writer):
         if buf.tell() > self._fast_chunk_size:
             self._Writer__finalize_chunk()
 
-    def add_messages(self, channel_ids: list[int], log_time: int, blob: bytes, starts: np.ndarray, sizes: np.ndarray,
-                     publish_time: int, sequence: int) -> None:
-        """`add_message` of n messages of one log time at once: message i is
-        blob[starts[i]:starts[i] + sizes[i]] on channel_ids[i], with sequence `sequence + i`. The same
-        records; they go to the chunk as one buffer (the chunk is closed after them, not between), and
-        their message index entries and channel counts are added when the chunk is closed (`_fold`)."""
+    def add_messages(self, channel_ids: list[int], log_time: "int | np.ndarray", blob: bytes, starts: np.ndarray,
+                     sizes: np.ndarray, publish_time: int, sequence: int) -> None:
+        """`add_message` of n messages at once: message i is blob[starts[i]:starts[i] + sizes[i]] on
+        channel_ids[i], with sequence `sequence + i`, at `log_time` (one for all, or each one's (n,)).
+        The same records; they go to the chunk as one buffer (the chunk is closed after them, not
+        between), and their message index entries and channel counts are added when the chunk is
+        closed (`_fold`)."""
         n = len(channel_ids)
         if not self._fast:
+            times = np.broadcast_to(np.asarray(log_time, dtype=np.int64), (n,)).tolist()
             for i, (a, m) in enumerate(zip(np.asarray(starts).tolist(), np.asarray(sizes).tolist())):
-                self.add_message(channel_ids[i], log_time, blob[a:a + m], publish_time, sequence + i)
+                self.add_message(channel_ids[i], times[i], blob[a:a + m], publish_time, sequence + i)
             return
         if n == 0:
             return
-        buf = self._count(n, log_time)
+        if isinstance(log_time, np.ndarray):
+            buf = self._count(n, int(log_time.min()), int(log_time.max()))
+        else:
+            buf = self._count(n, log_time)
         size = np.asarray(sizes, dtype=np.int64)
         head = np.empty(n, dtype=_MESSAGE_DTYPE)
         head["op"] = _OP_MESSAGE
@@ -127,15 +132,16 @@ class RecorderWriter(Writer):
         if buf.tell() > self._fast_chunk_size:
             self._Writer__finalize_chunk()
 
-    def _count(self, n: int, log_time: int) -> Any:
+    def _count(self, n: int, log_time: int, last_time: int | None = None) -> Any:
         """The file's and the open chunk's statistics of n more messages at `log_time` (as
-        `add_message` keeps them); the chunk's buffer."""
+        `add_message` keeps them; between `log_time` and `last_time` when given); the chunk's buffer."""
         st, cb = self._stats, self._chunk
+        hi = log_time if last_time is None else last_time
         for rec, empty in ((st, st.message_count == 0), (cb, cb.num_messages == 0)):
             if empty or log_time < rec.message_start_time:
                 rec.message_start_time = log_time
-            if log_time > rec.message_end_time:
-                rec.message_end_time = log_time
+            if hi > rec.message_end_time:
+                rec.message_end_time = hi
         st.message_count += n
         cb.num_messages += n
         return cb.record_writer._buffer
@@ -160,7 +166,7 @@ class RecorderWriter(Writer):
         cids = np.concatenate([c for c, _a, _t in bulk])
         order = np.argsort(cids, kind="stable")  # (each channel's entries in file order)
         pairs = np.empty((len(cids), 2), dtype=np.int64)  # (log time, offset) of each, by channel
-        pairs[:, 0] = np.concatenate([np.full(len(c), t, dtype=np.int64) for c, _a, t in bulk])[order]
+        pairs[:, 0] = np.concatenate([np.full(len(c), t, dtype=np.int64) for c, _a, t in bulk])[order]  # (t: one, or each's)
         pairs[:, 1] = np.concatenate([a for _c, a, _t in bulk])[order]
         flat = pairs.ravel()
         cs = cids[order]

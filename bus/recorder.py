@@ -160,20 +160,27 @@ class McapRecorder:
             out.append(cid)
         return out
 
-    def write_many(self, channel_ids: list[int], blob: bytes, starts: np.ndarray, sizes: np.ndarray, t_ns: int | None,
-                   wall_time_ns: int | None = None) -> None:
-        """Already-serialised messages of one simulation time t_ns, in this order: message i is
-        blob[starts[i]:starts[i] + sizes[i]] on channel_ids[i] (`channels`). The records `write`
-        makes for them one by one (publisher-stamped samples of a class the Foxglove scene does not
-        derive from, or whose derivation the caller does: `scene`), as one buffer; t_ns None keeps the last time."""
+    def write_many(self, channel_ids: list[int], blob: bytes, starts: np.ndarray, sizes: np.ndarray,
+                   t_ns: "int | np.ndarray | None", wall_time_ns: int | None = None) -> None:
+        """Already-serialised messages of simulation time t_ns (one for all, or each one's (n,) array
+        of usable times), in this order: message i is blob[starts[i]:starts[i] + sizes[i]] on
+        channel_ids[i] (`channels`). The records `write` makes for them one by one (publisher-stamped
+        samples of a class the Foxglove scene does not derive from, or whose derivation the caller
+        does: `scene`), as one buffer; t_ns None keeps the last time."""
         if self._closed or not channel_ids:
             return
         wall_ns = time.time_ns() if wall_time_ns is None else wall_time_ns
-        if t_ns is None:  # (a time that is not usable: the last, as `write`)
-            t_ns = self._last_t_ns
-        elif t_ns > self._last_t_ns:
-            self._last_t_ns = t_ns
-        self._w.add_messages(channel_ids, self.epoch_ns + max(t_ns, 0), blob, starts, sizes, wall_ns, self.count)
+        log_time: int | np.ndarray
+        if isinstance(t_ns, np.ndarray):
+            self._last_t_ns = max(self._last_t_ns, int(t_ns.max()))
+            log_time = self.epoch_ns + np.maximum(t_ns, 0)
+        else:
+            if t_ns is None:  # (a time that is not usable: the last, as `write`)
+                t_ns = self._last_t_ns
+            elif t_ns > self._last_t_ns:
+                self._last_t_ns = t_ns
+            log_time = self.epoch_ns + max(t_ns, 0)
+        self._w.add_messages(channel_ids, log_time, blob, starts, sizes, wall_ns, self.count)
         self.count += len(channel_ids)
         self._many.append((channel_ids, sizes))
 

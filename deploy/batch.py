@@ -34,10 +34,10 @@ from swarmhil.agent.node import observation_from_rel
 from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.codec import header
 from swarmhil.bus.keys import Keys
-from swarmhil.deploy.batch_packets import BatchPackets, why_not_packets
+from swarmhil.deploy.batch_packets import BatchPackets, LinkPackets, why_not_packets
 from swarmhil.deploy.scenario import plant_config
 from swarmhil.link.faults import LinkFaults
-from swarmhil.link.model import LinkModel, check_tx, parse_link_config
+from swarmhil.link.model import COUNTER_FIELDS, LinkModel, check_tx, parse_link_config
 from swarmhil.link.node import enabled as channel_enabled
 from swarmhil.plant.flight import LocalFlightSoftware, StimulusBatch, StimulusMessages
 from swarmhil.plant.sensing.registry import SensingContext, sensing_message
@@ -129,13 +129,15 @@ class BatchLink:
             self.inbox[i] = []
         return out
 
-    def send(self, step: int, rows: np.ndarray, cb: CommandBatch) -> None:
+    def send(self, step: int, rows: np.ndarray, cb: CommandBatch) -> list[tuple[int, str]]:
         """The transmissions of the observers' commands of `step` (none from a command the agent
-        replaces by zero: a non-finite acceleration or torque)."""
+        replaces by zero: a non-finite acceleration or torque). Returns the ones `check_tx`
+        rejects: (index into ids of the sender, the reason), in order."""
         t = step * self.step_s
         finite = np.isfinite(cb.accel_mps2).all(axis=1)  # (each row's test, for all rows at once)
         if cb.torque_nm is not None:
             finite &= np.isfinite(cb.torque_nm).all(axis=1)
+        rejected: list[tuple[int, str]] = []
         for r, (i, ok) in enumerate(zip(rows.tolist(), finite.tolist())):
             if not ok:
                 continue
@@ -143,25 +145,43 @@ class BatchLink:
             for tx in cb.transmissions(r):
                 seq = self._tx_seq[i]
                 self._tx_seq[i] = seq + 1
-                if check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes):
+                reason = check_tx(src, src, tx.dst, len(tx.payload), self.known, self.cfg.max_payload_bytes)
+                if reason:
                     self.rejected += 1
+                    rejected.append((i, reason))
                     continue
                 self.model.submit(src, tx.dst, tx.type, tx.payload, seq, step, t)
+        return rejected
 
-    def window(self, step: int) -> None:
+    def window(self, step: int) -> list[tuple[int, RxPacket]]:
+        """The deliveries of step `step`'s window into the receivers' inboxes: (index into ids of
+        the receiver, the packet), in the order the channel publishes them."""
+        return self._deliver(self.model.window(step))
+
+    def finish(self, final_step: int) -> list[tuple[int, RxPacket]]:
+        """The deliveries at the end of the run (the final tick at `final_step`: link/node.py `_finish`)."""
+        return self._deliver(self.model.finish(final_step))
+
+    def _deliver(self, out: list[Any]) -> list[tuple[int, RxPacket]]:
         index, inbox, rx_seq = self.model.index, self.inbox, self._rx_seq
-        out = self.model.window(step)
+        got = []
         for d in out:
             j = index[d.dst]
             seq = rx_seq[j]
             rx_seq[j] = seq + 1
-            inbox[j].append(RxPacket(self, d.rx_step, seq, d.src, d.packet_dst, d.type, d.payload, d.send_t))
+            pkt = RxPacket(self, d.rx_step, seq, d.src, d.packet_dst, d.type, d.payload, d.send_t)
+            inbox[j].append(pkt)
+            got.append((j, pkt))
         self.deliveries += len(out)
+        return got
 
     def summary(self) -> dict[str, Any]:
         tot = self.model.counters.totals()
         return {"config": self.cfg.to_dict(), "totals": {**tot, "rejected_packets": self.rejected},
-                "pending_at_end": self.model.pending(), "deliveries": self.deliveries, "batch": True}
+                "pending_at_end": self.model.pending(), "deliveries": self.deliveries, "batch": True,
+                # the counters per (src, dst, type), as the channel's summary has them (link/node.py)
+                "link_columns": ["src", "dst", "type", *COUNTER_FIELDS],
+                "links": [[s, d, t, *r] for s, d, t, r in self.model.counters.sorted_rows()]}
 
 
 class BatchHook(LocalFlightSoftware):
@@ -187,6 +207,9 @@ class BatchHook(LocalFlightSoftware):
         self.packets = None
         if recorder is not None:
             self.packets = BatchPackets(recorder, run, self.ids, [c.name for c in self.agents.controllers], sc.sensing["kind"])
+            if self.link is not None:  # the channel's messages too, its first and final ones at the clock's ticks
+                self.packets.link = LinkPackets(recorder, run, self.link)
+                bus.subscribe(keys.clock, self._on_clock)
         # spacecraft that fly attitude: the commands go back with their torques, (N, 6) (plant/flight.py)
         self.attitude = any(sp.inertia_kgm2 is not None for sp in plant_config(sc).spacecraft)
         # the camera (`scene` stimulus, issue 36): each spacecraft's own perception, built as build_agent builds it
@@ -211,11 +234,21 @@ class BatchHook(LocalFlightSoftware):
         if packets is not None:  # every packet recorded: the stimuli whether or not a controller looks
             t0 = time.perf_counter()
             rel = sense()
-            obs = self._observe(ctx, rows, observers, lambda: rel)
-            acc = self.agents.step(rows, obs)
             decided = ctx.step % self.agents.decision_period_steps == 0 and len(rows) > 0
+            obs = self._observe(ctx, rows, observers, lambda: rel)
+            if link is not None:
+                link.truth(ctx)
+                if decided:
+                    obs.isl_rx = link.take(rows)
+            acc = self.agents.step(rows, obs)
             compute_s = (time.perf_counter() - t0) / max(len(rows), 1)  # each spacecraft's share
-            packets.step(ctx.step, ctx.t_s, ctx.u_rad, rows, rel, self.agents, decided, compute_s, obs.neighbour_ids)
+            rejected = None
+            if link is not None and decided and self.agents.last is not None:
+                rejected = link.send(ctx.step, rows, self.agents.last)
+            packets.step(ctx.step, ctx.t_s, ctx.u_rad, rows, rel, self.agents, decided, compute_s, obs.neighbour_ids,
+                         rejected)
+            if link is not None and packets.link is not None:
+                packets.link.window(ctx.step, link.window(ctx.step))
             return self._with_torques(acc) if self.attitude else acc
         if link is None:
             acc = self.agents.step(rows, self._observe(ctx, rows, observers, sense))
@@ -230,6 +263,17 @@ class BatchHook(LocalFlightSoftware):
             link.send(ctx.step, rows, self.agents.last)
         link.window(ctx.step)
         return self._with_torques(acc)
+
+    def _on_clock(self, _key: str, payload: bytes) -> None:
+        """The plant's clock tick, just recorded: the link channel's messages that follow it."""
+        if self.packets is not None and self.packets.link is not None:
+            tick = pb.Tick.FromString(payload)
+            self.packets.link.tick(int(tick.header.step), tick.header.t, tick.final)
+
+    def close(self) -> None:
+        """After the run (its `run_end` event): what the link channel writes when it closes."""
+        if self.packets is not None and self.packets.link is not None:
+            self.packets.link.close()
 
     def _with_torques(self, acc: np.ndarray) -> np.ndarray:
         return np.concatenate([acc, self.agents.torque_nm], axis=1) if self.attitude else acc

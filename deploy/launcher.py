@@ -161,6 +161,8 @@ def run_in_process(sc: Scenario, out: Path, run: str | None = None, progress: bo
     plant_summary = plant.run()
     for name, obj in started.items():
         summary[name] = obj.close()
+    if hook is not None:
+        hook.close()
     if hook is not None and hook.link is not None:
         summary["channel"] = hook.link.summary()
     rec_stats = rec.close()

@@ -76,7 +76,8 @@ def test_why_not_batch_names_what_only_the_per_agent_path_records() -> None:
     cam = load_scenario(SCENARIOS / "sabatini-20-camera-filter.toml")
     assert why_not_batch(cam) is None
     assert why_not_batch(cam, record="all") == "every packet of sensing kind 'scene' is recorded by the per-agent path"
-    assert why_not_batch(load_scenario(SCENARIOS / "sabatini-20.toml"), record="all") is None
+    for name in ("sabatini-20", "tersoff-6", "surround-6", "servicing-6"):
+        assert why_not_batch(load_scenario(SCENARIOS / f"{name}.toml"), record="all") is None, name
 
 
 @pytest.mark.parametrize("record", ["all", "truth"])
@@ -112,3 +113,69 @@ def test_tersoff_packets_are_the_per_agent_packets(tmp_path: Path, sets: tuple[s
     n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
     assert n["truth"] == 101 and all(n[f"sc/{s}/sense/relative"] == 100 for s in sc.ids)
     assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
+
+
+@pytest.mark.parametrize("name, seconds, sets", [
+    ("surround-6", 21.0, ()),
+    ("surround-6", 3.0, ("sensing.params.position_noise_m=0.5", "link.loss_probability=0.3", "link.range_m=300.0")),
+    ("servicing-6", 22.0, ()),
+], ids=["surround", "surround-noisy-lossy", "servicing"])
+def test_link_missions_packets_are_the_per_agent_packets(tmp_path: Path, name: str, seconds: float,
+                                                           sets: tuple[str, ...]) -> None:
+    """Papers 003 and 004 (surround-6, servicing-6: mission Measurements kinds, a [link]): every packet
+    of the batch run is the per-agent run's, the link channel's too: its `link_config` event, every
+    transmission and delivery, the statistics every 10 s and at the end, the barrier of each step;
+    with noise (paper 003's kind then hands its messages), loss and range drops of the link."""
+    sc = load_scenario(SCENARIOS / f"{name}.toml", list(sets)).with_overrides(duration_s=seconds)
+    per_agent = run_in_process(sc, tmp_path / "agents", "link", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "link")
+    assert batch.summary["batch"] == {"used": True, "why_not": None}
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    steps = round(seconds / sc.step_s)
+    assert n["truth"] == n["sync/channel"] + 1 == steps + 1
+    assert all(n[f"sc/{s}/act"] == n[f"isl/tx/{s}"] == steps for s in sc.ids)
+    assert n["link/stats"] == len(range(0, steps, 100)) + 1  # every 10 s, and at the final tick
+    rx = sum(n.get(f"isl/rx/{s}", 0) for s in sc.ids)
+    drops = per_agent.summary["channel"]["totals"]
+    assert rx == drops["rx_messages"] > 0 and batch.summary["channel"]["totals"] == drops
+    for k in ("links", "link_columns", "pending_at_end"):  # (what the reports read of the channel's summary)
+        assert batch.summary["channel"][k] == per_agent.summary["channel"][k], k
+    if sets:
+        assert drops["dropped_lost"] > 0 and drops["dropped_range"] > 0
+    assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
+
+
+def test_capture_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
+    """Paper 000 (capture-20: the landmarks kind's Measurements with (K, 3) items, commands with
+    torques, a [link] whose range lets only some pairs talk): every packet of the batch run is the
+    per-agent run's."""
+    sc = load_scenario(SCENARIOS / "capture-20.toml").with_overrides(duration_s=3.0)
+    per_agent = run_in_process(sc, tmp_path / "agents", "p000", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "p000")
+    assert batch.summary["batch"] == {"used": True, "why_not": None}
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    assert n["truth"] == 61 and all(n[f"sc/{s}/act"] == 60 for s in sc.ids)
+    rx = {s: n.get(f"isl/rx/{s}", 0) for s in sc.ids}
+    assert sum(rx.values()) == per_agent.summary["channel"]["totals"]["rx_messages"] > 0 and min(rx.values()) < max(rx.values())
+    stims = [pb.Measurements.FromString(d) for t, _s, _l, d in _messages(tmp_path / "batch" / "run.mcap")
+             if t.endswith("/sense/p000-landmarks")]
+    assert any(len(it.shape) == 2 for s in stims for it in s.items)
+    assert batch.summary["delta_v_total_mps"] == per_agent.summary["delta_v_total_mps"] > 0
+
+
+def test_rejected_transmissions_packets_are_the_per_agent_packets(tmp_path: Path) -> None:
+    """surround-6 with a payload limit below the servicers' 50 B packets (the leader's 41 B pass): the
+    channel rejects every servicer packet and records a `rejected_packet` event for each of the first
+    `max_events`, after the sender's telemetry; the batch run writes the same events in the same places."""
+    sets = ["link.max_payload_bytes=45", "link.max_events=20"]
+    sc = load_scenario(SCENARIOS / "surround-6.toml", sets).with_overrides(duration_s=2.0)
+    per_agent = run_in_process(sc, tmp_path / "agents", "rej", opts={"batch": False})
+    batch = run_in_process(sc, tmp_path / "batch", "rej")
+    assert batch.summary["batch"]["used"]
+    n = assert_same_packets(tmp_path / "agents" / "run.mcap", tmp_path / "batch" / "run.mcap")
+    events = [pb.Event.FromString(d) for t, _s, _l, d in _messages(tmp_path / "batch" / "run.mcap") if t == "event"]
+    rejected = [e for e in events if e.kind == "rejected_packet"]
+    assert len(rejected) == 20 and all("oversized payload" in e.detail for e in rejected)
+    assert n["foxglove/log"] == n["event"] and n["isl/rx/ssat1"] == 20 and "isl/rx/lsat" not in n
+    assert batch.summary["channel"]["totals"] == per_agent.summary["channel"]["totals"]
+    assert per_agent.summary["channel"]["totals"]["rejected_packets"] == 6 * 20

@@ -17,8 +17,8 @@ from swarmhil.bus.truth_wire import varint
 def _values(rng: np.random.Generator, shape: tuple[int, ...], dense: bool = False) -> np.ndarray:
     """Random doubles; +0.0 (omitted) among them unless `dense` (every field written: the encoders'
     paths without masks)."""
-    v = rng.standard_normal(shape) * 10.0 ** rng.integers(-6, 6, shape)
-    pick = rng.random(shape)
+    v = np.asarray(rng.standard_normal(shape) * 10.0 ** rng.integers(-6, 6, shape), dtype=float)
+    pick = np.asarray(rng.random(shape))
     v[pick < 0.15] = 1.5 if dense else 0.0
     v[(pick >= 0.15) & (pick < 0.2)] = -0.0
     v[(pick >= 0.2) & (pick < 0.23)] = np.nan
@@ -138,3 +138,77 @@ def test_measurements_with_items_as_protobuf(dense: bool) -> None:
             for name, v in items.items():
                 add_measurement(m, name, v[i])
             assert b == m.SerializeToString()
+
+
+@pytest.mark.parametrize("dense", [False, True], ids=["zeros", "dense"])
+def test_measurements_with_each_observers_items_as_protobuf(dense: bool) -> None:
+    """`Measurements` whose items differ from observer to observer, with subjects (papers 003 and
+    004: a mission kind's batch form, RelBatch.named's `name/subject` dicts), as the kinds'
+    `stimulus` builds them with bus/codec.py add_measurement: items of several lengths and shapes
+    (empty too; paper 000's landmarks are (K, 3)), observers without any, layouts that come back."""
+    from swarmhil.bus.codec import add_measurement
+
+    rng = np.random.default_rng(12)
+    ids = ["lsat", "ssat1", "ssat2", "ssat3"]
+    names = [("p003.target_rel.position_m", "tsat"), ("p004.d_m", "ssat2"), ("p004.y_m", "defunct"), ("own", "")]
+    enc = RelStimuli(Pool(), "run-n", "plant", ids)
+    for step in range(1, 16):
+        r = int(rng.integers(1, 5))
+        named = []
+        for _i in range(r):
+            chosen = [names[j] for j in sorted(rng.choice(len(names), int(rng.integers(0, 4)), replace=False))]
+            shapes = [(int(rng.integers(0, 4)),), (int(rng.integers(0, 3)), 3), (1, 2, 2), ()]
+            pick = int(rng.integers(0, 4)) if step % 3 == 0 else 0  # (flat arrays only in two steps of three: a plan)
+            named.append({f"{n}/{s}" if s else n: _values(rng, shapes[pick], dense) for n, s in chosen})
+        off = np.zeros(r + 1, dtype=np.int64)
+        seq = rng.integers(0, 300, r).astype(np.uint64)
+        blob, ends = enc.prepare(step, 0.1 * step, seq, -0.5, off, np.zeros(0, dtype=np.int64), np.zeros((0, 3)),
+                                 np.zeros((0, 3)), named).encode()
+        got = split(blob, ends)
+        assert len(got) == r
+        for i, b in enumerate(got):
+            m = pb.Measurements(header=pb.Header(run="run-n", source="plant", step=step, t=0.1 * step, seq=int(seq[i])),
+                                u_rad=-0.5)
+            for key, v in named[i].items():
+                name, _, subject = key.rpartition("/") if "/" in key else (key, "", "")
+                add_measurement(m, name, v, subject)
+            assert b == m.SerializeToString()
+
+
+def test_isl_packets_and_commands_with_transmissions_as_protobuf() -> None:
+    """`IslPacket`s as agent/node.py `isl_packet` and link/node.py `_publish` build them (broadcast
+    and addressed, empty and long payloads, sent_t 0), and `ActuatorCommand.isl_tx_count`."""
+    from swarmhil.bus.bulk_wire import IslPackets
+
+    rng = np.random.default_rng(13)
+    ids = ["lsat", "ssat1", "ssat2"]
+    pool = Pool()
+    enc, agents = IslPackets(pool, "run-i"), AgentMessages(pool, "run-i", ids, ["p003-leader", "p003-servicer", "p003-servicer"])
+    for step in list(range(0, 6)) + [200, 70000]:
+        n = int(rng.integers(0, 6))
+        seq = rng.integers(0, 2 ** int(rng.integers(1, 20)), n).tolist()
+        sources = [str(rng.choice(ids + ["channel"])) for _ in range(n)]
+        srcs = [str(rng.choice(ids)) for _ in range(n)]
+        dsts = [str(rng.choice(ids + [""])) for _ in range(n)]
+        types = [str(rng.choice(["p003.tt", "p003.ct", ""])) for _ in range(n)]
+        payloads = [rng.bytes(int(rng.choice([0, 1, 41, 454]))) for _ in range(n)]
+        t = 0.1 * step
+        sent = [t if rng.random() < 0.7 else 0.0 for _ in range(n)]
+        for _again in range(2):  # a new plan, then the kept one
+            blob, ends = enc.prepare(step, t, seq, sources, srcs, dsts, types, payloads, sent).encode()
+            got = split(blob, ends)
+            assert len(got) == n
+            for i, b in enumerate(got):
+                want = pb.IslPacket(header=pb.Header(run="run-i", source=sources[i], step=step, t=t, seq=seq[i]),
+                                    src=srcs[i], dst=dsts[i], type=types[i], payload=payloads[i], sent_t=sent[i])
+                assert b == want.SerializeToString()
+        rows = np.flatnonzero(rng.random(3) < 0.8)
+        acc, count = _values(rng, (len(rows), 3)), rng.integers(0, 3, len(rows))
+        q = np.full(len(rows), step, dtype=np.uint64)
+        blob, ends = agents.commands(step, t, q, rows, acc, count).encode()
+        for i, b in enumerate(split(blob, ends)):
+            a = pb.Vector3(x=acc[i, 0], y=acc[i, 1], z=acc[i, 2])
+            want = pb.ActuatorCommand(header=pb.Header(run="run-i", source=ids[rows[i]], step=step, t=t, seq=step),
+                                      accel_mps2=a, controller=agents.controllers.strings[rows[i]],
+                                      isl_tx_count=int(count[i]))
+            assert b == want.SerializeToString()

@@ -227,6 +227,12 @@ def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Pa
     from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
     from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
 
+    from foxglove_schemas_protobuf.Color_pb2 import Color
+    from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+    from foxglove_schemas_protobuf.Point3_pb2 import Point3
+    from foxglove_schemas_protobuf.Pose_pb2 import Pose
+    from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+
     from swarmhil.bus.foxglove_scene import FoxgloveScene, _rotation, _timestamp
 
     with open(surround, "rb") as f:
@@ -239,8 +245,9 @@ def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Pa
     assert len(truths) > 3 and len(ids) > 2
     for k, truth in enumerate(truths):
         t_ns = k * 1_500_000_000
-        if k % 2:
-            scene.saw_delivery(ids[0], ids[1])
+        pairs = [(ids[0], ids[1]), (ids[2], ids[0]), (ids[1], ids[2]), (ids[0], "gone")][:k % 5] if k % 2 else []
+        for src, dst in pairs:
+            scene.saw_delivery(src, dst)
         scene._modes[ids[k % len(ids)]] = ("chase", "dock", "")[k % 3]
         tf_data, data = scene.from_truth(truth, t_ns)
         tf = FrameTransforms()  # the transforms built field by field
@@ -256,6 +263,17 @@ def test_scene_bytes_are_those_of_the_entities_built_field_by_field(surround: Pa
             ent.CopyFrom(scene._template(b.id, b.kind, b.alive))
             ent.timestamp.CopyFrom(_timestamp(t_ns))
         parsed = SceneUpdate.FromString(data)
-        assert parsed.entities[-1].id == "links" and bool(parsed.entities[-1].lines) == bool(k % 2)
-        built.entities.append(parsed.entities[-1])
+        assert parsed.entities[-1].id == "links" and bool(parsed.entities[-1].lines) == bool(pairs)
+        links = built.entities.add(timestamp=_timestamp(t_ns), frame_id="lvlh", id="links", frame_locked=False)
+        pos = {b.id: b.position_m for b in truth.bodies}
+        line = LinePrimitive(type=LinePrimitive.LINE_LIST, pose=Pose(orientation=Quaternion(w=1.0)), thickness=1.5,
+                             scale_invariant=True, color=Color(r=0.3, g=1.0, b=0.4, a=0.8))
+        for src, dst in sorted(set(pairs)):  # (the links known to the truth's bodies, their ends' positions)
+            if src in pos and dst in pos:
+                for q in (pos[src], pos[dst]):
+                    line.points.append(Point3(x=q.x, y=q.y, z=q.z))
+        if line.points:
+            links.lines.append(line)
         assert data == built.SerializeToString() == parsed.SerializeToString()
+        if k == 3:  # (a body at the origin: its point's coordinates are omitted, +0.0)
+            assert any(p.x == p.y == p.z == 0.0 for p in parsed.entities[-1].lines[0].points)
