@@ -135,8 +135,9 @@ def test_tracks_behind_the_camera_or_with_singular_s_are_not_associated_and_noth
 
 
 # --- the two-model (IMM) filter of the shipped filter scenario -------------------------------------
-# deploy/scenarios/sabatini-20-camera-filter.toml [nav.params]: a quiet neighbour (1e-6 m/s^2) and a
-# manoeuvring one (3e-5 m/s^2), default sojourn times (one orbit each)
+# A two-model IMM as in deploy/scenarios/sabatini-20-camera-filter.toml [nav.params]: a quiet neighbour
+# (1e-6 m/s^2) and a manoeuvring one (3e-5 m/s^2 here; the scenario's is 1e-4), default sojourn times
+# (one orbit each)
 IMM = EkfConfig(accel_sigma_mps2=1e-6, manoeuvre_accel_sigma_mps2=3e-5)
 SWITCH, N_FRAMES = 60, 140  # the neighbour manoeuvres (3e-5 white) for 600 s, then is quiet (1e-6) for 800 s
 
