@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, SCENARIOS
+from conftest import ROOT, SCENARIOS, topics
 
 EXTRAS_ONLY = ["rerun", "matplotlib", "numba", "PIL", "dask", "pyarrow", "jinja2", "plotly", "pandas"]
 
@@ -65,18 +65,11 @@ def test_agent_only_install_runs_a_multi_process_scenario(tmp_path: Path) -> Non
                           "--duration", "300", "--out", str(tmp_path / "ref"), "--run-id", s["run"], "--no-progress"],
                          capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert ref.returncode == 0, ref.stdout + ref.stderr
-    truth = _truth(out / "run.mcap")
-    assert len(truth) == 31 and truth == _truth(tmp_path / "ref" / "run.mcap")  # bit for bit the checkout's run
+    truth = topics(out / "run.mcap", "truth")
+    assert len(truth) == 31 and truth == topics(tmp_path / "ref" / "run.mcap", "truth")  # bit for bit the checkout's run
     agents = [json.loads(f.read_text()) for f in audit.glob("agent-*.json")]
     assert len(agents) == 20 and max(a["peak_rss_bytes"] for a in agents) <= 60e6  # peak RSS per agent
 
     r = subprocess.run([exe, "report", str(out)], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=120)
     assert r.returncode == 1 and r.stderr.strip().count("\n") == 0 and "swarmhil[reports]" in r.stderr, r.stderr
 
-
-def _truth(path: Path) -> list[bytes]:
-    """The truth messages of a recording, as bytes."""
-    from mcap.reader import make_reader
-
-    with open(path, "rb") as f:
-        return [m.data for _s, ch, m in make_reader(f).iter_messages() if ch.topic == "truth"]
