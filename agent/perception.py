@@ -36,7 +36,7 @@ from swarmhil.bus import swarmhil_pb2 as pb
 from swarmhil.bus.optional import require
 
 NAV_FIELDS = {"imaging", "navigator", "backend", "min_pixels", "params", "debug_image_period_s", "debug_image_downsample",
-              "control_max_sigma_m"}
+              "control_max_sigma_m", "control_sigma_model"}
 
 
 def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
@@ -49,7 +49,8 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
            "backend": t.get("backend", "numpy"), "min_pixels": int(t.get("min_pixels", 2)),
            "params": dict(t.get("params", {})), "debug_image_period_s": float(t.get("debug_image_period_s", 0.0)),
            "debug_image_downsample": int(t.get("debug_image_downsample", 4)),
-           "control_max_sigma_m": float(t.get("control_max_sigma_m", 0.0))}
+           "control_max_sigma_m": float(t.get("control_max_sigma_m", 0.0)),
+           "control_sigma_model": t.get("control_sigma_model", "mixture")}
     if cfg["imaging"] not in ("exact", "render"):
         raise ValueError(f"[nav].imaging must be 'exact' or 'render' (got {cfg['imaging']!r})")
     if cfg["navigator"] not in ("rough", "ekf"):
@@ -58,6 +59,8 @@ def nav_config(table: dict[str, Any] | None) -> dict[str, Any]:
         raise ValueError(f"[nav].backend must be 'numpy', 'numba' or 'auto' (got {cfg['backend']!r})")
     if cfg["debug_image_period_s"] < 0 or cfg["debug_image_downsample"] < 1:
         raise ValueError("[nav].debug_image_period_s must be >= 0 and debug_image_downsample >= 1")
+    if cfg["control_sigma_model"] not in ("mixture", "quiet"):
+        raise ValueError(f"[nav].control_sigma_model must be 'mixture' or 'quiet' (got {cfg['control_sigma_model']!r})")
     if not cfg["control_max_sigma_m"] >= 0:
         raise ValueError(f"[nav].control_max_sigma_m must be >= 0 (got {cfg['control_max_sigma_m']!r})")
     _check_nav_params(cfg["navigator"], cfg["params"])
@@ -94,13 +97,19 @@ def _check_nav_params(navigator: str, params: dict[str, Any]) -> None:
 GAINED_ROE = [0, 2, 3, 4, 5]  # a*da, a*dex, a*dey, a*dix, a*diy: the components with a gain in paper 002's law (missions/p002_sabatini/fsw)
 
 
-def control_tracks(tracks: list[Track], max_sigma_m: float) -> list[Track]:
+def control_tracks(tracks: list[Track], max_sigma_m: float, model: str = "mixture") -> list[Track]:
     """Tracks whose 1-sigma of a*da, a*de and a*di components is at most max_sigma_m (all of them if
-    max_sigma_m is 0 or a track has no covariance): those the controller may act on (module docstring)."""
+    max_sigma_m is 0 or a track has no covariance): those the controller may act on (module docstring).
+    `model` "quiet": the 1-sigma of the IMM's quiet model where the track has one (has the estimate
+    converged, were the neighbour not manoeuvring), else of the track's covariance."""
     if max_sigma_m <= 0:
         return list(tracks)
-    return [t for t in tracks if t.covariance_m2 is None
-            or float(np.sqrt(np.max(np.diagonal(np.asarray(t.covariance_m2))[GAINED_ROE]))) <= max_sigma_m]
+
+    def cov(t: Track) -> np.ndarray | None:
+        return t.quiet_covariance_m2 if model == "quiet" and t.quiet_covariance_m2 is not None else t.covariance_m2
+
+    return [t for t in tracks if cov(t) is None
+            or float(np.sqrt(np.max(np.diagonal(np.asarray(cov(t)))[GAINED_ROE]))) <= max_sigma_m]
 
 
 class Perception:
@@ -160,7 +169,7 @@ class Perception:
         return self._observation(step, t_s, u_rad)
 
     def _observation(self, step: int, t_s: float, u_rad: float) -> Observation:
-        ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"]))
+        ids, rp, rv = observation_arrays(control_tracks(self.tracks, self.cfg["control_max_sigma_m"], self.cfg["control_sigma_model"]))
         return Observation(step=step, t_s=t_s, u_rad=u_rad, neighbour_ids=ids, rel_position_m=rp, rel_velocity_mps=rv)
 
     def track_messages(self) -> list[pb.TrackEstimate]:

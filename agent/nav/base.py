@@ -26,6 +26,7 @@ class Track:
     age_steps: int = 0  # frames since the track was created
     hits: int = 1  # frames in which a blob updated it
     blob_index: int = -1  # blob used in the latest frame, -1 if none
+    quiet_covariance_m2: np.ndarray | None = None  # (6, 6) of the IMM's quiet model (agent/nav/ekf.py), None without IMM
 
 
 class Navigator(Protocol):

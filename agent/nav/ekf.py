@@ -472,7 +472,8 @@ def tracks_out(outs: list[list[_EkfTrack]], u_rad: float, n_radps: float) -> lis
     pos, vel = roe_to_lvlh(np.stack([tr.x for tr in flat]), u_rad, n_radps)
     res, k = [], 0
     for out in outs:
-        res.append([Track(tr.track_id, tr.x.copy(), pos[k + i], vel[k + i], tr.p.copy(), tr.age, tr.hits, tr.blob_index)
+        res.append([Track(tr.track_id, tr.x.copy(), pos[k + i], vel[k + i], tr.p.copy(), tr.age, tr.hits, tr.blob_index,
+                          tr.pm[0].copy() if len(tr.pm) > 1 else None)
                     for i, tr in enumerate(out)])
         k += len(out)
     return res
