@@ -461,6 +461,16 @@ def write_report(out: Path, rows: list[dict[str, Any]], meta: dict[str, Any]) ->
     return Path(out) / "report.md", Path(out) / "report.html"
 
 
+def _file_sha256(path: str) -> str | None:
+    """sha256 of a file's bytes (None when it cannot be read: the run itself then reports the file)."""
+    import hashlib
+
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
 def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequence[str] = (),
                  duration_s: float | None = None, executor: str = "local", jobs: int = 2, scheduler: str | None = None,
                  metrics: bool = True, keep_recording: bool = True, retry_failed: bool = False,
@@ -475,13 +485,12 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
     out.mkdir(parents=True, exist_ok=True)
     scenario = str(Path(scenario).resolve())
     meta_path = out / "campaign.json"
-    meta: dict[str, Any] = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics}
+    meta: dict[str, Any] = {"scenario": scenario, "sets": list(sets), "duration_s": duration_s, "metrics": metrics,
+                            "scenario_sha256": _file_sha256(scenario)}
     base_rows: list[dict[str, Any]] | None = None
     if faults is not None:
-        import hashlib
-
         faults = str(Path(faults).resolve())
-        meta["faults"] = {"file": faults, "sha256": hashlib.sha256(Path(faults).read_bytes()).hexdigest()}
+        meta["faults"] = {"file": faults, "sha256": _file_sha256(faults)}
         if baseline:
             base_rows = run_campaign(scenario, seeds, out / "baseline", sets=sets, duration_s=duration_s,
                                      executor=executor, jobs=jobs, scheduler=scheduler, metrics=metrics,
@@ -493,7 +502,7 @@ def run_campaign(scenario: str, seeds: Sequence[int], out: Path, *, sets: Sequen
         except (OSError, UnicodeDecodeError, ValueError) as exc:
             raise ValueError(f"{meta_path}: not a campaign's record ({' '.join(str(exc).split())[:100]}); "
                              f"use another --out") from None
-        for k in ("scenario", "sets", "duration_s", "faults"):
+        for k in ("scenario", "sets", "duration_s", "faults", "scenario_sha256"):  # (an edited scenario file is another campaign)
             if old.get(k) != meta.get(k):
                 raise ValueError(f"{out} holds a campaign with {k} = {old.get(k)!r}, not {meta.get(k)!r}; "
                                  f"use another --out")

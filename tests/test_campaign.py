@@ -13,6 +13,7 @@ resumable; `swarmhil sweep` on the same executor.
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import os
 import signal
@@ -128,6 +129,23 @@ def test_killed_campaign_resumes_with_the_remaining_seeds(tmp_path: Path) -> Non
     # a campaign with other parameters refuses the directory instead of mixing rows
     with pytest.raises(ValueError, match="duration_s"):
         run_campaign(SCENARIO, seeds, out, duration_s=1200.0, executor="local", jobs=1, metrics=False)
+
+
+def test_a_campaign_of_an_edited_scenario_file_refuses_the_directory(tmp_path: Path) -> None:
+    """The same path, other bytes: resuming would mix the rows of two scenarios (the file's sha256 is
+    part of the campaign's record, as the faults file's is)."""
+    from swarmhil.deploy.campaign import run_campaign
+
+    scen = tmp_path / "s.toml"
+    scen.write_text(Path(SCENARIO).read_text())
+    out = tmp_path / "c"
+    res = run_campaign(str(scen), [0], out, duration_s=20.0, executor="local", jobs=1, metrics=False)
+    assert res["ran"] == [0]
+    assert json.loads((out / "campaign.json").read_text())["scenario_sha256"] == hashlib.sha256(scen.read_bytes()).hexdigest()
+    assert run_campaign(str(scen), [0], out, duration_s=20.0, executor="local", jobs=1, metrics=False)["skipped"] == [0]
+    scen.write_text(scen.read_text().replace("k_ecc = 1.1", "k_ecc = 1.2"))
+    with pytest.raises(ValueError, match="scenario_sha256"):
+        run_campaign(str(scen), [0], out, duration_s=20.0, executor="local", jobs=1, metrics=False)
 
 
 def test_failed_run_is_a_row(tmp_path: Path) -> None:
