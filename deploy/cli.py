@@ -343,21 +343,38 @@ def mcap_info(src: str) -> None:
 
 @main.command()
 @click.argument("scenario", type=click.Path(exists=True, dir_okay=False))
-@click.option("--out", "out", type=click.Path(dir_okay=False), default="compose.yml", show_default=True)
+@click.option("--out", "out", type=click.Path(), default=None,
+              help="The compose file to write (default compose.yml); with --hosts, a new directory (one project per host).")
 @click.option("--run-id", help="Run id; default <scenario>-<time>-<hex>.")
 @click.option("--image", default="swarmhil:latest", show_default=True)
 @click.option("--router-host", "router_hosts", multiple=True, metavar="ADDRESS",
               help="The router's address as other hosts dial it (repeatable): named in its TLS certificate.")
+@click.option("--hosts", "hosts_spec", metavar="NAME[=ADDRESS[:PORT]],...",
+              help="One project per host, each with its own router, the routers a mesh (each dials the others at "
+                   "ADDRESS, default the NAME; port 7447); agents round-robin or on their [[spacecraft]] host "
+                   "(counted from 0 in this order); plant, clock, recorder on the first host.")
 @click.option("--set", "sets", multiple=True, metavar="SECTION.KEY=VALUE",
               help="Override any scenario field (repeatable; value parsed as TOML), validated like the file (as `run --set`).")
-def compose(scenario: str, out: str, run_id: str | None, image: str, router_hosts: tuple[str, ...],
-            sets: tuple[str, ...]) -> None:
+def compose(scenario: str, out: str | None, run_id: str | None, image: str, router_hosts: tuple[str, ...],
+            hosts_spec: str | None, sets: tuple[str, ...]) -> None:
     """Write a compose project (compose.yml, scenario.json, secrets/) that starts the run's processes as
-    containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md)."""
-    from swarmhil.deploy.compose import write_compose  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
+    containers, each agent its own, on mutual TLS with per-run credentials (docs/reliability.md); with
+    --hosts, one project per host whose routers form a mesh (docs/scaling.md)."""
+    from swarmhil.deploy.compose import parse_hosts, write_compose, write_compose_hosts  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.deploy.launcher import new_run_id  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
     from swarmhil.deploy.scenario import ScenarioError, load_scenario  # on use: a command or role loads what it runs (start-up; tests/test_imports.py)
 
+    hosts = None
+    if hosts_spec is not None:
+        if router_hosts:
+            _fail("--router-host and --hosts: with --hosts the routers' addresses are the hosts' (NAME=ADDRESS)", EXIT_USAGE)
+        if out is None or Path(out).suffix in (".yml", ".yaml"):
+            _fail(f"--hosts writes one project per host under a directory: give --out DIR"
+                  f"{f' (not the file {out})' if out else ''}", EXIT_USAGE)
+        try:
+            hosts = parse_hosts(hosts_spec)
+        except ValueError as exc:
+            _fail(str(exc), EXIT_USAGE)
     try:
         sc = load_scenario(scenario, sets)
     except ScenarioError as exc:
@@ -372,11 +389,25 @@ def compose(scenario: str, out: str, run_id: str | None, image: str, router_host
 
     try:
         rid = check_token(run_id, "--run-id") if run_id is not None else new_run_id(sc.name)
-        hosts = [check_token(h, "--router-host") for h in router_hosts]
+        addresses = [check_token(h, "--router-host") for h in router_hosts]
     except ValueError as exc:
         _fail(str(exc), EXIT_USAGE)
+    if hosts is not None:
+        try:
+            placed = write_compose_hosts(sc, scenario, rid, Path(out), hosts, image=image)
+        except ValueError as exc:  # a [[spacecraft]] host beyond the hosts, a DIR not empty: nothing written
+            _fail(str(exc), EXIT_USAGE)
+        except (OSError, TlsError) as exc:
+            _fail(str(exc), EXIT_FAILED)
+        for h in placed["hosts"]:
+            click.echo(f"wrote {Path(out) / h['project']} (host {h['host']}, router {h['router']}, {len(h['agents'])} agents"
+                       f"{', ' + ', '.join(h['ground']) if h['ground'] else ''})")
+        click.echo(f"wrote {Path(out) / 'placement.json'}")
+        return
+    if Path(out or "compose.yml").is_dir():
+        _fail(f"--out {out}: a directory; give the compose file to write (a directory is for --hosts)", EXIT_USAGE)
     try:
-        path = write_compose(sc, scenario, rid, Path(out), image=image, router_hosts=hosts)
+        path = write_compose(sc, scenario, rid, Path(out or "compose.yml"), image=image, router_hosts=addresses)
     except (OSError, TlsError) as exc:
         _fail(str(exc), EXIT_FAILED)
     click.echo(f"wrote {path} ({len(sc.ids)} agents)")

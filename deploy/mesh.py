@@ -29,10 +29,12 @@ def new_router_zid() -> str:
     return f"{secrets.randbits(128) | (1 << 127):032x}"
 
 
-def placement(ids: Sequence[str], hosts: int, pinned: Mapping[str, int | None]) -> dict[str, int]:
+def placement(ids: Sequence[str], hosts: int, pinned: Mapping[str, int | None],
+              names: Sequence[str] | None = None) -> dict[str, int]:
     """Host of each spacecraft's agent: `pinned[id]` where not None, else round-robin (i mod hosts).
 
-    ValueError (one line) for hosts < 1 or a pinned host outside 0 .. hosts-1."""
+    ValueError (one line) for hosts < 1 or a pinned host outside 0 .. hosts-1; `names`: the hosts'
+    names in order (`swarmhil compose --hosts h1,h2,...`), which the line then lists."""
     if hosts < 1:
         raise ValueError(f"--hosts {hosts}: needs at least one host")
     out: dict[str, int] = {}
@@ -41,20 +43,26 @@ def placement(ids: Sequence[str], hosts: int, pinned: Mapping[str, int | None]) 
         if h is None:
             h = i % hosts
         elif not 0 <= h < hosts:
+            if names is not None:
+                raise ValueError(f"[[spacecraft]] {sid}: host = {h}, but --hosts names {hosts} host"
+                                 f"{'s' if hosts != 1 else ''}, numbered in the order given: "
+                                 + ", ".join(f"{j} = {n}" for j, n in enumerate(names)))
             raise ValueError(f"[[spacecraft]] {sid}: host = {h}, but the run has {hosts} host"
                              f"{'s' if hosts != 1 else ''} (0 .. {hosts - 1}; give --hosts {h + 1} or more)")
         out[sid] = int(h)
     return out
 
 
-def scenario_placement(sc: Any, hosts: int) -> dict[str, int]:
+def scenario_placement(sc: Any, hosts: int, names: Sequence[str] | None = None) -> dict[str, int]:
     """`placement` for a loaded scenario (its `[[spacecraft]] host` fields)."""
-    return placement(list(sc.ids), hosts, {s.id: getattr(s, "host", None) for s in sc.spacecraft})
+    return placement(list(sc.ids), hosts, {s.id: getattr(s, "host", None) for s in sc.spacecraft}, names)
 
 
-def router_users(hosts: int) -> list[str]:
-    """The users routers on hosts 1 .. K-1 authenticate as when they connect to the others."""
-    return [router_name(h) for h in range(1, hosts)]
+def router_users(hosts: int, first: int = 1) -> list[str]:
+    """The users the routers of hosts `first` .. K-1 authenticate as when they connect to others:
+    `router-<i>` (a launcher's mesh: from host 1, host 0's router dials nobody; a compose project
+    per host: from host 0, every router dials every other)."""
+    return [f"router-{h}" for h in range(first, hosts)]
 
 
 def process_hosts(agent_hosts: Mapping[str, int], ground: Iterable[str]) -> dict[str, int]:

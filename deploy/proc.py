@@ -136,15 +136,17 @@ def _await_run_end(node: object, timeout_s: float) -> None:
 
 def _router(args: argparse.Namespace) -> int:
     """The run's router on its own (compose, another host): deploy/router.py with the run's auth
-    dictionary + ACL (bus/acl.py: --acl-dir, or --users/--acl) and mutual TLS (bus/tls.py: --tls)."""
-    from swarmhil.deploy.router import router_overrides, run_router  # this process role's modules only (tests/test_imports.py)
+    dictionary + ACL (bus/acl.py: --acl-dir, or --users/--acl), mutual TLS (bus/tls.py: --tls) and,
+    on one of several hosts, its links to the other hosts' routers (--connect, --zid, --credentials)."""
+    from swarmhil.deploy.router import router_overrides, run_router, with_mesh  # this process role's modules only (tests/test_imports.py)
 
     try:
-        overrides = router_overrides(args.listen, acl_dir=args.acl_dir, users=args.users, acl=args.acl, tls=args.tls)
+        overrides = with_mesh(args, router_overrides(args.listen, acl_dir=args.acl_dir, users=args.users, acl=args.acl,
+                                                     tls=args.tls), authenticated=bool(args.acl_dir or args.users))
     except ValueError as exc:
         print(f"error: router: {exc}", file=sys.stderr, flush=True)
         return 2
-    return run_router(args.listen, overrides, _stop_event())
+    return run_router(args.listen, overrides, _stop_event(), connect=args.connect, link_timeout_s=args.link_timeout)
 
 
 def _probe(router: str, timeout_s: float) -> int:
@@ -186,6 +188,9 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--users", help="the run's user/password dictionary (secrets/users.txt, bus/acl.py)")
     r.add_argument("--acl", help="the run's access control (secrets/acl.json); needs --users")
     r.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
+    from swarmhil.deploy.router import add_mesh_arguments  # its options only (tests/test_imports.py)
+
+    add_mesh_arguments(r)  # a host's router of a run over several hosts (deploy/mesh.py, a compose project per host)
     h = sub.add_parser("probe", help="exit 0 when something accepts TCP connections at a router endpoint "
                        "(a compose health check)")
     h.add_argument("--router", required=True)

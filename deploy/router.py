@@ -4,7 +4,9 @@
 In a run over several hosts (deploy/mesh.py) a host's router also links to the routers of the hosts
 before it: `--connect EP` (repeatable) with `--zid` (its Zenoh id, which the run's ACL names) and
 `--credentials` (the `router-<i>` user it authenticates as; with --tls it presents the router
-certificate). It prints `router mesh: linked to N routers` once it has a link to every one of them.
+certificate). It prints `router mesh: linked to N routers` once it has a link to every one of them
+(`--link-timeout 0`: it waits for them for ever, as a compose deployment's routers do, whose hosts
+come up in any order). The `router` role of deploy/proc.py takes the same mesh options.
 
 Lean on purpose (no numpy, no scenario): it must come up fast on a loaded machine. With
 `--acl-dir` (a run's secrets directory, bus/acl.py) it authenticates every client and applies the
@@ -82,10 +84,11 @@ def mesh_overrides(zid: str | None, credentials: str | None = None, tls: str | N
 
 
 def _wait_linked(session: object, want: int, stop: Stop, timeout_s: float) -> int:
-    """Wait until the router has a link to `want` other routers; their number (fewer on timeout or stop)."""
+    """Wait until the router has a link to `want` other routers (for ever when `timeout_s` <= 0);
+    their number (fewer on timeout or stop)."""
     import time
 
-    t_end = time.monotonic() + timeout_s
+    t_end = time.monotonic() + timeout_s if timeout_s > 0 else float("inf")  # 0: no deadline
     n = 0
     while True:
         n = len(list(session.info.routers_zid()))  # type: ignore[attr-defined]
@@ -122,6 +125,31 @@ def run_router(listen: str, overrides: dict | None, stop: Stop, also: list[str] 
     return 0
 
 
+def add_mesh_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options of a mesh router (this module's command line and the `router` role of deploy/proc.py)."""
+    ap.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                    help="another host's router of the run to link to (a mesh of routers; repeatable)")
+    ap.add_argument("--zid", help="this router's Zenoh id (hex): the run's ACL names the mesh's routers by it")
+    ap.add_argument("--credentials", help="file 'user:password' this router authenticates with to the --connect routers")
+    ap.add_argument("--link-timeout", type=float, default=60.0, metavar="SECONDS",
+                    help="exit (code 6) when a --connect router is not linked within this long (0: wait for ever)")
+
+
+def with_mesh(args: argparse.Namespace, overrides: dict | None, authenticated: bool) -> dict | None:
+    """`overrides` plus the mesh options of `args` (add_mesh_arguments); ValueError (one line) for
+    a --connect of another protocol than --listen, or one without --credentials on an
+    authenticated router."""
+    if not (args.connect or args.zid or args.credentials):
+        return overrides
+    proto = args.listen.split("/", 1)[0]
+    for ep in args.connect:
+        if ep.split("/", 1)[0] != proto:
+            raise ValueError(f"--connect {ep} is not a {proto}/ endpoint like --listen")
+    if args.connect and authenticated and not args.credentials:
+        raise ValueError("--connect to routers of an authenticated run needs --credentials (a router-<i> user)")
+    return {**(overrides or {}), **mesh_overrides(args.zid, args.credentials, args.tls if args.connect else None)}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m swarmhil.deploy.router")
     ap.add_argument("--listen", required=True, help="endpoint to listen on, e.g. tcp/127.0.0.1:7447")
@@ -129,22 +157,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tls", metavar="DIR", help="the run's TLS directory (ca.pem, router.pem/.key): mutual TLS")
     ap.add_argument("--also-listen", action="append", default=[], metavar="ENDPOINT",
                     help="another endpoint to listen on, of the same protocol (external flight software on another host)")
-    ap.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                    help="another host's router of the run to link to (a mesh of routers; repeatable)")
-    ap.add_argument("--zid", help="this router's Zenoh id (hex): the run's ACL names the mesh's routers by it")
-    ap.add_argument("--credentials", help="file 'user:password' this router authenticates with to the --connect routers")
-    ap.add_argument("--link-timeout", type=float, default=60.0, metavar="SECONDS",
-                    help="exit (code 6) when a --connect router is not linked within this long")
+    add_mesh_arguments(ap)
     args = ap.parse_args(argv)
     try:  # a bad directory fails before any signal handler is installed
-        overrides = router_overrides(args.listen, acl_dir=args.acl_dir, tls=args.tls)
-        if args.connect or args.zid or args.credentials:
-            for ep in args.connect:
-                if ep.split("/", 1)[0] != args.listen.split("/", 1)[0]:
-                    raise ValueError(f"--connect {ep} is not a {args.listen.split('/', 1)[0]}/ endpoint like --listen")
-            if args.connect and args.acl_dir and not args.credentials:
-                raise ValueError("--connect to routers of an authenticated run needs --credentials (a router-<i> user)")
-            overrides = {**(overrides or {}), **mesh_overrides(args.zid, args.credentials, args.tls if args.connect else None)}
+        overrides = with_mesh(args, router_overrides(args.listen, acl_dir=args.acl_dir, tls=args.tls),
+                              authenticated=bool(args.acl_dir))
         for ep in args.also_listen:
             if ep.split("/", 1)[0] != args.listen.split("/", 1)[0]:
                 raise ValueError(f"--also-listen {ep} is not a {args.listen.split('/', 1)[0]}/ endpoint like --listen")
@@ -153,7 +170,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     stop = stop_on_signals(signal.SIGTERM, signal.SIGINT)
     return run_router(args.listen, overrides, stop, args.also_listen, args.connect, args.link_timeout)
-
 
 if __name__ == "__main__":
     code = main()

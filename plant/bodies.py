@@ -68,7 +68,8 @@ class SpacecraftSpec(_Spec):
     cpu_fraction: float | None = Field(None, ge=0.01, le=64)
     radius_m: float | None = Field(None, gt=0)         # hard-body radius (default: [contact].default_radius_m)
     # the host whose router the agent is a client of, in a run over several hosts (`swarmhil run --hosts K`,
-    # deploy/mesh.py); default: round-robin. Checked against K when the run starts.
+    # `swarmhil compose --hosts h1,h2,...`: the N-th in the order given; deploy/mesh.py); default:
+    # round-robin. Checked against K when the run starts (or the projects are written).
     host: int | None = Field(None, ge=0)
 
     @field_validator("id")

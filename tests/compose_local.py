@@ -163,3 +163,22 @@ def tail(logs: Path, name: str, n: int = 20) -> str:
         return "\n".join((logs / f"{name}.log").read_text(errors="replace").splitlines()[-n:])
     except OSError:
         return ""
+
+
+def require_namespaces() -> None:
+    """Root, `ip` and `openssl`: compose services run across network namespaces the test makes
+    (each missing one a failure in CI, a skip with the install command elsewhere)."""
+    from system_tools import require_command, require_root
+
+    require_root("network namespaces")
+    require_command("ip", "iproute2")
+    require_command("openssl", "openssl")
+
+
+def single_host_run(scenario: Path, sc: Any, out: Path, run: str) -> Any:
+    """The reference: the same scenario and run id by `swarmhil run`'s launcher, its router on loopback."""
+    from swarmhil.deploy.launcher import MultiProcessRun
+
+    res = MultiProcessRun(str(scenario), sc, out, run, progress=False).execute()
+    assert res.exit_code == 0, res.reason
+    return res

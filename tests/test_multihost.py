@@ -19,7 +19,6 @@ from pathlib import Path
 import pytest
 
 from conftest import SCENARIOS, topics
-from system_tools import require_command, require_root
 
 pytestmark = pytest.mark.system
 
@@ -78,19 +77,14 @@ def _host_of(service: str) -> str:
 def test_three_host_run_equals_the_single_host_run(tmp_path: Path) -> None:
     import yaml
 
-    require_root("network namespaces")  # each a failure in CI, a skip with the install command elsewhere
-    require_command("ip", "iproute2")
-    require_command("openssl", "openssl")
+    from compose_local import require_namespaces, run_to_end, services, single_host_run, tail
 
-    from compose_local import run_to_end, services, tail
+    require_namespaces()
     from swarmhil.deploy.compose import write_compose
-    from swarmhil.deploy.launcher import MultiProcessRun
     from swarmhil.deploy.scenario import load_scenario
 
     sc = load_scenario(SCENARIOS / SCENARIO, SETS)
-    # the single-host run: the launcher, its router on loopback
-    single = MultiProcessRun(str(SCENARIOS / SCENARIO), sc, tmp_path / "single", RUN, progress=False).execute()
-    assert single.exit_code == 0, single.reason
+    single = single_host_run(SCENARIOS / SCENARIO, sc, tmp_path / "single", RUN)
 
     out = tmp_path / "proj" / "compose.yml"
     write_compose(sc, SCENARIO, RUN, out, router_hosts=[ROUTER_IP])
