@@ -51,6 +51,10 @@ REQUIRED: tuple[Required, ...] = (
     Required("docs/camera-navigation.md", "The camera campaign against ideal sensing", "camera-campaign"),
     Required("docs/camera-navigation.md", "Where the rendered camera's error comes from: the layers on one seed",
              "camera-layers"),
+    Required("docs/faults.md", "Example: paper 004 with a measurement dropout and a thruster failure",
+             "faults-servicing"),
+    Required("docs/faults.md", "Fault campaigns", "faults-campaign"),
+    Required("docs/faults.md", "Hulls and contact", "faults-contacts"),
 )
 
 NOT_YET = tuple(r for r in REQUIRED if r.table is None)

@@ -23,11 +23,12 @@ RECORDED = Path(__file__).resolve().parent / "recorded.json"
 
 def modules() -> list[ModuleType]:
     """The registry's modules, one per doc or paper."""
-    from swarmhil.claims import (camera_navigation, mission_floors, p000_speed, paper000, paper000_repro, paper000_stack,
-                                 paper001, paper001_study, paper002, paper003, paper004, performance, reliability, rtf)
+    from swarmhil.claims import (camera_navigation, faults, mission_floors, p000_speed, paper000, paper000_repro,
+                                 paper000_stack, paper001, paper001_study, paper002, paper003, paper004, performance,
+                                 reliability, rtf)
 
     return [paper000, paper000_stack, paper000_repro, paper001, paper001_study, paper002, paper003, paper004, performance,
-            reliability, rtf, mission_floors, p000_speed, camera_navigation]
+            reliability, rtf, mission_floors, p000_speed, camera_navigation, faults]
 
 
 def _value(v: Any) -> Any:

@@ -127,6 +127,95 @@ def test_compose_file_validates_with_compose_v2(tmp_path: Path) -> None:
     assert not resolved["networks"]["swarm"].get("internal", False)
 
 
+def network_failures(doc: dict) -> list[str]:
+    """What would keep a compose project's containers from reaching their router over its networks,
+    read from a compose document with its variables at their defaults (Compose's resolved `config
+    --format json`, or the generator's own through compose_local.interpolate: a service without
+    `networks` is on Compose's `default` network): every service on the one
+    defined bridge network `swarm` and on no other; that network internal unless told otherwise;
+    the host every client dials (`--router tls/HOST:PORT`) and the host the router listens on name
+    the router service on that network, at the port it listens on; the router's port published on
+    127.0.0.1 only."""
+    def nets(s: dict) -> set[str]:
+        n = s.get("networks")
+        return {"default"} if not n else set(n)
+
+    def endpoint(s: dict, flag: str) -> tuple[str, int] | None:
+        cmd = [str(a) for a in s.get("command", [])]
+        if flag not in cmd:
+            return None
+        proto_host, port = cmd[cmd.index(flag) + 1].rsplit(":", 1)
+        return proto_host.split("/", 1)[1], int(port)
+
+    def names(svc: str, net: str) -> set[str]:  # what resolves to a service on a network
+        n = doc["services"][svc].get("networks")
+        aliases = (n.get(net) or {}).get("aliases", []) if isinstance(n, dict) else []
+        return {svc, *aliases} if net in nets(doc["services"][svc]) else set()
+
+    out: list[str] = []
+    defined = doc.get("networks") or {}
+    if set(defined) != {"swarm"}:
+        out.append(f"networks defined: {sorted(defined)}, not swarm alone")
+    swarm = defined.get("swarm") or {}
+    if swarm.get("driver") != "bridge":
+        out.append(f"network swarm: driver {swarm.get('driver')!r}, not bridge")
+    if swarm.get("internal") not in (True, "true"):
+        out.append(f"network swarm: internal {swarm.get('internal')!r}")
+    routers = [n for n, s in doc["services"].items() if [str(a) for a in s.get("command", [])][3:4] == ["router"]]
+    if len(routers) != 1:
+        return out + [f"router services: {routers}"]
+    router = routers[0]
+    listen = endpoint(doc["services"][router], "--listen")
+    for name, s in doc["services"].items():
+        if nets(s) != {"swarm"}:
+            out.append(f"{name}: on networks {sorted(nets(s))}, not swarm alone")
+        dial = listen if name == router else endpoint(s, "--router")
+        if dial is None:
+            out.append(f"{name}: no router endpoint")
+            continue
+        reached = [r for r in doc["services"] if any(dial[0] in names(r, n) for n in nets(s))]
+        if reached != [router] or listen is None or dial[1] != listen[1]:
+            out.append(f"{name}: dials {dial[0]}:{dial[1]}, which reaches {reached} (the router {router} "
+                       f"listens on {listen})")
+    ports = doc["services"][router].get("ports") or []
+    for p in ports:
+        host_ip, target = (p.get("host_ip"), p.get("target")) if isinstance(p, dict) else (p.split(":")[0], p.split(":")[-1])
+        if host_ip != "127.0.0.1" or listen is None or int(target) != listen[1]:
+            out.append(f"router publishes {p}, not its port {listen} on 127.0.0.1")
+    if not ports:
+        out.append("router publishes no port")
+    return out
+
+
+def test_every_container_reaches_the_router_over_the_generated_network(tmp_path: Path) -> None:
+    """The generated project's networks as Compose v2 resolves them (`config --format json`, offline,
+    no engine, no traffic): every service on the internal bridge `swarm` alone; the router's name,
+    which every client dials and the router listens on, resolves there to the router service; its
+    port published on 127.0.0.1. The same holds of the generator's own document. (The container test
+    runs every service in the host's network namespace, and the process test on loopback: neither
+    exercises these networks.)"""
+    exe = require_compose()
+    out, doc = _project(tmp_path, "sabatini-20-beacon.toml", "c3", "--set", "dispersion.count=3")
+    from compose_local import interpolate
+
+    assert network_failures(interpolate(doc, {})) == []
+    cfg = subprocess.run([*exe, "-f", str(out), "config", "--format", "json"], capture_output=True, text=True,
+                         cwd=tmp_path, env={k: v for k, v in os.environ.items() if not k.startswith("SWARMHIL_")})
+    assert cfg.returncode == 0, cfg.stderr
+    resolved = json.loads(cfg.stdout)
+    assert sorted(resolved["services"]) == sorted(doc["services"])
+    assert network_failures(resolved) == []
+    # the check sees what it is for: a service left off the network, a renamed router, a wrong port
+    bad = json.loads(cfg.stdout)
+    del bad["services"]["agent-sc02"]["networks"]
+    assert network_failures(bad) == ["agent-sc02: on networks ['default'], not swarm alone",
+                                     "agent-sc02: dials router:7447, which reaches [] (the router router listens on "
+                                     "('router', 7447))"]
+    bad = json.loads(cfg.stdout)
+    bad["services"]["zrouter"] = bad["services"].pop("router")
+    assert all("reaches []" in f for f in network_failures(bad)) and len(network_failures(bad)) == len(bad["services"])
+
+
 LOOPBACK_SCENARIO = "sabatini-20-beacon.toml"
 
 
