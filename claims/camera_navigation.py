@@ -51,6 +51,10 @@ SOURCE = "p002.cam.campaign"  # the prefix of each mode's source: p002.cam.campa
 # point or two apart under two kernel sets of one machine; four times the seeds halve the interval)
 FILTER_SEEDS = tuple(range(80))
 MODE_SEEDS: dict[str, tuple[int, ...]] = {"exact": SEEDS, "filter": FILTER_SEEDS}
+# the count of seeds that split only under the rendered camera moves with the floating-point kernels (a
+# day at the edge of a split: eighty seeds gave 11 under the default kernels, 8 under OPENBLAS_CORETYPE=Haswell);
+# the band holds both samples, and stays clear of zero
+SPLIT_TOL: dict[str, Tol] = {"filter": Tol(abs=3.0)}
 DIR_ENV, JOBS_ENV = "SWARMHIL_CAMERA_CAMPAIGN_DIR", "SWARMHIL_CAMPAIGN_JOBS"
 
 
@@ -161,7 +165,8 @@ def mode_claims(m: str) -> list[Claim]:
         _c(f"{m}-diff", f"{m}.diff_pp", AUTO, f"{m}: paired difference from ideal, mean [pp]", "+.2f", src),
         _c(f"{m}-diff-lo", f"{m}.diff_lo_pp", AUTO, f"{m}: its 95 % CI, low [pp]", "+.2f", src),
         _c(f"{m}-diff-hi", f"{m}.diff_hi_pp", AUTO, f"{m}: its 95 % CI, high [pp]", "+.2f", src),
-        _c(f"{m}-split", f"{m}.split_only", Tol(), f"{m}: seeds that split under it and stay whole under ideal", "d", src),
+        _c(f"{m}-split", f"{m}.split_only", SPLIT_TOL.get(m, Tol()), f"{m}: seeds that split under it and stay whole under ideal",
+           "d", src),
         _c(f"{m}-split-base", f"{m}.split_base_only", Tol(), f"{m}: seeds that split under ideal and stay whole under it",
            "d", src),
         _c(f"{m}-head-min", _head(m, f"{m}.head_min_pct"), AUTO, f"{m}: min per-step connectivity where ideal stays whole [%]", ".1f", src),
