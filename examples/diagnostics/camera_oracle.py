@@ -9,6 +9,8 @@ camera's navigation hands it (the same neighbours at the same steps):
   all       position and velocity of the true neighbour nearest the track's estimated position
   velocity  the true relative velocity only (the estimated position kept)
   position  the true relative position only (the estimated velocity kept)
+  all+gated, all+untracked, all+gated+untracked
+            `all`, and a row (truth) for each visible neighbour the control gate withheld / that has no track
 
 Prints, per seed, the per-step weak connectivity, the total dV and the median distance between a
 row's estimate and its matched true neighbour; with --out, writes [seed, connectivity, dV] rows
@@ -117,8 +119,9 @@ def run_seed(args: tuple[int, str, list[str], float]):
     def wrapped(self, ctx, rows, observers, sense):
         batch = observe(self, ctx, rows, observers, sense)
         pers = self.perception.perceptions
-        return truth_rows(batch, ctx, rows, what, stats, pers, pers[0].cfg["control_max_sigma_m"], pers[0].cfg["control_sigma_model"]) if what != "none" else \
-            (truth_rows(batch, ctx, rows, "count", stats, pers, pers[0].cfg["control_max_sigma_m"], pers[0].cfg["control_sigma_model"]) and batch)
+        cfg = pers[0].cfg
+        out = truth_rows(batch, ctx, rows, what, stats, pers, cfg["control_max_sigma_m"], cfg["control_sigma_model"])
+        return batch if what == "none" else out  # "none": counted, flown as the scenario
 
     batch_mod.BatchHook._observe = wrapped
     sc = load_scenario(str(SCENARIO), sets).with_overrides(seed=seed, duration_s=duration_s)
